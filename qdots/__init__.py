@@ -1,0 +1,32 @@
+"""qdots: quantum-dot monolayer packing on pymunk (thesis chapter 2).
+
+>>> import qdots
+>>> scene = qdots.Scene(box=(100, 100), positions=[[30, 50], [70, 50]], radii=[7.5, 7.5],
+...                     velocities=[[20, 0], [-20, 0]])
+>>> sim = qdots.Simulation(scene, [qdots.VanDerWaals()], seed=1)
+>>> state = sim.run(1.0)
+"""
+
+from ._malloc import ALLOCATOR_TUNED
+from .collisions import Restitution
+from .forces import CenterGravity, Drag, Force, Gravity, Langevin, ThermalKicks, VanDerWaals
+from .scene import Scene, grating_segments
+from .simulation import Simulation
+from .state import State
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "Scene",
+    "Simulation",
+    "State",
+    "Restitution",
+    "Force",
+    "VanDerWaals",
+    "ThermalKicks",
+    "Langevin",
+    "Drag",
+    "Gravity",
+    "CenterGravity",
+    "grating_segments",
+]

@@ -1,0 +1,63 @@
+"""The interface every force implements, and the per-step data it sees."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass
+class StepContext:
+    """What a force sees at the start of one time step.
+
+    Attributes
+    ----------
+    time : float
+        Simulation time at the start of the step, s.
+    dt : float
+        Length of the step, s.
+    x, y : ndarray, shape (N,)
+        Dot centres, px (contiguous copies: fast to fancy-index).
+    velocity : ndarray, shape (N, 2)
+        Dot velocities, px/s. Read-only for forces.
+    radii, masses : ndarray, shape (N,)
+        Dot radii (px) and masses (mean dot mass = 1).
+    rng : numpy.random.Generator
+        The simulation's generator; draw from it only, so runs repeat.
+    dv : ndarray, shape (N, 2)
+        Accumulator: each force *adds* its velocity change, px/s.
+    """
+
+    time: float
+    dt: float
+    x: np.ndarray
+    y: np.ndarray
+    velocity: np.ndarray
+    radii: np.ndarray
+    masses: np.ndarray
+    rng: np.random.Generator
+    dv: np.ndarray
+
+
+class Force:
+    """A velocity update applied to the dots once per time step.
+
+    Forces are evaluated on the same start-of-step state and their velocity
+    changes summed (first-order operator splitting, as the thesis adds
+    "acceleration ... only at the beginning of each time step as a change in
+    velocity"); Chipmunk then moves the dots and resolves contacts.
+
+    Subclasses implement `kick`, and `bind` when they cache per-dot data.
+    """
+
+    def bind(self, radii: np.ndarray, masses: np.ndarray) -> None:
+        """Called when the set of dots changes; cache per-dot constants here."""
+
+    def kick(self, ctx: StepContext) -> None:
+        """Add this force's velocity change for one step to ``ctx.dv``."""
+        raise NotImplementedError
+
+    def __repr__(self) -> str:
+        params = ", ".join(f"{k}={v!r}" for k, v in vars(self).items() if not k.startswith("_"))
+        return f"{type(self).__name__}({params})"

@@ -1,0 +1,87 @@
+"""External fields and substrate drag: `Gravity`, `CenterGravity`, `Drag`."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .base import Force, StepContext
+
+#: Gravity of the thesis's deposition code: ``setGravity(25)`` times 30 px per length unit, px/s^2.
+THESIS_GRAVITY = 750.0
+
+
+class Gravity(Force):
+    """Uniform acceleration.
+
+    Parameters
+    ----------
+    acceleration : (float, float)
+        Acceleration vector, px/s^2. Default: the thesis's 750 px/s^2
+        toward y = 0 (our y axis points up; the thesis's screen y pointed
+        down).
+    """
+
+    def __init__(self, acceleration: tuple[float, float] = (0.0, -THESIS_GRAVITY)):
+        g = np.asarray(acceleration, dtype=float)
+        if g.shape != (2,) or not np.isfinite(g).all():
+            raise ValueError(f"Gravity.acceleration must be two finite numbers (px/s^2), got {acceleration!r}")
+        self.acceleration = (float(g[0]), float(g[1]))
+
+    def kick(self, ctx: StepContext) -> None:
+        ctx.dv += np.multiply(self.acceleration, ctx.dt)
+
+
+class CenterGravity(Force):
+    """Constant-magnitude acceleration toward a point (thesis ``runRandomCenterGravity``).
+
+    Parameters
+    ----------
+    center : (float, float)
+        The attracting point, px.
+    magnitude : float
+        Acceleration, px/s^2 (>= 0). Default 750 px/s^2 as in the thesis.
+    """
+
+    def __init__(self, center: tuple[float, float], magnitude: float = THESIS_GRAVITY):
+        c = np.asarray(center, dtype=float)
+        if c.shape != (2,) or not np.isfinite(c).all():
+            raise ValueError(f"CenterGravity.center must be two finite numbers (px), got {center!r}")
+        if not (np.isfinite(magnitude) and magnitude >= 0):
+            raise ValueError(f"CenterGravity.magnitude must be >= 0 px/s^2, got {magnitude!r}")
+        self.center = (float(c[0]), float(c[1]))
+        self.magnitude = float(magnitude)
+
+    def kick(self, ctx: StepContext) -> None:
+        dx = self.center[0] - ctx.x
+        dy = self.center[1] - ctx.y
+        d = np.sqrt(dx * dx + dy * dy)
+        # A dot exactly on the centre feels no pull (the direction is undefined).
+        scale = np.divide(self.magnitude * ctx.dt, d, out=np.zeros_like(d), where=d > 0)
+        ctx.dv[:, 0] += scale * dx
+        ctx.dv[:, 1] += scale * dy
+
+
+class Drag(Force):
+    """The thesis's substrate friction: ``v *= max(1 - f1 dt - f2 |v| dt, 0)``.
+
+    Parameters
+    ----------
+    linear : float
+        ``f1``, 1/s (>= 0). Thesis default 0.025.
+    quadratic : float
+        ``f2``, 1/px (>= 0). The thesis passes 0.025 per length unit and
+        divides by its 30 px per length unit, so 0.025/30 px^-1.
+    """
+
+    def __init__(self, linear: float = 0.025, quadratic: float = 0.025 / 30.0):
+        for name, value in (("linear", linear), ("quadratic", quadratic)):
+            if not (np.isfinite(value) and value >= 0):
+                raise ValueError(f"Drag.{name} must be >= 0, got {value!r}")
+        self.linear = float(linear)
+        self.quadratic = float(quadratic)
+
+    def kick(self, ctx: StepContext) -> None:
+        v = ctx.velocity
+        speed = np.sqrt(v[:, 0] * v[:, 0] + v[:, 1] * v[:, 1])
+        loss = np.minimum((self.linear + self.quadratic * speed) * ctx.dt, 1.0)
+        ctx.dv -= v * loss[:, None]

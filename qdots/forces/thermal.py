@@ -1,0 +1,97 @@
+"""Thermal motion: the thesis's periodic kicks and a Langevin thermostat."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..units import THESIS_KICK_INTERVAL, thesis_kick_speed
+from .base import Force, StepContext
+
+
+class ThermalKicks(Force):
+    """The thesis's thermal motion: periodic velocity kicks in random directions.
+
+    Every ``interval`` seconds each dot's velocity gets a vector of magnitude
+    ``scale * 1.5 * sqrt(2 kb T / (m avgMass))`` (1.876 px/s for a mean-mass
+    dot, see `qdots.units.thesis_kick_speed`) in a uniformly random
+    direction. Kicks happen at the times ``interval, 2 interval, ...``; a step
+    that spans several of them applies each one, so the schedule does not
+    depend on ``dt`` and needs no state to resume.
+
+    This is not a thermostat: without drag or inelastic collisions the speed
+    of a free dot random-walks upward. Use `Langevin` for a temperature.
+
+    Parameters
+    ----------
+    interval : float
+        Time between kicks, s (> 0). Thesis: 1/50 s.
+    scale : float
+        Multiplier on the thesis magnitude (>= 0).
+    """
+
+    def __init__(self, interval: float = THESIS_KICK_INTERVAL, scale: float = 1.0):
+        if not (math.isfinite(interval) and interval > 0):
+            raise ValueError(f"ThermalKicks.interval must be > 0 s, got {interval!r}")
+        if not (math.isfinite(scale) and scale >= 0):
+            raise ValueError(f"ThermalKicks.scale must be >= 0, got {scale!r}")
+        self.interval = float(interval)
+        self.scale = float(scale)
+        self._speed = np.zeros(0)
+
+    def bind(self, radii: np.ndarray, masses: np.ndarray) -> None:
+        self._speed = self.scale * thesis_kick_speed(masses)
+
+    def kicks_in_step(self, time: float, dt: float) -> int:
+        """How many kick instants fall in ``(time, time + dt]``."""
+        # The tolerance absorbs round-off in time = sum of dt's.
+        tol = 1e-9
+        return math.floor((time + dt) / self.interval + tol) - math.floor(time / self.interval + tol)
+
+    def kick(self, ctx: StepContext) -> None:
+        for _ in range(self.kicks_in_step(ctx.time, ctx.dt)):
+            angle = ctx.rng.uniform(0.0, 2.0 * math.pi, size=len(self._speed))
+            ctx.dv[:, 0] += self._speed * np.cos(angle)
+            ctx.dv[:, 1] += self._speed * np.sin(angle)
+
+
+class Langevin(Force):
+    """Langevin thermostat: drag ``gamma`` and noise consistent with it.
+
+    The velocity of each dot follows ``dv = -gamma v dt + sqrt(2 gamma kT / m) dW``,
+    integrated exactly over a step (Ornstein-Uhlenbeck update)::
+
+        v <- c v + sqrt(kT/m (1 - c^2)) xi,   c = exp(-gamma dt),  xi ~ N(0, 1)
+
+    so a free dot samples the Maxwell distribution, ``<m v_x^2> = kT``,
+    for any ``dt`` (fluctuation-dissipation holds by construction).
+
+    Parameters
+    ----------
+    gamma : float
+        Friction rate, 1/s (>= 0).
+    kT : float
+        Thermal energy in simulation units (mean mass * px^2 / s^2, >= 0).
+        The default makes the rms speed of a mean-mass dot equal to one
+        thesis kick, ``kT = thesis_kick_speed(1)**2 / 2`` (about 1.76).
+    """
+
+    def __init__(self, gamma: float = 1.0, kT: float | None = None):
+        if kT is None:
+            kT = float(thesis_kick_speed(1.0)) ** 2 / 2.0
+        for name, value in (("gamma", gamma), ("kT", kT)):
+            if not (math.isfinite(value) and value >= 0):
+                raise ValueError(f"Langevin.{name} must be >= 0, got {value!r}")
+        self.gamma = float(gamma)
+        self.kT = float(kT)
+        self._sigma_unit = np.zeros(0)
+
+    def bind(self, radii: np.ndarray, masses: np.ndarray) -> None:
+        self._sigma_unit = np.sqrt(self.kT / masses)
+
+    def kick(self, ctx: StepContext) -> None:
+        c = math.exp(-self.gamma * ctx.dt)
+        sigma = self._sigma_unit * math.sqrt(1.0 - c * c)
+        noise = ctx.rng.standard_normal(ctx.dv.shape)
+        ctx.dv += (c - 1.0) * ctx.velocity + sigma[:, None] * noise

@@ -1,0 +1,180 @@
+"""Isolated impacts have exact answers: Eq 2.5 is a normal restitution eps with frictionless contact.
+
+Tolerances: a single circle-circle contact is solved exactly by Chipmunk's first solver
+iteration, and overlap correction acts on pseudo-velocities only, so measured restitution,
+tangential velocity and momentum agree with theory to round-off (we allow 1e-9 relative).
+"""
+
+import numpy as np
+import pytest
+
+import qdots
+
+TOL = 1e-9
+
+
+def expected_eps(seed, mean=0.8):
+    """The first draw the simulation's generator makes for a dot-dot impact."""
+    rule = qdots.Restitution(mean=mean)
+    return rule.draw(np.random.default_rng(seed), approach_speed=np.inf)
+
+
+def collide(v1, v2, m1=1.0, m2=1.0, offset=0.0, seed=0, mean=0.8, seconds=1.2, **rule):
+    """Two dots approaching along x (dot 1 displaced by `offset` in y); returns before/after velocities."""
+    scene = qdots.Scene(
+        box=(400, 200),
+        positions=[[170, 100], [230, 100 + offset]],
+        radii=[7.5, 7.5],
+        masses=[m1, m2],
+        velocities=[v1, v2],
+        restitution=qdots.Restitution(mean=mean, **rule),
+    )
+    sim = qdots.Simulation(scene, seed=seed)
+    before = sim.state()
+    sim.run(seconds)
+    after = sim.state()
+    assert sim.collisions.dot_dot == 1
+    assert sim.collisions.dot_wall == 0
+    return before, after, sim
+
+
+def line_of_centres_at_contact(p1, p2, v1, v2, r_sum):
+    """Unit normal at first contact of two discs moving in straight lines (exact kinematics)."""
+    dp, dv = p2 - p1, v2 - v1
+    a, b, c = dv @ dv, 2 * dp @ dv, dp @ dp - r_sum**2
+    t = (-b - np.sqrt(b * b - 4 * a * c)) / (2 * a)
+    n = dp + dv * t
+    return n / np.linalg.norm(n)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2, 7])
+@pytest.mark.parametrize("m1, m2", [(1.0, 1.0), (1.0, 3.0), (2.5, 0.4)])
+def test_head_on_restitution_equals_drawn_eps(seed, m1, m2):
+    before, after, _ = collide([40.0, 0.0], [-25.0, 0.0], m1, m2, seed=seed)
+    v_in = before.velocities[1, 0] - before.velocities[0, 0]
+    v_out = after.velocities[1, 0] - after.velocities[0, 0]
+    assert -v_out / v_in == pytest.approx(expected_eps(seed), abs=TOL)
+    np.testing.assert_allclose(after.momentum(), before.momentum(), atol=TOL * 100)
+    np.testing.assert_allclose(after.velocities[:, 1], 0.0, atol=TOL)
+
+
+def step_until_impact(sim, max_steps=5000):
+    """Step until velocities change; return (velocities before, state after the impact step)."""
+    v_prev = sim.state().velocities
+    for _ in range(max_steps):
+        sim.step()
+        state = sim.state()
+        if not np.array_equal(state.velocities, v_prev):
+            return v_prev, state
+        v_prev = state.velocities
+    raise AssertionError("no impact")
+
+
+@pytest.mark.parametrize("m1, m2", [(1.0, 1.0), (1.0, 3.0)])
+def test_oblique_impact_keeps_tangential_velocity(m1, m2):
+    """Exact along the normal Chipmunk uses: the line of centres when the overlap is detected."""
+    seed = 4
+    scene = qdots.Scene(box=(400, 200), positions=[[170, 100], [230, 109]], radii=[7.5, 7.5],
+                        masses=[m1, m2], velocities=[[60.0, 0.0], [-10.0, 0.0]])
+    sim = qdots.Simulation(scene, seed=seed)
+    p_before = sim.state().momentum()
+    v0, after = step_until_impact(sim)
+    n = after.positions[1] - after.positions[0]
+    n /= np.linalg.norm(n)
+    t = np.array([-n[1], n[0]])
+    v1 = after.velocities
+    np.testing.assert_allclose(v1 @ t, v0 @ t, atol=TOL * 100)
+    eps = -((v1[1] - v1[0]) @ n) / ((v0[1] - v0[0]) @ n)
+    assert eps == pytest.approx(expected_eps(seed), abs=TOL)
+    np.testing.assert_allclose(after.momentum(), p_before, atol=TOL * 100)
+
+
+def test_contact_normal_error_shrinks_with_dt():
+    """Detecting an impact up to one step late tilts the normal by O(v dt / r): first order in dt.
+
+    The delay depends on where contact falls on the step grid, so average over start offsets.
+    """
+    mean_errors = []
+    for dt in (2e-3, 5e-4):
+        errors = []
+        for shift in np.linspace(0.0, 1.0, 12):
+            scene = qdots.Scene(box=(400, 200), positions=[[170 + shift, 100], [230, 109]], radii=[7.5, 7.5],
+                                velocities=[[60.0, 0.0], [-10.0, 0.0]])
+            sim = qdots.Simulation(scene, seed=4, dt=dt)
+            start = sim.state()
+            exact = line_of_centres_at_contact(start.positions[0], start.positions[1],
+                                               start.velocities[0], start.velocities[1], 15.0)
+            _, after = step_until_impact(sim, max_steps=int(2.0 / dt))
+            n = after.positions[1] - after.positions[0]
+            errors.append(np.degrees(np.arccos(min(1.0, n @ exact / np.linalg.norm(n)))))
+        mean_errors.append(np.mean(errors))
+    assert mean_errors[1] < 0.1  # degrees, at dt = 0.5 ms and a 70 px/s approach
+    assert 2.5 < mean_errors[0] / mean_errors[1] < 6.5  # 4x smaller dt -> ~4x smaller error
+
+
+def test_eq_2_5_form_matches_restitution():
+    """Eq 2.5: v_f = eps v_elastic + (1 - eps) v_cm, per dot, along the line of centres."""
+    seed, m1, m2 = 3, 1.0, 2.0
+    before, after, _ = collide([30.0, 0.0], [-30.0, 0.0], m1, m2, seed=seed, mean=0.5)
+    eps = expected_eps(seed, mean=0.5)
+    u1, u2 = before.velocities[:, 0]
+    v_cm = (m1 * u1 + m2 * u2) / (m1 + m2)
+    elastic1 = 2 * v_cm - u1
+    elastic2 = 2 * v_cm - u2
+    np.testing.assert_allclose(after.velocities[:, 0],
+                               [eps * elastic1 + (1 - eps) * v_cm, eps * elastic2 + (1 - eps) * v_cm],
+                               atol=1e-9)
+
+
+def test_slow_impact_is_perfectly_inelastic():
+    before, after, sim = collide([0.4, 0.0], [-0.3, 0.0], seconds=80.0)  # approach 0.7 px/s < 1 px/s
+    np.testing.assert_allclose(after.velocities[0], after.velocities[1], atol=TOL)
+    np.testing.assert_allclose(after.momentum(), before.momentum(), atol=TOL)
+    assert sim.collisions.sticking == 1
+
+
+def test_zero_mean_elasticity_sticks_and_unit_mean_is_elastic():
+    _, after, _ = collide([40.0, 0.0], [-40.0, 0.0], mean=0.0)
+    np.testing.assert_allclose(after.velocities, 0.0, atol=TOL)
+    _, after, _ = collide([40.0, 0.0], [-40.0, 0.0], mean=1.0)
+    np.testing.assert_allclose(after.velocities[:, 0], [-40.0, 40.0], atol=TOL)
+
+
+@pytest.mark.parametrize("angle_deg", [0.0, 30.0, 75.0])
+def test_wall_impacts_are_elastic_by_default(angle_deg):
+    a = np.radians(angle_deg)
+    v = 50.0 * np.array([np.sin(a), -np.cos(a)])  # toward the bottom wall
+    scene = qdots.Scene(box=(300, 100), positions=[[100, 30]], radii=[7.5], velocities=[v])
+    sim = qdots.Simulation(scene, seed=0)
+    sim.run(2.0)
+    assert sim.collisions.dot_wall >= 1
+    after = sim.state().velocities[0]
+    assert np.linalg.norm(after) == pytest.approx(50.0, abs=TOL)
+    assert after[0] == pytest.approx(v[0], abs=TOL)
+
+
+def test_wall_restitution_is_configurable():
+    scene = qdots.Scene(box=(300, 100), positions=[[100, 50]], radii=[7.5], velocities=[[0.0, -50.0]],
+                        restitution=qdots.Restitution(wall=0.5))
+    sim = qdots.Simulation(scene, seed=0)
+    sim.run(0.9)  # one bounce off the floor, not yet the ceiling
+    assert sim.state().velocities[0, 1] == pytest.approx(25.0, abs=TOL)
+
+
+def test_elastic_gas_conserves_energy(rng):
+    """e = 1, no forces: kinetic energy is exact per impact; drift bound 1e-8 relative over 10^4 steps."""
+    n, side = 100, 400
+    grid = np.array([(x, y) for x in range(20, side, 38) for y in range(20, side, 38)], float)[:n]
+    scene = qdots.Scene(box=(side, side), positions=grid, radii=np.full(n, 7.5),
+                        velocities=rng.normal(0, 100, (n, 2)),
+                        restitution=qdots.Restitution(mean=1.0, sticking_speed=0.0))
+    sim = qdots.Simulation(scene, seed=1, dt=1e-3)
+    e0 = sim.state().kinetic_energy()
+    energies = []
+    for _ in range(20):
+        sim.step(500)
+        energies.append(sim.state().kinetic_energy())
+    drift = np.abs(np.array(energies) / e0 - 1).max()
+    assert sim.steps_taken == 10_000
+    assert sim.collisions.dot_dot > 1000  # the test means something only if dots collide a lot
+    assert drift < 1e-8

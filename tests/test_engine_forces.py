@@ -1,0 +1,362 @@
+"""Forces against exact or independently integrated answers."""
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+import qdots
+from qdots.forces import hamaker_force, thesis_offset
+from qdots.units import thesis_kick_speed
+
+from conftest import worst_overlap
+
+BIG_BOX = (2000.0, 2000.0)
+
+
+def lone_dot(velocity=(0.0, 0.0), mass=1.0, position=(1000.0, 1000.0)):
+    return qdots.Scene(box=BIG_BOX, positions=[position], radii=[5.0], masses=[mass], velocities=[velocity])
+
+
+# ---------------------------------------------------------------- van der Waals vs solve_ivp
+def vdw_pair_reference(model, gap0, masses, t_end, force):
+    """Separation of two dots under the dt -> 0 limit of the force law, by solve_ivp at rtol 1e-10."""
+    m1, m2 = masses
+    r = 7.5
+
+    def pull(gap):  # force magnitude between the pair (mass * px / s^2)
+        if model == "thesis":
+            return 0.5 * (force.r0 / (gap - force.offset)) ** 7
+        return float(hamaker_force(np.array(gap), np.array(r), np.array(r), force.strength))
+
+    def rhs(t, y):
+        x1, x2, v1, v2 = y
+        f = pull(max(x2 - x1 - 2 * r, force.min_gap))
+        return [v1, v2, f / m1, -f / m2]
+
+    sol = solve_ivp(rhs, (0, t_end), [0.0, 2 * r + gap0, 0.0, 0.0], rtol=1e-10, atol=1e-12,
+                    dense_output=True, method="DOP853")
+    return sol
+
+
+def contact_time(model, gap0, masses, force):
+    r = 7.5
+    event = lambda t, y: y[1] - y[0] - 2 * r - 1.0  # noqa: E731 - gap of 1 px
+    event.terminal = True
+    m1, m2 = masses
+
+    def rhs(t, y):
+        gap = max(y[1] - y[0] - 2 * r, force.min_gap)
+        f = 0.5 * (force.r0 / (gap - force.offset)) ** 7 if model == "thesis" else float(
+            hamaker_force(np.array(gap), np.array(r), np.array(r), force.strength))
+        return [y[2], y[3], f / m1, -f / m2]
+
+    sol = solve_ivp(rhs, (0, 100), [0, 2 * r + gap0, 0, 0], events=event, rtol=1e-10, atol=1e-12)
+    return sol.t_events[0][0]
+
+
+@pytest.mark.parametrize("model, masses", [("thesis", (1.0, 1.0)), ("thesis", (1.0, 2.0)), ("hamaker", (1.0, 1.0))])
+def test_vdw_pair_matches_solve_ivp_first_order(model, masses):
+    force = qdots.VanDerWaals(model)
+    gap0 = 8.0
+    t_end = 0.8 * contact_time(model, gap0, masses, force)
+    t_end = round(t_end / 0.004) * 0.004  # a whole number of steps for every dt below
+    reference = vdw_pair_reference(model, gap0, masses, t_end, force).sol(t_end)
+    errors = []
+    dts = (4e-3, 2e-3, 1e-3, 5e-4)
+    for dt in dts:
+        scene = qdots.Scene(box=(200, 100), positions=[[80, 50], [80 + 15 + gap0, 50]], radii=[7.5, 7.5],
+                            masses=list(masses), closed=False)
+        sim = qdots.Simulation(scene, [qdots.VanDerWaals(model)], seed=0, dt=dt)
+        sim.run(t_end)
+        assert sim.collisions.dot_dot == 0
+        x1, x2 = sim.state().positions[:, 0] - 80
+        errors.append(max(abs(x1 - reference[0]), abs(x2 - reference[1])))
+    orders = np.log2(np.array(errors[:-1]) / np.array(errors[1:]))
+    # symplectic Euler (kick, then Chipmunk's drift) is first order in dt
+    assert np.all((orders > 0.85) & (orders < 1.15)), (errors, orders)
+    assert errors[-1] < 0.02  # px, at dt = 0.5 ms over ~0.8 of the approach
+
+
+def test_thesis_proxy_constants():
+    force = qdots.VanDerWaals()
+    assert force.offset == pytest.approx(thesis_offset(15.0, 0.1, 1.0))
+    assert force.offset == pytest.approx(0.1 - 15.0 * (0.1 / 100.0) ** (1 / 7))
+    assert force.max_gap == 30.0
+
+
+def kick_speed(force, gap, dt=1e-3, masses=(1.0, 1.0)):
+    """Speed change of dot 0 toward dot 1 in one step, two 7.5 px dots at surface gap `gap`."""
+    from qdots.forces import StepContext
+
+    radii, masses = np.array([7.5, 7.5]), np.array(masses)
+    force.bind(radii, masses)
+    x = np.array([0.0, 15.0 + gap])
+    ctx = StepContext(time=0.0, dt=dt, x=x, y=np.zeros(2), velocity=np.zeros((2, 2)), radii=radii,
+                      masses=masses, rng=np.random.default_rng(0), dv=np.zeros((2, 2)))
+    force.kick(ctx)
+    assert ctx.dv[0, 1] == 0 and ctx.dv[1, 1] == 0
+    assert ctx.dv[0, 0] * masses[0] == pytest.approx(-ctx.dv[1, 0] * masses[1])  # equal and opposite
+    return ctx.dv[0, 0]
+
+
+@pytest.mark.parametrize("gap, dt", [(0.5, 1e-3), (0.5, 0.2), (5.0, 1e-3), (29.0, 1e-2)])
+def test_thesis_proxy_one_step(gap, dt):
+    """min(a dt/2, sqrt(g a)/2) with a = (R0/(g - b))^7 / m; the cap binds at large dt."""
+    force = qdots.VanDerWaals()
+    a = (15.0 / (gap - force.offset)) ** 7
+    assert kick_speed(force, gap, dt) == pytest.approx(min(a * dt / 2, np.sqrt(gap * a) / 2), rel=1e-12)
+
+
+def test_thesis_proxy_mass_dependence():
+    force = qdots.VanDerWaals()
+    a = (15.0 / (2.0 - force.offset)) ** 7
+    assert kick_speed(force, 2.0, 1e-3, masses=(2.0, 1.0)) == pytest.approx(a / 2 * 1e-3 / 2, rel=1e-12)
+
+
+def test_vdw_range_and_contact_rules():
+    hold, zero = qdots.VanDerWaals(contact="hold"), qdots.VanDerWaals(contact="zero")
+    assert kick_speed(hold, 31.0) == 0.0  # beyond 2 R0
+    assert kick_speed(hold, 29.0) > 0.0
+    at_min_gap = kick_speed(hold, 0.1)
+    assert kick_speed(hold, -0.05) == pytest.approx(at_min_gap)  # pressed pairs keep the contact force
+    assert kick_speed(hold, 0.02) == pytest.approx(at_min_gap)
+    assert kick_speed(zero, 0.02) == 0.0 and kick_speed(zero, -0.05) == 0.0
+    assert kick_speed(hold, 0.2) > 0
+    assert kick_speed(zero, 0.2) == pytest.approx(kick_speed(hold, 0.2))
+
+
+def test_default_hamaker_strength_matches_proxy_at_one_px():
+    thesis, hamaker = qdots.VanDerWaals("thesis"), qdots.VanDerWaals("hamaker")
+    proxy = 0.5 * (15.0 / (1.0 - thesis.offset)) ** 7
+    assert float(hamaker_force(np.array(1.0), np.array(7.5), np.array(7.5), hamaker.strength)) == pytest.approx(proxy)
+
+
+def test_hamaker_force_limits():
+    """Eq 2.2 tends to Ha R_eff / (6 h^2) at small gaps (Derjaguin limit for spheres)."""
+    r, h = 7.5, 1e-3
+    f = float(hamaker_force(np.array(h), np.array(r), np.array(r), 6.0))
+    assert f == pytest.approx((r / 2) / h**2, rel=2e-3)
+
+
+# ---------------------------------------------------------------- thermal motion
+def test_thesis_kick_speed_value():
+    assert float(thesis_kick_speed(1.0)) == pytest.approx(1.5 * np.sqrt(2 * 1.38e-20 * 297 / 5.24e-18))
+    assert float(thesis_kick_speed(1.0)) == pytest.approx(1.876, abs=1e-3)
+
+
+def test_each_kick_has_the_thesis_magnitude():
+    masses = np.array([0.5, 1.0, 2.0, 4.0])
+    scene = qdots.Scene(box=BIG_BOX, positions=[[200 * (k + 1), 500] for k in range(4)], radii=[5.0] * 4,
+                        masses=masses)
+    sim = qdots.Simulation(scene, [qdots.ThermalKicks()], seed=3, dt=0.02)
+    sim.step()  # the interval (0, 0.02] holds exactly one kick
+    speeds = np.linalg.norm(sim.state().velocities, axis=1)
+    np.testing.assert_allclose(speeds, thesis_kick_speed(masses), rtol=1e-12)
+
+
+@pytest.mark.parametrize("dt", [1e-3, 3e-3, 7e-3, 0.05])
+def test_kick_schedule_does_not_depend_on_dt(dt):
+    kicks = qdots.ThermalKicks()
+    n_steps = int(round(1.0 / dt))
+    t, total = 0.0, 0
+    for _ in range(n_steps):
+        total += kicks.kicks_in_step(t, dt)
+        t += dt
+    assert total == int(np.floor(n_steps * dt / kicks.interval + 1e-9))
+
+
+def test_kicks_random_walk_variance(rng):
+    """After k independent kicks of size s, E|v|^2 = k s^2; 400 free dots, 3 standard errors."""
+    n = 400
+    grid = np.array([(x, y) for x in range(50, 2000, 95) for y in range(50, 2000, 95)], float)[:n]
+    scene = qdots.Scene(box=BIG_BOX, positions=grid, radii=np.full(n, 2.0))
+    sim = qdots.Simulation(scene, [qdots.ThermalKicks()], seed=5, dt=2e-3)
+    sim.run(0.5)
+    assert sim.collisions.dot_dot == 0
+    v2 = np.sum(sim.state().velocities ** 2, axis=1)
+    expected = 25 * thesis_kick_speed(1.0) ** 2
+    assert abs(v2.mean() - expected) < 3 * v2.std(ddof=1) / np.sqrt(n)
+
+
+def test_langevin_equipartition():
+    """Dilute elastic gas with mixed masses: <m v_x^2> = kT per degree of freedom, within 3 SE."""
+    n = 200
+    rng = np.random.default_rng(0)
+    grid = np.array([(x, y) for x in range(40, 1000, 68) for y in range(40, 1000, 68)], float)[:n]
+    masses = rng.choice([0.5, 1.0, 2.0], n)
+    scene = qdots.Scene(box=(1000, 1000), positions=grid, radii=np.full(n, 3.0), masses=masses,
+                        restitution=qdots.Restitution(mean=1.0, sticking_speed=0.0))
+    kT = 5.0
+    sim = qdots.Simulation(scene, [qdots.Langevin(gamma=2.0, kT=kT)], seed=11, dt=2e-3)
+    sim.run(3.0)  # kinetic energy relaxes as exp(-2 gamma t)
+    samples = []
+    for _ in range(30):
+        sim.run(1.0)  # velocity autocorrelation exp(-gamma * 1 s) = 0.14
+        s = sim.state()
+        samples.append(s.masses[:, None] * s.velocities**2)
+    samples = np.array(samples)  # (time, dot, dof)
+    per_snapshot = samples.mean(axis=(1, 2))
+    se = per_snapshot.std(ddof=1) / np.sqrt(len(per_snapshot))
+    assert abs(per_snapshot.mean() - kT) < 3 * se
+    assert se < 0.03 * kT  # the test has the power to see a 10 % error
+    for m in (0.5, 2.0):  # equipartition holds for each mass separately
+        assert abs(samples[:, masses == m].mean() - kT) < 0.1 * kT
+
+
+def test_langevin_default_temperature_matches_a_thesis_kick():
+    assert qdots.Langevin().kT == pytest.approx(float(thesis_kick_speed(1.0)) ** 2 / 2)
+
+
+# ---------------------------------------------------------------- drag and gravity (exact)
+def test_drag_one_step_exact():
+    sim = qdots.Simulation(lone_dot(velocity=(100.0, 0.0)), [qdots.Drag(0.025, 0.025 / 30)], seed=0, dt=1e-3)
+    sim.step()
+    assert sim.state().velocities[0, 0] == pytest.approx(100.0 * (1 - 0.025e-3 - (0.025 / 30) * 100 * 1e-3), rel=1e-14)
+
+
+def test_drag_never_reverses_velocity():
+    sim = qdots.Simulation(lone_dot(velocity=(100.0, 0.0)), [qdots.Drag(2000.0, 0.0)], seed=0, dt=1e-3)
+    sim.step()
+    assert sim.state().velocities[0, 0] == 0.0
+
+
+def test_uniform_gravity_exact():
+    sim = qdots.Simulation(lone_dot(), [qdots.Gravity((0.0, -750.0))], seed=0, dt=1e-3)
+    sim.step(100)
+    np.testing.assert_allclose(sim.state().velocities[0], [0.0, -75.0], rtol=1e-12)
+
+
+def test_center_gravity_points_at_centre():
+    sim = qdots.Simulation(lone_dot(position=(1300.0, 1400.0)), [qdots.CenterGravity((1000.0, 1000.0), 500.0)],
+                           seed=0, dt=1e-3)
+    sim.step()
+    v = sim.state().velocities[0]
+    np.testing.assert_allclose(v, 0.5 * np.array([-0.6, -0.8]), rtol=1e-12)
+
+
+# ---------------------------------------------------------------- dense pack: the overlap bound
+OVERLAP_TOLERANCE = 0.015  # 1.5 % of a radius at default settings (measured ~0.6 %)
+
+
+def test_dense_pack_under_centre_gravity_overlap_bounded():
+    rng = np.random.default_rng(0)
+    n, side = 400, 600
+    grid = np.array([(x, y) for x in range(20, side - 15, 25) for y in range(20, side - 15, 25)], float)
+    grid = grid[rng.permutation(len(grid))[:n]]
+    radii = rng.normal(7.5, 0.75, n).clip(5, 9.5)
+    scene = qdots.Scene(box=(side, side), positions=grid, radii=radii)
+    forces = [qdots.CenterGravity((300, 300), 750.0), qdots.VanDerWaals(), qdots.ThermalKicks(), qdots.Drag(1.0, 0.01)]
+    sim = qdots.Simulation(scene, forces, seed=1)
+    sim.run(3.0)
+    worst = []
+    for _ in range(3):
+        sim.run(0.2)
+        s = sim.state()
+        worst.append(worst_overlap(s.positions, s.radii))
+        assert np.isfinite(s.positions).all()
+    # the pack really is compressed: most dots touch several others
+    s = sim.state()
+    d = np.linalg.norm(s.positions - [300, 300], axis=1)
+    assert np.median(d) < 160
+    assert 0 < max(worst) < OVERLAP_TOLERANCE
+
+
+# ---------------------------------------------------------------- reproducibility and plumbing
+def noisy_run(seed):
+    rng = np.random.default_rng(0)
+    n = 150
+    grid = np.array([(x, y) for x in range(20, 300, 22) for y in range(20, 300, 22)], float)[:n]
+    scene = qdots.Scene(box=(300, 300), positions=grid, radii=np.full(n, 7.5), velocities=rng.normal(0, 30, (n, 2)))
+    sim = qdots.Simulation(scene, [qdots.VanDerWaals(), qdots.ThermalKicks(), qdots.Drag()], seed=seed)
+    sim.run(1.0)
+    assert sim.collisions.dot_dot > 20  # random elasticities were drawn
+    return sim.state()
+
+
+def test_same_seed_is_bit_identical_and_other_seed_differs():
+    a, b, c = noisy_run(42), noisy_run(42), noisy_run(43)
+    assert np.array_equal(a.positions, b.positions) and np.array_equal(a.velocities, b.velocities)
+    assert not np.array_equal(a.positions, c.positions)
+
+
+def test_no_forces_means_no_bulk_traffic():
+    sim = qdots.Simulation(lone_dot(velocity=(10.0, 0.0)), [], seed=0)
+
+    def forbidden():
+        raise AssertionError("bulk read with no forces")
+
+    sim._io.read = forbidden  # noqa: SLF001
+    sim.step(10)
+
+
+@pytest.mark.parametrize(
+    "make, message",
+    [
+        (lambda: qdots.VanDerWaals("lennard-jones"), "model must be one of"),
+        (lambda: qdots.VanDerWaals(contact="sticky"), "contact must be"),
+        (lambda: qdots.VanDerWaals(r0=-1), "r0 must be > 0"),
+        (lambda: qdots.VanDerWaals(max_gap=0.05), "max_gap"),
+        (lambda: qdots.VanDerWaals(skin=-1), "skin must be >= 0"),
+        (lambda: qdots.ThermalKicks(interval=0), "interval must be > 0"),
+        (lambda: qdots.Langevin(gamma=-1), "gamma must be >= 0"),
+        (lambda: qdots.Drag(-0.1), "linear must be >= 0"),
+        (lambda: qdots.Gravity((0, np.nan)), "Gravity.acceleration"),
+        (lambda: qdots.CenterGravity((1, 2), -5), "magnitude must be >= 0"),
+    ],
+)
+def test_force_validation(make, message):
+    with pytest.raises(ValueError, match=message):
+        make()
+
+
+@pytest.mark.parametrize(
+    "kwargs, message",
+    [
+        (dict(dt=0), "dt must be > 0"),
+        (dict(substeps=0), "substeps must be an integer >= 1"),
+        (dict(iterations=2.5), "iterations must be an integer >= 1"),
+        (dict(collision_slop=-1), "collision_slop must be >= 0"),
+        (dict(collision_bias=1.5), r"collision_bias must be in \[0, 1\)"),
+        (dict(threads=3), "threads must be 1 or 2"),
+    ],
+)
+def test_simulation_validation(kwargs, message):
+    with pytest.raises(ValueError, match=message):
+        qdots.Simulation(lone_dot(), **kwargs)
+
+
+def test_run_rejects_negative_time_and_bad_writer():
+    sim = qdots.Simulation(lone_dot(), seed=0)
+    with pytest.raises(ValueError, match="seconds must be >= 0"):
+        sim.run(-1)
+
+    class Bad:
+        every = 0
+
+        def write(self, state):
+            pass
+
+    with pytest.raises(ValueError, match="writer.every"):
+        sim.run(0.01, writers=[Bad()])
+
+
+def test_writers_see_the_schedule():
+    class Times:
+        every = 7
+
+        def __init__(self):
+            self.times = []
+
+        def write(self, state):
+            self.times.append(state.time)
+
+    writer = Times()
+    sim = qdots.Simulation(lone_dot(), seed=0)
+    sim.run(0.03, writers=[writer])
+    np.testing.assert_allclose(writer.times, [0.0, 0.007, 0.014, 0.021, 0.028])
+
+
+def test_substeps_and_spatial_hash_give_the_same_free_flight():
+    a = qdots.Simulation(lone_dot(velocity=(10.0, 5.0)), seed=0, substeps=3, spatial_hash=(20.0, 1000))
+    a.run(0.1)
+    np.testing.assert_allclose(a.state().positions[0], [1001.0, 1000.5], rtol=1e-12)

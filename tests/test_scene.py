@@ -1,0 +1,97 @@
+"""Scene validation: every bad input is a ValueError naming the field and the index."""
+
+import numpy as np
+import pytest
+
+import qdots
+from qdots.scene import grating_segments
+
+
+def two_dots(**changes):
+    fields = dict(box=(100, 100), positions=[[30, 50], [70, 50]], radii=[7.5, 7.5])
+    fields.update(changes)
+    return qdots.Scene(**fields)
+
+
+def test_valid_scene_defaults():
+    scene = two_dots()
+    assert scene.n_dots == 2
+    np.testing.assert_array_equal(scene.masses, [1, 1])
+    np.testing.assert_array_equal(scene.velocities, np.zeros((2, 2)))
+    assert scene.wall_segments().shape == (4, 4)
+    assert not scene.positions.flags.writeable
+
+
+@pytest.mark.parametrize(
+    "changes, message",
+    [
+        (dict(radii=[7.5, -1.0]), r"radii\[1\] = -1.0 must be > 0"),
+        (dict(radii=[0.0, 7.5]), r"radii\[0\] = 0.0 must be > 0"),
+        (dict(radii=[7.5, np.nan]), r"radii\[1\] is not finite"),
+        (dict(positions=[[30, 50], [np.nan, 50]]), r"positions\[1\] is not finite"),
+        (dict(positions=[[30, 50], [np.inf, 50]]), r"positions\[1\] is not finite"),
+        (dict(masses=[1.0, 0.0]), r"masses\[1\] = 0.0 must be > 0"),
+        (dict(masses=[-2.0, 1.0]), r"masses\[0\] = -2.0 must be > 0"),
+        (dict(velocities=[[0, 0], [0, np.nan]]), r"velocities\[1\] is not finite"),
+        (dict(positions=[[30, 50], [40, 50]]), r"dots 0 and 1 overlap"),
+        (dict(positions=[[30, 50], [95, 50]]), r"positions\[1\] = \(95, 50\) with radius 7.5 lies outside the box"),
+        (dict(positions=[[5, 50], [70, 50]]), r"positions\[0\] .* lies outside the box"),
+        (dict(radii=[7.5]), r"radii must have shape \(2\)"),
+        (dict(positions=[1, 2, 3]), r"positions must have shape \(N, 2\)"),
+        (dict(box=(100, -5)), r"box\[1\] = -5.0 must be > 0"),
+        (dict(segments=[[10, 10, 10, 10]]), r"segments\[0\] has zero length"),
+        (dict(radii=["a", "b"]), r"radii must be numeric"),
+        (dict(restitution=0.8), r"restitution must be a qdots.Restitution"),
+    ],
+)
+def test_bad_input_is_named(changes, message):
+    with pytest.raises(ValueError, match=message):
+        two_dots(**changes)
+
+
+def test_overlap_names_the_worst_pair():
+    positions = [[20, 50], [34, 50], [60, 50], [70, 50]]  # 0-1 overlap by 1 px, 2-3 by 5 px
+    with pytest.raises(ValueError, match=r"dots 2 and 3 overlap"):
+        qdots.Scene(box=(100, 100), positions=positions, radii=[7.5] * 4)
+
+
+def test_touching_dots_are_allowed():
+    qdots.Scene(box=(100, 100), positions=[[30, 50], [45, 50]], radii=[7.5, 7.5])
+
+
+@pytest.mark.parametrize(
+    "kwargs, message",
+    [
+        (dict(mean=1.2), r"Restitution.mean must be in \[0, 1\]"),
+        (dict(wall=-0.1), r"Restitution.wall must be in \[0, 1\]"),
+        (dict(sticking_speed=-1), r"sticking_speed must be >= 0"),
+    ],
+)
+def test_restitution_validation(kwargs, message):
+    with pytest.raises(ValueError, match=message):
+        qdots.Restitution(**kwargs)
+
+
+def test_restitution_spread_follows_thesis():
+    assert qdots.Restitution(mean=0.8).std == pytest.approx(0.1)
+    assert qdots.Restitution(mean=0.3).std == pytest.approx(0.15)
+    assert qdots.Restitution(mean=1.0).std == 0.0
+
+
+def test_open_box_has_only_extra_segments():
+    scene = two_dots(closed=False, segments=[[0, 20, 100, 20]])
+    np.testing.assert_array_equal(scene.wall_segments(), [[0, 20, 100, 20]])
+
+
+def test_grating_lines():
+    pitch = 6 * 15 * np.sqrt(3) / 2
+    lines = grating_segments((600, 600), pitch)
+    np.testing.assert_allclose(lines[:, 1], pitch * np.arange(1, len(lines) + 1))
+    assert lines[:, 1].max() < 600 and len(lines) == int(600 // pitch)
+    with pytest.raises(ValueError, match="pitch"):
+        grating_segments((600, 600), 0)
+
+
+def test_replace_revalidates():
+    with pytest.raises(ValueError, match="radii"):
+        two_dots().replace(radii=[7.5, -7.5])
