@@ -29,4 +29,5 @@ __all__ = [
     "Gravity",
     "CenterGravity",
     "grating_segments",
+    "ALLOCATOR_TUNED",
 ]

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import time
 from typing import Iterable, Protocol, Sequence
 
 import numpy as np
@@ -97,11 +98,15 @@ class Simulation:
             if not isinstance(force, Force):
                 raise TypeError(f"forces must be qdots.forces.Force instances, got {type(force).__name__}")
         self.scene = scene
-        self.dt = float(dt)
+        self._dt = float(dt)
         self.substeps = int(substeps)
         self.rng = np.random.default_rng(seed)
-        self.time = 0.0
         self.steps_taken = 0
+        self._start_time = 0.0
+        #: Wall-clock seconds spent in the force phase (bulk read, kicks, bulk
+        #: write) and in Chipmunk's ``space.step`` (which includes the collision
+        #: callbacks), accumulated over all steps.
+        self.timings = {"forces": 0.0, "pymunk": 0.0}
 
         substep = self.dt / self.substeps
         if collision_bias is None:
@@ -147,16 +152,31 @@ class Simulation:
     def n_dots(self) -> int:
         return len(self._bodies)
 
+    @property
+    def dt(self) -> float:
+        """Time step, s (fixed for the life of the simulation)."""
+        return self._dt
+
+    @property
+    def time(self) -> float:
+        """Simulation time, s: start time + steps taken * dt (no round-off drift)."""
+        return self._start_time + self.steps_taken * self._dt
+
     def step(self, n: int = 1) -> None:
         """Advance ``n`` time steps."""
         substep = self.dt / self.substeps
+        clock = time.perf_counter
+        timings = self.timings
         for _ in range(int(n)):
+            t0 = clock()
             if self.forces:
                 self._apply_forces()
+            t1 = clock()
             for _ in range(self.substeps):
                 self.space.step(substep)
+            timings["forces"] += t1 - t0
+            timings["pymunk"] += clock() - t1
             self.steps_taken += 1
-            self.time += self.dt
 
     def _apply_forces(self) -> None:
         position, velocity = self._io.read()

@@ -21,6 +21,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numpy as np
+
 #: Boltzmann's constant as the thesis's Java code writes it, in g m^2 s^-2 K^-1.
 THESIS_KB = 1.38e-20
 #: Temperature of the thesis's thermal kicks, K.
@@ -34,7 +36,7 @@ CDSE_HAMAKER_EV = 0.388
 EV_IN_JOULE = 1.602176634e-19
 
 
-def thesis_kick_speed(mass: float | "numpy.ndarray") -> float:
+def thesis_kick_speed(mass: float | np.ndarray) -> float | np.ndarray:
     """Magnitude of one thesis thermal kick, px/s.
 
     ``1.5 * sqrt(2 kb T / (m * avgMass))`` (thesis Appendix A,
@@ -48,8 +50,6 @@ def thesis_kick_speed(mass: float | "numpy.ndarray") -> float:
     mass : float or ndarray
         Dot mass in units of the mean dot mass.
     """
-    import numpy as np
-
     return 1.5 * np.sqrt(2.0 * THESIS_KB * THESIS_TEMPERATURE / (np.asarray(mass) * THESIS_MEAN_MASS_G))
 
 

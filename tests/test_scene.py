@@ -55,6 +55,17 @@ def test_overlap_names_the_worst_pair():
         qdots.Scene(box=(100, 100), positions=positions, radii=[7.5] * 4)
 
 
+def test_overlap_tolerance_accepts_soft_contacts_only():
+    positions = [[30, 50], [44.9, 50]]  # relative overlap 0.1 / 7.5 = 1.33 %
+    with pytest.raises(ValueError, match="relative overlap 0.0133"):
+        qdots.Scene(box=(100, 100), positions=positions, radii=[7.5, 7.5])
+    qdots.Scene(box=(100, 100), positions=positions, radii=[7.5, 7.5], overlap_tolerance=0.02)
+    with pytest.raises(ValueError, match="overlap"):
+        qdots.Scene(box=(100, 100), positions=positions, radii=[7.5, 7.5], overlap_tolerance=0.01)
+    with pytest.raises(ValueError, match="overlap_tolerance must be in"):
+        qdots.Scene(box=(100, 100), positions=positions, radii=[7.5, 7.5], overlap_tolerance=-0.1)
+
+
 def test_touching_dots_are_allowed():
     qdots.Scene(box=(100, 100), positions=[[30, 50], [45, 50]], radii=[7.5, 7.5])
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._checks import nonnegative
 from .base import Force, StepContext
 
 #: Gravity of the thesis's deposition code: ``setGravity(25)`` times 30 px per length unit, px/s^2.
@@ -46,10 +47,8 @@ class CenterGravity(Force):
         c = np.asarray(center, dtype=float)
         if c.shape != (2,) or not np.isfinite(c).all():
             raise ValueError(f"CenterGravity.center must be two finite numbers (px), got {center!r}")
-        if not (np.isfinite(magnitude) and magnitude >= 0):
-            raise ValueError(f"CenterGravity.magnitude must be >= 0 px/s^2, got {magnitude!r}")
         self.center = (float(c[0]), float(c[1]))
-        self.magnitude = float(magnitude)
+        self.magnitude = nonnegative("CenterGravity.magnitude", magnitude)
 
     def kick(self, ctx: StepContext) -> None:
         dx = self.center[0] - ctx.x
@@ -74,11 +73,8 @@ class Drag(Force):
     """
 
     def __init__(self, linear: float = 0.025, quadratic: float = 0.025 / 30.0):
-        for name, value in (("linear", linear), ("quadratic", quadratic)):
-            if not (np.isfinite(value) and value >= 0):
-                raise ValueError(f"Drag.{name} must be >= 0, got {value!r}")
-        self.linear = float(linear)
-        self.quadratic = float(quadratic)
+        self.linear = nonnegative("Drag.linear", linear)
+        self.quadratic = nonnegative("Drag.quadratic", quadratic)
 
     def kick(self, ctx: StepContext) -> None:
         v = ctx.velocity

@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 
+from .._checks import nonnegative, positive
 from ..units import THESIS_KICK_INTERVAL, thesis_kick_speed
 from .base import Force, StepContext
 
@@ -32,12 +33,8 @@ class ThermalKicks(Force):
     """
 
     def __init__(self, interval: float = THESIS_KICK_INTERVAL, scale: float = 1.0):
-        if not (math.isfinite(interval) and interval > 0):
-            raise ValueError(f"ThermalKicks.interval must be > 0 s, got {interval!r}")
-        if not (math.isfinite(scale) and scale >= 0):
-            raise ValueError(f"ThermalKicks.scale must be >= 0, got {scale!r}")
-        self.interval = float(interval)
-        self.scale = float(scale)
+        self.interval = positive("ThermalKicks.interval", interval)
+        self.scale = nonnegative("ThermalKicks.scale", scale)
         self._speed = np.zeros(0)
 
     def bind(self, radii: np.ndarray, masses: np.ndarray) -> None:
@@ -80,11 +77,8 @@ class Langevin(Force):
     def __init__(self, gamma: float = 1.0, kT: float | None = None):
         if kT is None:
             kT = float(thesis_kick_speed(1.0)) ** 2 / 2.0
-        for name, value in (("gamma", gamma), ("kT", kT)):
-            if not (math.isfinite(value) and value >= 0):
-                raise ValueError(f"Langevin.{name} must be >= 0, got {value!r}")
-        self.gamma = float(gamma)
-        self.kT = float(kT)
+        self.gamma = nonnegative("Langevin.gamma", gamma)
+        self.kT = nonnegative("Langevin.kT", kT)
         self._sigma_unit = np.zeros(0)
 
     def bind(self, radii: np.ndarray, masses: np.ndarray) -> None:

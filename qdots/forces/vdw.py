@@ -2,10 +2,9 @@
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
+from .._checks import nonnegative, positive
 from ..neighbors import VerletPairs
 from .base import Force, StepContext
 
@@ -100,10 +99,10 @@ class VanDerWaals(Force):
             raise ValueError(f"VanDerWaals.model must be one of {MODELS}, got {model!r}")
         if contact not in ("hold", "zero"):
             raise ValueError(f"VanDerWaals.contact must be 'hold' or 'zero', got {contact!r}")
-        max_gap = 2.0 * r0 if max_gap is None else max_gap
-        for name, value in (("r0", r0), ("min_gap", min_gap), ("max_gap", max_gap), ("sticking_speed", sticking_speed)):
-            if not (math.isfinite(value) and value > 0):
-                raise ValueError(f"VanDerWaals.{name} must be > 0, got {value!r}")
+        r0 = positive("VanDerWaals.r0", r0)
+        max_gap = positive("VanDerWaals.max_gap", 2.0 * r0 if max_gap is None else max_gap)
+        min_gap = positive("VanDerWaals.min_gap", min_gap)
+        sticking_speed = positive("VanDerWaals.sticking_speed", sticking_speed)
         if max_gap <= min_gap:
             raise ValueError(f"VanDerWaals.max_gap ({max_gap}) must exceed min_gap ({min_gap})")
         self.model = model
@@ -117,9 +116,7 @@ class VanDerWaals(Force):
             # Match the thesis proxy's acceleration a/2 for mean dots (r = 7.5 px) at a 1 px gap.
             proxy = 0.5 * (self.r0 / (1.0 - self.offset)) ** 7
             strength = proxy / float(hamaker_force(np.array(1.0), np.array(7.5), np.array(7.5), 1.0))
-        if not (math.isfinite(strength) and strength >= 0):
-            raise ValueError(f"VanDerWaals.strength must be >= 0, got {strength!r}")
-        self.strength = float(strength)
+        self.strength = nonnegative("VanDerWaals.strength", strength)
         self._pairs = VerletPairs(skin)
         self.bind(np.zeros(0), np.zeros(0))
 
@@ -132,6 +129,7 @@ class VanDerWaals(Force):
         self._radii = radii
         self._inv_mass = 1.0 / masses
         self._equal_masses = bool(np.all(masses == masses[0])) if len(masses) else True
+        self._inv_mass_max = float(self._inv_mass.max(initial=0.0))
         self._cutoff = self.max_gap + 2.0 * float(radii.max(initial=0.0))
         self._pairs.invalidate()
 
@@ -150,15 +148,29 @@ class VanDerWaals(Force):
         q2 = q * q
         pull = q2 * q2 * q2 * q  # (R0/(g - b))^7 for unit mass; ** 7 is 2x slower
         linear = (0.5 * dt) * pull
+        if self._cap_cannot_bind(dt):
+            if self._equal_masses:
+                same = linear * self._inv_mass[0]
+                return same, same
+            return linear * self._inv_mi, linear * self._inv_mj
         capped = 0.5 * np.sqrt(gap * pull)
 
         def speed(inv_m: np.ndarray) -> np.ndarray:
             return np.minimum(linear * inv_m, capped * np.sqrt(inv_m))
 
         if self._equal_masses:
-            same = speed(self._inv_mass[0] if len(self._inv_mass) else 1.0)
+            same = speed(self._inv_mass[0])
             return same, same
         return speed(self._inv_mi), speed(self._inv_mj)
+
+    def _cap_cannot_bind(self, dt: float) -> bool:
+        """True when ``a dt/2 <= sqrt(g a)/2`` for every pair, i.e. ``a(g) dt^2 <= g``.
+
+        ``a(g) / g`` falls with ``g``, so checking the smallest gap and the
+        lightest dot is enough; at the defaults this holds for dt < 10 ms.
+        """
+        a_max = (self.r0 / (self.min_gap - self.offset)) ** 7 * self._inv_mass_max
+        return a_max * dt * dt <= self.min_gap
 
     def kick(self, ctx: StepContext) -> None:
         if self._pairs.update(ctx.x, ctx.y, self._cutoff):
@@ -177,12 +189,13 @@ class VanDerWaals(Force):
         # Coincident centres (d = 0) have no direction and get no force.
         weight = np.divide(active, d, out=np.zeros_like(d), where=d > 0)
         speed_i, speed_j = self._pair_speeds(np.maximum(gap, self.min_gap), ctx.dt)
-        ux, uy = dx * weight, dy * weight
         n = len(ctx.x)
         if speed_i is speed_j:
-            fx, fy = speed_i * ux, speed_i * uy
+            f = speed_i * weight
+            fx, fy = f * dx, f * dy
             ctx.dv[:, 0] += np.bincount(i, fx, n) - np.bincount(j, fx, n)
             ctx.dv[:, 1] += np.bincount(i, fy, n) - np.bincount(j, fy, n)
         else:
-            ctx.dv[:, 0] += np.bincount(i, speed_i * ux, n) - np.bincount(j, speed_j * ux, n)
-            ctx.dv[:, 1] += np.bincount(i, speed_i * uy, n) - np.bincount(j, speed_j * uy, n)
+            fi, fj = speed_i * weight, speed_j * weight
+            ctx.dv[:, 0] += np.bincount(i, fi * dx, n) - np.bincount(j, fj * dx, n)
+            ctx.dv[:, 1] += np.bincount(i, fi * dy, n) - np.bincount(j, fj * dy, n)

@@ -1,0 +1,157 @@
+"""Cost of our forces over bare pymunk, per step, and the overlap error at each size.
+
+For each N two scenes of 15 px dots are warmed up under van der Waals + thermal
+kicks + drag: ``loose`` (square lattice, 17 px pitch, ~2 contacts per dot) and
+``packed`` (hexagonal at contact, ~6 contacts per dot, like a settled film). From
+that same warmed state two simulations are timed alternately in chunks (timings
+on this machine drift 20-40 % between runs, so interleaving keeps the
+comparison fair):
+
+* ``full``: ``VanDerWaals() + ThermalKicks() + Drag()`` (default settings); its
+  own timers split each step into our force phase (bulk read, kicks, bulk
+  write) and Chipmunk's ``space.step`` (which includes the Python ``begin``
+  callbacks of the collision rule). The overhead ratio is total / ``space.step``:
+  what our forces add to the pymunk work of the *same* configuration.
+* ``bare``: the same start stepped with no forces. It is not the same workload:
+  without attraction the packed film relaxes and keeps about a third of its
+  contacts, so it is shown for reference only.
+
+Also: begin callbacks per step, contacts per dot, Verlet-list rebuilds per 100
+steps, and the worst overlap (r_i + r_j - d) / mean radius after the timed steps.
+Log-log fits give the growth exponents in N.
+
+Run: ``python -m benchmarks.engine_overhead [--sizes 300 3000 30000] [--steps 200]``
+"""
+
+from __future__ import annotations
+
+import argparse
+import platform
+import time
+
+import numpy as np
+import pymunk
+from scipy.spatial import cKDTree
+
+import qdots
+
+
+def worst_overlap(state: qdots.State) -> float:
+    pairs = cKDTree(state.positions).query_pairs(2 * state.radii.max(), output_type="ndarray")
+    if not len(pairs):
+        return 0.0
+    i, j = pairs.T
+    d = np.linalg.norm(state.positions[i] - state.positions[j], axis=1)
+    rsum = state.radii[i] + state.radii[j]
+    return max(0.0, float(((rsum - d) / (rsum / 2)).max()))
+
+
+def initial_positions(n: int, kind: str, rng: np.random.Generator) -> tuple[np.ndarray, tuple[float, float]]:
+    """``"loose"``: square lattice, 17 px pitch, jittered; ``"packed"``: hexagonal, 15.02 px pitch."""
+    side = int(np.ceil(np.sqrt(n)))
+    ij = np.argwhere(np.ones((side, side)))[:n].astype(float)
+    if kind == "loose":
+        positions = 20.0 + 17.0 * ij + rng.uniform(-0.9, 0.9, (n, 2))
+        return positions, (17.0 * side + 40.0,) * 2
+    pitch = 15.02
+    x = 20.0 + pitch * (ij[:, 1] + 0.5 * (ij[:, 0] % 2))
+    y = 20.0 + pitch * np.sqrt(3) / 2 * ij[:, 0]
+    return np.column_stack([x, y]), (pitch * side + 60.0,) * 2
+
+
+def warm_scene(n: int, kind: str, seed: int = 0, warmup_s: float = 0.3) -> qdots.Scene:
+    """n dots of 15 px laid out as ``kind``, run under the full force set until contacts form."""
+    positions, box = initial_positions(n, kind, np.random.default_rng(seed))
+    scene = qdots.Scene(box=box, positions=positions, radii=np.full(n, 7.5))
+    sim = qdots.Simulation(scene, full_forces(), seed=seed)
+    state = sim.run(warmup_s)
+    return scene.replace(positions=state.positions, velocities=state.velocities, overlap_tolerance=0.05)
+
+
+def full_forces() -> list[qdots.Force]:
+    return [qdots.VanDerWaals(), qdots.ThermalKicks(), qdots.Drag()]
+
+
+def measure(n: int, kind: str, steps: int, chunk: int = 20) -> dict:
+    scene = warm_scene(n, kind)
+    full = qdots.Simulation(scene, full_forces(), seed=1)
+    bare = qdots.Simulation(scene, [], seed=1)
+    full.step(chunk)  # first list build outside the timing
+    bare.step(chunk)
+    full.timings.update(forces=0.0, pymunk=0.0)
+    bare.timings.update(forces=0.0, pymunk=0.0)
+    rebuilds0, begins0 = full.forces[0].pairs.rebuilds, full.collisions.dot_dot
+    rounds = max(1, steps // chunk)
+    for _ in range(rounds):  # alternate, so drifts in machine speed hit both alike
+        full.step(chunk)
+        bare.step(chunk)
+    done = rounds * chunk
+    ms = {name: 1e3 * t / done for name, t in full.timings.items()}
+    return {
+        "N": n,
+        "scene": kind,
+        "full_ms": ms["forces"] + ms["pymunk"],
+        "pymunk_ms": ms["pymunk"],
+        "forces_ms": ms["forces"],
+        "ratio": (ms["forces"] + ms["pymunk"]) / ms["pymunk"],
+        "begins_per_step": (full.collisions.dot_dot - begins0) / done,
+        "bare_ms": 1e3 * bare.timings["pymunk"] / done,
+        "rebuilds_per_100": 100.0 * (full.forces[0].pairs.rebuilds - rebuilds0) / done,
+        "overlap_pct": 100.0 * worst_overlap(full.state()),
+        "contacts_per_dot": contacts_per_dot(full.state()),
+        "bare_contacts_per_dot": contacts_per_dot(bare.state()),
+    }
+
+
+def contacts_per_dot(state: qdots.State, tol: float = 0.05) -> float:
+    pairs = cKDTree(state.positions).query_pairs(2 * state.radii.max() + tol, output_type="ndarray")
+    return 2.0 * len(pairs) / state.n_dots
+
+
+def table(rows: list[dict]) -> str:
+    lines = [
+        "| scene | N | total ms/step | pymunk step | our forces + I/O | overhead total/pymunk | "
+        "begin callbacks /step | contacts/dot | list rebuilds /100 steps | worst overlap (% r) | "
+        "bare: no forces, same start (ms, contacts/dot) |",
+        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|",
+    ]
+    for r in rows:
+        lines.append(
+            f"| {r['scene']} | {r['N']:,} | {r['full_ms']:.2f} | {r['pymunk_ms']:.2f} | {r['forces_ms']:.2f} | "
+            f"{r['ratio']:.2f}x | {r['begins_per_step']:.0f} | {r['contacts_per_dot']:.2f} | "
+            f"{r['rebuilds_per_100']:.1f} | {r['overlap_pct']:.3f} | "
+            f"{r['bare_ms']:.2f} ms, {r['bare_contacts_per_dot']:.2f} |"
+        )
+    for kind in sorted({r["scene"] for r in rows}):
+        group = [r for r in rows if r["scene"] == kind]
+        if len(group) < 2:
+            continue
+        ns = np.log([r["N"] for r in group])
+        fits = [np.polyfit(ns, np.log([r[key] for r in group]), 1)[0] for key in ("full_ms", "forces_ms", "pymunk_ms")]
+        lines.append(f"\n{kind}: total step cost grows as N^{fits[0]:.2f} "
+                     f"(our forces N^{fits[1]:.2f}, pymunk N^{fits[2]:.2f})")
+    return "\n".join(lines)
+
+
+def machine() -> str:
+    import os
+
+    return (f"python {platform.python_version()}, pymunk {pymunk.version}, numpy {np.__version__}, "
+            f"{os.cpu_count()} cores, {platform.machine()}, allocator tuned: {qdots.ALLOCATOR_TUNED}")
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--sizes", type=int, nargs="+", default=[300, 3000, 30000])
+    parser.add_argument("--scenes", nargs="+", default=["loose", "packed"], choices=["loose", "packed"])
+    parser.add_argument("--steps", type=int, default=200)
+    args = parser.parse_args(argv)
+    rows = [measure(n, kind, args.steps) for kind in args.scenes for n in args.sizes]
+    print(machine())
+    print("dt = 1 ms, defaults: VanDerWaals(thesis, skin 3 px) + ThermalKicks + Drag\n")
+    print(table(rows))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
