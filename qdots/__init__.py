@@ -11,7 +11,8 @@ from ._malloc import ALLOCATOR_TUNED
 from .collisions import Restitution
 from .forces import CenterGravity, Drag, Force, Gravity, Langevin, ThermalKicks, VanDerWaals
 from .scene import Scene, grating_segments
-from .simulation import Simulation
+from .checkpoint import load, read_state, save
+from .simulation import EngineSettings, Simulation
 from .state import State
 
 __version__ = "0.1.0"
@@ -19,6 +20,10 @@ __version__ = "0.1.0"
 __all__ = [
     "Scene",
     "Simulation",
+    "EngineSettings",
+    "save",
+    "load",
+    "read_state",
     "State",
     "Restitution",
     "Force",

@@ -35,3 +35,65 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
+
+
+class StreamedFile:
+    """Base of writers that stream into a temporary file and rename it into place on `close`.
+
+    Subclasses open their stream on ``self._tmp`` and implement `_close_stream`;
+    `_is_empty` may say that nothing worth keeping was written. Used as a
+    context manager, an exception in the block calls `abort`: the partial file
+    is removed and ``path`` is left as it was.
+    """
+
+    def __init__(self, path: str | os.PathLike):
+        self.path = Path(path)
+        self._tmp = temporary_beside(self.path)
+        self._open = True
+
+    @property
+    def closed(self) -> bool:
+        return not self._open
+
+    def _close_stream(self) -> None:
+        raise NotImplementedError
+
+    def _is_empty(self) -> bool:
+        return False
+
+    def close(self) -> Path | None:
+        """Finish the file and move it onto ``path``; returns it, or None if nothing was written.
+
+        Closing twice does nothing.
+        """
+        if self.closed:
+            return self.path if self.path.exists() else None
+        self._open = False
+        try:
+            self._close_stream()
+            if self._is_empty():
+                self._tmp.unlink(missing_ok=True)
+                return None
+            os.replace(self._tmp, self.path)
+        except BaseException:
+            self._tmp.unlink(missing_ok=True)
+            raise
+        return self.path
+
+    def abort(self) -> None:
+        """Drop the partial file; ``path`` is left untouched."""
+        if self.closed:
+            return
+        self._open = False
+        with contextlib.suppress(Exception):
+            self._close_stream()
+        self._tmp.unlink(missing_ok=True)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        if exc_type is None:
+            self.close()
+        else:
+            self.abort()

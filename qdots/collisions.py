@@ -85,7 +85,8 @@ class CollisionCounter:
         self.sticking = 0
 
 
-def install_handlers(space: pymunk.Space, rule: Restitution, rng: np.random.Generator) -> CollisionCounter:
+def install_handlers(space: pymunk.Space, rule: Restitution, rng: np.random.Generator,
+                     counter: CollisionCounter | None = None) -> CollisionCounter:
     """Install the dot-dot and dot-wall ``begin`` handlers on ``space``.
 
     Random draws come from ``rng`` in the order Chipmunk reports new
@@ -95,9 +96,10 @@ def install_handlers(space: pymunk.Space, rule: Restitution, rng: np.random.Gene
     Returns
     -------
     CollisionCounter
-        Live counts of the impacts handled.
+        Live counts of the impacts handled (``counter`` when given, so counts
+        survive a rebuilt space).
     """
-    counter = CollisionCounter()
+    counter = CollisionCounter() if counter is None else counter
 
     mean, std, sticking_speed = rule.mean, rule.std, rule.sticking_speed
     normal_draw = rng.standard_normal

@@ -8,10 +8,8 @@ renamed into place, so a crash never leaves a half-written PNG or MP4.
 
 from __future__ import annotations
 
-import contextlib
 import math
 import numbers
-import os
 import time
 from pathlib import Path
 
@@ -21,7 +19,7 @@ from matplotlib.collections import EllipseCollection, LineCollection
 from matplotlib.figure import Figure
 from matplotlib.patches import Rectangle
 
-from .atomic import atomic_path, temporary_beside
+from .atomic import StreamedFile, atomic_path
 
 
 def size_colours(radii, mean: float | None = None, sigma: float | None = None) -> np.ndarray:
@@ -161,7 +159,7 @@ def save_png(state, path, dpi: int = 100) -> Path:
     return path
 
 
-class MovieWriter:
+class MovieWriter(StreamedFile):
     """Stream board states to an MP4 movie; a writer for `qdots.Simulation.run`.
 
     Each `write` renders the state on one reused matplotlib figure (Agg
@@ -204,13 +202,12 @@ class MovieWriter:
             raise ValueError(f"size_px must be an even integer >= 16 (libx264 needs even sizes), got {size_px!r}")
         import imageio.v2 as imageio
 
-        self.path = Path(path)
         self.every = int(every)
         self.fps = fps
         self.size_px = int(size_px)
         self.frames = 0
         self.wall_seconds = 0.0
-        self._tmp = temporary_beside(self.path)
+        super().__init__(path)
         try:
             self._writer = imageio.get_writer(self._tmp, format="FFMPEG", fps=fps, codec="libx264",
                                               macro_block_size=1)
@@ -223,10 +220,6 @@ class MovieWriter:
         ax = self._fig.add_axes((0.02, 0.02, 0.96, 0.91))
         ax.set_axis_off()
         self._board = _Board(ax)
-
-    @property
-    def closed(self) -> bool:
-        return self._writer is None
 
     def write(self, state) -> None:
         """Render ``state`` and append it as one frame."""
@@ -242,41 +235,11 @@ class MovieWriter:
         self.frames += 1
         self.wall_seconds += time.perf_counter() - start
 
-    def close(self) -> Path | None:
-        """Finish the movie and move it onto ``path``.
+    def _close_stream(self) -> None:
+        self._writer.close()
 
-        Returns the path, or None (and writes nothing) if no frame was written.
-        Closing twice does nothing.
-        """
-        if self.closed:
-            return self.path if self.path.exists() and self.frames else None
-        writer, self._writer = self._writer, None
-        try:
-            writer.close()
-            if self.frames == 0:
-                self._tmp.unlink(missing_ok=True)
-                return None
-            os.replace(self._tmp, self.path)
-        except BaseException:
-            self._tmp.unlink(missing_ok=True)
-            raise
-        return self.path
-
-    def _abort(self) -> None:
-        writer, self._writer = self._writer, None
-        if writer is not None:
-            with contextlib.suppress(Exception):
-                writer.close()
-        self._tmp.unlink(missing_ok=True)
-
-    def __enter__(self) -> "MovieWriter":
-        return self
-
-    def __exit__(self, exc_type, exc, tb) -> None:
-        if exc_type is None:
-            self.close()
-        else:
-            self._abort()
+    def _is_empty(self) -> bool:
+        return self.frames == 0
 
     def __repr__(self) -> str:
         return f"MovieWriter({str(self.path)!r}, every={self.every}, frames={self.frames})"

@@ -4,16 +4,23 @@ from __future__ import annotations
 
 import math
 import time
+from dataclasses import asdict, dataclass
 from typing import Iterable, Protocol, Sequence
 
 import numpy as np
 import pymunk
+from scipy.spatial import cKDTree
 
 from .bulk import BodyArrays
-from .collisions import DOT, WALL, install_handlers
+from .collisions import DOT, WALL, CollisionCounter, install_handlers
 from .forces.base import Force, StepContext
 from .scene import Scene
 from .state import State
+
+
+#: Relative overlap accepted when a board is read back from a running simulation:
+#: soft contacts overlap by < 1 % of a radius at the defaults; 10 % guards against nonsense.
+ENGINE_OVERLAP_TOLERANCE = 0.1
 
 
 class Writer(Protocol):
@@ -22,6 +29,49 @@ class Writer(Protocol):
     every: int
 
     def write(self, state: State) -> None: ...
+
+
+@dataclass(frozen=True)
+class EngineSettings:
+    """The speed/accuracy knobs of the engine (see `Simulation` for their meaning)."""
+
+    dt: float = 1e-3
+    substeps: int = 1
+    iterations: int = 10
+    collision_slop: float = 0.01
+    collision_bias: float | None = None
+    spatial_hash: tuple[float, int] | None = None
+    threads: int = 1
+
+    def __post_init__(self) -> None:
+        if not (isinstance(self.dt, (int, float)) and math.isfinite(self.dt) and self.dt > 0):
+            raise ValueError(f"dt must be > 0 s, got {self.dt!r}")
+        for name in ("substeps", "iterations"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, np.integer)) and not isinstance(value, bool) and value >= 1):
+                raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
+        if not (isinstance(self.collision_slop, (int, float)) and math.isfinite(self.collision_slop)
+                and self.collision_slop >= 0):
+            raise ValueError(f"collision_slop must be >= 0 px, got {self.collision_slop!r}")
+        if self.collision_bias is not None and not (0.0 <= self.collision_bias < 1.0):
+            raise ValueError(f"collision_bias must be in [0, 1), got {self.collision_bias!r}")
+        if self.threads not in (1, 2):
+            raise ValueError(f"threads must be 1 or 2, got {self.threads!r}")
+        if self.spatial_hash is not None:
+            cell, count = self.spatial_hash
+            if not (cell > 0 and int(count) >= 1):
+                raise ValueError(f"spatial_hash must be (cell_size_px > 0, count >= 1), got {self.spatial_hash!r}")
+
+    @property
+    def bias(self) -> float:
+        """pymunk's collision_bias: given, or 10 % overlap correction per sub-step."""
+        if self.collision_bias is not None:
+            return float(self.collision_bias)
+        return 0.9 ** (self.substeps / self.dt)
+
+    def to_dict(self) -> dict:
+        """Plain-data form (JSON/TOML friendly)."""
+        return {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(self).items()}
 
 
 class Simulation:
@@ -56,7 +106,7 @@ class Simulation:
         default 0.1 px is 1.3 % of a mean radius, ours is 0.01 px).
     collision_bias : float, optional
         Fraction of an overlap left uncorrected after one second (pymunk's
-        meaning, in (0, 1)). Default: correct 10 % of the overlap per
+        meaning, in [0, 1)). Default: correct 10 % of the overlap per
         sub-step, which is what pymunk's default does at its design rate of
         60 Hz. The correction moves positions only (pseudo-velocities), not
         the velocities that carry energy.
@@ -84,54 +134,57 @@ class Simulation:
     ):
         if not isinstance(scene, Scene):
             raise TypeError(f"scene must be a qdots.Scene, got {type(scene).__name__}")
-        if not (math.isfinite(dt) and dt > 0):
-            raise ValueError(f"dt must be > 0 s, got {dt!r}")
-        for name, value in (("substeps", substeps), ("iterations", iterations)):
-            if not (isinstance(value, (int, np.integer)) and value >= 1):
-                raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
-        if not (math.isfinite(collision_slop) and collision_slop >= 0):
-            raise ValueError(f"collision_slop must be >= 0 px, got {collision_slop!r}")
-        if threads not in (1, 2):
-            raise ValueError(f"threads must be 1 or 2, got {threads!r}")
+        self.settings = EngineSettings(dt=dt, substeps=substeps, iterations=iterations,
+                                       collision_slop=collision_slop, collision_bias=collision_bias,
+                                       spatial_hash=None if spatial_hash is None else tuple(spatial_hash),
+                                       threads=threads)
         self.forces: tuple[Force, ...] = tuple(forces)
         for force in self.forces:
             if not isinstance(force, Force):
                 raise TypeError(f"forces must be qdots.forces.Force instances, got {type(force).__name__}")
         self.scene = scene
-        self._dt = float(dt)
-        self.substeps = int(substeps)
         self.rng = np.random.default_rng(seed)
         self.steps_taken = 0
-        self._start_time = 0.0
+        #: Simulation time at step 0, s (nonzero for a run resumed from a checkpoint).
+        self.start_time = 0.0
         #: Wall-clock seconds spent in the force phase (bulk read, kicks, bulk
         #: write) and in Chipmunk's ``space.step`` (which includes the collision
         #: callbacks), accumulated over all steps.
         self.timings = {"forces": 0.0, "pymunk": 0.0}
+        self.collisions = CollisionCounter()
+        self._build(scene)
 
-        substep = self.dt / self.substeps
-        if collision_bias is None:
-            collision_bias = 0.9 ** (1.0 / substep)
-        if not (0.0 <= collision_bias < 1.0):
-            raise ValueError(f"collision_bias must be in [0, 1), got {collision_bias!r}")
-        self.space = space = pymunk.Space(threaded=threads > 1)
-        if threads > 1:
-            space.threads = threads
-        space.iterations = int(iterations)
-        space.collision_slop = float(collision_slop)
-        space.collision_bias = float(collision_bias)
-        if spatial_hash is not None:
-            cell, count = spatial_hash
+    def _build(self, scene: Scene) -> None:
+        """(Re)create the pymunk space holding ``scene``'s walls and dots.
+
+        Construction and checkpoint re-seating both come through here, so two
+        simulations built from the same board have the same Chipmunk history
+        (body order, shape ids, spatial index) and step identically.
+        """
+        settings = self.settings
+        self.space = space = pymunk.Space(threaded=settings.threads > 1)
+        if settings.threads > 1:
+            space.threads = settings.threads
+        space.iterations = int(settings.iterations)
+        space.collision_slop = float(settings.collision_slop)
+        space.collision_bias = settings.bias
+        if settings.spatial_hash is not None:
+            cell, count = settings.spatial_hash
             space.use_spatial_hash(float(cell), int(count))
-
         for x0, y0, x1, y1 in scene.wall_segments():
             wall = pymunk.Segment(space.static_body, (x0, y0), (x1, y1), 0.0)
             wall.friction = 0.0
             wall.elasticity = 1.0
             wall.collision_type = WALL
             space.add(wall)
-
         self._bodies: list[pymunk.Body] = []
-        for (x, y), (vx, vy), r, m in zip(scene.positions, scene.velocities, scene.radii, scene.masses):
+        self.radii = np.zeros(0)
+        self.masses = np.zeros(0)
+        self._add_bodies(scene.positions, scene.velocities, scene.radii, scene.masses)
+        install_handlers(space, scene.restitution, self.rng, self.collisions)
+
+    def _add_bodies(self, positions, velocities, radii, masses) -> None:
+        for (x, y), (vx, vy), r, m in zip(positions, velocities, radii, masses):
             body = pymunk.Body(float(m), math.inf)  # frictionless discs never spin
             body.position = (float(x), float(y))
             body.velocity = (float(vx), float(vy))
@@ -139,14 +192,68 @@ class Simulation:
             circle.friction = 0.0
             circle.elasticity = 0.0  # lasting contacts are inelastic; impacts are set in `begin`
             circle.collision_type = DOT
-            space.add(body, circle)
+            self.space.add(body, circle)
             self._bodies.append(body)
-        self._io = BodyArrays(space, self._bodies)
-        self.radii = scene.radii
-        self.masses = scene.masses
+        self._io = BodyArrays(self.space, self._bodies)
+        self.radii = np.concatenate([self.radii, radii])
+        self.masses = np.concatenate([self.masses, masses])
+        self.radii.setflags(write=False)
+        self.masses.setflags(write=False)
         for force in self.forces:
             force.bind(self.radii, self.masses)
-        self.collisions = install_handlers(space, scene.restitution, self.rng)
+
+    def add_dots(self, positions, radii, masses=None, velocities=None) -> None:
+        """Add dots to the running board (the thesis's sequential deposition).
+
+        Parameters
+        ----------
+        positions : array_like, shape (K, 2)
+            Centres, px. Each new dot must lie inside the box and overlap
+            neither the walls' box nor any dot already on the board.
+        radii : array_like, shape (K,)
+            Radii, px (> 0).
+        masses : array_like, shape (K,), optional
+            Masses (mean dot mass = 1); default 1.
+        velocities : array_like, shape (K, 2), optional
+            Velocities, px/s; default 0.
+
+        Raises
+        ------
+        ValueError
+            As `Scene` does for bad values, and when a new dot overlaps a dot
+            already on the board.
+        """
+        now = self.state()
+        fresh = Scene(box=self.scene.box, positions=positions, radii=radii, masses=masses,
+                      velocities=velocities)
+        if fresh.n_dots == 0:
+            return
+        if now.n_dots:
+            tree = cKDTree(now.positions)
+            reach = fresh.radii + float(now.radii.max())
+            for k, (point, r) in enumerate(zip(fresh.positions, fresh.radii)):
+                for j in tree.query_ball_point(point, reach[k]):
+                    if np.linalg.norm(point - now.positions[j]) < r + now.radii[j]:
+                        raise ValueError(f"new dot {k} overlaps dot {j} already on the board")
+        self._add_bodies(fresh.positions, fresh.velocities, fresh.radii, fresh.masses)
+
+    def board(self) -> Scene:
+        """The board as it is now, as a `Scene` (soft-contact overlap accepted)."""
+        state = self.state()
+        return self.scene.replace(positions=state.positions, velocities=state.velocities,
+                                  radii=state.radii, masses=state.masses,
+                                  overlap_tolerance=ENGINE_OVERLAP_TOLERANCE)
+
+    def reseat(self) -> None:
+        """Rebuild Chipmunk's space from the current board.
+
+        Positions, velocities, time, the generator and the forces carry over;
+        Chipmunk's contact cache and spatial index start afresh, exactly as in
+        a simulation loaded from a checkpoint of this moment (see
+        `qdots.checkpoint`). A run that re-seats and a run resumed from the
+        checkpoint therefore continue bit for bit alike.
+        """
+        self._build(self.board())
 
     @property
     def n_dots(self) -> int:
@@ -155,12 +262,17 @@ class Simulation:
     @property
     def dt(self) -> float:
         """Time step, s (fixed for the life of the simulation)."""
-        return self._dt
+        return self.settings.dt
+
+    @property
+    def substeps(self) -> int:
+        """Chipmunk steps per time step."""
+        return self.settings.substeps
 
     @property
     def time(self) -> float:
         """Simulation time, s: start time + steps taken * dt (no round-off drift)."""
-        return self._start_time + self.steps_taken * self._dt
+        return self.start_time + self.steps_taken * self.settings.dt
 
     def step(self, n: int = 1) -> None:
         """Advance ``n`` time steps."""

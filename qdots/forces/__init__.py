@@ -3,12 +3,42 @@
 All act as velocity changes applied once per time step (see `Force`).
 """
 
+import inspect
+
 from .base import Force, StepContext
 from .fields import CenterGravity, Drag, Gravity
 from .thermal import Langevin, ThermalKicks
 from .vdw import VanDerWaals, hamaker_force, thesis_offset
 
+#: The built-in forces by name, for files (checkpoints, scene files).
+FORCE_TYPES = {cls.__name__: cls for cls in (VanDerWaals, ThermalKicks, Langevin, Drag, Gravity, CenterGravity)}
+
+
+def force_from_dict(spec: dict) -> Force:
+    """Rebuild a force from ``Force.to_dict()`` output.
+
+    Raises
+    ------
+    ValueError
+        On an unknown ``type`` or a parameter the force does not take.
+    """
+    if not isinstance(spec, dict) or "type" not in spec:
+        raise ValueError(f"a force must be a table with a 'type' key, got {spec!r}")
+    params = dict(spec)
+    name = params.pop("type")
+    if name not in FORCE_TYPES:
+        raise ValueError(f"unknown force type {name!r} (known: {', '.join(sorted(FORCE_TYPES))})")
+    cls = FORCE_TYPES[name]
+    allowed = [n for n in inspect.signature(cls.__init__).parameters if n != "self"]
+    unknown = sorted(set(params) - set(allowed))
+    if unknown:
+        raise ValueError(f"{name} has no parameter {unknown[0]!r} (allowed: {', '.join(allowed)})")
+    return cls(**params)
+
+
 __all__ = [
+    "FORCE_TYPES",
+    "force_from_dict",
     "Force",
     "StepContext",
     "VanDerWaals",

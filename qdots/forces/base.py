@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import inspect
 from dataclasses import dataclass
 
 import numpy as np
@@ -58,6 +59,26 @@ class Force:
         """Add this force's velocity change for one step to ``ctx.dv``."""
         raise NotImplementedError
 
+    def params(self) -> dict:
+        """The constructor arguments that rebuild this force (plain data, JSON/TOML friendly).
+
+        Subclasses store each constructor argument as an attribute of the same name.
+        """
+        names = [n for n in inspect.signature(type(self).__init__).parameters if n != "self"]
+        return {name: _plain(getattr(self, name)) for name in names}
+
+    def to_dict(self) -> dict:
+        """``{"type": class name, **params()}``; `qdots.forces.force_from_dict` inverts it."""
+        return {"type": type(self).__name__, **self.params()}
+
     def __repr__(self) -> str:
-        params = ", ".join(f"{k}={v!r}" for k, v in vars(self).items() if not k.startswith("_"))
+        params = ", ".join(f"{k}={v!r}" for k, v in self.params().items())
         return f"{type(self).__name__}({params})"
+
+
+def _plain(value: object) -> object:
+    if isinstance(value, tuple):
+        return [_plain(v) for v in value]
+    if isinstance(value, np.generic):
+        return value.item()
+    return value

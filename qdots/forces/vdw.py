@@ -118,6 +118,7 @@ class VanDerWaals(Force):
             strength = proxy / float(hamaker_force(np.array(1.0), np.array(7.5), np.array(7.5), 1.0))
         self.strength = nonnegative("VanDerWaals.strength", strength)
         self._pairs = VerletPairs(skin)
+        self.skin = self._pairs.skin
         self.bind(np.zeros(0), np.zeros(0))
 
     @property
