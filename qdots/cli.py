@@ -10,8 +10,6 @@ runs it; `main` dispatches and turns bad input into a one-line error.
 from __future__ import annotations
 
 import argparse
-import csv
-import io
 import math
 import sys
 import time
@@ -83,6 +81,107 @@ def _add_demo(subparsers) -> None:
     p.set_defaults(func=_run_demo)
 
 
+def _add_outputs(p, out_default: str | None) -> None:
+    if out_default is not None:
+        p.add_argument("--out", type=Path, default=Path(out_default), metavar="DIR",
+                       help=f"output directory, created if missing (default ./{out_default})")
+    p.add_argument("--movie", action="store_true", help="also write an MP4 (one frame per 0.5 s simulated)")
+    p.add_argument("--gsd", action="store_true", help="also write a GSD trajectory (needs the gsd package)")
+
+
+def _add_run(subparsers) -> None:
+    p = subparsers.add_parser("run", help="run the experiment described by a TOML scene file",
+                              description="Run a scene file (see `qdots preset NAME --save-scenes DIR` "
+                                          "for examples): deposit, settle, then write the final state "
+                                          "(.npz, resumable), a picture, a summary row and optionally a movie.")
+    p.add_argument("scene", type=Path, metavar="SCENE.toml", help="scene file")
+    _add_outputs(p, "qdots-run")
+    p.add_argument("--seed", type=_int_at_least(0), default=None, help="override the file's seed")
+    p.add_argument("--quick", type=_float_in(0.0, 1.0, low_open=True, high_open=False), default=None,
+                   metavar="F", help="scale the run down by F (fewer dots, shorter times) for a first look")
+    p.set_defaults(func=_run_scene)
+
+
+def _add_preset(subparsers) -> None:
+    from .presets import PRESETS
+
+    p = subparsers.add_parser("preset", help="run one of the thesis's experiments",
+                              description="Run the experiments that reproduce a thesis figure: "
+                                          + ", ".join(PRESETS) + ".")
+    p.add_argument("name", choices=list(PRESETS), metavar="NAME", help=f"one of: {', '.join(PRESETS)}")
+    _add_outputs(p, "qdots-preset")
+    p.add_argument("--quick", type=_float_in(0.0, 1.0, low_open=True, high_open=False), default=None,
+                   metavar="F", help="scale the runs down by F (e.g. 0.1) for a first look")
+    p.add_argument("--save-scenes", type=Path, default=None, metavar="DIR",
+                   help="only write the preset's scene files (TOML) into DIR, do not run")
+    p.set_defaults(func=_run_preset)
+
+
+def _add_resume(subparsers) -> None:
+    p = subparsers.add_parser("resume", help="continue a saved run",
+                              description="Load a state file written by run/preset/resume and continue it; "
+                                          "the continuation is bit-identical to never having stopped.")
+    p.add_argument("state", type=Path, metavar="STATE.npz", help="state file")
+    p.add_argument("--seconds", type=_float_in(0.0, math.inf, low_open=True), required=True, metavar="T",
+                   help="simulated time to add, s")
+    _add_outputs(p, None)
+    p.add_argument("--out", type=Path, default=None, metavar="DIR",
+                   help="write the new state here (default: replace STATE in place, atomically)")
+    p.set_defaults(func=_run_resume)
+
+
+def _add_render(subparsers) -> None:
+    p = subparsers.add_parser("render", help="draw a saved state as PNG",
+                              description="Draw a state file: dots coloured by size, walls, time stamp.")
+    p.add_argument("state", type=Path, metavar="STATE.npz", help="state file")
+    p.add_argument("--out", type=Path, default=None, metavar="FILE.png", help="default: STATE with .png")
+    p.set_defaults(func=_run_render)
+
+
+def _run_scene(args: argparse.Namespace) -> int:
+    from .commands import run_experiments
+    from .scenefile import load_experiment
+
+    exp = load_experiment(args.scene)
+    if args.seed is not None:
+        exp = exp.replace(seed=args.seed)
+    if args.quick is not None:
+        exp = exp.quick(args.quick)
+    run_experiments([exp], args.out, movie=args.movie, gsd=args.gsd)
+    return 0
+
+
+def _run_preset(args: argparse.Namespace) -> int:
+    from .commands import run_experiments, slug
+    from .presets import get_preset
+    from .scenefile import save_experiment
+
+    experiments = get_preset(args.name, quick=False if args.quick is None else args.quick)
+    if args.save_scenes is not None:
+        args.save_scenes.mkdir(parents=True, exist_ok=True)
+        for exp in experiments:
+            path = args.save_scenes / f"{slug(exp.name)}.toml"
+            save_experiment(exp, path)
+            print(path)
+        return 0
+    run_experiments(experiments, args.out, movie=args.movie, gsd=args.gsd)
+    return 0
+
+
+def _run_resume(args: argparse.Namespace) -> int:
+    from .commands import resume
+
+    resume(args.state, args.seconds, args.out, movie=args.movie, gsd=args.gsd)
+    return 0
+
+
+def _run_render(args: argparse.Namespace) -> int:
+    from .commands import render
+
+    render(args.state, args.out)
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The ``qdots`` argument parser, one subparser per command."""
     parser = _Parser(prog="qdots", description="Quantum-dot monolayer packing simulator (pymunk).")
@@ -90,29 +189,15 @@ def build_parser() -> argparse.ArgumentParser:
 
     parser.add_argument("--version", action="version", version=f"qdots {__version__}")
     subparsers = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
-    _add_demo(subparsers)
+    for add in (_add_demo, _add_run, _add_preset, _add_resume, _add_render):
+        add(subparsers)
     return parser
-
-
-def _atomic_csv(path: Path, row: dict) -> None:
-    from .atomic import atomic_path
-
-    text = io.StringIO()
-    writer = csv.DictWriter(text, fieldnames=list(row), lineterminator="\n")
-    writer.writeheader()
-    writer.writerow(row)
-    with atomic_path(path) as tmp:
-        tmp.write_text(text.getvalue())
-
-
-def _table(rows: Sequence[tuple[str, str]]) -> str:
-    width = max(len(key) for key, _ in rows)
-    return "\n".join(f"  {key:<{width}}  {value}" for key, value in rows)
 
 
 def _run_demo(args: argparse.Namespace) -> int:
     import qdots
     from .analysis import packing_summary
+    from .commands import print_table, write_csv
     from .placement import random_sequential
     from .render import MovieWriter, save_png
 
@@ -147,12 +232,11 @@ def _run_demo(args: argparse.Namespace) -> int:
         "mean_neighbours_interior": summary["mean_neighbours_interior"],
         "max_overlap": summary["max_overlap"], "kinetic_energy": summary["kinetic_energy"],
     }
-    _atomic_csv(out / "summary.csv", row)
+    write_csv(out / "summary.csv", [row])
     files.append(out / "summary.csv")
     movie_note = f" (movie {movie_wall:.1f} s, {movie.frames} frames)" if movie is not None else ""
-    print(f"qdots demo: {args.dots} dots on a {DEMO_BOX[0]:g} x {DEMO_BOX[1]:g} px board, "
-          f"sigma {args.sigma:g}, seed {args.seed}")
-    print(_table([
+    print_table(f"qdots demo: {args.dots} dots on a {DEMO_BOX[0]:g} x {DEMO_BOX[1]:g} px board, "
+                f"sigma {args.sigma:g}, seed {args.seed}", [
         ("dots", f"{summary['n_dots']}"),
         ("simulated time", f"{state.time:.2f} s ({sim.steps_taken} steps of {sim.dt:g} s)"),
         ("wall time", f"{wall:.1f} s{movie_note}"),
@@ -162,7 +246,7 @@ def _run_demo(args: argparse.Namespace) -> int:
         ("max overlap", f"{100 * summary['max_overlap']:.3f} % of radius"),
         ("kinetic energy", f"{summary['kinetic_energy']:.4g} mass px^2/s^2"),
         ("files", ", ".join(str(f) for f in files)),
-    ]))
+    ])
     return 0
 
 

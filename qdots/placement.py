@@ -61,22 +61,36 @@ def _check_args(n, box, mean_diameter, sigma, max_tries, margin) -> tuple[float,
     return w, h
 
 
-def _draw_batch(rng, m, box, mean_diameter, sigma, margin):
-    """Draw ``m`` candidates: diameters, centres and whether each can fit at all."""
-    w, h = box
+def draw_candidates(rng: np.random.Generator, m: int, region: tuple[float, float, float, float],
+                    mean_diameter: float, sigma: float, margin: float = 0.0):
+    """Draw ``m`` candidate dots for rejection placement: diameters, then centres.
+
+    Diameters are ``mean_diameter (1 + sigma N(0, 1))`` (no random draw when
+    ``sigma == 0``); centres are uniform over the positions where the dot,
+    grown by ``margin``, lies inside ``region = (x0, y0, x1, y1)`` px.
+
+    Returns
+    -------
+    centres : ndarray, shape (m, 2)
+    radii : ndarray, shape (m,)
+    fits : ndarray of bool, shape (m,)
+        False for a non-positive diameter or a dot too big for the region
+        (such candidates must be rejected, which redraws both).
+    """
+    x0, y0, x1, y1 = region
     d = mean_diameter * (1.0 + sigma * rng.standard_normal(m)) if sigma > 0 else np.full(m, mean_diameter)
     u = rng.random((m, 2))
     r = 0.5 * d
     keep_out = r + margin
-    # Round-off insurance: the centre range is shrunk by a few ulps of the box so that
-    # x - r >= 0 and x + r <= w hold exactly after floating-point evaluation.
-    slack = 4.0 * np.finfo(float).eps * max(w, h)
-    span_x = w - 2.0 * keep_out - 2.0 * slack
-    span_y = h - 2.0 * keep_out - 2.0 * slack
-    ok = (d > 0) & (span_x >= 0) & (span_y >= 0)
-    x = keep_out + slack + u[:, 0] * np.maximum(span_x, 0.0)
-    y = keep_out + slack + u[:, 1] * np.maximum(span_y, 0.0)
-    return np.column_stack([x, y]), r, ok
+    # Round-off insurance: the centre range is shrunk by a few ulps of the region so that
+    # x - r >= x0 and x + r <= x1 hold exactly after floating-point evaluation.
+    slack = 8.0 * np.finfo(float).eps * max(abs(x0), abs(x1), abs(y0), abs(y1), 1.0)
+    span_x = (x1 - x0) - 2.0 * keep_out - 2.0 * slack
+    span_y = (y1 - y0) - 2.0 * keep_out - 2.0 * slack
+    fits = (d > 0) & (span_x >= 0) & (span_y >= 0)
+    x = x0 + keep_out + slack + u[:, 0] * np.maximum(span_x, 0.0)
+    y = y0 + keep_out + slack + u[:, 1] * np.maximum(span_y, 0.0)
+    return np.column_stack([x, y]), r, fits
 
 
 def _clash_with_placed(pos, r, tree, placed_pos, placed_r, margin) -> np.ndarray:
@@ -186,7 +200,7 @@ def random_sequential(
     failures = 0  # consecutive rejected candidates for dot k
     tree = None  # KD-tree over positions[:k]; rebuilt when a batch added dots
     while k < n:
-        pos, r, ok = _draw_batch(gen, BATCH, (w, h), float(mean_diameter), float(sigma), float(margin))
+        pos, r, ok = draw_candidates(gen, BATCH, (0.0, 0.0, w, h), float(mean_diameter), float(sigma), float(margin))
         ok &= ~_clash_with_placed(pos, r, tree, positions[:k], radii[:k], margin)
         survivors = np.flatnonzero(ok)
         accepted = survivors[_accept_in_order(pos[survivors], r[survivors], margin)][: n - k]

@@ -171,6 +171,23 @@ class Scene:
         return np.vstack([edges, self.segments])
 
 
+def segment_distances(points: np.ndarray, segments: np.ndarray) -> np.ndarray:
+    """Distance from each point to each segment, px; shape (P, M).
+
+    Parameters
+    ----------
+    points : ndarray, shape (P, 2)
+    segments : ndarray, shape (M, 4)
+        ``(x0, y0, x1, y1)`` with nonzero length.
+    """
+    points = np.asarray(points, dtype=float).reshape(-1, 2)
+    segments = np.asarray(segments, dtype=float).reshape(-1, 4)
+    start, along = segments[None, :, :2], segments[None, :, 2:] - segments[None, :, :2]
+    offset = points[:, None, :] - start
+    t = np.clip(np.einsum("pmk,pmk->pm", offset, along) / np.einsum("pmk,pmk->pm", along, along), 0.0, 1.0)
+    return np.linalg.norm(offset - t[:, :, None] * along, axis=2)
+
+
 def grating_segments(box: tuple[float, float], pitch: float, offset: float = 0.0) -> np.ndarray:
     """Horizontal grating lines spanning the board, ``pitch`` px apart.
 

@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import math
 import time
+import weakref
 from dataclasses import asdict, dataclass
-from typing import Iterable, Protocol, Sequence
+from typing import Callable, Iterable, Protocol, Sequence
 
 import numpy as np
 import pymunk
@@ -14,13 +15,20 @@ from scipy.spatial import cKDTree
 from .bulk import BodyArrays
 from .collisions import DOT, WALL, CollisionCounter, install_handlers
 from .forces.base import Force, StepContext
-from .scene import Scene
+from .scene import Scene, segment_distances
 from .state import State
 
 
 #: Relative overlap accepted when a board is read back from a running simulation:
 #: soft contacts overlap by < 1 % of a radius at the defaults; 10 % guards against nonsense.
 ENGINE_OVERLAP_TOLERANCE = 0.1
+
+
+def _weak(obj: object) -> Callable[[], object]:
+    try:
+        return weakref.ref(obj)
+    except TypeError:  # not weak-referenceable: hold it (ids then never collide)
+        return lambda: obj
 
 
 class Writer(Protocol):
@@ -44,23 +52,31 @@ class EngineSettings:
     threads: int = 1
 
     def __post_init__(self) -> None:
-        if not (isinstance(self.dt, (int, float)) and math.isfinite(self.dt) and self.dt > 0):
+        if isinstance(self.dt, bool) or not (isinstance(self.dt, (int, float)) and math.isfinite(self.dt)
+                                             and self.dt > 0):
             raise ValueError(f"dt must be > 0 s, got {self.dt!r}")
         for name in ("substeps", "iterations"):
             value = getattr(self, name)
             if not (isinstance(value, (int, np.integer)) and not isinstance(value, bool) and value >= 1):
                 raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
-        if not (isinstance(self.collision_slop, (int, float)) and math.isfinite(self.collision_slop)
+        if isinstance(self.collision_slop, bool) or not (
+                isinstance(self.collision_slop, (int, float)) and math.isfinite(self.collision_slop)
                 and self.collision_slop >= 0):
             raise ValueError(f"collision_slop must be >= 0 px, got {self.collision_slop!r}")
         if self.collision_bias is not None and not (0.0 <= self.collision_bias < 1.0):
             raise ValueError(f"collision_bias must be in [0, 1), got {self.collision_bias!r}")
-        if self.threads not in (1, 2):
+        if isinstance(self.threads, bool) or self.threads not in (1, 2):
             raise ValueError(f"threads must be 1 or 2, got {self.threads!r}")
         if self.spatial_hash is not None:
-            cell, count = self.spatial_hash
-            if not (cell > 0 and int(count) >= 1):
-                raise ValueError(f"spatial_hash must be (cell_size_px > 0, count >= 1), got {self.spatial_hash!r}")
+            ok = isinstance(self.spatial_hash, (tuple, list)) and len(self.spatial_hash) == 2
+            if ok:
+                cell, count = self.spatial_hash
+                ok = (isinstance(cell, (int, float)) and not isinstance(cell, bool) and cell > 0
+                      and isinstance(count, (int, np.integer)) and not isinstance(count, bool) and count >= 1)
+            if not ok:
+                raise ValueError(f"spatial_hash must be (cell_size_px > 0, integer count >= 1), "
+                                 f"got {self.spatial_hash!r}")
+            object.__setattr__(self, "spatial_hash", (float(self.spatial_hash[0]), int(self.spatial_hash[1])))
 
     @property
     def bias(self) -> float:
@@ -152,6 +168,7 @@ class Simulation:
         #: callbacks), accumulated over all steps.
         self.timings = {"forces": 0.0, "pymunk": 0.0}
         self.collisions = CollisionCounter()
+        self._last_written: dict[int, tuple[Callable[[], object], int]] = {}
         self._build(scene)
 
     def _build(self, scene: Scene) -> None:
@@ -209,7 +226,7 @@ class Simulation:
         ----------
         positions : array_like, shape (K, 2)
             Centres, px. Each new dot must lie inside the box and overlap
-            neither the walls' box nor any dot already on the board.
+            neither a wall segment nor any dot already on the board.
         radii : array_like, shape (K,)
             Radii, px (> 0).
         masses : array_like, shape (K,), optional
@@ -220,14 +237,19 @@ class Simulation:
         Raises
         ------
         ValueError
-            As `Scene` does for bad values, and when a new dot overlaps a dot
-            already on the board.
+            As `Scene` does for bad values, and when a new dot overlaps a wall
+            segment or a dot already on the board.
         """
         now = self.state()
         fresh = Scene(box=self.scene.box, positions=positions, radii=radii, masses=masses,
                       velocities=velocities)
         if fresh.n_dots == 0:
             return
+        if len(self.scene.segments):
+            gap = segment_distances(fresh.positions, self.scene.segments) - fresh.radii[:, None]
+            k, m = np.unravel_index(np.argmin(gap), gap.shape)
+            if gap[k, m] < 0:
+                raise ValueError(f"new dot {k} crosses wall segments[{m}]")
         if now.n_dots:
             tree = cKDTree(now.positions)
             reach = fresh.radii + float(now.radii.max())
@@ -290,6 +312,18 @@ class Simulation:
             timings["pymunk"] += clock() - t1
             self.steps_taken += 1
 
+    def _write_due(self, writers: Sequence[Writer]) -> None:
+        """Give each writer the state if the current step is on its schedule and not yet written."""
+        for writer in writers:
+            if self.steps_taken % writer.every:
+                continue
+            mark = self._last_written.get(id(writer))
+            if mark is not None and mark[0]() is writer and mark[1] == self.steps_taken:
+                continue
+            writer.write(self.state())
+            # a weak reference tells a reused id() from the same writer without keeping it alive
+            self._last_written[id(writer)] = (_weak(writer), self.steps_taken)
+
     def _apply_forces(self) -> None:
         position, velocity = self._io.read()
         ctx = StepContext(
@@ -318,10 +352,11 @@ class Simulation:
             Show a progress bar in simulated seconds with an ETA (needs ``tqdm``).
         writers : sequence of Writer
             Objects with an ``every`` attribute (steps) and a
-            ``write(state)`` method, e.g. `qdots.render.MovieWriter`. Each is
-            given the state at the start of the run and every ``every`` steps
-            after, including the end when it falls on their schedule. The run
-            does not close them.
+            ``write(state)`` method, e.g. `qdots.render.MovieWriter`. A writer
+            gets the state at every step count that is a multiple of
+            ``every`` (counted from the simulation's step 0, so a writer passed
+            to successive runs, as in a deposition, keeps one even schedule and
+            never sees the same step twice). The run does not close them.
 
         Returns
         -------
@@ -334,28 +369,25 @@ class Simulation:
         for writer in writers:
             if not (isinstance(writer.every, (int, np.integer)) and writer.every >= 1):
                 raise ValueError(f"writer.every must be an integer >= 1 step, got {writer.every!r}")
-        due = [0] * len(writers)
         bar = None
         if progress:
             from tqdm.auto import tqdm
 
             bar = tqdm(total=n_steps, unit="step", desc="qdots run", leave=False)
         chunk = max(1, n_steps // 200)
-        done = 0
+        end = self.steps_taken + n_steps
         try:
             while True:
-                for k, writer in enumerate(writers):
-                    if due[k] == done:
-                        writer.write(self.state())
-                        due[k] += writer.every
-                if done >= n_steps:
+                self._write_due(writers)
+                if self.steps_taken >= end:
                     break
-                stop = min([n_steps, done + chunk, *due])
-                self.step(stop - done)
+                due = [self.steps_taken + w.every - self.steps_taken % w.every for w in writers]
+                stop = min([end, self.steps_taken + chunk, *due])
+                done = stop - self.steps_taken
+                self.step(done)
                 if bar is not None:
-                    bar.update(stop - done)
+                    bar.update(done)
                     bar.set_postfix_str(f"t = {self.time:.2f} s", refresh=False)
-                done = stop
         finally:
             if bar is not None:
                 bar.close()

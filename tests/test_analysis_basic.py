@@ -179,7 +179,7 @@ def test_random_sequential_matches_one_at_a_time_reference():
     gen = np.random.default_rng(11)
     pos, rad = np.zeros((0, 2)), np.zeros(0)
     while len(rad) < n:
-        cand, r, ok = placement._draw_batch(gen, placement.BATCH, box, 15.0, sigma, margin)
+        cand, r, ok = placement.draw_candidates(gen, placement.BATCH, (0.0, 0.0, *box), 15.0, sigma, margin)
         for p, ri, good in zip(cand, r, ok):
             if len(rad) == n:
                 break

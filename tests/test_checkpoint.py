@@ -180,3 +180,19 @@ def test_add_dots_to_an_empty_board():
     sim.add_dots([[30, 50], [50, 50]], [7.5, 7.5])
     sim.run(0.05)
     assert sim.state().velocities[0, 0] != 0.0
+
+
+def test_add_dots_respects_wall_segments():
+    scene = qdots.Scene(box=(100, 100), positions=np.zeros((0, 2)), radii=[], segments=[[0, 50, 100, 50]])
+    sim = qdots.Simulation(scene)
+    with pytest.raises(ValueError, match=r"new dot 0 crosses wall segments\[0\]"):
+        sim.add_dots([[30, 45]], [7.5])
+    sim.add_dots([[30, 40]], [7.5])
+    assert sim.n_dots == 1
+
+
+def test_scene_file_keeps_derived_vdw_defaults_unset():
+    spec = qdots.VanDerWaals(r0=10.0).to_dict()
+    assert spec["strength"] is None and spec["max_gap"] is None
+    assert qdots.forces.force_from_dict(spec).max_gap == 20.0
+    assert qdots.VanDerWaals(max_gap=12.0).to_dict()["max_gap"] == 12.0

@@ -318,6 +318,10 @@ def test_force_validation(make, message):
         (dict(collision_slop=-1), "collision_slop must be >= 0"),
         (dict(collision_bias=1.5), r"collision_bias must be in \[0, 1\)"),
         (dict(threads=3), "threads must be 1 or 2"),
+        (dict(threads=True), "threads must be 1 or 2"),
+        (dict(dt=True), "dt must be > 0"),
+        (dict(spatial_hash=(10.0, 2.5)), "spatial_hash must be"),
+        (dict(spatial_hash="big"), "spatial_hash must be"),
     ],
 )
 def test_simulation_validation(kwargs, message):
@@ -352,8 +356,13 @@ def test_writers_see_the_schedule():
 
     writer = Times()
     sim = qdots.Simulation(lone_dot(), seed=0)
+    sim.run(0.0, writers=[Times()])  # a writer that is gone does not shadow a new one with its id
     sim.run(0.03, writers=[writer])
     np.testing.assert_allclose(writer.times, [0.0, 0.007, 0.014, 0.021, 0.028])
+    sim.run(0.004, writers=[writer])  # successive runs keep the schedule: 0.035 at step 35 is next
+    sim.run(0.001, writers=[writer])
+    sim.run(0.01, writers=[writer])
+    np.testing.assert_allclose(writer.times, [0.0, 0.007, 0.014, 0.021, 0.028, 0.035, 0.042])
 
 
 def test_substeps_and_spatial_hash_give_the_same_free_flight():

@@ -1,4 +1,4 @@
-"""Every notebook runs top to bottom (they carry their own asserts)."""
+"""Every notebook runs top to bottom in quick mode (they carry their own asserts)."""
 
 from pathlib import Path
 
@@ -10,7 +10,8 @@ NOTEBOOKS = sorted((Path(__file__).parent.parent / "notebooks").glob("*.ipynb"))
 
 
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=[p.name for p in NOTEBOOKS])
-def test_notebook_runs(path, tmp_path):
+def test_notebook_runs(path, tmp_path, monkeypatch):
+    monkeypatch.setenv("QDOTS_QUICK", "0.1")  # the kernel inherits it: scaled-down runs
     notebook = nbformat.read(path, as_version=4)
-    NotebookClient(notebook, timeout=300, kernel_name="python3",
+    NotebookClient(notebook, timeout=600, kernel_name="python3",
                    resources={"metadata": {"path": str(tmp_path)}}).execute()

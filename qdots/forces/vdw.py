@@ -99,6 +99,9 @@ class VanDerWaals(Force):
             raise ValueError(f"VanDerWaals.model must be one of {MODELS}, got {model!r}")
         if contact not in ("hold", "zero"):
             raise ValueError(f"VanDerWaals.contact must be 'hold' or 'zero', got {contact!r}")
+        # Derived defaults stay "unset" in params(), so a saved scene whose r0 is
+        # edited recomputes them instead of freezing the old values.
+        self._unset = {name for name, value in (("strength", strength), ("max_gap", max_gap)) if value is None}
         r0 = positive("VanDerWaals.r0", r0)
         max_gap = positive("VanDerWaals.max_gap", 2.0 * r0 if max_gap is None else max_gap)
         min_gap = positive("VanDerWaals.min_gap", min_gap)
@@ -120,6 +123,10 @@ class VanDerWaals(Force):
         self._pairs = VerletPairs(skin)
         self.skin = self._pairs.skin
         self.bind(np.zeros(0), np.zeros(0))
+
+    def params(self) -> dict:
+        params = super().params()
+        return {key: (None if key in self._unset else value) for key, value in params.items()}
 
     @property
     def pairs(self) -> VerletPairs:

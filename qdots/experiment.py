@@ -1,0 +1,299 @@
+"""`Experiment`: one whole thesis-style run (board, deposition, forces, engine) as plain data.
+
+>>> from qdots.experiment import Experiment, run_experiment
+>>> exp = Experiment(name="demo").quick(0.05)
+>>> sim = run_experiment(exp)            # doctest: +SKIP
+
+An experiment is frozen, validated on construction (messages name the key,
+e.g. ``deposition.sigma``, and the allowed range), saved and loaded as TOML by
+`qdots.scenefile`, and reproducible: the same experiment gives a
+bit-identical board.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .collisions import Restitution
+from .forces import Force, ThermalKicks, VanDerWaals, force_from_dict
+from .protocols import GAP, MASS_MODELS, check_count, check_real, deposit, deposit_around_center, ring_radius
+from .scene import Scene
+from .simulation import EngineSettings, Simulation
+
+#: Deposition protocols: dots at random in the board (or grating channel), or on a ring around a centre.
+PROTOCOLS = ("random", "center")
+
+
+def _set(obj, name: str, value) -> None:
+    object.__setattr__(obj, name, value)
+
+
+@dataclass(frozen=True)
+class Board:
+    """The rectangle the dots live in.
+
+    Parameters
+    ----------
+    width, height : float
+        Size, px (> 0; thesis 600 x 600). The board spans ``[0, width] x [0, height]``.
+    closed : bool
+        The four edges are hard (elastic) walls (thesis: yes).
+    """
+
+    width: float = 600.0
+    height: float = 600.0
+    closed: bool = True
+
+    def __post_init__(self) -> None:
+        for name in ("width", "height"):
+            _set(self, name, check_real(f"board.{name}", getattr(self, name), 0.0, low_open=True))
+        if not isinstance(self.closed, bool):
+            raise ValueError(f"board.closed must be true or false, got {self.closed!r}")
+
+
+@dataclass(frozen=True)
+class Deposition:
+    """How the dots arrive (`qdots.protocols`).
+
+    Parameters
+    ----------
+    protocol : {"random", "center"}
+        ``"random"``: `deposit` uniformly over the board, or over the grating
+        channel when there is one (``runRandomAttraction*``). ``"center"``:
+        `deposit_around_center` on a growing ring around the centre of the
+        first `qdots.CenterGravity` force, else the board centre (``runRandomCenter``).
+    n_dots : int
+        Dots deposited (>= 0).
+    mean_diameter : float
+        Mean diameter, px (> 0; thesis 15).
+    sigma : float
+        Standard deviation of the diameter as a fraction of the mean, [0, 1).
+    mass_model : {"equal", "area", "volume", "bimodal"}
+        See `qdots.protocols.dot_masses`; "equal" is the thesis's figure default.
+    heavy_mass : float
+        Mass of the heavy dots of the bimodal model (> 0; thesis 2).
+    interval : float
+        Simulated time between two dots, s (>= 0; thesis 1, centre runs 0.5).
+    settle : float
+        Simulated time after the last dot, s (>= 0; thesis 100, centre runs 15).
+    max_tries : int
+        Consecutive rejected candidates for one dot before the board counts as full (>= 1).
+    """
+
+    protocol: str = "random"
+    n_dots: int = 300
+    mean_diameter: float = 15.0
+    sigma: float = 0.0
+    mass_model: str = "equal"
+    heavy_mass: float = 2.0
+    interval: float = 1.0
+    settle: float = 100.0
+    max_tries: int = 10_000
+
+    def __post_init__(self) -> None:
+        if self.protocol not in PROTOCOLS:
+            raise ValueError(f"deposition.protocol must be one of {PROTOCOLS}, got {self.protocol!r}")
+        if self.mass_model not in MASS_MODELS:
+            raise ValueError(f"deposition.mass_model must be one of {MASS_MODELS}, got {self.mass_model!r}")
+        _set(self, "n_dots", check_count("deposition.n_dots", self.n_dots, 0))
+        _set(self, "max_tries", check_count("deposition.max_tries", self.max_tries, 1))
+        _set(self, "mean_diameter", check_real("deposition.mean_diameter", self.mean_diameter, 0.0, low_open=True))
+        _set(self, "sigma", check_real("deposition.sigma", self.sigma, 0.0, 1.0))
+        _set(self, "heavy_mass", check_real("deposition.heavy_mass", self.heavy_mass, 0.0, low_open=True))
+        for name in ("interval", "settle"):
+            _set(self, name, check_real(f"deposition.{name}", getattr(self, name), 0.0))
+
+
+def default_forces() -> tuple[dict, ...]:
+    """The thesis's figure runs: van der Waals (thesis proxy) and thermal kicks, no drag or gravity."""
+    return (VanDerWaals().to_dict(), ThermalKicks().to_dict())
+
+
+def _canonical_force(k: int, spec) -> dict:
+    """``spec`` (a Force or a ``to_dict()`` table) as the full dict of its force, checked."""
+    if isinstance(spec, Force):
+        return spec.to_dict()
+    if not isinstance(spec, dict):
+        raise ValueError(f"forces[{k}] must be a table (dict) with a 'type' key, got {spec!r}")
+    try:
+        return force_from_dict(dict(spec)).to_dict()
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"forces[{k}]: {exc}") from None
+
+
+@dataclass(frozen=True)
+class Experiment:
+    """One thesis-style run as plain data; `run_experiment` executes it.
+
+    Parameters
+    ----------
+    name : str
+        Label (non-empty).
+    seed : int
+        Root seed (>= 0). `run_experiment` splits it with
+        ``numpy.random.SeedSequence(seed).spawn(2)``: one child for the
+        simulation (collisions, thermal noise), one for the deposition.
+    board : Board
+        Size and walls.
+    grating : float
+        Width of the grating channel, px: a wall ``(0, g) - (width, g)`` confines
+        the dots to ``0 < y < g`` (thesis ``6 d sqrt(3)/2 = 77.94`` px). 0 (or None) = none.
+    deposition : Deposition
+        How the dots arrive.
+    restitution : qdots.Restitution
+        Collision rule.
+    forces : tuple of dict
+        Forces as ``Force.to_dict()`` tables (Force instances are accepted and
+        converted); stored in full, every parameter spelled out.
+    engine : qdots.simulation.EngineSettings
+        Time step, sub-steps, solver iterations, ...
+    """
+
+    name: str = "experiment"
+    seed: int = 154
+    board: Board = field(default_factory=Board)
+    grating: float = 0.0
+    deposition: Deposition = field(default_factory=Deposition)
+    restitution: Restitution = field(default_factory=Restitution)
+    forces: tuple = field(default_factory=default_forces)
+    engine: EngineSettings = field(default_factory=EngineSettings)
+
+    def __post_init__(self) -> None:
+        if not (isinstance(self.name, str) and self.name.strip()):
+            raise ValueError(f"name must be a non-empty string, got {self.name!r}")
+        _set(self, "seed", check_count("seed", self.seed, 0))
+        for key, cls in (("board", Board), ("deposition", Deposition), ("restitution", Restitution),
+                         ("engine", EngineSettings)):
+            if not isinstance(getattr(self, key), cls):
+                raise ValueError(f"{key} must be a {cls.__module__}.{cls.__name__}, "
+                                 f"got {type(getattr(self, key)).__name__}")
+        if isinstance(self.engine.spatial_hash, list):  # EngineSettings(**to_dict()) gives a list
+            _set(self, "engine", dataclasses.replace(self.engine, spatial_hash=tuple(self.engine.spatial_hash)))
+        if isinstance(self.forces, (dict, str, Force)) or not hasattr(self.forces, "__iter__"):
+            raise ValueError(f"forces must be a sequence of force tables, got {self.forces!r}")
+        _set(self, "forces", tuple(_canonical_force(k, f) for k, f in enumerate(self.forces)))
+        _set(self, "grating", check_real("grating", 0.0 if self.grating is None else self.grating, 0.0))
+        self._check_geometry()
+
+    def __hash__(self) -> int:
+        # The force tables are dicts: hash their types only (equal experiments still hash equal).
+        return hash((self.name, self.seed, self.board, self.grating, self.deposition, self.restitution,
+                     self.engine, tuple(spec["type"] for spec in self.forces)))
+
+    def _check_geometry(self) -> None:
+        b, dep = self.board, self.deposition
+        if dep.mean_diameter > min(b.width, b.height):
+            raise ValueError(f"deposition.mean_diameter ({dep.mean_diameter:g} px) must fit in the "
+                             f"{b.width:g} x {b.height:g} px board")
+        if self.grating:
+            if not dep.mean_diameter + 2 * GAP < self.grating < b.height:
+                raise ValueError(f"grating must be 0 (none) or in (deposition.mean_diameter = "
+                                 f"{dep.mean_diameter:g}, board.height = {b.height:g}) px, got {self.grating!r}")
+            if dep.protocol == "center":
+                raise ValueError("deposition.protocol 'center' cannot be combined with a grating (use 'random')")
+        if dep.protocol == "center" and dep.n_dots:
+            cx, cy = self.center()
+            room = min(cx, cy, b.width - cx, b.height - cy)
+            reach = ring_radius(dep.n_dots - 1, dep.mean_diameter, dep.sigma) + dep.mean_diameter / 2
+            if reach > room:
+                raise ValueError(f"deposition.n_dots = {dep.n_dots} needs a deposition ring reaching "
+                                 f"{reach:.1f} px from the centre ({cx:g}, {cy:g}), but the board leaves {room:.1f} px")
+
+    def center(self) -> tuple[float, float]:
+        """Centre of the ``"center"`` protocol: the first CenterGravity's centre, else the board centre, px."""
+        for spec in self.forces:
+            if spec["type"] == "CenterGravity":
+                return float(spec["center"][0]), float(spec["center"][1])
+        return self.board.width / 2.0, self.board.height / 2.0
+
+    def region(self) -> tuple[float, float, float, float]:
+        """Rectangle ``(x0, y0, x1, y1)`` of the ``"random"`` protocol, px: the channel or the board."""
+        return (0.0, 0.0, self.board.width, self.grating or self.board.height)
+
+    def scene(self) -> Scene:
+        """The empty board: box, grating wall (if any), collision rule."""
+        segments = [[0.0, self.grating, self.board.width, self.grating]] if self.grating else None
+        return Scene(box=(self.board.width, self.board.height), positions=np.zeros((0, 2)), radii=np.zeros(0),
+                     segments=segments, closed=self.board.closed, restitution=self.restitution)
+
+    def build_forces(self) -> list[Force]:
+        """Fresh Force objects from `forces`."""
+        return [force_from_dict(dict(spec)) for spec in self.forces]
+
+    def replace(self, **changes) -> "Experiment":
+        """A copy with some fields changed, validated again."""
+        return dataclasses.replace(self, **changes)
+
+    def quick(self, factor: float = 0.1) -> "Experiment":
+        """A smaller, faster version of this experiment (for tests and notebooks).
+
+        ``n_dots`` becomes ``max(1, round(n_dots * factor))`` and ``interval``
+        and ``settle`` are multiplied by ``factor``. A free film's board shrinks
+        by ``sqrt(factor)`` both ways (never below 4 mean diameters), keeping
+        the dots per area. A grating channel keeps its width and shortens by
+        ``sqrt(factor)`` only, so its dots get sparser by ``sqrt(factor)``: the
+        full channel is filled beyond the random-packing jam (0.57 of its
+        area) and only takes its dots because they aggregate in the 1 s
+        between arrivals. A ``"center"`` board keeps its size (the ring
+        geometry sets it). CenterGravity centres move with the board.
+
+        Parameters
+        ----------
+        factor : float
+            In (0, 1]; 1 returns an equal experiment (renamed).
+        """
+        factor = check_real("factor", factor, 0.0, 1.0, low_open=True, high_open=False)
+        dep, b = self.deposition, self.board
+        n = max(1, round(dep.n_dots * factor)) if dep.n_dots else 0
+        dep = dataclasses.replace(dep, n_dots=n, interval=dep.interval * factor, settle=dep.settle * factor)
+        floor = 4.0 * dep.mean_diameter
+        if dep.protocol == "center":
+            sx = sy = 1.0
+        elif self.grating:
+            sx, sy = max(math.sqrt(factor), min(1.0, floor / b.width)), 1.0
+        else:
+            sx = max(math.sqrt(factor), min(1.0, floor / b.width))
+            sy = max(math.sqrt(factor), min(1.0, floor / b.height))
+        forces = [dict(f, center=[f["center"][0] * sx, f["center"][1] * sy]) if f["type"] == "CenterGravity" else f
+                  for f in self.forces]
+        return self.replace(name=f"{self.name} (quick x{factor:g})", deposition=dep, forces=tuple(forces),
+                            board=dataclasses.replace(b, width=b.width * sx, height=b.height * sy))
+
+
+def run_experiment(exp: Experiment, progress: bool = False, writers=()) -> Simulation:
+    """Build the empty board, deposit the dots, let them settle; return the simulation.
+
+    Parameters
+    ----------
+    exp : Experiment
+    progress : bool
+        Progress bars for the deposition (dots) and the settling (steps).
+    writers : sequence of Writer
+        Recorders (movie, trajectory) given to every ``Simulation.run`` call
+        (one per dot, then the settling); they see one continuous schedule.
+
+    Returns
+    -------
+    Simulation
+        At time ``n_dots * interval + settle`` s (to whole steps). Equal
+        experiments give bit-identical boards.
+    """
+    if not isinstance(exp, Experiment):
+        raise TypeError(f"exp must be a qdots.experiment.Experiment, got {type(exp).__name__}")
+    sim_seed, deposit_seed = np.random.SeedSequence(exp.seed).spawn(2)
+    engine = {f.name: getattr(exp.engine, f.name) for f in dataclasses.fields(exp.engine)}
+    sim = Simulation(exp.scene(), exp.build_forces(), seed=sim_seed, **engine)
+    dep = exp.deposition
+    common = dict(mean_diameter=dep.mean_diameter, sigma=dep.sigma, mass_model=dep.mass_model,
+                  heavy_mass=dep.heavy_mass, interval=dep.interval, max_tries=dep.max_tries,
+                  rng=np.random.default_rng(deposit_seed), progress=progress, writers=writers)
+    if dep.protocol == "center":
+        deposit_around_center(sim, dep.n_dots, exp.center(), **common)
+    else:
+        deposit(sim, dep.n_dots, region=exp.region(), **common)
+    sim.run(dep.settle, progress=progress, writers=writers)
+    return sim

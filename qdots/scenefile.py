@@ -1,0 +1,226 @@
+"""TOML scene files for an `Experiment`.
+
+A scene file holds one experiment: top-level ``name``, ``seed`` and
+``grating``, the tables ``[board]``, ``[deposition]``, ``[restitution]`` and
+``[engine]``, and one ``[[forces]]`` table per force. Every key is optional
+(a missing key takes its default) and `experiment_to_toml` writes all of
+them, with units and allowed ranges in comments. Floats are written with
+``repr`` and read back exactly, so ``load_experiment(save_experiment(exp))
+== exp``. Unknown keys, wrong types and out-of-range values raise a
+ValueError naming the file and the full key (e.g. ``deposition.sigmaa``).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from pathlib import Path
+
+from .atomic import atomic_path
+from .collisions import Restitution
+from .experiment import Board, Deposition, Experiment
+from .simulation import EngineSettings
+
+try:
+    import tomllib
+except ModuleNotFoundError:  # Python 3.10
+    import tomli as tomllib
+
+#: Top-level scalars: key -> (kind, comment).
+TOP = {
+    "name": ("str", "label of the run"),
+    "seed": ("int", "integer >= 0; root of the simulation and deposition random streams"),
+    "grating": ("float", "px, a wall at y = grating keeps the dots in 0 < y < grating; "
+                         "in (mean_diameter, board.height), 0 = no grating"),
+}
+#: Tables: name -> (class, {key: (kind, comment)}). Kinds ending in "?" may be unset (None).
+TABLES = {
+    "board": (Board, {
+        "width": ("float", "px, > 0"),
+        "height": ("float", "px, > 0"),
+        "closed": ("bool", "the four edges are hard walls"),
+    }),
+    "deposition": (Deposition, {
+        "protocol": ("str", '"random" (uniform in the board or grating channel) | "center" (ring around the centre)'),
+        "n_dots": ("int", "dots deposited, integer >= 0"),
+        "mean_diameter": ("float", "px, > 0"),
+        "sigma": ("float", "fraction of mean diameter, [0, 1)"),
+        "mass_model": ("str", '"equal" | "area" (d/mean)^2 | "volume" (d/mean)^3 | "bimodal"'),
+        "heavy_mass": ("float", "mass of the heavy half of a bimodal board, mean-dot masses, > 0"),
+        "interval": ("float", "s of simulated time between two dots, >= 0"),
+        "settle": ("float", "s of simulated time after the last dot, >= 0"),
+        "max_tries": ("int", "rejected candidates in a row before the board counts as full, integer >= 1"),
+    }),
+    "restitution": (Restitution, {
+        "mean": ("float", "mean dot-dot coefficient of restitution, [0, 1]"),
+        "wall": ("float", "dot-wall coefficient of restitution, [0, 1]"),
+        "sticking_speed": ("float", "px/s, slower dot-dot impacts are perfectly inelastic, >= 0"),
+    }),
+    "engine": (EngineSettings, {
+        "dt": ("float", "s, time step, > 0"),
+        "substeps": ("int", "Chipmunk steps per time step, integer >= 1"),
+        "iterations": ("int", "solver iterations per sub-step, integer >= 1"),
+        "collision_slop": ("float", "px of overlap left uncorrected, >= 0"),
+        "collision_bias": ("float?", "overlap fraction left after 1 s, [0, 1); unset: 10 % corrected per sub-step"),
+        "spatial_hash": ("pair?", "[cell size px > 0, count >= 1]; unset: Chipmunk's bounding-box tree"),
+        "threads": ("int", "solver threads, 1 or 2"),
+    }),
+}
+#: Comments for force parameters: type -> {parameter: comment}.
+FORCE_NOTES = {
+    "VanDerWaals": {"model": '"thesis" (Java proxy) | "hamaker" (Eq 2.2)', "r0": "px, range R0 of the proxy",
+                    "strength": "Hamaker constant, mean-dot mass px^2/s^2", "min_gap": "px, closer counts as contact",
+                    "max_gap": "px, no force beyond", "contact": '"hold" | "zero" (force below min_gap)',
+                    "sticking_speed": "px/s, enters the proxy offset b", "skin": "px, Verlet skin of the pair list"},
+    "ThermalKicks": {"interval": "s between kicks", "scale": "multiple of the thesis kick speed"},
+    "Langevin": {"gamma": "1/s, friction rate", "kT": "mean-dot mass px^2/s^2"},
+    "Drag": {"linear": "f1, 1/s", "quadratic": "f2, 1/px"},
+    "Gravity": {"acceleration": "[ax, ay], px/s^2"},
+    "CenterGravity": {"center": "[x, y], px", "magnitude": "px/s^2, >= 0"},
+}
+
+
+def _value(v) -> str:
+    """One TOML value: bool, int, float (repr, exact), string or flat list."""
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, int):
+        return str(v)
+    if isinstance(v, float):
+        return repr(v) if math.isfinite(v) else ("nan" if math.isnan(v) else ("inf" if v > 0 else "-inf"))
+    if isinstance(v, str):
+        return json.dumps(v, ensure_ascii=False).replace("\x7f", "\\u007f")  # TOML also escapes DEL
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(_value(x) for x in v) + "]"
+    raise ValueError(f"cannot write {v!r} ({type(v).__name__}) to TOML")
+
+
+def _line(key: str, value, comment: str | None) -> str:
+    if value is None:
+        text = f"# {key} (unset)"
+        return f"{text:<32}  # {comment}" if comment else text
+    text = f"{key} = {_value(value)}"
+    return f"{text:<32}  # {comment}" if comment else text
+
+
+def experiment_to_toml(exp: Experiment) -> str:
+    """The scene file text of ``exp``: every parameter, with units and ranges in comments."""
+    lines = ["# qdots experiment. Units: px, s (simulated), masses in units of a mean-size dot's mass.",
+             "# Every key is optional; a missing key takes the default. Load with qdots.scenefile.load_experiment.",
+             ""]
+    lines += [_line(key, getattr(exp, key), note) for key, (_, note) in TOP.items()]
+    if not exp.forces:
+        lines.append("forces = []  # no forces")
+    for table, (_, schema) in TABLES.items():
+        obj = getattr(exp, table)
+        lines += ["", f"[{table}]"] + [_line(key, getattr(obj, key), note) for key, (_, note) in schema.items()]
+    for spec in exp.forces:
+        notes = FORCE_NOTES.get(spec["type"], {})
+        lines += ["", "[[forces]]"] + [_line(k, v, notes.get(k)) for k, v in spec.items()]
+    return "\n".join(lines) + "\n"
+
+
+def save_experiment(exp: Experiment, path: str | os.PathLike) -> Path:
+    """Write ``exp`` to ``path`` as TOML, atomically (whole or not at all); return the path."""
+    if not isinstance(exp, Experiment):
+        raise TypeError(f"exp must be a qdots.experiment.Experiment, got {type(exp).__name__}")
+    text = experiment_to_toml(exp)
+    with atomic_path(path) as tmp:
+        tmp.write_text(text, encoding="utf-8")
+    return Path(path)
+
+
+def _typed(key: str, value, kind: str):
+    """``value`` checked against ``kind``; ValueError naming the full ``key`` otherwise."""
+    plain = kind.rstrip("?")
+    if plain == "float" and isinstance(value, (int, float)) and not isinstance(value, bool):
+        return float(value)
+    if plain == "int" and isinstance(value, int) and not isinstance(value, bool):
+        return value
+    if plain in ("str", "bool") and isinstance(value, {"str": str, "bool": bool}[plain]):
+        return value
+    if plain == "pair" and isinstance(value, list) and len(value) == 2 \
+            and all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in value) \
+            and isinstance(value[1], int):
+        return (float(value[0]), value[1])
+    want = {"float": "a number", "int": "an integer", "str": "a string", "bool": "true or false",
+            "pair": "a list [number, integer]"}[plain]
+    raise ValueError(f"{key} must be {want}, got {value!r}")
+
+
+def _unknown(where: str, keys, allowed) -> None:
+    extra = [k for k in keys if k not in allowed]
+    if extra:
+        full = f"{where}.{extra[0]}" if where else extra[0]
+        raise ValueError(f"unknown key {full!r} (allowed{' in [' + where + ']' if where else ''}: "
+                         f"{', '.join(allowed)})")
+
+
+def _table(name: str, data) -> object:
+    cls, schema = TABLES[name]
+    if not isinstance(data, dict):
+        raise ValueError(f"{name} must be a table ([{name}]), got {data!r}")
+    _unknown(name, data, schema)
+    values = {key: _typed(f"{name}.{key}", value, schema[key][0]) for key, value in data.items()}
+    try:
+        return cls(**values)
+    except ValueError as exc:
+        msg = str(exc)
+        if msg.lower().startswith(f"{name}."):
+            raise ValueError(name + msg[len(name):]) from None
+        raise ValueError(f"{name}.{msg}") from None
+
+
+def experiment_from_dict(data: dict) -> Experiment:
+    """An `Experiment` from parsed TOML (nested dicts); missing keys take their defaults.
+
+    Raises
+    ------
+    ValueError
+        Naming the full key of an unknown key, a wrong type or an out-of-range value.
+    """
+    if not isinstance(data, dict):
+        raise ValueError(f"a scene must be a table, got {type(data).__name__}")
+    _unknown("", data, [*TOP, *TABLES, "forces"])
+    kwargs = {key: _typed(key, data[key], kind) for key, (kind, _) in TOP.items() if key in data}
+    kwargs.update({name: _table(name, data[name]) for name in TABLES if name in data})
+    if "forces" in data:
+        forces = data["forces"]
+        if not isinstance(forces, list) or not all(isinstance(f, dict) for f in forces):
+            raise ValueError(f"forces must be an array of tables ([[forces]]), got {forces!r}")
+        kwargs["forces"] = tuple(forces)
+    return Experiment(**kwargs)
+
+
+def experiment_from_toml(text: str, source: str = "<string>") -> Experiment:
+    """Parse scene-file text; errors are ValueErrors starting with ``source``."""
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ValueError(f"{source}: invalid TOML: {exc}") from None
+    try:
+        return experiment_from_dict(data)
+    except ValueError as exc:
+        raise ValueError(f"{source}: {exc}") from None
+
+
+def load_experiment(path: str | os.PathLike) -> Experiment:
+    """Read a scene file.
+
+    Raises
+    ------
+    FileNotFoundError
+        If ``path`` does not exist.
+    ValueError
+        If it cannot be read or decoded (UTF-8), is not valid TOML, or holds
+        a bad key or value; the message starts with the path.
+    """
+    path = Path(path)
+    if not path.exists():
+        raise FileNotFoundError(f"scene file {str(path)!r} does not exist")
+    try:
+        text = path.read_bytes().decode("utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ValueError(f"{path}: cannot read the scene file: {exc}") from None
+    return experiment_from_toml(text, source=str(path))

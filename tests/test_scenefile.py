@@ -1,0 +1,108 @@
+"""TOML scene files: round trips, defaults and every error path."""
+
+import pytest
+
+import qdots
+from qdots.experiment import Board, Deposition, Experiment
+from qdots.presets import PRESETS, get_preset
+from qdots.scenefile import experiment_from_toml, experiment_to_toml, load_experiment, save_experiment
+from qdots.simulation import EngineSettings
+
+ALL_PRESET_RUNS = [exp for name in PRESETS for exp in (*PRESETS[name], *get_preset(name, quick=True))]
+
+
+@pytest.mark.parametrize("exp", ALL_PRESET_RUNS, ids=lambda e: e.name)
+def test_every_preset_round_trips_through_a_file(tmp_path, exp):
+    path = save_experiment(exp, tmp_path / "scene.toml")
+    assert load_experiment(path) == exp
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["scene.toml"]  # no temporary left behind
+
+
+def test_floats_and_optional_engine_settings_round_trip_exactly():
+    exp = Experiment(
+        name='tricky "name" \\ with\nnewline and é',
+        board=Board(width=1 / 3 * 900, height=600.0, closed=False),
+        deposition=Deposition(sigma=0.1 + 0.2, interval=1e-17 + 0.7, heavy_mass=2.0000000000000004),
+        restitution=qdots.Restitution(mean=0.8123456789012345, wall=0.9, sticking_speed=0.0),
+        engine=EngineSettings(dt=1e-3 / 3, substeps=3, iterations=25, collision_slop=1e-9,
+                              collision_bias=0.123, spatial_hash=(22.5, 1000), threads=2),
+        forces=(qdots.Langevin(gamma=0.7), qdots.CenterGravity((123.456, 0.1 + 0.2), 1e-300),
+                qdots.Gravity((0.0, -9.81))),
+    )
+    back = experiment_from_toml(experiment_to_toml(exp))
+    assert back == exp
+    assert back.deposition.sigma == 0.30000000000000004 and back.engine.spatial_hash == (22.5, 1000)
+
+
+def test_written_file_has_every_key_with_units():
+    text = experiment_to_toml(PRESETS["fig2-2"][1])
+    for line in ("sigma = 0.15", "# fraction of mean diameter, [0, 1)", "[board]", "[deposition]",
+                 "[restitution]", "[engine]", "[[forces]]", 'type = "VanDerWaals"', "dt = 0.001",
+                 "# collision_bias (unset)", "# spatial_hash (unset)"):
+        assert line in text, line
+    assert "# px, > 0" in text and "# s of simulated time" in text
+
+
+def test_missing_keys_take_defaults_and_ints_are_accepted_for_floats():
+    assert experiment_from_toml("") == Experiment()
+    exp = experiment_from_toml('seed = 9\n[board]\nwidth = 300\n[deposition]\nsigma = 0.1\n[[forces]]\ntype = "Drag"\n')
+    assert exp == Experiment(seed=9, board=Board(width=300.0), deposition=Deposition(sigma=0.1),
+                             forces=(qdots.Drag().to_dict(),))
+    assert isinstance(exp.board.width, float)
+    assert experiment_from_toml("forces = []").forces == ()
+
+
+@pytest.mark.parametrize("text, message", [
+    ("nmae = 'x'", r"unknown key 'nmae' \(allowed: name, seed, grating, board, deposition"),
+    ("[deposition]\nsigmaa = 0.1", r"unknown key 'deposition.sigmaa' \(allowed in \[deposition\]: protocol, "),
+    ("[engine]\nsubsteps = 2.5", r"engine.substeps must be an integer, got 2.5"),
+    ("seed = true", r"seed must be an integer, got True"),
+    ("[board]\nclosed = 1", r"board.closed must be true or false, got 1"),
+    ("[deposition]\nprotocol = 3", r"deposition.protocol must be a string, got 3"),
+    ("[engine]\nspatial_hash = [10.0, 2.5]", r"engine.spatial_hash must be a list \[number, integer\]"),
+    ("board = 5", r"board must be a table \(\[board\]\), got 5"),
+    ("[deposition]\nsigma = 1.5", r"deposition.sigma must be a number in \[0, 1\), got 1.5"),
+    ("[deposition]\nn_dots = -3", r"deposition.n_dots must be an integer >= 0, got -3"),
+    ("[board]\nheight = 0", r"board.height must be a number in \(0, inf\)"),
+    ("[restitution]\nmean = 1.2", r"restitution.mean must be in \[0, 1\], got 1.2"),
+    ("[engine]\ndt = -0.001", r"engine.dt must be > 0 s, got -0.001"),
+    ("[engine]\nthreads = 4", r"engine.threads must be 1 or 2, got 4"),
+    ("grating = 900.0", r"grating must be 0 \(none\) or in \(deposition.mean_diameter = 15, board.height = 600\)"),
+    ("[[forces]]\ntype = 'Magnetic'", r"forces\[0\]: unknown force type 'Magnetic' \(known: CenterGravity, "),
+    ("[[forces]]\ntype = 'Drag'\nlinaer = 0.1", r"forces\[0\]: Drag has no parameter 'linaer'"),
+    ("[[forces]]\nlinear = 0.1", r"forces\[0\]: a force must be a table with a 'type' key"),
+    ("[[forces]]\ntype = 'Drag'\nlinear = -1.0", r"forces\[0\]: Drag.linear must be >= 0"),
+    ("forces = 3", r"forces must be an array of tables"),
+])
+def test_bad_files_raise_errors_naming_the_file_and_key(tmp_path, text, message):
+    path = tmp_path / "bad.toml"
+    path.write_text(text)
+    with pytest.raises(ValueError, match=message) as info:
+        load_experiment(path)
+    assert str(info.value).startswith(f"{path}: ")
+
+
+def test_malformed_toml_names_the_file_and_the_toml_error(tmp_path):
+    path = tmp_path / "broken.toml"
+    path.write_text("[deposition\nsigma = 0.1\n")
+    with pytest.raises(ValueError, match=r"broken.toml: invalid TOML: .*line 1"):
+        load_experiment(path)
+    path.write_bytes(b"name = '\xff'\n")
+    with pytest.raises(ValueError, match=r"broken.toml: cannot read the scene file"):
+        load_experiment(path)
+
+
+def test_missing_file(tmp_path):
+    with pytest.raises(FileNotFoundError, match=r"scene file .*nothing.toml' does not exist"):
+        load_experiment(tmp_path / "nothing.toml")
+
+
+def test_failed_save_keeps_the_previous_file(tmp_path, monkeypatch):
+    path = save_experiment(Experiment(seed=1), tmp_path / "scene.toml")
+    before = path.read_text()
+    monkeypatch.setattr("qdots.scenefile.experiment_to_toml", lambda exp: (_ for _ in ()).throw(RuntimeError()))
+    with pytest.raises(RuntimeError):
+        save_experiment(Experiment(seed=2), path)
+    assert path.read_text() == before and sorted(p.name for p in tmp_path.iterdir()) == ["scene.toml"]
+    with pytest.raises(TypeError, match="exp must be a qdots.experiment.Experiment"):
+        save_experiment({"seed": 1}, path)
