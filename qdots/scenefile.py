@@ -62,7 +62,7 @@ TABLES = {
         "substeps": ("int", "Chipmunk steps per time step, integer >= 1"),
         "iterations": ("int", "solver iterations per sub-step, integer >= 1"),
         "collision_slop": ("float", "px of overlap left uncorrected, >= 0"),
-        "collision_bias": ("float?", "overlap fraction left after 1 s, [0, 1); unset: 10 % corrected per sub-step"),
+        "collision_bias": ("float?", "overlap fraction left after 1 s, [0, 1); unset: 30 % corrected per sub-step"),
         "spatial_hash": ("pair?", "[cell size px > 0, count >= 1]; unset: Chipmunk's bounding-box tree"),
         "threads": ("int", "solver threads, 1 or 2"),
     }),

@@ -19,6 +19,11 @@ from .scene import Scene, segment_distances
 from .state import State
 
 
+#: Fraction of an overlap corrected per sub-step by default. Measured on a dense pack under
+#: centre gravity at dt = 1 ms: 10 % leaves 0.60 % worst overlap (5.9 % at 10x gravity), 30 %
+#: leaves 0.32 % (1.5 %) at the same cost; 50 % starts to jitter (rms speed x1.7 at 10x gravity).
+OVERLAP_CORRECTION = 0.3
+
 #: Relative overlap accepted when a board is read back from a running simulation:
 #: soft contacts overlap by < 1 % of a radius at the defaults; 10 % guards against nonsense.
 ENGINE_OVERLAP_TOLERANCE = 0.1
@@ -80,10 +85,10 @@ class EngineSettings:
 
     @property
     def bias(self) -> float:
-        """pymunk's collision_bias: given, or 10 % overlap correction per sub-step."""
+        """pymunk's collision_bias: given, or `OVERLAP_CORRECTION` per sub-step."""
         if self.collision_bias is not None:
             return float(self.collision_bias)
-        return 0.9 ** (self.substeps / self.dt)
+        return (1.0 - OVERLAP_CORRECTION) ** (self.substeps / self.dt)
 
     def to_dict(self) -> dict:
         """Plain-data form (JSON/TOML friendly)."""
@@ -117,15 +122,19 @@ class Simulation:
         more finely at proportional cost.
     iterations : int
         Chipmunk solver iterations per sub-step (>= 1, pymunk default 10).
+        Two-body impacts are exact with any count; simultaneous impacts of
+        three or more dots converge with more (an elastic gas loses ~1e-5
+        of its energy per such event at 10, none at 30).
     collision_slop : float
         Overlap Chipmunk tolerates without correcting, px (>= 0; pymunk's
         default 0.1 px is 1.3 % of a mean radius, ours is 0.01 px).
     collision_bias : float, optional
         Fraction of an overlap left uncorrected after one second (pymunk's
-        meaning, in [0, 1)). Default: correct 10 % of the overlap per
-        sub-step, which is what pymunk's default does at its design rate of
-        60 Hz. The correction moves positions only (pseudo-velocities), not
-        the velocities that carry energy.
+        meaning, in [0, 1)). Default: correct 30 % of the overlap per
+        sub-step (`OVERLAP_CORRECTION`; pymunk's default corrects 10 % per
+        step at its design rate of 60 Hz, under 1 % per step at 1 ms). The
+        correction moves positions only (pseudo-velocities), not the
+        velocities that carry energy.
     spatial_hash : (float, int), optional
         ``(cell_size_px, count)`` to use Chipmunk's spatial hash instead of
         its default bounding-box tree.

@@ -161,14 +161,21 @@ def test_wall_restitution_is_configurable():
     assert sim.state().velocities[0, 1] == pytest.approx(25.0, abs=TOL)
 
 
-def test_elastic_gas_conserves_energy(rng):
-    """e = 1, no forces: kinetic energy is exact per impact; drift bound 1e-8 relative over 10^4 steps."""
+@pytest.mark.parametrize("iterations, bound", [(10, 2e-4), (30, 1e-12)])
+def test_elastic_gas_conserves_energy(rng, iterations, bound):
+    """e = 1, no forces, 10^4 steps, ~2,000 impacts.
+
+    A two-body impact conserves energy to round-off. A simultaneous impact of
+    three dots is solved iteratively (Gauss-Seidel): at the default 10 solver
+    iterations it can lose a little (measured: 2 such events, 6.7e-5 relative
+    in total); at 30 iterations it converges and the drift is round-off.
+    """
     n, side = 100, 400
     grid = np.array([(x, y) for x in range(20, side, 38) for y in range(20, side, 38)], float)[:n]
     scene = qdots.Scene(box=(side, side), positions=grid, radii=np.full(n, 7.5),
                         velocities=rng.normal(0, 100, (n, 2)),
                         restitution=qdots.Restitution(mean=1.0, sticking_speed=0.0))
-    sim = qdots.Simulation(scene, seed=1, dt=1e-3)
+    sim = qdots.Simulation(scene, seed=1, dt=1e-3, iterations=iterations)
     e0 = sim.state().kinetic_energy()
     energies = []
     for _ in range(20):
@@ -177,4 +184,4 @@ def test_elastic_gas_conserves_energy(rng):
     drift = np.abs(np.array(energies) / e0 - 1).max()
     assert sim.steps_taken == 10_000
     assert sim.collisions.dot_dot > 1000  # the test means something only if dots collide a lot
-    assert drift < 1e-8
+    assert drift < bound
