@@ -138,6 +138,35 @@ def _add_render(subparsers) -> None:
     p.set_defaults(func=_run_render)
 
 
+def _add_analyze(subparsers) -> None:
+    p = subparsers.add_parser("analyze", help="packing table and LQE of a saved state",
+                              description="Measure a state file: interior dots, neighbours, spacing, psi6, "
+                                          "clusters, Voronoi coordination, and the film's luminescence quantum "
+                                          "efficiency (exact, averaged over random trap draws).")
+    p.add_argument("state", type=Path, metavar="STATE.npz", help="state file")
+    p.add_argument("--json", action="store_true", help="print one JSON object instead of the table")
+    p.add_argument("--plot", nargs="?", type=Path, const=True, default=None, metavar="FILE.png",
+                   help="also write the figure (default: STATE with _analysis.png)")
+    p.add_argument("--rule", choices=["text", "code"], default="text",
+                   help="neighbours: surface gap < one mean radius (text, default) or d <= r_i + 2 r_j (code)")
+    p.add_argument("--forster-radius", type=_float_in(0.0, math.inf, low_open=True), default=None, metavar="PX",
+                   help="Förster radius, px (default: the mean diameter)")
+    p.add_argument("--traps", type=_float_in(0.0, 1.0, high_open=False), default=1 / 3, metavar="F",
+                   help="fraction of trap dots (default 1/3)")
+    p.add_argument("--draws", type=_int_at_least(1), default=8, help="trap draws to average (default 8)")
+    p.add_argument("--seed", type=_int_at_least(0), default=0, help="seed of the trap draws (default 0)")
+    p.set_defaults(func=_run_analyze)
+
+
+def _run_analyze(args: argparse.Namespace) -> int:
+    from .commands import analyze
+
+    plot = args.state.with_name(f"{args.state.stem}_analysis.png") if args.plot is True else args.plot
+    analyze(args.state, rule=args.rule, forster_radius=args.forster_radius, trap_fraction=args.traps,
+            draws=args.draws, seed=args.seed, as_json=args.json, plot=plot)
+    return 0
+
+
 def _run_scene(args: argparse.Namespace) -> int:
     from .commands import run_experiments
     from .scenefile import load_experiment
@@ -189,7 +218,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     parser.add_argument("--version", action="version", version=f"qdots {__version__}")
     subparsers = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
-    for add in (_add_demo, _add_run, _add_preset, _add_resume, _add_render):
+    for add in (_add_demo, _add_run, _add_preset, _add_resume, _add_render, _add_analyze):
         add(subparsers)
     return parser
 

@@ -163,3 +163,31 @@ def render(state_path: Path, png: Path | None) -> Path:
     save_png(checkpoint.read_state(state_path), png)
     print(f"wrote {png}")
     return png
+
+
+def analyze(state_path: Path, *, rule: str = "text", forster_radius: float | None = None,
+            trap_fraction: float = 1.0 / 3.0, draws: int = 8, seed: int = 0, as_json: bool = False,
+            plot: Path | None = None) -> dict:
+    """Print the packing table and the film LQE of a saved board; optionally write the figure.
+
+    Returns the summary (the ``--json`` object).
+    """
+    import json
+    import math
+
+    from .report import board_report, save_report_png, table_rows
+
+    state = checkpoint.read_state(state_path)
+    report = board_report(state, rule=rule, forster_radius=forster_radius, trap_fraction=trap_fraction,
+                          draws=draws, seed=seed)
+    summary = {"state_file": str(state_path), "rule": rule, **report.summary}
+    if plot is not None:
+        summary["figure"] = str(save_report_png(state, report, plot))
+    if as_json:  # strict JSON: nan -> null
+        print(json.dumps({k: None if isinstance(v, float) and math.isnan(v) else v for k, v in summary.items()},
+                         indent=2))
+    else:
+        print_table(f"{state_path} (t = {state.time:.2f} s, neighbour rule {rule!r}):", table_rows(summary))
+        if plot is not None:
+            print(f"wrote {plot}")
+    return summary

@@ -1,0 +1,69 @@
+"""``qdots analyze``: table, JSON and figure of a saved state; bad input exits 2."""
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+import qdots
+from qdots.cli import main
+
+
+@pytest.fixture(scope="module")
+def state_file(tmp_path_factory):
+    """A saved hexagonal flake of 19 dots (exact numbers known) plus one far-away dot."""
+    pitch = 15.0
+    a1, a2 = np.array([pitch, 0.0]), np.array([pitch / 2, pitch * math.sqrt(3) / 2])
+    flake = [i * a1 + j * a2 for i in range(-2, 3) for j in range(-2, 3) if abs(i + j) <= 2]
+    positions = np.vstack([np.array(flake) + 100.0, [[250.0, 250.0]]])
+    scene = qdots.Scene(box=(300.0, 300.0), positions=positions, radii=np.full(len(positions), 7.5),
+                        overlap_tolerance=1e-6)
+    sim = qdots.Simulation(scene, [], seed=1)
+    path = tmp_path_factory.mktemp("analyze") / "flake.npz"
+    qdots.save(sim, path)
+    return path
+
+
+def test_analyze_json_has_the_exact_packing_numbers(state_file, capsys):
+    assert main(["analyze", str(state_file), "--json", "--draws", "2"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["n_dots"] == 20
+    assert out["interior_fraction"] == pytest.approx(7 / 20)  # 1 + 6 dots of the flake's inner part
+    assert out["mean_neighbours_interior"] == 6.0
+    assert out["psi6_global"] == pytest.approx(1.0)  # the lone dot has no neighbours and is left out
+    assert out["clusters"] == 2 and out["largest_cluster_fraction"] == pytest.approx(19 / 20)
+    assert 0 < out["lqe"] < out["solution_lqe"] <= 1
+    assert out["size_separation_correlation"] is None  # equal sizes: undefined, null in JSON
+    assert out["trap_draws"] == 2 and out["forster_radius_px"] == 15.0
+
+
+def test_analyze_table_and_plot(state_file, tmp_path, capsys):
+    png = tmp_path / "fig.png"
+    assert main(["analyze", str(state_file), "--plot", str(png), "--rule", "code", "--traps", "0.5",
+                 "--forster-radius", "20", "--draws", "1"]) == 0
+    text = capsys.readouterr().out
+    assert "interior fraction" in text and "film LQE (exact)" in text and f"wrote {png}" in text
+    assert png.stat().st_size > 10_000
+    assert main(["analyze", str(state_file), "--plot", "--draws", "1"]) == 0
+    assert state_file.with_name("flake_analysis.png").exists()
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--traps", "1.5"], "--traps"),
+    (["--rule", "java"], "--rule"),
+    (["--forster-radius", "-3"], "--forster-radius"),
+    (["--draws", "0"], "--draws"),
+])
+def test_analyze_rejects_bad_options(state_file, argv, message, capsys):
+    assert main(["analyze", str(state_file), *argv]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("qdots: error:") and message in err and len(err.strip().splitlines()) == 1
+
+
+def test_analyze_missing_or_corrupt_file(tmp_path, capsys):
+    assert main(["analyze", str(tmp_path / "none.npz")]) == 2
+    bad = tmp_path / "bad.npz"
+    bad.write_bytes(b"not a zip")
+    assert main(["analyze", str(bad)]) == 2
+    assert capsys.readouterr().err.count("qdots: error:") == 2

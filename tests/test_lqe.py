@@ -1,0 +1,238 @@
+"""Exciton transport (LQE): exact solutions, the cutoff bound, and Monte Carlo within its error bars."""
+
+import itertools
+import math
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from qdots.forster import (
+    KB_EV, TAU_NS, cutoff_for, dot_energies, draw_traps, exciton_network, truncation_bound,
+)
+from qdots.lqe import film_lqe, lqe_exact, lqe_monte_carlo
+from qdots.lqe_thesis import _event_table, step_probabilities
+from qdots.placement import random_sequential
+
+R = 7.5
+
+
+def board(positions, radii=R):
+    positions = np.asarray(positions, dtype=float)
+    return SimpleNamespace(positions=positions,
+                           radii=np.broadcast_to(np.asarray(radii, float), (len(positions),)).copy())
+
+
+def hex_lattice(m, pitch=2 * R):
+    i, j = np.meshgrid(np.arange(m), np.arange(m), indexing="ij")
+    return np.column_stack([(pitch * i + pitch / 2 * (j % 2)).ravel(), (pitch * math.sqrt(3) / 2 * j).ravel()]) + 50
+
+
+# --------------------------------------------------------------------------- exact answers
+
+
+def test_two_dots_one_trap_closed_form():
+    d = 20.0
+    net = exciton_network(board([[0, 0], [d, 0]]), forster_radius=15.0, traps=np.array([False, True]))
+    k_r, w = 1 / TAU_NS, (15.0 / d) ** 6 / TAU_NS
+    result = lqe_exact(net)
+    assert result.yields[0] == pytest.approx(k_r / (k_r + w), rel=1e-12)
+    assert result.lqe == pytest.approx(0.5 * k_r / (k_r + w), rel=1e-12)
+    assert result.yields[1] == 0.0 and net.truncation_bound == 0.0  # every pair within the cutoff
+
+
+def test_two_dots_energy_uphill_is_slower_and_detailed_balance():
+    d, de, temperature = 15.0, 0.05, 297.0
+    energies = np.array([2.0, 2.0 + de])
+    kt = KB_EV * temperature
+    for trap, expected_w in ((1, math.exp(-de / kt)), (0, 1.0)):  # exciton on 0 hops up; on 1 hops down
+        traps = np.zeros(2, dtype=bool)
+        traps[trap] = True
+        net = exciton_network(board([[0, 0], [d, 0]]), forster_radius=15.0, traps=traps, energies=energies)
+        start = 1 - trap
+        w = expected_w / TAU_NS
+        assert lqe_exact(net).yields[start] == pytest.approx((1 / TAU_NS) / (1 / TAU_NS + w), rel=1e-12)
+    rates = net.rates.toarray()
+    assert rates[0, 1] * math.exp(-energies[0] / kt) == pytest.approx(rates[1, 0] * math.exp(-energies[1] / kt))
+
+
+@pytest.mark.parametrize("efficiency", [1.0, 0.6])
+def test_no_traps_every_dot_emits_with_its_efficiency(efficiency):
+    net = exciton_network(board(hex_lattice(8)), trap_fraction=0.0, efficiency=efficiency, seed=1)
+    result = lqe_exact(net)
+    np.testing.assert_allclose(result.yields, efficiency, rtol=1e-10)
+    assert net.solution_lqe == efficiency
+
+
+def test_small_and_large_forster_radius_limits():
+    b = board(hex_lattice(10))
+    weak = exciton_network(b, forster_radius=0.5, seed=4)       # hops ~ (0.5/15)^6 = 1e-9 of the decay
+    assert lqe_exact(weak).lqe == pytest.approx(weak.solution_lqe, abs=1e-7)
+    strong = exciton_network(b, forster_radius=60.0, seed=4, cutoff=60.0)
+    assert lqe_exact(strong).lqe < 0.02 * strong.solution_lqe
+
+
+def test_energy_disorder_cg_agrees_with_direct_solve():
+    positions, radii = random_sequential(250, (320.0, 320.0), sigma=0.1, rng=2)
+    net = exciton_network(board(positions, radii), energies="size", seed=3, cutoff=60.0)
+    result = lqe_exact(net)
+    good = ~net.traps
+    from scipy.sparse import diags
+    from scipy.sparse.linalg import spsolve
+    inner = net.rates[good][:, good]
+    direct = spsolve((diags(net.total_rates()[good]) - inner).tocsc(), np.full(good.sum(), net.radiative_rate))
+    np.testing.assert_allclose(result.yields[good], direct, rtol=1e-9, atol=1e-12)
+    assert result.error_bound - net.truncation_bound < 1e-9
+
+
+def test_dot_energies_brus_formula():
+    # 5 nm CdSe dot (15 px at 1/3 nm/px): 1.74 + 0.37603 * (1/0.13 + 1/0.45) / 2.5^2 - 1.786 * 1.43996 / (10.6 * 2.5)
+    expected = 1.74 + 0.37603 * (1 / 0.13 + 1 / 0.45) / 6.25 - 1.786 * 1.43996 / 26.5
+    assert dot_energies([7.5])[0] == pytest.approx(expected, abs=1e-5)
+    e = dot_energies([6.0, 7.5, 9.0])
+    assert e[0] > e[1] > e[2]  # smaller dots have larger gaps
+    with pytest.raises(ValueError, match="radii"):
+        dot_energies([-1.0])
+
+
+# --------------------------------------------------------------------------- pair cutoff
+
+
+def test_truncation_bound_holds_and_bounds_the_dropped_rates():
+    positions, radii = random_sequential(300, (350.0, 350.0), sigma=0.05, rng=5)
+    b = board(positions, radii)
+    traps = draw_traps(300, seed=6)
+    full = exciton_network(b, traps=traps, cutoff=1e4)
+    assert full.truncation_bound == 0.0
+    reference = lqe_exact(full)
+    d = np.sqrt(((positions[:, None] - positions[None]) ** 2).sum(-1))
+    spacing = d[~np.eye(300, dtype=bool)].min()
+    for cutoff in (25.0, 40.0, 80.0):
+        cut = exciton_network(b, traps=traps, cutoff=cutoff)
+        change = abs(lqe_exact(cut).lqe - reference.lqe)
+        assert change <= cut.truncation_bound
+        # The geometric part: tau * max dropped rate sum <= R_F^6 / (2 h^2 (R_c - h)^2).
+        far = (d > cutoff)
+        dropped = (far * np.where(far, (full.forster_radius / np.where(far, d, 1.0)) ** 6, 0.0)).sum(1).max()
+        assert dropped <= truncation_bound(full.forster_radius, cutoff, spacing)
+        assert cut.truncation_bound == pytest.approx(truncation_bound(full.forster_radius, cutoff, spacing))
+    # The default cutoff meets the default tolerance.
+    default = exciton_network(b, traps=traps)
+    assert default.truncation_bound <= 1e-3 + 1e-15
+    assert abs(lqe_exact(default).lqe - reference.lqe) <= default.truncation_bound
+    assert cutoff_for(15.0, 15.0, 1e-3) == pytest.approx(7.5 + (15.0**6 / (2 * 56.25 * 1e-3)) ** 0.25)
+
+
+# --------------------------------------------------------------------------- the thesis scheme's law
+
+
+@pytest.mark.parametrize("dt", [0.26, 2.6, 26.0])  # tau/100, tau/10, tau: weights up to >> 1
+def test_thesis_step_probabilities_match_enumeration(dt):
+    rng = np.random.default_rng(0)
+    net = exciton_network(board(rng.uniform(0, 60, (7, 2)), 2.0), forster_radius=15.0,
+                          traps=np.zeros(7, dtype=bool), efficiency=0.7, cutoff=1e3)
+    hop, nonradiative, radiative = step_probabilities(net, dt)
+    weights, targets, _ = _event_table(net, dt)
+    for i in range(7):
+        w = weights[i][weights[i] > 0]
+        pi = np.minimum(w, 1.0)
+        exact = np.zeros(len(w))
+        for flags in itertools.product([False, True], repeat=len(w)):  # every set of possible events
+            flags = np.array(flags)
+            if flags.any():
+                exact[flags] += np.prod(np.where(flags, pi, 1 - pi)) * w[flags] / w[flags].sum()
+        ours = np.concatenate([hop[i].toarray().ravel()[targets[i][targets[i] >= 0]],
+                               [nonradiative[i], radiative[i]]])
+        np.testing.assert_allclose(ours, exact, rtol=1e-11)
+
+
+def test_thesis_dt_bias_is_first_order():
+    net = exciton_network(board(hex_lattice(10)), seed=1, cutoff=40.0)
+    exact = lqe_exact(net).lqe
+    bias = [lqe_exact(net, scheme="thesis", dt=TAU_NS * f).lqe - exact for f in (0.01, 0.001)]
+    assert bias[0] > 0  # the thesis scheme overestimates here (R_F = one diameter)
+    assert bias[0] / bias[1] == pytest.approx(10.0, rel=0.05)
+
+
+# --------------------------------------------------------------------------- Monte Carlo
+
+
+def test_gillespie_agrees_with_exact_within_three_standard_errors():
+    net = exciton_network(board(hex_lattice(12)), seed=7, cutoff=40.0)
+    exact = lqe_exact(net).lqe
+    mc = lqe_monte_carlo(net, 200_000, seed=11)
+    assert mc.method == "gillespie" and mc.standard_error == pytest.approx(math.sqrt(mc.lqe * (1 - mc.lqe) / 2e5))
+    assert abs(mc.lqe - exact) < 3 * mc.standard_error
+
+
+def test_gillespie_with_energy_disorder_and_inefficient_dots():
+    positions, radii = random_sequential(200, (300.0, 300.0), sigma=0.1, rng=9)
+    net = exciton_network(board(positions, radii), energies="size", efficiency=0.8, seed=2, cutoff=50.0)
+    exact = lqe_exact(net).lqe
+    mc = lqe_monte_carlo(net, 200_000, seed=3)
+    assert abs(mc.lqe - exact) < 3 * mc.standard_error
+
+
+def test_thesis_monte_carlo_matches_its_exact_law_and_shows_its_bias():
+    # At dt = tau/10 the thesis scheme's bias (~+0.003) is far beyond 3 standard errors of 1e5 excitons,
+    # and its literal Monte Carlo agrees with the exact law of the scheme.
+    net = exciton_network(board(hex_lattice(12)), forster_radius=22.5, seed=1, cutoff=45.0)
+    dt = TAU_NS / 10
+    exact = lqe_exact(net).lqe
+    thesis_exact = lqe_exact(net, scheme="thesis", dt=dt)
+    mc = lqe_monte_carlo(net, 100_000, method="thesis", dt=dt, seed=5)
+    assert mc.dt == dt and thesis_exact.dt == dt
+    assert abs(mc.lqe - thesis_exact.lqe) < 3 * mc.standard_error
+    assert abs(mc.lqe - exact) > 5 * mc.standard_error
+
+
+def test_monte_carlo_is_reproducible_and_traps_count():
+    net = exciton_network(board(hex_lattice(5)), trap_fraction=1.0, seed=0)
+    assert lqe_monte_carlo(net, 1000, seed=1).lqe == 0.0 and lqe_exact(net).lqe == 0.0
+    net = exciton_network(board(hex_lattice(6)), seed=2)
+    a, b = lqe_monte_carlo(net, 5000, seed=9), lqe_monte_carlo(net, 5000, seed=9)
+    assert a.lqe == b.lqe
+    assert lqe_monte_carlo(net, 5000, method="thesis", seed=9).lqe == \
+        lqe_monte_carlo(net, 5000, method="thesis", seed=9).lqe
+
+
+def test_film_lqe_averages_trap_draws():
+    b = board(hex_lattice(10))
+    avg = film_lqe(b, draws=4, seed=3)
+    again = film_lqe(b, draws=4, seed=3)
+    np.testing.assert_array_equal(avg.values, again.values)
+    assert avg.mean == pytest.approx(avg.values.mean()) and avg.standard_error > 0
+    assert len(set(avg.values)) == 4  # different traps, different LQE
+    assert 0 < avg.mean < avg.solution_lqe
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    (dict(forster_radius=-1.0), "forster_radius must be > 0"),
+    (dict(trap_fraction=1.5), r"trap_fraction must be in \[0, 1\]"),
+    (dict(efficiency=0.0), r"efficiency must be in \(0, 1\]"),
+    (dict(energies="colour"), "energies must be"),
+    (dict(energies=[1.0, 2.0]), "energies must be 4 finite values"),
+    (dict(traps=[1, 0, 1, 0]), "traps must be a boolean array"),
+    (dict(traps=[True, False]), "traps must be a boolean array"),
+    (dict(cutoff=1.0), "cutoff must exceed"),
+    (dict(tau=0.0), "tau must be > 0"),
+])
+def test_network_rejects_bad_input(kwargs, message):
+    with pytest.raises(ValueError, match=message):
+        exciton_network(board(hex_lattice(2)), **kwargs)
+
+
+def test_lqe_rejects_bad_input():
+    net = exciton_network(board(hex_lattice(3)), seed=0)
+    with pytest.raises(ValueError, match="scheme must be"):
+        lqe_exact(net, scheme="euler")
+    with pytest.raises(ValueError, match="method must be"):
+        lqe_monte_carlo(net, 10, method="kmc")
+    with pytest.raises(ValueError, match="n_excitons must be"):
+        lqe_monte_carlo(net, 0)
+    with pytest.raises(ValueError, match="dt must be > 0"):
+        lqe_monte_carlo(net, 10, method="thesis", dt=-1.0)
+    with pytest.raises(ValueError, match="ExcitonNetwork"):
+        lqe_exact(board(hex_lattice(3)))
+    with pytest.raises(ValueError, match="share a centre"):
+        exciton_network(board([[0, 0], [0, 0]]))
