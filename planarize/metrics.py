@@ -1,0 +1,71 @@
+"""Roughness figures of merit (thesis section 3.2.3) and the per-snapshot record of a run."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .surface import Surface
+
+
+def _heights(surface) -> np.ndarray:
+    z = surface.z if isinstance(surface, Surface) else np.asarray(surface, dtype=float)
+    return z.ravel()
+
+
+def rms(surface) -> float:
+    """Root mean square deviation of the heights from their mean, nm (Eq 3.8; every grid point counts once)."""
+    z = _heights(surface)
+    return float(np.sqrt(np.mean((z - z.mean()) ** 2)))
+
+
+def z_range(surface) -> float:
+    """Highest minus lowest height, nm (Eq 3.7)."""
+    z = _heights(surface)
+    return float(z.max() - z.min())
+
+
+#: Columns of a run's history, with units.
+HISTORY_COLUMNS = {
+    "target_nm": "oxide thickness at which the row was asked for",
+    "thickness_nm": "smallest metal-oxide distance when recorded (the thesis's oxide thickness)",
+    "distance_mean_nm": "mean metal-oxide distance",
+    "distance_std_nm": "standard deviation of the metal-oxide distances (the thesis's error bars)",
+    "metal_rms_nm": "RMS of the metal heights (Eq 3.8)",
+    "metal_zrange_nm": "z-range of the metal heights (Eq 3.7)",
+    "oxide_rms_nm": "RMS of the oxide heights",
+    "oxide_zrange_nm": "z-range of the oxide heights",
+    "metal_lost_nm3": "metal volume consumed",
+    "oxide_gained_nm3": "oxide volume added above the original surface",
+    "volume_error": "oxide_gained / ((k_exp - 1) metal_lost) - 1 (0 to round-off with exact accounting)",
+    "iterations": "batches oxidized so far",
+    "point_updates": "metal-point oxidations so far",
+    "wall_s": "wall time since the start of the run, s",
+}
+
+
+def history_row(engine, target: float, wall: float) -> dict:
+    """One history row (`HISTORY_COLUMNS`) for the current state of ``engine``."""
+    d = engine.D
+    lost = engine.metal_lost()
+    gained = engine.oxide_gained()
+    expected = (engine.k_exp - 1.0) * lost
+    if expected > 0:
+        volume_error = gained / expected - 1.0
+    else:
+        volume_error = 0.0 if gained == 0 else np.inf
+    return {
+        "target_nm": float(target),
+        "thickness_nm": float(d.min()),
+        "distance_mean_nm": float(d.mean()),
+        "distance_std_nm": float(d.std()),
+        "metal_rms_nm": rms(engine.zm),
+        "metal_zrange_nm": z_range(engine.zm),
+        "oxide_rms_nm": rms(engine.zo),
+        "oxide_zrange_nm": z_range(engine.zo),
+        "metal_lost_nm3": lost,
+        "oxide_gained_nm3": gained,
+        "volume_error": float(volume_error),
+        "iterations": int(engine.iterations),
+        "point_updates": int(engine.point_updates),
+        "wall_s": float(wall),
+    }

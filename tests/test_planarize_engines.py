@@ -1,0 +1,237 @@
+"""The planarization engines: exact bookkeeping, invariants, the fast engine against the reference."""
+
+import numpy as np
+import pytest
+
+from planarize import Surface, anodize, scenes
+from planarize.fast import FastEngine
+from planarize.features import closest_sets
+from planarize.reference import ReferenceEngine
+
+
+def brute_force(engine):
+    """Every metal point's distance and oxide set from all (metal, anchor) pairs of the grid."""
+    n = engine.grid.n
+    m, v = np.repeat(np.arange(n), n), np.tile(np.arange(n), n)
+    _, best, owner, oxide = closest_sets(engine.kernel, engine.zm, engine.zo, m, v, engine.tie)
+    sets = [set() for _ in range(n)]
+    for p, o in zip(owner.tolist(), oxide.tolist()):
+        sets[p].add(o)
+    return best, sets
+
+
+def engine_sets(engine):
+    if isinstance(engine, ReferenceEngine):
+        return engine.ox
+    sets = [set() for _ in range(engine.grid.n)]
+    for p, o in zip(engine.pair_m.tolist(), engine.pair_o.tolist()):
+        sets[p].add(o)
+    return sets
+
+
+def small_surfaces():
+    rng = np.random.default_rng(7)
+    return {
+        "hill": scenes.hill(points=5, refine=2),
+        "periodic": Surface(rng.uniform(0, 0.6, (8, 9)), 0.25, "periodic"),
+        "anisotropic": Surface(rng.uniform(0, 0.8, (7, 9)), (0.2, 0.35)),
+    }
+
+
+@pytest.mark.parametrize("engine_class", [ReferenceEngine, FastEngine])
+@pytest.mark.parametrize("distance", ["thesis", "exact"])
+@pytest.mark.parametrize("name", list(small_surfaces()))
+def test_distances_and_sets_stay_exact(engine_class, distance, name):
+    """After every update the incremental searches agree with a search over all pairs."""
+    options = {"tolerance": 0.01} if engine_class is FastEngine else {}
+    engine = engine_class(small_surfaces()[name], step=0.01, k_exp=2.3, distance=distance, **options)
+    for k in range(60):
+        if k % 15 == 0:
+            best, sets = brute_force(engine)
+            np.testing.assert_array_equal(engine.D, best)
+            assert engine_sets(engine) == sets
+        engine.advance()
+    assert engine.thickness > 0
+
+
+@pytest.mark.parametrize("distance", ["thesis", "exact"])
+@pytest.mark.parametrize("name", list(small_surfaces()))
+def test_fast_engine_at_zero_tolerance_is_the_reference(distance, name):
+    surface = small_surfaces()[name]
+    ref = ReferenceEngine(surface, step=0.01, k_exp=1.8, distance=distance)
+    fast = FastEngine(surface, step=0.01, k_exp=1.8, distance=distance, tolerance=0)
+    for _ in range(80):
+        ref.advance()
+        fast.advance()
+    np.testing.assert_array_equal(fast.zm, ref.zm)
+    np.testing.assert_array_equal(fast.zo, ref.zo)
+    np.testing.assert_array_equal(fast.D, ref.D)
+    assert engine_sets(fast) == ref.ox
+
+
+@pytest.mark.parametrize("engine", ["reference", "fast"])
+@pytest.mark.parametrize("boundary", ["open", "periodic"])
+@pytest.mark.parametrize("distance", ["thesis", "exact"])
+def test_volume_balance_is_exact_at_every_row(engine, boundary, distance):
+    """Oxide gained above the original surface = (k_exp - 1) x metal lost, with the exact volume."""
+    surface = scenes.bump(4.6, points=3, refine=3, boundary=boundary)
+    run = anodize(surface, 0.3, step=0.02, k_exp=2.3, engine=engine, distance=distance, record=6)
+    h = run.history
+    assert np.all(np.abs(h["volume_error"][1:]) < 1e-12)
+    lost = run.initial.volume() - run.metal.volume()
+    gained = run.oxide.volume() - run.initial.volume()
+    assert gained == pytest.approx(1.3 * lost, rel=1e-12)
+
+
+def test_thesis_volume_rule_is_off_on_open_grids_only():
+    hill = scenes.hill(points=5, refine=2)
+    open_run = anodize(hill, 0.3, step=0.01, volume="thesis", record=2)
+    periodic = anodize(scenes.bump(4.5, points=5, refine=2, boundary="periodic"), 0.3, step=0.01,
+                       volume="thesis", record=2)
+    assert abs(open_run.history["volume_error"][-1]) > 1e-4
+    assert abs(periodic.history["volume_error"][-1]) < 1e-12
+
+
+@pytest.mark.parametrize("engine", ["reference", "fast"])
+@pytest.mark.parametrize("boundary", ["open", "periodic"])
+def test_flat_film_grows_exactly_and_stays_flat(engine, boundary):
+    step, k_exp, target = 0.01, 2.3, 0.2
+    flat = Surface(np.full((6, 7), 4.0), 0.25, boundary)
+    run = anodize(flat, target, step=step, k_exp=k_exp, engine=engine, record=4)
+    layers = int(np.ceil(target / (k_exp * step) - 1e-9))  # the thesis's termination: first layer past target
+    assert run.thickness == pytest.approx(layers * k_exp * step, rel=1e-12)
+    assert np.ptp(run.metal.z) == 0.0 and np.ptp(run.oxide.z) == 0.0
+    assert run.metal.z[0, 0] == pytest.approx(4.0 - layers * step, rel=1e-13)
+    assert run.oxide.z[0, 0] == pytest.approx(4.0 + layers * (k_exp - 1) * step, rel=1e-13)
+    assert run.history["iterations"][-1] == layers  # every point at once: they are exact ties
+
+
+@pytest.mark.parametrize("engine", ["reference", "fast"])
+def test_transposing_the_grid_transposes_the_result(engine):
+    surface = Surface(np.random.default_rng(2).uniform(3.5, 4.5, (5, 5)), 1.0).refine(2)
+    a = anodize(surface, 0.4, step=0.01, engine=engine, record=3)
+    b = anodize(surface.transposed(), 0.4, step=0.01, engine=engine, record=3)
+    np.testing.assert_allclose(b.metal.z.T, a.metal.z, atol=1e-12)
+    np.testing.assert_allclose(b.oxide.z.T, a.oxide.z, atol=1e-12)
+    np.testing.assert_allclose(b.history["oxide_rms_nm"], a.history["oxide_rms_nm"], atol=1e-12)
+
+
+def test_periodic_translation_gives_the_translated_result():
+    z = np.random.default_rng(4).uniform(0, 0.5, (10, 12))
+    a = anodize(Surface(z, 0.25, "periodic"), 0.4, step=0.01, record=3)
+    b = anodize(Surface(np.roll(z, (3, 5), axis=(0, 1)), 0.25, "periodic"), 0.4, step=0.01, record=3)
+    np.testing.assert_allclose(np.roll(a.oxide.z, (3, 5), axis=(0, 1)), b.oxide.z, atol=1e-12)
+    np.testing.assert_allclose(np.roll(a.metal.z, (3, 5), axis=(0, 1)), b.metal.z, atol=1e-12)
+
+
+def test_hill_and_depression_planarize_by_the_same_amount():
+    """Thesis Fig 3-9: the total planarization is the same for the hill and the depression."""
+    drop = {}
+    for name in ("hill", "depression"):
+        run = anodize(getattr(scenes, name)(), 1.0, step=0.01, record=2)
+        drop[name] = {c: run.history[c][0] - run.history[c][-1] for c in ("metal_rms_nm", "oxide_rms_nm")}
+    total = {name: sum(d.values()) for name, d in drop.items()}
+    assert total["hill"] == pytest.approx(total["depression"], rel=0.04)
+    for c in ("metal_rms_nm", "oxide_rms_nm"):
+        assert drop["hill"][c] == pytest.approx(drop["depression"][c], rel=0.15)
+        assert drop["hill"][c] > 0.4 * run.history[c][0]  # and both planarize substantially
+
+
+def snapshot_error(run, ref, targets, columns):
+    """Largest relative difference of ``columns`` at the given oxide thicknesses (interpolated in each history)."""
+    worst = 0.0
+    for c in columns:
+        y = np.interp(targets, run.history["thickness_nm"], run.history[c])
+        yr = np.interp(targets, ref.history["thickness_nm"], ref.history[c])
+        worst = max(worst, float(np.max(np.abs(y / yr - 1))))
+    return worst
+
+
+RMS = ("metal_rms_nm", "oxide_rms_nm")
+ZRANGE = ("metal_zrange_nm", "oxide_zrange_nm")
+RANDOM = Surface(4 + np.random.default_rng(5).uniform(-0.25, 0.25, (4, 4)), 1.0).refine(4)
+
+
+# Allowed RMS / z-range differences at every 0.1 nm: the fast engine at its default tolerance measured
+# (RMS, z-range) hill 3.3 / 4.3 %, depression 1.8 / 9.2 %, tilted 0.5 / 1.9 %, random 1.2 / 3.7 %. The
+# reference itself moves by 3.5 / 15.6, 2.0 / 10.9, 0.3 / 2.1 and 0.9 / 2.6 % when its exact ties are
+# broken by 1e-9 nm of height noise: the goal of 2 % is below the reference's own reproducibility on
+# the hill (docs/performance.md).
+@pytest.mark.parametrize("surface, rms_allowed, zrange_allowed", [
+    pytest.param(scenes.hill(), 0.04, 0.08, id="hill"),
+    pytest.param(scenes.depression(), 0.025, 0.12, id="depression"),
+    pytest.param(scenes.tilted_plane(), 0.01, 0.03, id="tilted"),
+    pytest.param(RANDOM, 0.02, 0.06, id="random", marks=pytest.mark.slow),
+])
+def test_fast_engine_matches_the_reference(surface, rms_allowed, zrange_allowed):
+    targets = np.arange(1, 11) * 0.1
+    ref = anodize(surface, 1.0, step=0.01, engine="fast", tolerance=0, record=200)  # = reference, faster
+    run = anodize(surface, 1.0, step=0.01, engine="fast", record=200)
+    assert snapshot_error(run, ref, targets, RMS) < rms_allowed
+    assert snapshot_error(run, ref, targets, ZRANGE) < zrange_allowed
+    np.testing.assert_allclose(run.history["volume_error"], 0.0, atol=1e-12)
+    assert run.history["iterations"][-1] < ref.history["iterations"][-1] / 2
+
+
+def test_no_expansion_and_large_expansion_are_sane():
+    hill = scenes.hill(points=5, refine=2)
+    still = anodize(hill, 0.2, step=0.01, k_exp=1.0, record=2)
+    np.testing.assert_array_equal(still.oxide.z, hill.z)  # k_exp = 1: the oxide just replaces the metal
+    assert np.all(still.metal.z < hill.z) and still.thickness >= 0.2
+    big = anodize(hill, 0.5, step=0.01, k_exp=20.0, record=2)
+    assert np.all(np.isfinite(big.oxide.z)) and big.thickness >= 0.5
+    assert big.history["volume_error"][-1] == pytest.approx(0.0, abs=1e-12)
+
+
+@pytest.mark.parametrize("distance", ["thesis", "exact"])
+@pytest.mark.parametrize("kind", ["cliff", "spike", "pit"])
+def test_cliffs_and_spikes_stay_finite(kind, distance):
+    z = np.full((7, 7), 4.0)
+    if kind == "cliff":
+        z[:, 4:] = 6.0  # a 2 nm step between two grid columns 0.25 nm apart
+    elif kind == "spike":
+        z[3, 3] = 8.0
+    else:
+        z[3, 3] = 0.0
+    run = anodize(Surface(z, 0.25), 0.4, step=0.02, k_exp=1.8, distance=distance, record=3)
+    for s in run.snapshots:
+        assert np.all(np.isfinite(s.metal.z)) and np.all(np.isfinite(s.oxide.z))
+        assert np.all(s.oxide.z >= s.metal.z)
+        assert np.all(np.isfinite(s.distances)) and np.all(s.distances >= 0)
+    assert abs(run.history["volume_error"][-1]) < 1e-12
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    ({"thickness": -1}, "thickness"),
+    ({"thickness": np.nan}, "thickness"),
+    ({"step": 0}, "step"),
+    ({"k_exp": 0.5}, "k_exp"),
+    ({"engine": "gpu"}, "engine"),
+    ({"distance": "manhattan"}, "distance"),
+    ({"volume": "mean"}, "volume"),
+    ({"record": 0}, "record"),
+    ({"snapshots": [2.0]}, "snapshots"),
+    ({"tolerance": -1}, "tolerance"),
+])
+def test_bad_run_parameters(kwargs, message):
+    args = {"thickness": 0.1, **kwargs}
+    with pytest.raises(ValueError, match=message):
+        anodize(scenes.hill(points=3, refine=1), **args)
+
+
+def test_oxide_must_fit_the_metal():
+    hill = scenes.hill(points=3, refine=1)
+    with pytest.raises(ValueError, match="below the metal"):
+        anodize(hill, 0.1, oxide=hill.shifted(-0.1))
+    with pytest.raises(ValueError, match="grid"):
+        anodize(hill, 0.1, oxide=scenes.hill(points=3, refine=2))
+    with pytest.raises(TypeError, match="Surface"):
+        anodize(hill.z, 0.1)
+
+
+def test_a_run_continues_from_its_oxide():
+    hill = scenes.hill(points=5, refine=2)
+    first = anodize(hill, 0.2, step=0.01, record=2)
+    second = anodize(first.metal, 0.4, step=0.01, oxide=first.oxide, record=2)
+    assert second.thickness >= 0.4
+    assert second.history["thickness_nm"][0] == pytest.approx(first.thickness)
