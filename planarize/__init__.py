@@ -1,7 +1,16 @@
-"""Anodization planarization of metal surfaces on height grids (thesis chapter 3).
+"""planarize: anodization planarization of metal surfaces on height grids (thesis chapter 3).
 
-The engines arrive with later work; the package is importable so that the
-project installs as one unit.
+>>> import planarize
+>>> metal = planarize.scenes.hill()                        # 17 x 17 points, 0.25 nm apart
+>>> run = planarize.anodize(metal, thickness=1.0)          # doctest: +SKIP
+>>> run.history["oxide_rms_nm"][-1]                        # doctest: +SKIP
 """
 
-__all__: list[str] = []
+from . import scenes
+from .anodize import Anodization, Snapshot, anodize, engines
+from .metrics import rms, z_range
+from .surface import Surface
+
+__version__ = "0.1.0"
+
+__all__ = ["Surface", "anodize", "Anodization", "Snapshot", "engines", "rms", "z_range", "scenes"]
