@@ -1,0 +1,106 @@
+"""planarize run / scene / import: files written, exit codes, one-line errors."""
+
+import csv
+import re
+
+import imageio.v2 as imageio
+import numpy as np
+import pytest
+
+import planarize
+from planarize.cli import build_parser, main
+from planarize.results import load_run
+from planarize.scenefile import SCENES, load_scene
+
+FILES = (".toml", ".npz", "_history.csv", "_fig3-8.png", "_fig3-9.png", "_surfaces.png")
+
+
+@pytest.fixture(scope="module")
+def hill_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("hill")
+    assert main(["scene", "hill", "--quick", "0.25", "--out", str(out), "--movie"]) == 0
+    return out
+
+
+def test_scene_writes_every_file(hill_run, capsys):
+    stem = "hill_quick_0.25"
+    names = sorted(p.name for p in hill_run.iterdir())
+    assert names == sorted(stem + suffix for suffix in (*FILES, ".mp4"))
+    run = load_run(hill_run / f"{stem}.npz")
+    assert run.initial.shape == (5, 5) and run.parameters["step"] == 0.04 and run.thickness >= 1.0
+    with open(hill_run / f"{stem}_history.csv", newline="") as stream:
+        rows = list(csv.DictReader(stream))
+    assert [float(r["oxide_rms_nm"]) for r in rows] == pytest.approx(run.history["oxide_rms_nm"].tolist())
+    reader = imageio.get_reader(hill_run / f"{stem}.mp4")
+    assert sum(1 for _ in reader) == len(run.snapshots) == 41  # 40 intervals, ends included
+    reader.close()
+    assert load_scene(hill_run / f"{stem}.toml") == SCENES["hill"].quick(0.25)
+
+
+def test_run_reproduces_the_scene_file_and_overrides_the_engine(hill_run, tmp_path):
+    scene = hill_run / "hill_quick_0.25.toml"
+    first = load_run(hill_run / "hill_quick_0.25.npz")
+    assert main(["run", str(scene), "--out", str(tmp_path)]) == 0
+    again = load_run(tmp_path / "hill_quick_0.25.npz")
+    assert again.oxide == first.oxide and np.array_equal(again.history["metal_rms_nm"], first.history["metal_rms_nm"])
+    assert main(["run", str(scene), "--out", str(tmp_path / "ref"), "--engine", "reference"]) == 0
+    reference = load_run(tmp_path / "ref" / "hill_quick_0.25.npz")
+    assert reference.parameters["engine"] == "reference"
+    assert reference.history["oxide_rms_nm"][-1] == pytest.approx(first.history["oxide_rms_nm"][-1], abs=0.01)
+
+
+def test_scene_save_writes_the_named_scene(tmp_path, capsys):
+    assert main(["scene", "ta", "--save", str(tmp_path / "ta.toml")]) == 0
+    assert load_scene(tmp_path / "ta.toml") == SCENES["ta"]
+    assert capsys.readouterr().out.strip() == str(tmp_path / "ta.toml")
+
+
+def test_import_runs_a_height_map(tmp_path, capsys):
+    z = planarize.scenes.bump(5.0, base=4.0, refine=1).z  # 5 x 5, one raised point
+    np.savetxt(tmp_path / "afm.csv", z * 1e-9, delimiter=",")
+    out = tmp_path / "out"
+    code = main(["import", str(tmp_path / "afm.csv"), "--unit", "m", "--spacing", "1e-9", "--thickness", "0.5",
+                 "--out", str(out)])
+    assert code == 0
+    assert sorted(p.name for p in out.iterdir()) == sorted("afm" + s for s in FILES)
+    run = load_run(out / "afm.npz")
+    np.testing.assert_allclose(run.initial.z, z)
+    assert run.parameters["step"] == 0.01  # z-range 1 nm / 100
+    assert "metal RMS" in capsys.readouterr().out
+    scene = load_scene(out / "afm.toml")  # the provenance copy re-runs from anywhere
+    assert scene.surface.params["path"] == str((tmp_path / "afm.csv").resolve())
+    assert main(["import", str(tmp_path / "afm.csv"), "--unit", "m", "--spacing", "1e-9", "--thickness", "0.5",
+                 "--step", "0.1", "--save", str(tmp_path / "s.toml")]) == 0
+    assert load_scene(tmp_path / "s.toml").run.step == 0.1
+
+
+@pytest.mark.parametrize("argv, match", [
+    (["scene", "mountain"], "invalid choice: 'mountain'"),
+    (["run", "absent.toml"], "scene file 'absent.toml' does not exist"),
+    (["run", "{bad}.toml"], r"bad.toml: unknown key 'run.stpe'"),
+    (["scene", "hill", "--quick", "2"], r"argument --quick: must be in \(0, 1\], got 2"),
+    (["import", "{csv}"], "the following arguments are required: --thickness"),
+    (["import", "{csv}", "--thickness", "1"], "does not state the unit"),
+    (["import", "{csv}", "--thickness", "1", "--unit", "nm"], "does not state its grid spacing"),
+    (["import", "{csv}", "--thickness", "1", "--unit", "parsec", "--spacing", "1"], "unit must be one of nm"),
+    (["import", "{csv}", "--thickness", "1", "--unit", "nm", "--spacing", "1", "2", "3"], "--spacing takes DX or DX DY"),
+    (["import", "{csv}", "--thickness", "-1", "--unit", "nm", "--spacing", "1"], r"must be in \[0, inf\)"),
+    ([], "the following arguments are required: COMMAND"),
+])
+def test_bad_input_is_one_line_and_exit_code_2(tmp_path, capsys, argv, match):
+    (tmp_path / "bad.toml").write_text("[run]\nstpe = 1\n")
+    np.savetxt(tmp_path / "z.csv", np.ones((3, 3)), delimiter=",")
+    argv = [a.format(bad=tmp_path / "bad", csv=tmp_path / "z.csv") for a in argv]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("planarize: error: ") and err.count("\n") == 1
+    assert re.search(match, err), err
+
+
+def test_help_and_commands(capsys):
+    assert main(["--help"]) == 0
+    out = capsys.readouterr().out
+    for command in ("run", "scene", "import"):
+        assert command in out
+    assert main(["--version"]) == 0
+    assert [a.dest for a in build_parser()._subparsers._group_actions] == ["command"]

@@ -1,0 +1,83 @@
+"""Run files (.npz) and history tables: exact round trips, atomic writes, bad files."""
+
+import csv
+import json
+
+import numpy as np
+import pytest
+
+import planarize
+from planarize.results import history_json, load_run, save_history_csv, save_history_json, save_run
+
+
+@pytest.fixture(scope="module")
+def run():
+    return planarize.anodize(planarize.scenes.hill(refine=2), 0.5, step=0.05, record=5, snapshots=[0.0, 0.25, 0.5])
+
+
+def assert_same_run(a, b):
+    assert a.parameters == b.parameters
+    assert list(a.history) == list(b.history)
+    for key in a.history:
+        assert np.array_equal(a.history[key], b.history[key]) and a.history[key].dtype == b.history[key].dtype, key
+    assert (a.initial, a.metal, a.oxide) == (b.initial, b.metal, b.oxide)
+    assert np.array_equal(a.distances, b.distances)
+    assert len(a.snapshots) == len(b.snapshots)
+    for s, t in zip(a.snapshots, b.snapshots):
+        assert (s.target, s.thickness, s.metal, s.oxide) == (t.target, t.thickness, t.metal, t.oxide)
+        assert np.array_equal(s.distances, t.distances)
+
+
+def test_run_round_trips_exactly(run, tmp_path):
+    back = load_run(save_run(run, tmp_path / "run.npz"))
+    assert_same_run(run, back)
+    assert back.thickness == run.thickness and len(back.snapshots) == 3
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run.npz"]
+    periodic = planarize.anodize(planarize.scenes.bump(4.5, points=5, refine=1, boundary="periodic"), 0.2, step=0.05,
+                                 snapshots=[])
+    assert_same_run(periodic, load_run(save_run(periodic, tmp_path / "periodic.npz")))
+
+
+def test_history_csv_and_json(run, tmp_path):
+    with open(save_history_csv(run, tmp_path / "h.csv"), newline="") as stream:
+        rows = list(csv.DictReader(stream))
+    assert len(rows) == len(run.history["thickness_nm"]) == 6
+    for key, values in run.history.items():
+        assert [float(r[key]) for r in rows] == pytest.approx(values.tolist(), rel=1e-15)
+    data = json.loads(save_history_json(run, tmp_path / "h.json").read_text())
+    assert data["parameters"] == run.parameters
+    assert data["history"]["oxide_rms_nm"] == run.history["oxide_rms_nm"].tolist()
+    assert "Eq 3.8" in data["columns"]["metal_rms_nm"]
+
+
+def test_json_is_strict_with_non_finite_values(run):
+    history = {**run.history, "volume_error": np.array([np.inf] * 6)}
+    strange = planarize.Anodization(run.parameters, history, [], run.initial, run.metal, run.oxide)
+    assert history_json(strange)["history"]["volume_error"] == [None] * 6
+
+
+def test_failed_write_keeps_the_previous_file(run, tmp_path, monkeypatch):
+    path = save_run(run, tmp_path / "run.npz")
+    before = path.read_bytes()
+
+    def broken(*args, **kwargs):
+        raise OSError("disk full")
+
+    monkeypatch.setattr(np, "savez", broken)
+    with pytest.raises(OSError, match="disk full"):
+        save_run(run, path)
+    assert path.read_bytes() == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run.npz"]
+
+
+def test_bad_run_files(tmp_path):
+    with pytest.raises(FileNotFoundError):
+        load_run(tmp_path / "absent.npz")
+    (tmp_path / "junk.npz").write_bytes(b"junk")
+    with pytest.raises(ValueError, match="junk.npz: cannot read the run file"):
+        load_run(tmp_path / "junk.npz")
+    np.savez(tmp_path / "other.npz", metadata=np.array(json.dumps({"format": "qdots-state"})))
+    with pytest.raises(ValueError, match="not a planarize run file"):
+        load_run(tmp_path / "other.npz")
+    with pytest.raises(TypeError):
+        save_run("not a run", tmp_path / "x.npz")

@@ -1,0 +1,124 @@
+"""planarize TOML scene files: round trips, defaults, named scenes and every error path."""
+
+import numpy as np
+import pytest
+
+import planarize
+from planarize.scenefile import (SCENES, PlanarizeScene, RunSettings, SurfaceSpec, get_scene, load_scene,
+                                 save_scene, scene_from_toml, scene_to_toml)
+
+ALL = [*SCENES.values(), *(s.quick(0.5) for s in SCENES.values())]
+
+
+@pytest.mark.parametrize("scene", ALL, ids=lambda s: s.name)
+def test_every_named_scene_round_trips_through_a_file(tmp_path, scene):
+    path = save_scene(scene, tmp_path / "scene.toml")
+    assert load_scene(path) == scene
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["scene.toml"]
+
+
+def test_tricky_values_round_trip_exactly(tmp_path):
+    np.save(tmp_path / "z.npy", np.ones((3, 3)))
+    scenes = [
+        PlanarizeScene('odd "name" \\ é', seed=7, surface=SurfaceSpec("random_roughness", {
+            "size": 300.0, "scales": [[100.0, 0.1 + 0.2], [20.0, 1 / 3]], "refine": 2, "boundary": "periodic"}),
+            run=RunSettings(thickness=1 / 3, step=0.1 + 0.2, k_exp=1.3, tolerance=1e-17, record=[0.0, 0.1, 1 / 3],
+                            snapshots=[], distance="exact", volume="thesis")),
+        PlanarizeScene("file", surface=SurfaceSpec("file", {"path": str(tmp_path / "z.npy"), "unit": "um",
+                                                            "spacing": [0.5, 0.25], "level": True}),
+                       run=RunSettings(engine="reference")),
+        PlanarizeScene("tilt", surface=SurfaceSpec("tilted_plane", {"slope": [0.1, -0.3], "points": 4})),
+    ]
+    for scene in scenes:
+        assert scene_from_toml(scene_to_toml(scene)) == scene
+
+
+def test_defaults_come_from_the_scene_functions_and_build_the_thesis_surfaces():
+    assert SurfaceSpec("hill").build() == planarize.scenes.hill()
+    assert SurfaceSpec("depression").build() == planarize.scenes.depression()
+    assert get_scene("ta").build_surface() == planarize.scenes.random_roughness(seed=0)
+    assert get_scene("ta").replace(seed=3).build_surface() == planarize.scenes.random_roughness(seed=3)
+    ta = get_scene("ta").run
+    assert (ta.thickness, ta.step, ta.snapshots) == (200.0, 0.5, [0.0, 50.0, 100.0, 150.0, 200.0])
+    assert scene_from_toml("") == PlanarizeScene()  # every key optional
+    text = scene_to_toml(SCENES["hill"])
+    for line in ('kind = "hill"', "refine = 4", "# tolerance (unset)", "# nm, metal height consumed per oxidation",
+                 "[surface]", "[run]"):
+        assert line in text
+
+
+def test_relative_file_paths_are_relative_to_the_scene_file(tmp_path):
+    (tmp_path / "data").mkdir()
+    surface = planarize.Surface(np.arange(12.0).reshape(3, 4), 2.0)
+    planarize.io.save_heights(surface, tmp_path / "data" / "scan.csv")
+    (tmp_path / "scene.toml").write_text('[surface]\nkind = "file"\npath = "data/scan.csv"\n')
+    scene = load_scene(tmp_path / "scene.toml")
+    assert scene.build_surface() == surface
+    run = scene.replace(run={"thickness": 0.5, "step": 0.1}).anodize()
+    assert run.thickness >= 0.5
+
+
+def test_quick_scales_step_and_refinement():
+    quick = SCENES["hill"].quick(0.5)
+    assert quick.run.step == 0.02 and quick.surface.params["refine"] == 2 and quick.run.thickness == 1.0
+    assert SCENES["ta"].quick(0.1).surface.params["refine"] == 1
+    with pytest.raises(ValueError, match=r"quick fraction must be in \(0, 1\]"):
+        SCENES["hill"].quick(0)
+
+
+def test_scene_runs_with_overrides():
+    run = SCENES["hill"].quick(0.25).anodize(thickness=0.3, record=3)
+    assert run.parameters["step"] == 0.04 and run.initial.shape == (5, 5) and len(run.history["target_nm"]) == 4
+    assert SCENES["hill"].replace(run={"engine": "reference", "tolerance": 0.1}).run.options()["engine"] == "reference"
+    assert "tolerance" not in SCENES["hill"].replace(run={"engine": "reference", "tolerance": 0.1}).run.options()
+
+
+@pytest.mark.parametrize("text, match", [
+    ("sed = 1", r"unknown key 'sed' \(allowed: name, seed, surface, run\)"),
+    ("seed = -1", r"seed must be an integer >= 0, got -1"),
+    ("seed = 1.5", r"seed must be an integer, got 1.5"),
+    ("name = 3", r"name must be a string"),
+    ("surface = 3", r"surface must be a table"),
+    ("[surface]\nkind = 'blob'", r"surface.kind must be one of 'hill'"),
+    ("[surface]\npoints = 4", r"surface.points must be odd"),
+    ("[surface]\npoints = 2.0", r"surface.points must be an integer, got 2.0"),
+    ("[surface]\nrefine = 0", r"surface.refine must be an integer >= 1, got 0"),
+    ("[surface]\nspacing = -1", r"surface.spacing must be > 0"),
+    ("[surface]\nmethod = 'quad'", r"surface.method must be one of \('linear', 'cubic'\)"),
+    ("[surface]\nslope = [1, 2]", r"unknown key 'surface.slope' \(allowed in \[surface\]: kind, base"),
+    ("[surface]\nkind = 'tilted_plane'\nslope = [1]", r"surface.slope must be a list of two numbers"),
+    ("[surface]\nkind = 'random_roughness'\nsize = 450", r"surface.size \(450 nm\) must be a whole number"),
+    ("[surface]\nkind = 'random_roughness'\nscales = [1, 2]", r"surface.scales must be a non-empty list of \[width, height\]"),
+    ("[surface]\nkind = 'file'", r"surface.path is required"),
+    ("[surface]\nkind = 'file'\npath = 'x.npy'\nunit = 'furlong'", r"surface.unit must be one of nm"),
+    ("[surface]\nkind = 'file'\npath = 'x.npy'\nchannel = 1.5", r"surface.channel must be a channel number or title"),
+    ("[surface]\nkind = 'file'\npath = 'x.npy'\nmax_aspect = 0.5", r"surface.max_aspect must be >= 1"),
+    ("[run]\nstep = -1", r"run.step must be > 0 nm, got -1.0"),
+    ("[run]\nthickness = 'thick'", r"run.thickness must be a number"),
+    ("[run]\nk_exp = 0.5", r"run.k_exp must be >= 1, got 0.5"),
+    ("[run]\nengine = 'gpu'", r"run.engine must be one of"),
+    ("[run]\ndistance = 'far'", r"run.distance must be one of 'thesis', 'exact'"),
+    ("[run]\nvolume = 'mean'", r"run.volume must be one of 'exact', 'thesis'"),
+    ("[run]\ntolerance = -1", r"run.tolerance must be >= 0 nm"),
+    ("[run]\nrecord = 0", r"run.record must be a count >= 1"),
+    ("[run]\nrecord = 'all'", r"run.record must be an integer count or a list"),
+    ("[run]\nsnapshots = [0, 5]", r"run.snapshots must lie in \[0, thickness = 1.0\] nm"),
+    ("[run]\nstpe = 1", r"unknown key 'run.stpe'"),
+    ("[run\n", r"invalid TOML"),
+])
+def test_bad_scene_files_name_the_key(tmp_path, text, match):
+    path = tmp_path / "bad.toml"
+    path.write_text(text)
+    with pytest.raises(ValueError, match=match) as error:
+        load_scene(path)
+    assert str(error.value).startswith(str(path))
+
+
+def test_missing_and_unreadable_scene_files(tmp_path):
+    with pytest.raises(FileNotFoundError):
+        load_scene(tmp_path / "absent.toml")
+    (tmp_path / "binary.toml").write_bytes(b"\xff\xfe")
+    with pytest.raises(ValueError, match="cannot read the scene file"):
+        load_scene(tmp_path / "binary.toml")
+    with pytest.raises(ValueError, match="unknown scene 'mountain'; built-in scenes: hill, depression, ta, tilted"):
+        get_scene("mountain")
