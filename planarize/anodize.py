@@ -20,9 +20,9 @@ from .surface import Surface
 
 def engines() -> dict[str, type[Engine]]:
     """The available engines by name."""
-    from .reference import ReferenceEngine
+    from .reference import MatlabEngine, ReferenceEngine
 
-    found = {"reference": ReferenceEngine}
+    found = {"reference": ReferenceEngine, "matlab": MatlabEngine}
     try:
         from .fast import FastEngine
     except ImportError:  # pragma: no cover - the fast engine is part of the package
@@ -113,10 +113,11 @@ def anodize(metal: Surface, thickness: float, *, step: float = 0.01, k_exp: floa
         Metal height consumed per oxidation, nm (> 0; thesis 0.01 for the hill, 0.5 for Ta).
     k_exp : float
         Oxide volume per metal volume (>= 1; Ta 2.3, Al ~1.3).
-    engine : {"fast", "reference"}
+    engine : {"fast", "reference", "matlab"}
         ``"reference"``: the thesis's sequential algorithm
         (`planarize.reference`); ``"fast"``: the batched KD-tree engine
-        (`planarize.fast`).
+        (`planarize.fast`); ``"matlab"``: the reference with the Matlab
+        listings' shortcuts, to measure what they cost.
     distance : {"thesis", "exact"}
         Point/segment distances as in the thesis, or exact distances to the
         triangulated surfaces (`planarize.features`).

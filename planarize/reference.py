@@ -117,3 +117,51 @@ class ReferenceEngine(Engine):
         stale = np.array(sorted(stale), dtype=np.intp)
         self._recompute(stale, self.D[stale] + moved)
         self._take_closer(raised)
+
+
+class MatlabEngine(ReferenceEngine):
+    """The Matlab listings' shortcuts, kept to measure what they cost (`ReferenceEngine` fixes them).
+
+    * one metal point per iteration, the first of the smallest in storage order
+      (Matlab's ``min``), ties included;
+    * search windows of ``floor((distance + 1.5 k_exp step) / dx)`` points with no
+      feature-length term (``maxruffness``);
+    * the neighbours of an oxidized point keep their old distances;
+    * raised oxide points are offered only to metal points within
+      ``smallestdist + maxruffness`` (``updateoxidepoint``).
+    """
+
+    name = "matlab"
+
+    def _slack(self) -> float:
+        return 1.5 * self.k_exp * self.step  # the Matlab's maxruffness
+
+    def _recompute(self, points: np.ndarray, bound: np.ndarray) -> None:
+        reach = np.maximum(bound, 0.0) + self._slack()
+        windows = [self._window(p, r) for p, r in zip(points.tolist(), reach.tolist())]
+        self._update(np.repeat(points, [len(w) for w in windows]), np.concatenate(windows), "replace")
+
+    def _take_closer(self, raised: np.ndarray) -> None:
+        reach = float(self.D.min()) + self._slack()
+        ms, vs = [], []
+        for o in raised.tolist():
+            window = self._window(o, reach)
+            ms.append(window)
+            vs.append(np.full(len(window), o))
+        if ms:
+            self._update(np.concatenate(ms), np.concatenate(vs), "take closer")
+
+    def advance(self) -> None:
+        m = int(np.argmin(self.D))
+        oxide = np.array(sorted(self.ox[m]), dtype=np.intp)
+        owner = np.full(len(oxide), m, dtype=np.intp)
+        set_size = np.full(len(oxide), float(len(oxide)))
+        sharers = np.array([len(self.met[o]) for o in oxide], dtype=float)
+        stale = {m}
+        for o in oxide.tolist():
+            stale |= self.met[o]
+        previous = self.D.copy()
+        raised, _, _ = self.oxidize(owner, oxide, set_size, sharers, self.step)
+        stale = np.array(sorted(stale), dtype=np.intp)
+        self._recompute(stale, previous[stale])
+        self._take_closer(raised)
