@@ -129,7 +129,7 @@ class FastEngine(Engine):
 
     # -- distances -------------------------------------------------------------------------
 
-    def _candidates(self, tree: cKDTree, shift: float, points: np.ndarray, bound: np.ndarray):
+    def _candidates(self, tree: cKDTree, shift: float, points: np.ndarray, bound: np.ndarray, k: int = 16):
         """(query index, anchor, oxide slots?, metal slots?) of the pairs that can hold a feature
         closer than ``bound[i]`` to metal point ``points[i]``.
 
@@ -144,7 +144,7 @@ class FastEngine(Engine):
         r_ox = np.sqrt(bound**2 + self._oxide_reach**2) * inflate + self.tie
         r_me = np.sqrt(bound**2 + self._metal_reach[points] ** 2) * inflate + self.tie
         queries = np.column_stack([self._x[points], self._y[points], self.zm[points] + shift])
-        which, anchors, gap = self._ball(tree, queries, np.maximum(r_ox, r_me))
+        which, anchors, gap = self._ball(tree, queries, np.maximum(r_ox, r_me), k)
         return which, anchors, gap <= r_ox[which], gap <= r_me[which]
 
     def _recompute(self, points: np.ndarray, bound: np.ndarray) -> None:
@@ -235,7 +235,8 @@ class FastEngine(Engine):
         # ask every other metal point for the anchors that could now be closer than its distance
         tree, shift = self._tree(self.zo, anchors)
         metal = np.flatnonzero(~skip)
-        which, anchor, oxide_slots, metal_slots = self._candidates(tree, shift, metal, self.D[metal] + self.tie)
+        # (few raised points are near any one metal point: a short k-nearest query, ball queries for the rest)
+        which, anchor, oxide_slots, metal_slots = self._candidates(tree, shift, metal, self.D[metal] + self.tie, k=4)
         if not len(which):
             return
         found, distance, owner, oxide = closest_sets(self.kernel, self.zm, self.zo, metal[which], anchors[anchor],

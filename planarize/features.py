@@ -32,7 +32,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .geometry import point_segment_xyz, point_triangle_xyz
+from .geometry import point_triangle_xyz, segment_foot_xyz
 from .grid import EDGE_DIRECTIONS, QUADRANTS, Grid
 
 #: Distance kinds: the thesis's point/segment pairs, or the exact surface distance.
@@ -65,6 +65,8 @@ class FeatureKernel:
         self._step_j = np.array([dj for _, dj in EDGE_DIRECTIONS])
         self._quad_i = np.array([sx for sx, _ in QUADRANTS])
         self._quad_j = np.array([sy for _, sy in QUADRANTS])
+        self._up = np.flatnonzero(self._step_i + self._step_j > 0)  # the directions a segment starts in
+        self._down = np.flatnonzero(self._step_i + self._step_j < 0)
         self._centre_i = np.minimum(self._quad_i, 0) + 0.5
         self._centre_j = np.minimum(self._quad_j, 0) + 0.5
 
@@ -153,17 +155,21 @@ class FeatureKernel:
     def _segments(self, p, z, k, di, dj, zref):
         """Distance from ``p`` to the 4 grid segments at point ``k`` (offset ``di, dj`` from m), shape (P, 4).
 
-        A segment is always taken from its -x/-y end to its +x/+y end.
+        A segment is always taken from its -x/-y end to its +x/+y end, so that
+        it gives the same distance whichever end reached it.
         """
         u = self.grid.edge_neighbours[k]
         here = self._vertex(di[:, None], dj[:, None], (z[k] - zref)[:, None])
         there = self._vertex(di[:, None] + self._step_i, dj[:, None] + self._step_j,
                              np.where(u >= 0, z[u] - zref[:, None], np.nan))
-        up = self._step_i + self._step_j > 0
-        a = [np.where(up, h, t) for h, t in zip(here, there)]
-        b = [np.where(up, t, h) for h, t in zip(here, there)]
-        d, t = point_segment_xyz(*p, *a, *b)
-        return np.where((t > 0) & (t < 1), d, np.inf)
+        out = np.empty(u.shape)
+        for columns, start, end in ((self._up, here, there), (self._down, there, here)):
+            start = [c if c.shape[1] == 1 else c[:, columns] for c in start]
+            end = [c if c.shape[1] == 1 else c[:, columns] for c in end]
+            pc = [c if np.ndim(c) < 2 or c.shape[1] == 1 else c[:, columns] for c in p]
+            d, t = segment_foot_xyz(*pc, *start, *end)
+            out[:, columns] = np.where((t > 0) & (t < 1), d, np.inf)
+        return out
 
     def _oxide_features(self, zm, zo, m, v, di, dj, out, rows) -> None:
         """Slots 0-4 (the anchor point, its segments) and 9-20 (its half-diagonals, triangles)."""
@@ -194,7 +200,7 @@ class FeatureKernel:
         di, dj = di[:, None], dj[:, None]
         here = self._vertex(di, dj, (z[k] - zref)[:, None])
         centre = self._vertex(di + self._centre_i, dj + self._centre_j, self.centre_heights(z, k) - zref[:, None])
-        d, t = point_segment_xyz(*p, *here, *centre)  # a half-diagonal touches one grid point only
+        d, t = segment_foot_xyz(*p, *here, *centre)  # a half-diagonal touches one grid point only
         out[rows, first:first + 4] = np.where((t > 0) & (t < 1), d, np.inf)
         corners = g.quadrant_corners[k]  # (P, 4, 3): (sx, 0), (sx, sy), (0, sy)
         for side, (corner, si, sj) in enumerate(((0, self._quad_i, 0), (2, 0, self._quad_j))):

@@ -57,6 +57,24 @@ def point_segment_xyz(px, py, pz, ax, ay, az, bx, by, bz):
     return np.sqrt(dx * dx + dy * dy + dz * dz), t
 
 
+def segment_foot_xyz(px, py, pz, ax, ay, az, bx, by, bz):
+    """Perpendicular distance from ``p`` to the line through ``a``, ``b`` and where its foot lies.
+
+    Returns ``(distance, t)`` with the foot at ``a + t (b - a)``; the distance
+    is that of the segment only when ``0 < t < 1``. For non-degenerate
+    segments (``a != b``) and callers that only use feet strictly inside: the
+    engines' grid segments, which always have a lateral extent.
+    """
+    ux, uy, uz = bx - ax, by - ay, bz - az
+    wx, wy, wz = px - ax, py - ay, pz - az
+    length2 = ux * ux + uy * uy + uz * uz
+    along = wx * ux + wy * uy + wz * uz
+    t = along / length2
+    # Pythagoras: the foot is at distance along / |u| from a along the segment
+    d2 = wx * wx + wy * wy + wz * wz - t * along
+    return np.sqrt(np.maximum(d2, 0.0)), t
+
+
 def point_triangle(p, a, b, c) -> tuple[np.ndarray, np.ndarray]:
     """Exact distance from ``p`` to the triangle ``abc``, and the barycentric weights of its closest point.
 
