@@ -30,7 +30,7 @@ from matplotlib.figure import Figure
 
 from .live import GRAVITY_MODES, LiveRun
 from .presets import GRATING_WIDTH
-from .render import _Board
+from .render import BoardArtists
 
 
 def require_widgets(what: str = "qdots.interactive"):
@@ -150,7 +150,7 @@ class LiveBoard:
         ax = self.figure.add_subplot()
         ax.set_xlabel("x (px)")
         ax.set_ylabel("y (px)")
-        self._board = _Board(ax)
+        self._board = BoardArtists(ax)
         self.ui = self._layout(w)
         self._buttons_for(running=False)
         self.refresh()

@@ -65,7 +65,7 @@ def size_colours(radii, mean: float | None = None, sigma: float | None = None) -
     return colours
 
 
-class _Board:
+class BoardArtists:
     """The artists of one board on one Axes, created once and then updated."""
 
     def __init__(self, ax):
@@ -133,7 +133,7 @@ def draw_state(state, ax=None, colours=None, show_time: bool = True):
         import matplotlib.pyplot as plt
 
         _, ax = plt.subplots(figsize=(6, 6))
-    _Board(ax).draw(state, colours, show_time)
+    BoardArtists(ax).draw(state, colours, show_time)
     return ax
 
 
@@ -150,7 +150,7 @@ def save_png(state, path, dpi: int = 100) -> Path:
     fig = Figure(figsize=(6, 6))
     FigureCanvasAgg(fig)
     ax = fig.add_subplot()
-    _Board(ax).draw(state)
+    BoardArtists(ax).draw(state)
     ax.set_xlabel("x (px)")
     ax.set_ylabel("y (px)")
     path = Path(path)
@@ -219,7 +219,7 @@ class MovieWriter(StreamedFile):
         self._canvas = FigureCanvasAgg(self._fig)
         ax = self._fig.add_axes((0.02, 0.02, 0.96, 0.91))
         ax.set_axis_off()
-        self._board = _Board(ax)
+        self._board = BoardArtists(ax)
 
     def write(self, state) -> None:
         """Render ``state`` and append it as one frame."""
