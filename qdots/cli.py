@@ -158,6 +158,18 @@ def _add_analyze(subparsers) -> None:
     p.set_defaults(func=_run_analyze)
 
 
+def _add_sweep(subparsers) -> None:
+    from .experiment_sweep import add_sweep_command
+
+    add_sweep_command(subparsers)
+
+
+def _add_sweep_plot(subparsers) -> None:
+    from .sweeps.command import add_plot_parser
+
+    add_plot_parser(subparsers, "qdots")
+
+
 def _run_analyze(args: argparse.Namespace) -> int:
     from .commands import analyze
 
@@ -218,7 +230,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     parser.add_argument("--version", action="version", version=f"qdots {__version__}")
     subparsers = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
-    for add in (_add_demo, _add_run, _add_preset, _add_resume, _add_render, _add_analyze):
+    for add in (_add_demo, _add_run, _add_preset, _add_resume, _add_render, _add_analyze, _add_sweep,
+                _add_sweep_plot):
         add(subparsers)
     return parser
 

@@ -1,0 +1,130 @@
+"""Sweeps of qdots experiments: a base scene, axes over its keys, seeds; one packing row per run.
+
+A sweep file for thesis Fig 2-4 (free films and gratings, four size spreads, four seeds)::
+
+    base = "fig2-2a_sigma0.toml"          # from `qdots preset fig2-2 --save-scenes .`
+    seeds = [154, 155, 156, 157]
+
+    [axes]
+    "deposition.sigma" = [0.0, 0.05, 0.10, 0.15]
+
+    [[points]]
+    label = "free"
+    [[points]]
+    label = "grating"
+    grating = 77.94228634059948
+    deposition.n_dots = 150
+    deposition.mass_model = "volume"
+
+    [output]
+    dir = "fig2-4"
+    state = true                          # keep each final board (.npz, resumable)
+
+then ``qdots sweep fig2-4.toml`` and ``qdots sweep-plot fig2-4/table.csv
+--metric interior_fraction --x deposition.sigma --group label``.
+
+Every run's parameters are checked like a scene file (an unknown key is an
+error naming it, e.g. ``deposition.sigmaa``) before anything runs, and
+completed with every default, so a run's hash covers the whole experiment.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+from .experiment import Experiment, run_experiment
+from .scenefile import TABLES, TOP, experiment_from_dict
+from .sweeps import SweepResult, load_sweep_file, run_sweep
+from .sweeps.files import SweepFile
+
+
+def experiment_to_dict(exp: Experiment) -> dict:
+    """Every parameter of ``exp`` as nested plain data (the scene file's tables; unset values left out).
+
+    ``experiment_from_dict(experiment_to_dict(exp)) == exp``.
+    """
+    def plain(value):
+        return list(value) if isinstance(value, tuple) else value
+
+    data = {key: getattr(exp, key) for key in TOP}
+    for name, (_, schema) in TABLES.items():
+        table = getattr(exp, name)
+        data[name] = {key: plain(getattr(table, key)) for key in schema if getattr(table, key) is not None}
+    data["forces"] = [{key: plain(value) for key, value in spec.items() if value is not None} for spec in exp.forces]
+    return data
+
+
+@dataclass(frozen=True)
+class ExperimentRunner:
+    """Runs one `Experiment` per parameter set; its row is `qdots.analysis.packing_summary` of the board.
+
+    Parameters
+    ----------
+    quick : float, optional
+        Scale every run down with `Experiment.quick` (in (0, 1]); the scaled
+        experiment is what is hashed and recorded, so quick and full runs never mix.
+    rule : {"text", "code"}
+        Neighbour rule of the packing summary.
+    """
+
+    quick: float | None = None
+    rule: str = "text"
+    kind = "qdots.experiment"
+    state_suffix = ".npz"
+
+    def __post_init__(self) -> None:
+        from .analysis import RULES
+
+        if self.quick is not None and not (isinstance(self.quick, (int, float)) and 0 < self.quick <= 1):
+            raise ValueError(f"quick must be in (0, 1], got {self.quick!r}")
+        if self.rule not in RULES:
+            raise ValueError(f"rule must be one of {RULES}, got {self.rule!r}")
+
+    def canonical(self, params: dict) -> dict:
+        """The full parameters of the experiment ``params`` describes (ValueError naming a bad key)."""
+        exp = experiment_from_dict(params)
+        return experiment_to_dict(exp if self.quick is None else exp.quick(self.quick))
+
+    def __call__(self, params: dict, state_path: Path | None = None) -> dict:
+        from . import checkpoint
+        from .analysis import packing_summary
+
+        sim = run_experiment(experiment_from_dict(params))
+        state = sim.state()
+        row = {**packing_summary(state, self.rule), "time_s": state.time, "steps": sim.steps_taken}
+        if state_path is not None:
+            checkpoint.save(sim, state_path)
+        return row
+
+
+def load_sweep(path: str | os.PathLike) -> SweepFile:
+    """Read a qdots sweep file (`qdots.sweeps.files`); its seeds go to the experiment's ``seed``."""
+    return load_sweep_file(path, seed_key="seed")
+
+
+def run_sweep_file(path: str | os.PathLike, out: str | os.PathLike | None = None, *, quick: float | None = None,
+                   workers: int | None = None, scheduler=None, retries: int = 1, progress: bool = True) -> SweepResult:
+    """Run a qdots sweep file (see the module docstring); ``out`` overrides its ``output.dir``."""
+    sweep_file = load_sweep(path)
+    return run_sweep(sweep_file.sweep, ExperimentRunner(quick), sweep_file.out if out is None else out,
+                     workers=workers, scheduler=scheduler, retries=retries, state=sweep_file.state,
+                     progress=progress)
+
+
+def add_sweep_command(subparsers) -> None:
+    """``qdots sweep SWEEP.toml [--out DIR] [--workers N] [--scheduler ADDRESS] [--quick F]``."""
+    from .cli import _float_in
+    from .sweeps.command import add_sweep_parser
+
+    p = add_sweep_parser(subparsers, "qdots", "qdots experiments")
+    p.add_argument("--quick", type=_float_in(0.0, 1.0, low_open=True, high_open=False), default=None,
+                   metavar="F", help="scale every run down by F (fewer dots, shorter times) for a first look")
+    p.set_defaults(func=_run_command)
+
+
+def _run_command(args) -> int:
+    from .sweeps.command import run_sweep_command
+
+    return run_sweep_command(args, load_sweep(args.sweep), ExperimentRunner(args.quick))

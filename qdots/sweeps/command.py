@@ -1,0 +1,91 @@
+"""The ``sweep`` and ``sweep-plot`` subcommands, shared by the ``qdots`` and ``planarize`` command lines."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from ..cli import _int_at_least
+from ..commands import print_table, slug
+from .execute import run_sweep
+from .files import SweepFile
+from .plot import save_sweep_plot, summarize, summary_lines
+
+
+def add_sweep_parser(subparsers, package: str, what: str) -> argparse.ArgumentParser:
+    """Register ``<package> sweep``; the caller adds its own options and sets ``func``."""
+    p = subparsers.add_parser(
+        "sweep", help=f"run a parameter sweep of {what} (local cores or a Dask cluster)",
+        description=f"Run every run of a sweep file (a base plus axes, points and seeds) of {what}. Each run "
+                    "writes one record under DIR/runs/ as soon as it ends; running the sweep again skips "
+                    "finished runs. The table of all runs goes to DIR/table.csv (and table.parquet with "
+                    f"pyarrow). Exit status 1 if some run failed (its error is in the table). "
+                    f"Plot it with '{package} sweep-plot'.")
+    p.add_argument("sweep", type=Path, metavar="SWEEP.toml", help="sweep file")
+    p.add_argument("--out", type=Path, default=None, metavar="DIR",
+                   help="output directory (default: the file's output.dir, else its name beside it)")
+    p.add_argument("--workers", type=_int_at_least(1), default=None, metavar="N",
+                   help="local worker processes (default: all cores; 1 runs in this process)")
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="run on this Dask scheduler (e.g. tcp://10.0.0.5:8786; needs qdots[sweep])")
+    p.add_argument("--retries", type=_int_at_least(0), default=1, metavar="K",
+                   help="extra attempts for a run that fails (default 1)")
+    return p
+
+
+def run_sweep_command(args: argparse.Namespace, sweep_file: SweepFile, runner) -> int:
+    """Run a parsed sweep file with the command's options; print what happened."""
+    out = sweep_file.out if args.out is None else args.out
+    result = run_sweep(sweep_file.sweep, runner, out, workers=args.workers, scheduler=args.scheduler,
+                       retries=args.retries, state=sweep_file.state)
+    rows = [("runs", str(len(result.rows))), ("ran now", str(result.ran)),
+            ("already done", str(result.skipped)), ("failed", str(result.failed)), ("table", str(result.table))]
+    if result.parquet is not None:
+        rows.append(("parquet", str(result.parquet)))
+    print_table(f"{sweep_file.source}:", rows)
+    failed = [row for row in result.rows if row["status"] != "ok"]
+    for row in failed[:5]:
+        print(f"run {row['run']} failed: {row['error']} (details: {Path(out) / 'runs' / row['run']}.json)",
+              file=sys.stderr)
+    if len(failed) > 5:
+        print(f"... and {len(failed) - 5} more failed runs (see the table's error column)", file=sys.stderr)
+    return 1 if failed else 0
+
+
+def _assignment(text: str) -> tuple[str, str]:
+    column, sep, value = text.partition("=")
+    if not sep or not column:
+        raise argparse.ArgumentTypeError(f"must be COLUMN=VALUE, got {text!r}")
+    return column, value
+
+
+def add_plot_parser(subparsers, package: str) -> argparse.ArgumentParser:
+    """Register ``<package> sweep-plot``."""
+    p = subparsers.add_parser(
+        "sweep-plot", help="plot mean +- standard error of a sweep metric against an axis",
+        description=f"Average a metric of a table written by '{package} sweep' over the runs that share the x "
+                    "value (and the group value): mean +- standard error over seeds, one curve per group. "
+                    "Prints the numbers and writes a PNG.")
+    p.add_argument("table", type=Path, metavar="TABLE", help="table.csv or table.parquet of a sweep")
+    p.add_argument("--metric", required=True, metavar="M", help="column to average, e.g. interior_fraction")
+    p.add_argument("--x", required=True, metavar="AXIS", help="column on the x axis, e.g. deposition.sigma")
+    p.add_argument("--group", default=None, metavar="AXIS", help="one curve per value of this column")
+    p.add_argument("--where", type=_assignment, action="append", default=[], metavar="COLUMN=VALUE",
+                   help="keep only these rows (repeatable)")
+    p.add_argument("--title", default=None, help="figure title")
+    p.add_argument("--out", type=Path, default=None, metavar="FILE.png",
+                   help="default: METRIC_vs_X[_by_GROUP].png beside the table")
+    p.set_defaults(func=run_plot_command)
+    return p
+
+
+def run_plot_command(args: argparse.Namespace) -> int:
+    where = dict(args.where)
+    summary = summarize(args.table, args.metric, args.x, args.group, where)
+    name = f"{args.metric}_vs_{args.x}" + (f"_by_{args.group}" if args.group else "")
+    png = args.table.parent / f"{slug(name)}.png" if args.out is None else args.out
+    save_sweep_plot(png, args.table, args.metric, args.x, args.group, where, title=args.title)
+    print("\n".join(summary_lines(summary, args.metric, args.x, args.group)))
+    print(f"wrote {png}")
+    return 0

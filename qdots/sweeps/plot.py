@@ -1,0 +1,155 @@
+"""Mean +- standard error of a sweep's metric against one column, one curve per value of another.
+
+This is how the thesis's sweep figures are drawn (Fig 2-4 and 2-6 a: a
+packing metric against sigma, free vs grating or equal vs scaled masses;
+Fig 3-13: roughness against the expansion coefficient or the thickness).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from pathlib import Path
+from typing import Mapping, Sequence
+
+import numpy as np
+
+from ..atomic import atomic_path
+from .table import _parse, is_number, read_table
+
+
+def _rows(table) -> tuple[list[dict], list[str]]:
+    """Rows of ``table`` (a path or a list of dicts) and the swept columns recorded beside a path."""
+    if isinstance(table, (str, os.PathLike)):
+        path = Path(table)
+        rows = read_table(path)
+        try:
+            meta = json.loads((path.parent / "sweep.json").read_text(encoding="utf-8"))
+            swept = [c for c in meta["swept"] if c != meta.get("seed_key")]  # the seeds are averaged over
+        except (OSError, ValueError, KeyError, TypeError):
+            swept = []
+        return rows, swept
+    return list(table), []
+
+
+def _matches(value, wanted) -> bool:
+    wanted = _parse(wanted) if isinstance(wanted, str) else wanted
+    return value == wanted or str(value) == str(wanted)
+
+
+def _order(values: list) -> list:
+    unique = list(dict.fromkeys(values))
+    return sorted(unique) if all(is_number(v) for v in unique) else unique
+
+
+def summarize(table, metric: str, x: str, group: str | None = None, where: Mapping | None = None) -> list[dict]:
+    """Mean and standard error of ``metric`` over the runs that share ``x`` (and ``group``).
+
+    Parameters
+    ----------
+    table : path or list of dict
+        A sweep table (`read_table`) or its rows. Only runs with status ``"ok"``
+        and a finite ``metric`` count.
+    metric, x : str
+        Column names.
+    group : str, optional
+        One curve per value of this column.
+    where : dict, optional
+        Keep only rows whose column equals the value (``{"label": "free"}``;
+        text values are read like CSV cells: ``"0.05"`` matches 0.05).
+
+    Returns
+    -------
+    list of dict
+        ``group`` (None without one), ``x``, ``n``, ``mean``, ``se`` (the
+        standard deviation over ``sqrt(n)``, ddof 1; nan for n = 1), ordered by
+        group (first appearance) then x (ascending when numeric).
+
+    Raises
+    ------
+    ValueError
+        If a column is missing, if no row remains, or, for a table read from a
+        sweep's output directory (beside its ``sweep.json``), if a swept
+        column other than the seed varies among the runs averaged together
+        (name it as ``group`` or fix it with ``where``).
+    """
+    rows, swept = _rows(table)
+    where = dict(where or {})
+    for name in [metric, x, *([group] if group else []), *where]:
+        if rows and name not in rows[0]:
+            raise ValueError(f"no column {name!r} in the table (columns: {', '.join(rows[0])})")
+    rows = [r for r in rows if r.get("status", "ok") == "ok" and all(_matches(r[k], v) for k, v in where.items())]
+    if not rows:
+        raise ValueError(f"no finished run matches {where!r}" if where else "the table has no finished run")
+    others = [c for c in swept if c not in (x, group, *where) and c in rows[0]]
+    cells: dict = {}
+    for row in rows:
+        cells.setdefault((row[group] if group else None, row[x]), []).append(row)
+    summary = []
+    for g in _order([key[0] for key in cells]):
+        for xv in _order([key[1] for key in cells if key[0] == g]):
+            cell = cells[(g, xv)]
+            for column in others:
+                seen = {json.dumps(r[column], default=str) for r in cell}
+                if len(seen) > 1:
+                    raise ValueError(f"{column!r} varies among the runs at {x} = {xv!r}"
+                                     f"{f', {group} = {g!r}' if group else ''} ({', '.join(sorted(seen))}): "
+                                     f"choose it as the group or fix it with where")
+            values = np.array([r[metric] for r in cell if is_number(r[metric])], dtype=float)
+            n = len(values)
+            se = float(values.std(ddof=1) / math.sqrt(n)) if n > 1 else math.nan
+            summary.append({"group": g, "x": xv, "n": n, "mean": float(values.mean()) if n else math.nan, "se": se})
+    return summary
+
+
+def plot_sweep(table, metric: str, x: str, group: str | None = None, where: Mapping | None = None, *,
+               ax=None, **errorbar):
+    """Draw `summarize` as error bars (mean +- standard error) on ``ax`` (default: a new figure).
+
+    Numeric ``x`` is drawn to scale, other values at evenly spaced ticks.
+    Extra keyword arguments go to ``ax.errorbar``. Returns ``ax``.
+    """
+    summary = summarize(table, metric, x, group, where)
+    if ax is None:
+        import matplotlib.pyplot as plt
+
+        ax = plt.subplots(figsize=(6, 4.5))[1]
+    xs = _order([s["x"] for s in summary])
+    numeric = all(is_number(v) for v in xs)
+    options = {"marker": "o", "capsize": 3, **errorbar}
+    for g in _order([s["group"] for s in summary]):
+        part = [s for s in summary if s["group"] == g]
+        at = [s["x"] if numeric else xs.index(s["x"]) for s in part]
+        ax.errorbar(at, [s["mean"] for s in part], yerr=[s["se"] for s in part],
+                    **{"label": None if group is None else f"{group} = {g}", **options})
+    if not numeric:
+        ax.set_xticks(range(len(xs)), [str(v) for v in xs])
+    ax.set(xlabel=x, ylabel=f"{metric} (mean ± s.e.)")
+    if group is not None or "label" in errorbar:
+        ax.legend()
+    return ax
+
+
+def save_sweep_plot(path: str | os.PathLike, table, metric: str, x: str, group: str | None = None,
+                    where: Mapping | None = None, *, title: str | None = None, dpi: int = 150) -> Path:
+    """`plot_sweep` into a PNG at ``path``, written atomically; returns the path."""
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(6.4, 4.8), layout="constrained")
+    ax = plot_sweep(table, metric, x, group, where, ax=fig.add_subplot())
+    if title:
+        ax.set_title(title)
+    path = Path(path)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format="png", dpi=dpi)
+    return path
+
+
+def summary_lines(summary: Sequence[dict], metric: str, x: str, group: str | None) -> list[str]:
+    """The summary as aligned text lines (for the command line)."""
+    head = ([group] if group else []) + [x, "n", f"mean {metric}", "s.e."]
+    body = [([str(s["group"])] if group else []) + [str(s["x"]), str(s["n"]), f"{s['mean']:.6g}", f"{s['se']:.3g}"]
+            for s in summary]
+    widths = [max(len(r[k]) for r in [head, *body]) for k in range(len(head))]
+    return ["  ".join(cell.rjust(w) for cell, w in zip(r, widths)) for r in [head, *body]]
