@@ -130,6 +130,9 @@ def random_roughness(size: float = 500.0, *, thickness: float = 1000.0, scales=T
     cells = size / spacing
     if abs(cells - round(cells)) > 1e-9 * cells or round(cells) < 1:
         raise ValueError(f"size ({size:g} nm) must be a whole number of half the widest width ({spacing:g} nm)")
+    if boundary == "periodic" and round(cells) < 2:
+        raise ValueError(f"a periodic sample must span at least two of the widest grid cells "
+                         f"(size >= {2 * spacing:g} nm), got size {size:g} nm")
     n = int(round(cells)) + (0 if boundary == "periodic" else 1)
     surface = Surface(np.full((n, n), _check("thickness", thickness, low_open=False)), spacing, boundary)
     for k, (width, height) in enumerate(scales):

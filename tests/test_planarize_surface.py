@@ -142,6 +142,7 @@ def test_thesis_scenes():
     (lambda: scenes.random_roughness(size=250), "whole number"),
     (lambda: scenes.random_roughness(scales=[(200, 30), (30, 5)]), "divide"),
     (lambda: scenes.random_roughness(scales=[]), "at least one"),
+    (lambda: scenes.random_roughness(size=100, boundary="periodic"), "at least two"),
     (lambda: scenes.tilted_plane(slope=(np.nan, 0)), "finite"),
 ])
 def test_bad_scene_parameters(call, message):
