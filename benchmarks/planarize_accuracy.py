@@ -26,6 +26,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure as MplFigure
 
 from planarize import anodize, scenes
+from planarize.metrics import history_difference
 
 from . import pareto
 from .report import Figure, Headline, Note, Table, cli
@@ -53,13 +54,7 @@ def run_once(case: str, thickness: float, refine: int, step: float, tolerance: f
 
 
 def rms_error(run, ref, thickness: float) -> float:
-    targets = np.linspace(thickness / 10, thickness, 10)
-    worst = 0.0
-    for c in ("metal_rms_nm", "oxide_rms_nm"):
-        y = np.interp(targets, run.history["thickness_nm"], run.history[c])
-        yr = np.interp(targets, ref.history["thickness_nm"], ref.history[c])
-        worst = max(worst, float(np.max(np.abs(y / yr - 1))))
-    return worst
+    return history_difference(run, ref, np.linspace(thickness / 10, thickness, 10))
 
 
 def knobs(step: float, refine: int, quick: bool) -> dict:

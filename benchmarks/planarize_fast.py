@@ -25,7 +25,6 @@ Run: ``python -m benchmarks.planarize_fast [--quick] [--budget 120] [--csv FILE]
 from __future__ import annotations
 
 import multiprocessing
-import platform
 import resource
 import time
 
@@ -33,19 +32,9 @@ import numpy as np
 from scipy.ndimage import gaussian_filter
 
 
-import planarize
 from planarize import Surface, anodize, scenes
+from planarize.metrics import history_difference
 from planarize.reference import ReferenceEngine
-
-
-def snapshot_error(run, ref, targets, columns=("metal_rms_nm", "oxide_rms_nm")) -> float:
-    """Largest relative difference of ``columns`` at ``targets`` nm (interpolated in each history)."""
-    worst = 0.0
-    for c in columns:
-        y = np.interp(targets, run.history["thickness_nm"], run.history[c])
-        yr = np.interp(targets, ref.history["thickness_nm"], ref.history[c])
-        worst = max(worst, float(np.max(np.abs(y / yr - 1))))
-    return worst
 
 
 def reference_time(surface: Surface, thickness: float, step: float, updates: int, budget: float) -> tuple[float, bool]:
@@ -72,7 +61,7 @@ def hill_case(budget: float) -> dict:
     ref = anodize(surface, 1.0, step=0.01, tolerance=0.0, record=200)
     run = anodize(surface, 1.0, step=0.01, record=200)
     ref_wall, exact = reference_time(surface, 1.0, 0.01, int(ref.history["point_updates"][-1]), budget)
-    return _row("hill 17x17 to 1 nm", run, snapshot_error(run, ref, np.arange(1, 11) * 0.1), 0.5,
+    return _row("hill 17x17 to 1 nm", run, history_difference(run, ref, np.arange(1, 11) * 0.1), 0.5,
                 reference_s=ref_wall, reference_measured=exact)
 
 
@@ -81,7 +70,7 @@ def random65_case(budget: float) -> dict:
     ref = anodize(surface, 1.0, step=0.01, tolerance=0.0, record=200)
     run = anodize(surface, 1.0, step=0.01, record=200)
     ref_wall, exact = reference_time(surface, 1.0, 0.01, int(ref.history["point_updates"][-1]), budget)
-    return _row("random 65x65 to 1 nm", run, snapshot_error(run, ref, np.arange(1, 11) * 0.1), None,
+    return _row("random 65x65 to 1 nm", run, history_difference(run, ref, np.arange(1, 11) * 0.1), None,
                 reference_s=ref_wall, reference_measured=exact)
 
 
@@ -90,7 +79,7 @@ def ta_case(quick: bool) -> dict:
     depth = 20.0 if quick else 40.0
     patch_ref = anodize(patch, depth, step=0.5, tolerance=0.0, record=100)
     patch_run = anodize(patch, depth, step=0.5, record=100)
-    error = snapshot_error(patch_run, patch_ref, np.linspace(depth / 8, depth, 8))
+    error = history_difference(patch_run, patch_ref, np.linspace(depth / 8, depth, 8))
     thickness = 10.0 if quick else 200.0
     run = anodize(scenes.random_roughness(seed=1), thickness, step=0.5, record=40)
     return _row(f"Ta 101x101 to {thickness:g} nm", run, error, 30.0 if not quick else None)
@@ -164,7 +153,7 @@ def run(quick: bool, budget: float = 120.0) -> list:
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure as MplFigure
 
-    from .report import Figure, Headline, Note, Table
+    from .report import Figure, Headline, Table
 
     rows = [hill_case(5.0 if quick else budget), ta_case(quick)]
     if not quick:

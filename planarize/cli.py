@@ -16,13 +16,12 @@ import sys
 from pathlib import Path
 from typing import Sequence
 
-from qdots.cli import _float_in, _Parser, _UsageError
+from qdots.cliutil import Parser, UsageError, float_in, fraction, run_main
 
 from .anodize import engines
 from .scenefile import SCENES
 
-_positive = _float_in(0.0, math.inf, low_open=True)
-_fraction = _float_in(0.0, 1.0, low_open=True, high_open=False)
+_positive = float_in(0.0, math.inf, low_open=True)
 
 
 def _add_outputs(p, out_default: str) -> None:
@@ -31,7 +30,7 @@ def _add_outputs(p, out_default: str) -> None:
                    help=f"output directory, created if missing (default ./{out_default})")
     p.add_argument("--engine", choices=list(engines()), default=None,
                    help="override the scene's engine: fast (batched) or reference (the thesis algorithm, slow)")
-    p.add_argument("--quick", type=_fraction, default=None, metavar="F",
+    p.add_argument("--quick", type=fraction, default=None, metavar="F",
                    help="a first look: steps 1/F times larger, refinement F times smaller")
     p.add_argument("--movie", action="store_true",
                    help="also write an MP4 of the oxide growing (a frame every 1/40 of the thickness)")
@@ -64,7 +63,7 @@ def _add_import(subparsers) -> None:
                                           "anodize it. Units and sizes stated in the file are used; give the "
                                           "others with --unit and --spacing.")
     p.add_argument("file", type=Path, metavar="FILE", help="height map")
-    p.add_argument("--thickness", type=_float_in(0.0, math.inf), required=True, metavar="NM",
+    p.add_argument("--thickness", type=float_in(0.0, math.inf), required=True, metavar="NM",
                    help="oxide thickness to grow, nm")
     p.add_argument("--unit", default=None, help="lateral (and height) unit if the file does not say: nm, um, m, A")
     p.add_argument("--z-unit", default=None, help="height unit, if different from --unit")
@@ -74,7 +73,7 @@ def _add_import(subparsers) -> None:
     p.add_argument("--channel", default=None, help=".gwy channel number or title (default: first height channel)")
     p.add_argument("--step", type=_positive, default=None, metavar="NM",
                    help="metal consumed per oxidation, nm (default: z-range / 100)")
-    p.add_argument("--k-exp", type=_float_in(1.0, math.inf), default=2.3, metavar="K",
+    p.add_argument("--k-exp", type=float_in(1.0, math.inf), default=2.3, metavar="K",
                    help="oxide volume per metal volume (default 2.3, Ta)")
     p.add_argument("--distance", choices=["thesis", "exact"], default="thesis", help="distance kind (default thesis)")
     p.add_argument("--save", type=Path, default=None, metavar="FILE.toml",
@@ -103,7 +102,7 @@ def build_parser() -> argparse.ArgumentParser:
     """The ``planarize`` argument parser, one subparser per entry of `COMMANDS`."""
     from . import __version__
 
-    parser = _Parser(prog="planarize", description="Anodization planarization of rough metal surfaces.")
+    parser = Parser(prog="planarize", description="Anodization planarization of rough metal surfaces.")
     parser.add_argument("--version", action="version", version=f"planarize {__version__}")
     subparsers = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for add in COMMANDS:
@@ -145,7 +144,7 @@ def _run_import(args: argparse.Namespace) -> int:
     from .scenefile import save_scene
 
     if args.spacing is not None and len(args.spacing) > 2:
-        raise _UsageError(f"--spacing takes DX or DX DY, got {len(args.spacing)} values")
+        raise UsageError(f"--spacing takes DX or DX DY, got {len(args.spacing)} values")
     spacing = None if args.spacing is None else (args.spacing[0] if len(args.spacing) == 1 else args.spacing)
     channel = int(args.channel) if args.channel is not None and args.channel.isdigit() else args.channel
     scene = import_scene(args.file, thickness=args.thickness, step=args.step, unit=args.unit, z_unit=args.z_unit,
@@ -164,18 +163,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     0 on success, 2 on bad input (a one-line ``planarize: error: ...`` on stderr).
     """
-    parser = build_parser()
-    try:
-        args = parser.parse_args(argv)
-        return int(args.func(args))
-    except SystemExit as exc:  # --help and --version
-        return exc.code if isinstance(exc.code, int) else 0
-    except (_UsageError, ValueError, OSError) as exc:
-        print(f"planarize: error: {exc}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print("planarize: interrupted", file=sys.stderr)
-        return 130
+    return run_main(build_parser(), argv)
 
 
 if __name__ == "__main__":

@@ -69,3 +69,24 @@ def history_row(engine, target: float, wall: float) -> dict:
         "point_updates": int(engine.point_updates),
         "wall_s": float(wall),
     }
+
+
+def history_difference(run, reference, thicknesses, columns=("metal_rms_nm", "oxide_rms_nm")) -> float:
+    """Largest relative difference of ``columns`` between two runs at the given oxide thicknesses.
+
+    Each run's history is interpolated at ``thicknesses`` (nm) against the
+    thickness it actually reached (``thickness_nm``), so runs that record at
+    different moments compare at equal oxide thickness.
+
+    Returns
+    -------
+    float
+        ``max |run / reference - 1|`` over the columns and thicknesses.
+    """
+    targets = np.asarray(thicknesses, dtype=float)
+    worst = 0.0
+    for column in columns:
+        y = np.interp(targets, run.history["thickness_nm"], run.history[column])
+        y_ref = np.interp(targets, reference.history["thickness_nm"], reference.history[column])
+        worst = max(worst, float(np.max(np.abs(y / y_ref - 1))))
+    return worst

@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from qdots.atomic import atomic_path
-from qdots.scenefile import _line, _typed, _unknown, tomllib
+from qdots.tomlfile import check_keys, parse_toml, read_toml, toml_line, typed
 
 from . import scenes
 from .anodize import Anodization, anodize, engines
@@ -143,7 +143,7 @@ def _check_type(key: str, value, kind: str):
         if isinstance(value, str) or (isinstance(value, int) and not isinstance(value, bool)):
             return value
         raise ValueError(f"{key} must be a channel number or title, got {value!r}")
-    return _typed(key, value, plain)
+    return typed(key, value, plain)
 
 
 # -- the scene ---------------------------------------------------------------------------------
@@ -165,7 +165,7 @@ class SurfaceSpec:
         schema = SURFACES[self.kind][1]
         if not isinstance(self.params, dict):
             raise ValueError(f"params must be a dict, got {type(self.params).__name__}")
-        _unknown("surface", self.params, ["kind", *schema])
+        check_keys("surface", self.params, ["kind", *schema])
         if self.kind == "file" and "path" not in self.params:
             raise ValueError("surface.path is required for kind = \"file\" (the height map to import)")
         given = {key: _check_type(f"surface.{key}", value, schema[key][0]) for key, value in self.params.items()}
@@ -307,11 +307,11 @@ def scene_to_toml(scene: PlanarizeScene) -> str:
     kind = scene.surface.kind
     lines = ["# planarize scene. Lengths in nm unless a unit is given. Every key is optional",
              "# (surface.path is required for kind = \"file\"). Load with planarize.scenefile.load_scene.", ""]
-    lines += [_line(key, getattr(scene, key), note) for key, (_, note) in TOP.items()]
-    lines += ["", "[surface]", _line("kind", kind, " | ".join(f'"{k}"' for k in SURFACES))]
+    lines += [toml_line(key, getattr(scene, key), note) for key, (_, note) in TOP.items()]
+    lines += ["", "[surface]", toml_line("kind", kind, " | ".join(f'"{k}"' for k in SURFACES))]
     schema = SURFACES[kind][1]
-    lines += [_line(key, scene.surface.params.get(key), note) for key, (_, note) in schema.items()]
-    lines += ["", "[run]"] + [_line(key, getattr(scene.run, key), note) for key, (_, note) in RUN.items()]
+    lines += [toml_line(key, scene.surface.params.get(key), note) for key, (_, note) in schema.items()]
+    lines += ["", "[run]"] + [toml_line(key, getattr(scene.run, key), note) for key, (_, note) in RUN.items()]
     return "\n".join(lines) + "\n"
 
 
@@ -335,7 +335,7 @@ def scene_from_dict(data: dict, base_dir: str | os.PathLike | None = None) -> Pl
     """
     if not isinstance(data, dict):
         raise ValueError(f"a scene must be a table, got {type(data).__name__}")
-    _unknown("", data, [*TOP, "surface", "run"])
+    check_keys("", data, [*TOP, "surface", "run"])
     top = {key: _check_type(key, data[key], kind) for key, (kind, _) in TOP.items() if key in data}
     surface = data.get("surface", {})
     run = data.get("run", {})
@@ -348,7 +348,7 @@ def scene_from_dict(data: dict, base_dir: str | os.PathLike | None = None) -> Pl
         raise ValueError(f"surface.kind must be one of {', '.join(map(repr, SURFACES))}, got {kind!r}")
     if kind == "file" and isinstance(params.get("path"), str) and base_dir is not None:
         params["path"] = str(Path(base_dir, params["path"]))
-    _unknown("run", run, list(RUN))
+    check_keys("run", run, list(RUN))
     try:
         run_settings = RunSettings(**run)
     except ValueError as exc:
@@ -358,10 +358,10 @@ def scene_from_dict(data: dict, base_dir: str | os.PathLike | None = None) -> Pl
 
 def scene_from_toml(text: str, source: str = "<string>", base_dir=None) -> PlanarizeScene:
     """Parse scene-file text; errors are ValueErrors starting with ``source``."""
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ValueError(f"{source}: invalid TOML: {exc}") from None
+    return _from_data(parse_toml(text, source), source, base_dir)
+
+
+def _from_data(data: dict, source: str, base_dir) -> PlanarizeScene:
     try:
         return scene_from_dict(data, base_dir)
     except ValueError as exc:
@@ -380,13 +380,7 @@ def load_scene(path: str | os.PathLike) -> PlanarizeScene:
         the message starts with the path.
     """
     path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"scene file {str(path)!r} does not exist")
-    try:
-        text = path.read_bytes().decode("utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ValueError(f"{path}: cannot read the scene file: {exc}") from None
-    return scene_from_toml(text, source=str(path), base_dir=path.parent)
+    return _from_data(read_toml(path, "scene file"), str(path), path.parent)
 
 
 # -- named scenes ------------------------------------------------------------------------------

@@ -125,11 +125,11 @@ def run_sweep_file(path: str | os.PathLike, out: str | os.PathLike | None = None
 
 def add_sweep_command(subparsers) -> None:
     """``planarize sweep SWEEP.toml [--out DIR] [--workers N] [--scheduler ADDRESS] [--quick F]``."""
-    from qdots.cli import _float_in
+    from qdots.cliutil import fraction
     from qdots.sweeps.command import add_sweep_parser
 
     p = add_sweep_parser(subparsers, "planarize", "planarize runs")
-    p.add_argument("--quick", type=_float_in(0.0, 1.0, low_open=True, high_open=False), default=None,
+    p.add_argument("--quick", type=fraction, default=None,
                    metavar="F", help="a first look: steps 1/F times larger, refinement F times smaller")
     p.set_defaults(func=_run_command)
 

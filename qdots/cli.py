@@ -18,47 +18,13 @@ from typing import Sequence
 
 import numpy as np
 
+from .cliutil import Parser, float_in, fraction, int_at_least, run_main
+
 #: Demo board, px, and mean dot diameter, px (the thesis's diameter on a quarter of its board).
 DEMO_BOX = (300.0, 300.0)
 DEMO_DIAMETER = 15.0
 #: Simulated time between movie frames, s.
 DEMO_FRAME_INTERVAL = 0.2
-
-
-class _UsageError(Exception):
-    """A command-line argument was rejected by argparse."""
-
-
-class _Parser(argparse.ArgumentParser):
-    def error(self, message: str):  # argparse would print the usage and exit
-        raise _UsageError(f"{message} (see '{self.prog} --help')")
-
-
-def _int_at_least(low: int):
-    def parse(text: str) -> int:
-        try:
-            value = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"must be an integer, got {text!r}") from None
-        if value < low:
-            raise argparse.ArgumentTypeError(f"must be an integer >= {low}, got {value}")
-        return value
-    return parse
-
-
-def _float_in(low: float, high: float, low_open: bool = False, high_open: bool = True):
-    def parse(text: str) -> float:
-        try:
-            value = float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"must be a number, got {text!r}") from None
-        ok = math.isfinite(value) and (value > low if low_open else value >= low) and \
-            (value < high if high_open else value <= high)
-        if not ok:
-            interval = f"{'(' if low_open else '['}{low:g}, {high:g}{')' if high_open else ']'}"
-            raise argparse.ArgumentTypeError(f"must be in {interval}, got {text}")
-        return value
-    return parse
 
 
 def _add_demo(subparsers) -> None:
@@ -70,12 +36,12 @@ def _add_demo(subparsers) -> None:
     )
     p.add_argument("--out", type=Path, default=Path("qdots-demo"), metavar="DIR",
                    help="output directory, created if missing (default ./qdots-demo)")
-    p.add_argument("--seed", type=_int_at_least(0), default=1, help="random seed (default 1)")
-    p.add_argument("--dots", type=_int_at_least(1), default=150, metavar="N",
+    p.add_argument("--seed", type=int_at_least(0), default=1, help="random seed (default 1)")
+    p.add_argument("--dots", type=int_at_least(1), default=150, metavar="N",
                    help="number of dots (default 150)")
-    p.add_argument("--seconds", type=_float_in(0.0, math.inf, low_open=True), default=20.0, metavar="T",
+    p.add_argument("--seconds", type=float_in(0.0, math.inf, low_open=True), default=20.0, metavar="T",
                    help="simulated time, s (default 20)")
-    p.add_argument("--sigma", type=_float_in(0.0, 1.0), default=0.05, metavar="F",
+    p.add_argument("--sigma", type=float_in(0.0, 1.0), default=0.05, metavar="F",
                    help="diameter spread as a fraction of the mean (default 0.05)")
     p.add_argument("--no-movie", action="store_true", help="skip demo.mp4 (faster)")
     p.set_defaults(func=_run_demo)
@@ -96,8 +62,8 @@ def _add_run(subparsers) -> None:
                                           "(.npz, resumable), a picture, a summary row and optionally a movie.")
     p.add_argument("scene", type=Path, metavar="SCENE.toml", help="scene file")
     _add_outputs(p, "qdots-run")
-    p.add_argument("--seed", type=_int_at_least(0), default=None, help="override the file's seed")
-    p.add_argument("--quick", type=_float_in(0.0, 1.0, low_open=True, high_open=False), default=None,
+    p.add_argument("--seed", type=int_at_least(0), default=None, help="override the file's seed")
+    p.add_argument("--quick", type=fraction, default=None,
                    metavar="F", help="scale the run down by F (fewer dots, shorter times) for a first look")
     p.set_defaults(func=_run_scene)
 
@@ -110,7 +76,7 @@ def _add_preset(subparsers) -> None:
                                           + ", ".join(PRESETS) + ".")
     p.add_argument("name", choices=list(PRESETS), metavar="NAME", help=f"one of: {', '.join(PRESETS)}")
     _add_outputs(p, "qdots-preset")
-    p.add_argument("--quick", type=_float_in(0.0, 1.0, low_open=True, high_open=False), default=None,
+    p.add_argument("--quick", type=fraction, default=None,
                    metavar="F", help="scale the runs down by F (e.g. 0.1) for a first look")
     p.add_argument("--save-scenes", type=Path, default=None, metavar="DIR",
                    help="only write the preset's scene files (TOML) into DIR, do not run")
@@ -122,7 +88,7 @@ def _add_resume(subparsers) -> None:
                               description="Load a state file written by run/preset/resume and continue it; "
                                           "the continuation is bit-identical to never having stopped.")
     p.add_argument("state", type=Path, metavar="STATE.npz", help="state file")
-    p.add_argument("--seconds", type=_float_in(0.0, math.inf, low_open=True), required=True, metavar="T",
+    p.add_argument("--seconds", type=float_in(0.0, math.inf, low_open=True), required=True, metavar="T",
                    help="simulated time to add, s")
     _add_outputs(p, None)
     p.add_argument("--out", type=Path, default=None, metavar="DIR",
@@ -149,12 +115,12 @@ def _add_analyze(subparsers) -> None:
                    help="also write the figure (default: STATE with _analysis.png)")
     p.add_argument("--rule", choices=["text", "code"], default="text",
                    help="neighbours: surface gap < one mean radius (text, default) or d <= r_i + 2 r_j (code)")
-    p.add_argument("--forster-radius", type=_float_in(0.0, math.inf, low_open=True), default=None, metavar="PX",
+    p.add_argument("--forster-radius", type=float_in(0.0, math.inf, low_open=True), default=None, metavar="PX",
                    help="Förster radius, px (default: the mean diameter)")
-    p.add_argument("--traps", type=_float_in(0.0, 1.0, high_open=False), default=1 / 3, metavar="F",
+    p.add_argument("--traps", type=float_in(0.0, 1.0, high_open=False), default=1 / 3, metavar="F",
                    help="fraction of trap dots (default 1/3)")
-    p.add_argument("--draws", type=_int_at_least(1), default=8, help="trap draws to average (default 8)")
-    p.add_argument("--seed", type=_int_at_least(0), default=0, help="seed of the trap draws (default 0)")
+    p.add_argument("--draws", type=int_at_least(1), default=8, help="trap draws to average (default 8)")
+    p.add_argument("--seed", type=int_at_least(0), default=0, help="seed of the trap draws (default 0)")
     p.set_defaults(func=_run_analyze)
 
 
@@ -225,7 +191,7 @@ def _run_render(args: argparse.Namespace) -> int:
 
 def build_parser() -> argparse.ArgumentParser:
     """The ``qdots`` argument parser, one subparser per command."""
-    parser = _Parser(prog="qdots", description="Quantum-dot monolayer packing simulator (pymunk).")
+    parser = Parser(prog="qdots", description="Quantum-dot monolayer packing simulator (pymunk).")
     from . import __version__
 
     parser.add_argument("--version", action="version", version=f"qdots {__version__}")
@@ -297,18 +263,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     0 on success, 2 on bad input (a one-line ``qdots: error: ...`` on stderr).
     """
-    parser = build_parser()
-    try:
-        args = parser.parse_args(argv)
-        return int(args.func(args))
-    except SystemExit as exc:  # --help and --version
-        return exc.code if isinstance(exc.code, int) else 0
-    except (_UsageError, ValueError, OSError) as exc:
-        print(f"qdots: error: {exc}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print("qdots: interrupted", file=sys.stderr)
-        return 130
+    return run_main(build_parser(), argv)
 
 
 if __name__ == "__main__":

@@ -115,11 +115,11 @@ def run_sweep_file(path: str | os.PathLike, out: str | os.PathLike | None = None
 
 def add_sweep_command(subparsers) -> None:
     """``qdots sweep SWEEP.toml [--out DIR] [--workers N] [--scheduler ADDRESS] [--quick F]``."""
-    from .cli import _float_in
+    from .cliutil import fraction
     from .sweeps.command import add_sweep_parser
 
     p = add_sweep_parser(subparsers, "qdots", "qdots experiments")
-    p.add_argument("--quick", type=_float_in(0.0, 1.0, low_open=True, high_open=False), default=None,
+    p.add_argument("--quick", type=fraction, default=None,
                    metavar="F", help="scale every run down by F (fewer dots, shorter times) for a first look")
     p.set_defaults(func=_run_command)
 

@@ -12,8 +12,6 @@ ValueError naming the file and the full key (e.g. ``deposition.sigmaa``).
 
 from __future__ import annotations
 
-import json
-import math
 import os
 from pathlib import Path
 
@@ -21,11 +19,7 @@ from .atomic import atomic_path
 from .collisions import Restitution
 from .experiment import Board, Deposition, Experiment
 from .simulation import EngineSettings
-
-try:
-    import tomllib
-except ModuleNotFoundError:  # Python 3.10
-    import tomli as tomllib
+from .tomlfile import check_keys, parse_toml, read_toml, toml_line, typed
 
 #: Top-level scalars: key -> (kind, comment).
 TOP = {
@@ -81,43 +75,20 @@ FORCE_NOTES = {
 }
 
 
-def _value(v) -> str:
-    """One TOML value: bool, int, float (repr, exact), string or flat list."""
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, int):
-        return str(v)
-    if isinstance(v, float):
-        return repr(v) if math.isfinite(v) else ("nan" if math.isnan(v) else ("inf" if v > 0 else "-inf"))
-    if isinstance(v, str):
-        return json.dumps(v, ensure_ascii=False).replace("\x7f", "\\u007f")  # TOML also escapes DEL
-    if isinstance(v, (list, tuple)):
-        return "[" + ", ".join(_value(x) for x in v) + "]"
-    raise ValueError(f"cannot write {v!r} ({type(v).__name__}) to TOML")
-
-
-def _line(key: str, value, comment: str | None) -> str:
-    if value is None:
-        text = f"# {key} (unset)"
-        return f"{text:<32}  # {comment}" if comment else text
-    text = f"{key} = {_value(value)}"
-    return f"{text:<32}  # {comment}" if comment else text
-
-
 def experiment_to_toml(exp: Experiment) -> str:
     """The scene file text of ``exp``: every parameter, with units and ranges in comments."""
     lines = ["# qdots experiment. Units: px, s (simulated), masses in units of a mean-size dot's mass.",
              "# Every key is optional; a missing key takes the default. Load with qdots.scenefile.load_experiment.",
              ""]
-    lines += [_line(key, getattr(exp, key), note) for key, (_, note) in TOP.items()]
+    lines += [toml_line(key, getattr(exp, key), note) for key, (_, note) in TOP.items()]
     if not exp.forces:
         lines.append("forces = []  # no forces")
     for table, (_, schema) in TABLES.items():
         obj = getattr(exp, table)
-        lines += ["", f"[{table}]"] + [_line(key, getattr(obj, key), note) for key, (_, note) in schema.items()]
+        lines += ["", f"[{table}]"] + [toml_line(key, getattr(obj, key), note) for key, (_, note) in schema.items()]
     for spec in exp.forces:
         notes = FORCE_NOTES.get(spec["type"], {})
-        lines += ["", "[[forces]]"] + [_line(k, v, notes.get(k)) for k, v in spec.items()]
+        lines += ["", "[[forces]]"] + [toml_line(k, v, notes.get(k)) for k, v in spec.items()]
     return "\n".join(lines) + "\n"
 
 
@@ -131,38 +102,12 @@ def save_experiment(exp: Experiment, path: str | os.PathLike) -> Path:
     return Path(path)
 
 
-def _typed(key: str, value, kind: str):
-    """``value`` checked against ``kind``; ValueError naming the full ``key`` otherwise."""
-    plain = kind.rstrip("?")
-    if plain == "float" and isinstance(value, (int, float)) and not isinstance(value, bool):
-        return float(value)
-    if plain == "int" and isinstance(value, int) and not isinstance(value, bool):
-        return value
-    if plain in ("str", "bool") and isinstance(value, {"str": str, "bool": bool}[plain]):
-        return value
-    if plain == "pair" and isinstance(value, list) and len(value) == 2 \
-            and all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in value) \
-            and isinstance(value[1], int):
-        return (float(value[0]), value[1])
-    want = {"float": "a number", "int": "an integer", "str": "a string", "bool": "true or false",
-            "pair": "a list [number, integer]"}[plain]
-    raise ValueError(f"{key} must be {want}, got {value!r}")
-
-
-def _unknown(where: str, keys, allowed) -> None:
-    extra = [k for k in keys if k not in allowed]
-    if extra:
-        full = f"{where}.{extra[0]}" if where else extra[0]
-        raise ValueError(f"unknown key {full!r} (allowed{' in [' + where + ']' if where else ''}: "
-                         f"{', '.join(allowed)})")
-
-
 def _table(name: str, data) -> object:
     cls, schema = TABLES[name]
     if not isinstance(data, dict):
         raise ValueError(f"{name} must be a table ([{name}]), got {data!r}")
-    _unknown(name, data, schema)
-    values = {key: _typed(f"{name}.{key}", value, schema[key][0]) for key, value in data.items()}
+    check_keys(name, data, schema)
+    values = {key: typed(f"{name}.{key}", value, schema[key][0]) for key, value in data.items()}
     try:
         return cls(**values)
     except ValueError as exc:
@@ -182,8 +127,8 @@ def experiment_from_dict(data: dict) -> Experiment:
     """
     if not isinstance(data, dict):
         raise ValueError(f"a scene must be a table, got {type(data).__name__}")
-    _unknown("", data, [*TOP, *TABLES, "forces"])
-    kwargs = {key: _typed(key, data[key], kind) for key, (kind, _) in TOP.items() if key in data}
+    check_keys("", data, [*TOP, *TABLES, "forces"])
+    kwargs = {key: typed(key, data[key], kind) for key, (kind, _) in TOP.items() if key in data}
     kwargs.update({name: _table(name, data[name]) for name in TABLES if name in data})
     if "forces" in data:
         forces = data["forces"]
@@ -195,10 +140,10 @@ def experiment_from_dict(data: dict) -> Experiment:
 
 def experiment_from_toml(text: str, source: str = "<string>") -> Experiment:
     """Parse scene-file text; errors are ValueErrors starting with ``source``."""
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ValueError(f"{source}: invalid TOML: {exc}") from None
+    return _from_data(parse_toml(text, source), source)
+
+
+def _from_data(data: dict, source: str) -> Experiment:
     try:
         return experiment_from_dict(data)
     except ValueError as exc:
@@ -216,11 +161,4 @@ def load_experiment(path: str | os.PathLike) -> Experiment:
         If it cannot be read or decoded (UTF-8), is not valid TOML, or holds
         a bad key or value; the message starts with the path.
     """
-    path = Path(path)
-    if not path.exists():
-        raise FileNotFoundError(f"scene file {str(path)!r} does not exist")
-    try:
-        text = path.read_bytes().decode("utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ValueError(f"{path}: cannot read the scene file: {exc}") from None
-    return experiment_from_toml(text, source=str(path))
+    return _from_data(read_toml(path, "scene file"), str(path))

@@ -6,6 +6,7 @@ import pytest
 from planarize import Surface, anodize, scenes
 from planarize.fast import FastEngine
 from planarize.features import closest_sets
+from planarize.metrics import history_difference
 from planarize.reference import ReferenceEngine
 
 
@@ -137,16 +138,6 @@ def test_hill_and_depression_planarize_by_the_same_amount():
         assert drop["hill"][c] > 0.4 * run.history[c][0]  # and both planarize substantially
 
 
-def snapshot_error(run, ref, targets, columns):
-    """Largest relative difference of ``columns`` at the given oxide thicknesses (interpolated in each history)."""
-    worst = 0.0
-    for c in columns:
-        y = np.interp(targets, run.history["thickness_nm"], run.history[c])
-        yr = np.interp(targets, ref.history["thickness_nm"], ref.history[c])
-        worst = max(worst, float(np.max(np.abs(y / yr - 1))))
-    return worst
-
-
 RMS = ("metal_rms_nm", "oxide_rms_nm")
 ZRANGE = ("metal_zrange_nm", "oxide_zrange_nm")
 RANDOM = Surface(4 + np.random.default_rng(5).uniform(-0.25, 0.25, (4, 4)), 1.0).refine(4)
@@ -167,8 +158,8 @@ def test_fast_engine_matches_the_reference(surface, rms_allowed, zrange_allowed)
     targets = np.arange(1, 11) * 0.1
     ref = anodize(surface, 1.0, step=0.01, engine="fast", tolerance=0, record=200)  # = reference, faster
     run = anodize(surface, 1.0, step=0.01, engine="fast", record=200)
-    assert snapshot_error(run, ref, targets, RMS) < rms_allowed
-    assert snapshot_error(run, ref, targets, ZRANGE) < zrange_allowed
+    assert history_difference(run, ref, targets, RMS) < rms_allowed
+    assert history_difference(run, ref, targets, ZRANGE) < zrange_allowed
     np.testing.assert_allclose(run.history["volume_error"], 0.0, atol=1e-12)
     assert run.history["iterations"][-1] < ref.history["iterations"][-1] / 2
 

@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from ..cli import _int_at_least
+from ..cliutil import int_at_least
 from ..commands import print_table, slug
 from .execute import run_sweep
 from .files import SweepFile
@@ -25,11 +25,11 @@ def add_sweep_parser(subparsers, package: str, what: str) -> argparse.ArgumentPa
     p.add_argument("sweep", type=Path, metavar="SWEEP.toml", help="sweep file")
     p.add_argument("--out", type=Path, default=None, metavar="DIR",
                    help="output directory (default: the file's output.dir, else its name beside it)")
-    p.add_argument("--workers", type=_int_at_least(1), default=None, metavar="N",
+    p.add_argument("--workers", type=int_at_least(1), default=None, metavar="N",
                    help="local worker processes (default: all cores; 1 runs in this process)")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="run on this Dask scheduler (e.g. tcp://10.0.0.5:8786; needs qdots[sweep])")
-    p.add_argument("--retries", type=_int_at_least(0), default=1, metavar="K",
+    p.add_argument("--retries", type=int_at_least(0), default=1, metavar="K",
                    help="extra attempts for a run that fails (default 1)")
     return p
 

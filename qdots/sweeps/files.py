@@ -31,12 +31,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
+from ..tomlfile import read_toml
 from .spec import RANGE_KEYS, Sweep
-
-try:
-    import tomllib
-except ModuleNotFoundError:  # Python 3.10
-    import tomli as tomllib
 
 #: Top-level keys of a sweep file.
 FILE_KEYS = ("base", "axes", "points", "seeds", "output")
@@ -52,19 +48,6 @@ class SweepFile:
     out: Path
     state: bool = False
     source: str = "<sweep>"
-
-
-def read_toml(path: str | os.PathLike, what: str) -> dict:
-    """Parse a TOML file; FileNotFoundError or a ValueError starting with the path."""
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"{what} {str(path)!r} does not exist")
-    try:
-        return tomllib.loads(path.read_bytes().decode("utf-8"))
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ValueError(f"{path}: cannot read the {what}: {exc}") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise ValueError(f"{path}: invalid TOML: {exc}") from None
 
 
 def _dotted(tree: dict, prefix: str = "", keep=lambda value: False) -> dict:
