@@ -32,8 +32,8 @@ import os
 from dataclasses import dataclass
 from pathlib import Path
 
-from qdots.sweeps import SweepResult, load_sweep_file, run_sweep
-from qdots.sweeps.files import SweepFile
+from qdots.sweeps import SweepResult, load_sweep_file
+from qdots.sweeps.files import SweepFile, run_loaded
 
 from .scenefile import RUN, SCENES, PlanarizeScene, load_scene, scene_from_dict
 
@@ -115,26 +115,16 @@ def load_sweep(path: str | os.PathLike) -> SweepFile:
 
 
 def run_sweep_file(path: str | os.PathLike, out: str | os.PathLike | None = None, *, quick: float | None = None,
-                   workers: int | None = None, scheduler=None, retries: int = 1, progress: bool = True) -> SweepResult:
-    """Run a planarize sweep file (see the module docstring); ``out`` overrides its ``output.dir``."""
-    sweep_file = load_sweep(path)
-    return run_sweep(sweep_file.sweep, AnodizeRunner(quick), sweep_file.out if out is None else out,
-                     workers=workers, scheduler=scheduler, retries=retries, state=sweep_file.state,
-                     progress=progress)
+                   **options) -> SweepResult:
+    """Run a planarize sweep file (see the module docstring); ``out`` overrides its ``output.dir``.
+
+    ``options`` go to `qdots.sweeps.run_sweep` (``workers``, ``scheduler``, ``retries``, ``progress``).
+    """
+    return run_loaded(load_sweep(path), AnodizeRunner(quick), out, **options)
 
 
 def add_sweep_command(subparsers) -> None:
     """``planarize sweep SWEEP.toml [--out DIR] [--workers N] [--scheduler ADDRESS] [--quick F]``."""
-    from qdots.cliutil import fraction
-    from qdots.sweeps.command import add_sweep_parser
+    from qdots.sweeps.command import add_sweep_command as add
 
-    p = add_sweep_parser(subparsers, "planarize", "planarize runs")
-    p.add_argument("--quick", type=fraction, default=None,
-                   metavar="F", help="a first look: steps 1/F times larger, refinement F times smaller")
-    p.set_defaults(func=_run_command)
-
-
-def _run_command(args) -> int:
-    from qdots.sweeps.command import run_sweep_command
-
-    return run_sweep_command(args, load_sweep(args.sweep), AnodizeRunner(args.quick))
+    add(subparsers, "planarize", "planarize runs", load_sweep, AnodizeRunner, "a first look: steps 1/F times larger, refinement F times smaller")

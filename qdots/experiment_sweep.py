@@ -36,8 +36,8 @@ from pathlib import Path
 
 from .experiment import Experiment, run_experiment
 from .scenefile import TABLES, TOP, experiment_from_dict
-from .sweeps import SweepResult, load_sweep_file, run_sweep
-from .sweeps.files import SweepFile
+from .sweeps import SweepResult, load_sweep_file
+from .sweeps.files import SweepFile, run_loaded
 
 
 def experiment_to_dict(exp: Experiment) -> dict:
@@ -105,26 +105,16 @@ def load_sweep(path: str | os.PathLike) -> SweepFile:
 
 
 def run_sweep_file(path: str | os.PathLike, out: str | os.PathLike | None = None, *, quick: float | None = None,
-                   workers: int | None = None, scheduler=None, retries: int = 1, progress: bool = True) -> SweepResult:
-    """Run a qdots sweep file (see the module docstring); ``out`` overrides its ``output.dir``."""
-    sweep_file = load_sweep(path)
-    return run_sweep(sweep_file.sweep, ExperimentRunner(quick), sweep_file.out if out is None else out,
-                     workers=workers, scheduler=scheduler, retries=retries, state=sweep_file.state,
-                     progress=progress)
+                   **options) -> SweepResult:
+    """Run a qdots sweep file (see the module docstring); ``out`` overrides its ``output.dir``.
+
+    ``options`` go to `qdots.sweeps.run_sweep` (``workers``, ``scheduler``, ``retries``, ``progress``).
+    """
+    return run_loaded(load_sweep(path), ExperimentRunner(quick), out, **options)
 
 
 def add_sweep_command(subparsers) -> None:
     """``qdots sweep SWEEP.toml [--out DIR] [--workers N] [--scheduler ADDRESS] [--quick F]``."""
-    from .cliutil import fraction
-    from .sweeps.command import add_sweep_parser
+    from .sweeps.command import add_sweep_command as add
 
-    p = add_sweep_parser(subparsers, "qdots", "qdots experiments")
-    p.add_argument("--quick", type=fraction, default=None,
-                   metavar="F", help="scale every run down by F (fewer dots, shorter times) for a first look")
-    p.set_defaults(func=_run_command)
-
-
-def _run_command(args) -> int:
-    from .sweeps.command import run_sweep_command
-
-    return run_sweep_command(args, load_sweep(args.sweep), ExperimentRunner(args.quick))
+    add(subparsers, "qdots", "qdots experiments", load_sweep, ExperimentRunner, "scale every run down by F (fewer dots, shorter times) for a first look")

@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 import argparse
+import functools
 import sys
 from pathlib import Path
+from typing import Callable
 
-from ..cliutil import int_at_least
+from ..cliutil import fraction, int_at_least
 from ..commands import print_table, slug
 from .execute import run_sweep
 from .files import SweepFile
@@ -32,6 +34,21 @@ def add_sweep_parser(subparsers, package: str, what: str) -> argparse.ArgumentPa
     p.add_argument("--retries", type=int_at_least(0), default=1, metavar="K",
                    help="extra attempts for a run that fails (default 1)")
     return p
+
+
+def add_sweep_command(subparsers, package: str, what: str, load: Callable[[Path], SweepFile],
+                      make_runner: Callable, quick_help: str) -> None:
+    """Register ``<package> sweep SWEEP.toml [--out DIR] [--workers N] [--scheduler ADDRESS] [--quick F]``.
+
+    ``load(path)`` reads the package's sweep files; ``make_runner(quick)`` makes its runner.
+    """
+    p = add_sweep_parser(subparsers, package, what)
+    p.add_argument("--quick", type=fraction, default=None, metavar="F", help=quick_help)
+    p.set_defaults(func=functools.partial(_run_command, load=load, make_runner=make_runner))
+
+
+def _run_command(args: argparse.Namespace, load, make_runner) -> int:
+    return run_sweep_command(args, load(args.sweep), make_runner(args.quick))
 
 
 def run_sweep_command(args: argparse.Namespace, sweep_file: SweepFile, runner) -> int:

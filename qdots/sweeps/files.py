@@ -128,3 +128,11 @@ def load_sweep_file(path: str | os.PathLike, *, seed_key: str = "seed",
     except ValueError as exc:
         raise ValueError(f"{path}: {exc}") from None
     return SweepFile(parsed.sweep, parsed.out, parsed.state, str(path))
+
+
+def run_loaded(sweep_file: SweepFile, runner, out=None, **options):
+    """Run a parsed sweep file with ``runner`` (`qdots.sweeps.run_sweep` options); ``out`` overrides its output."""
+    from .execute import run_sweep
+
+    return run_sweep(sweep_file.sweep, runner, sweep_file.out if out is None else out, state=sweep_file.state,
+                     **options)
