@@ -18,7 +18,8 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.colors import Normalize
 from matplotlib.figure import Figure
 
-from qdots.atomic import StreamedFile, atomic_path
+from qdots.atomic import atomic_path
+from qdots.render import FigureMovie
 
 from .anodize import Anodization
 from .surface import Surface
@@ -241,7 +242,7 @@ def save_figure(fig: Figure, path, dpi: int = 100) -> Path:
     return path
 
 
-class SurfaceMovie(StreamedFile):
+class SurfaceMovie(FigureMovie):
     """Stream 3-D surface renders to an MP4 (libx264), one frame per `write`.
 
     Frames share ``half_range`` (nm), so the colour and z scales stay fixed
@@ -262,43 +263,19 @@ class SurfaceMovie(StreamedFile):
     """
 
     def __init__(self, path, half_range: float, fps: float = 10, size_px: int = 600, cmap: str = "viridis"):
-        if not (isinstance(fps, numbers.Real) and math.isfinite(fps) and fps > 0):
-            raise ValueError(f"fps must be > 0, got {fps!r}")
-        if not (isinstance(size_px, numbers.Integral) and size_px >= 16 and size_px % 2 == 0):
-            raise ValueError(f"size_px must be an even integer >= 16 (libx264 needs even sizes), got {size_px!r}")
         if not (isinstance(half_range, numbers.Real) and math.isfinite(half_range) and half_range > 0):
             raise ValueError(f"half_range must be > 0 nm, got {half_range!r}")
-        import imageio.v2 as imageio
-
-        self.half_range, self.cmap, self.size_px, self.frames = float(half_range), cmap, int(size_px), 0
-        super().__init__(path)
-        try:
-            self._writer = imageio.get_writer(self._tmp, format="FFMPEG", fps=fps, codec="libx264",
-                                              macro_block_size=1)
-        except BaseException:
-            self._tmp.unlink(missing_ok=True)
-            raise
-        dpi = 100
-        self._fig = Figure(figsize=(self.size_px / dpi, self.size_px / dpi), dpi=dpi)
-        self._canvas = FigureCanvasAgg(self._fig)
+        self.half_range, self.cmap = float(half_range), cmap
+        super().__init__(path, fps, size_px)
 
     def write(self, surface: Surface, title: str | None = None) -> None:
         """Render ``surface`` and append it as one frame."""
         if self.closed:
             raise ValueError(f"SurfaceMovie for {self.path} is closed")
-        self._fig.clear()
-        draw_surface(surface, self._fig.add_subplot(projection="3d"), half_range=self.half_range,
+        self.figure.clear()
+        draw_surface(surface, self.figure.add_subplot(projection="3d"), half_range=self.half_range,
                      cmap=self.cmap, title=title)
-        self._canvas.draw()
-        frame = np.asarray(self._canvas.buffer_rgba())[:, :, :3]
-        self._writer.append_data(np.ascontiguousarray(frame))
-        self.frames += 1
-
-    def _close_stream(self) -> None:
-        self._writer.close()
-
-    def _is_empty(self) -> bool:
-        return self.frames == 0
+        self.add_frame()
 
 
 def save_movie(run: Anodization, path, which: str = "oxide", fps: float = 10, size_px: int = 600) -> Path:

@@ -159,15 +159,68 @@ def save_png(state, path, dpi: int = 100) -> Path:
     return path
 
 
-class MovieWriter(StreamedFile):
+class FigureMovie(StreamedFile):
+    """An MP4 built frame by frame from one reused matplotlib figure (written atomically).
+
+    Subclasses draw on `figure` and call `add_frame`. Frames go straight to
+    ffmpeg (libx264), so memory does not grow with the number of frames; the
+    movie is streamed to a temporary file beside ``path`` and renamed onto it
+    by `close`; if an exception leaves the ``with`` block the temporary file
+    is removed and ``path`` is left untouched.
+
+    Parameters
+    ----------
+    path : str or Path
+        Output file (``.mp4``).
+    fps : float
+        Frames per second (> 0).
+    size_px : int
+        Width and height of a frame, pixels (even, >= 16).
+    """
+
+    def __init__(self, path, fps: float, size_px: int):
+        if not (isinstance(fps, numbers.Real) and math.isfinite(fps) and fps > 0):
+            raise ValueError(f"fps must be > 0, got {fps!r}")
+        if not (isinstance(size_px, numbers.Integral) and size_px >= 16 and size_px % 2 == 0):
+            raise ValueError(f"size_px must be an even integer >= 16 (libx264 needs even sizes), got {size_px!r}")
+        import imageio.v2 as imageio
+
+        self.fps = fps
+        self.size_px = int(size_px)
+        self.frames = 0
+        super().__init__(path)
+        try:
+            self._writer = imageio.get_writer(self._tmp, format="FFMPEG", fps=fps, codec="libx264",
+                                              macro_block_size=1)
+        except BaseException:
+            self._tmp.unlink(missing_ok=True)
+            raise
+        dpi = 100
+        self.figure = Figure(figsize=(self.size_px / dpi, self.size_px / dpi), dpi=dpi)
+        self._canvas = FigureCanvasAgg(self.figure)
+
+    def add_frame(self) -> None:
+        """Render `figure` and append it as one frame."""
+        if self.closed:
+            raise ValueError(f"{type(self).__name__} for {self.path} is closed")
+        self._canvas.draw()
+        frame = np.asarray(self._canvas.buffer_rgba())[:, :, :3]
+        if frame.shape[:2] != (self.size_px, self.size_px):  # would make ffmpeg fail obscurely
+            raise RuntimeError(f"rendered frame is {frame.shape[:2]}, expected {self.size_px} px square")
+        self._writer.append_data(np.ascontiguousarray(frame))
+        self.frames += 1
+
+    def _close_stream(self) -> None:
+        self._writer.close()
+
+    def _is_empty(self) -> bool:
+        return self.frames == 0
+
+
+class MovieWriter(FigureMovie):
     """Stream board states to an MP4 movie; a writer for `qdots.Simulation.run`.
 
-    Each `write` renders the state on one reused matplotlib figure (Agg
-    canvas of ``size_px`` x ``size_px`` pixels) and sends the frame to ffmpeg
-    (libx264), so memory does not grow with the number of frames. The movie
-    is written to a temporary file beside ``path`` and renamed onto ``path``
-    by `close`; if an exception leaves the ``with`` block, the temporary file
-    is removed and ``path`` is left untouched.
+    Each `write` draws the state on the movie's reused figure (see `FigureMovie`).
 
     Parameters
     ----------
@@ -196,28 +249,10 @@ class MovieWriter(StreamedFile):
     def __init__(self, path, every: int = 50, fps: float = 25, size_px: int = 600):
         if not (isinstance(every, numbers.Integral) and every >= 1):
             raise ValueError(f"every must be an integer >= 1 step, got {every!r}")
-        if not (isinstance(fps, numbers.Real) and math.isfinite(fps) and fps > 0):
-            raise ValueError(f"fps must be > 0, got {fps!r}")
-        if not (isinstance(size_px, numbers.Integral) and size_px >= 16 and size_px % 2 == 0):
-            raise ValueError(f"size_px must be an even integer >= 16 (libx264 needs even sizes), got {size_px!r}")
-        import imageio.v2 as imageio
-
         self.every = int(every)
-        self.fps = fps
-        self.size_px = int(size_px)
-        self.frames = 0
         self.wall_seconds = 0.0
-        super().__init__(path)
-        try:
-            self._writer = imageio.get_writer(self._tmp, format="FFMPEG", fps=fps, codec="libx264",
-                                              macro_block_size=1)
-        except BaseException:
-            self._tmp.unlink(missing_ok=True)
-            raise
-        dpi = 100
-        self._fig = Figure(figsize=(self.size_px / dpi, self.size_px / dpi), dpi=dpi)
-        self._canvas = FigureCanvasAgg(self._fig)
-        ax = self._fig.add_axes((0.02, 0.02, 0.96, 0.91))
+        super().__init__(path, fps, size_px)
+        ax = self.figure.add_axes((0.02, 0.02, 0.96, 0.91))
         ax.set_axis_off()
         self._board = BoardArtists(ax)
 
@@ -227,19 +262,8 @@ class MovieWriter(StreamedFile):
             raise ValueError(f"MovieWriter for {self.path} is closed")
         start = time.perf_counter()
         self._board.draw(state)
-        self._canvas.draw()
-        frame = np.asarray(self._canvas.buffer_rgba())[:, :, :3]
-        if frame.shape[:2] != (self.size_px, self.size_px):  # would make ffmpeg fail obscurely
-            raise RuntimeError(f"rendered frame is {frame.shape[:2]}, expected {self.size_px} px square")
-        self._writer.append_data(np.ascontiguousarray(frame))
-        self.frames += 1
+        self.add_frame()
         self.wall_seconds += time.perf_counter() - start
-
-    def _close_stream(self) -> None:
-        self._writer.close()
-
-    def _is_empty(self) -> bool:
-        return self.frames == 0
 
     def __repr__(self) -> str:
         return f"MovieWriter({str(self.path)!r}, every={self.every}, frames={self.frames})"
