@@ -27,6 +27,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from scipy.ndimage import maximum_filter, minimum_filter
 from scipy.spatial import cKDTree
 
 from .engine import Engine
@@ -191,7 +192,7 @@ class FastEngine(Engine):
         owner, oxide = self.pair_m[rows], self.pair_o[rows]
         set_size = np.bincount(self.pair_m, minlength=n)[owner].astype(float)
         sharers = np.bincount(self.pair_o, minlength=n)[oxide].astype(float)
-        raised, _, _ = self.oxidize(owner, oxide, set_size, sharers, self.step)
+        raised, _, rise = self.oxidize(owner, oxide, set_size, sharers, self.step)
         self._update_reaches()
         # points whose own features or whose oxide points moved: from scratch
         is_raised = np.zeros(n, dtype=bool)
@@ -205,7 +206,7 @@ class FastEngine(Engine):
         points = np.flatnonzero(stale)
         self._recompute(points, self._bound(points))
         # the others near a raised oxide point: take it if it is now as close or closer
-        self._take_closer(raised, skip=stale)
+        self._take_closer(raised, stale, rise)
 
     def _batch(self) -> np.ndarray:
         """The points to oxidize now: within ``tolerance`` of the smallest distance, and each the
@@ -227,14 +228,35 @@ class FastEngine(Engine):
         # exact ties go together (as in the reference); a strictly closer rival makes a point wait
         return np.isfinite(d) & ~(rival < d - self.tie)
 
-    def _take_closer(self, raised: np.ndarray, skip: np.ndarray) -> None:
+    def _below_raised(self, anchors: np.ndarray, rise: float) -> np.ndarray:
+        """Metal points that a raised feature may have come closer to (boolean, shape (n,)).
+
+        Raising points of a feature moves every point of it up; a point of the
+        metal's own features that lies below all of the old feature gets only
+        farther from it. So a metal point can gain only if the highest point of
+        its features (its 3 x 3 block) is above the lowest point of a raised
+        feature (the anchor's 3 x 3 block, before the rise) within reach.
+        """
+        g = self.grid
+        shape = (g.nx, g.ny)
+        mode = "wrap" if g.periodic else "nearest"
+        low = np.full(shape, np.inf)
+        block_low = minimum_filter(self.zo.reshape(shape), size=3, mode=mode) - rise
+        low.flat[anchors] = block_low.flat[anchors]
+        reach = math.sqrt(float(self.D.max()) ** 2 + max(self._oxide_reach, float(self._metal_reach.max())) ** 2)
+        size = [min(2 * math.ceil(reach / d) + 1, 2 * n + 1) for d, n in ((g.dx, g.nx), (g.dy, g.ny))]
+        near_low = minimum_filter(low, size=size, mode="wrap" if g.periodic else "constant", cval=np.inf)
+        high = maximum_filter(self.zm.reshape(shape), size=3, mode=mode)
+        return (high + self.tie >= near_low).ravel()
+
+    def _take_closer(self, raised: np.ndarray, skip: np.ndarray, rise: float) -> None:
         """Metal points near the raised oxide points take them if now as close or closer than their set."""
         if not len(raised):
             return
         anchors = self.grid.block(raised) if self.distance == "exact" else raised  # exact: cell centres moved
-        # ask every other metal point for the anchors that could now be closer than its distance
+        # ask the other metal points that a raised feature can come closer to for the anchors within reach
         tree, shift = self._tree(self.zo, anchors)
-        metal = np.flatnonzero(~skip)
+        metal = np.flatnonzero(~skip & self._below_raised(anchors, rise))
         # (few raised points are near any one metal point: a short k-nearest query, ball queries for the rest)
         which, anchor, oxide_slots, metal_slots = self._candidates(tree, shift, metal, self.D[metal] + self.tie, k=4)
         if not len(which):
