@@ -1,4 +1,4 @@
-"""Cost of our forces over bare pymunk, per step, and the overlap error at each size.
+"""qdots cost per step against N (300 to 100,000 dots), our forces over bare pymunk, and the overlap.
 
 For each N two scenes of 15 px dots are warmed up under van der Waals + thermal
 kicks + drag: ``loose`` (square lattice, 17 px pitch, ~2 contacts per dot) and
@@ -18,7 +18,7 @@ comparison fair):
 
 Also: begin callbacks per step, contacts per dot, Verlet-list rebuilds per 100
 steps, and the worst overlap (r_i + r_j - d) / mean radius after the timed steps.
-Log-log fits give the growth exponents in N.
+Log-log fits give the growth exponents in N (the scaling plot of ``run``: 300 to 100,000 dots).
 
 Run: ``python -m benchmarks.engine_overhead [--sizes 300 3000 30000] [--steps 200]``
 """
@@ -27,23 +27,19 @@ from __future__ import annotations
 
 import argparse
 import platform
-import time
 
 import numpy as np
 import pymunk
+from matplotlib.figure import Figure as MplFigure
 from scipy.spatial import cKDTree
 
 import qdots
+from qdots.analysis import overlaps
 
+from .report import Figure, Headline, Note, Table
 
-def worst_overlap(state: qdots.State) -> float:
-    pairs = cKDTree(state.positions).query_pairs(2 * state.radii.max(), output_type="ndarray")
-    if not len(pairs):
-        return 0.0
-    i, j = pairs.T
-    d = np.linalg.norm(state.positions[i] - state.positions[j], axis=1)
-    rsum = state.radii[i] + state.radii[j]
-    return max(0.0, float(((rsum - d) / (rsum / 2)).max()))
+#: Sizes of the scaling run (``run``), full and quick.
+SIZES = {False: [300, 1000, 3000, 10000, 30000, 100000], True: [300, 1000, 3000]}
 
 
 def initial_positions(n: int, kind: str, rng: np.random.Generator) -> tuple[np.ndarray, tuple[float, float]]:
@@ -72,8 +68,8 @@ def full_forces() -> list[qdots.Force]:
     return [qdots.VanDerWaals(), qdots.ThermalKicks(), qdots.Drag()]
 
 
-def measure(n: int, kind: str, steps: int, chunk: int = 20) -> dict:
-    scene = warm_scene(n, kind)
+def measure(n: int, kind: str, steps: int, chunk: int = 20, warmup_s: float = 0.3) -> dict:
+    scene = warm_scene(n, kind, warmup_s=warmup_s)
     full = qdots.Simulation(scene, full_forces(), seed=1)
     bare = qdots.Simulation(scene, [], seed=1)
     full.step(chunk)  # first list build outside the timing
@@ -97,7 +93,7 @@ def measure(n: int, kind: str, steps: int, chunk: int = 20) -> dict:
         "begins_per_step": (full.collisions.dot_dot - begins0) / done,
         "bare_ms": 1e3 * bare.timings["pymunk"] / done,
         "rebuilds_per_100": 100.0 * (full.forces[0].pairs.rebuilds - rebuilds0) / done,
-        "overlap_pct": 100.0 * worst_overlap(full.state()),
+        "overlap_pct": 100.0 * overlaps(full.state())[0],
         "contacts_per_dot": contacts_per_dot(full.state()),
         "bare_contacts_per_dot": contacts_per_dot(bare.state()),
     }
@@ -108,29 +104,88 @@ def contacts_per_dot(state: qdots.State, tol: float = 0.05) -> float:
     return 2.0 * len(pairs) / state.n_dots
 
 
-def table(rows: list[dict]) -> str:
-    lines = [
-        "| scene | N | total ms/step | pymunk step | our forces + I/O | overhead total/pymunk | "
-        "begin callbacks /step | contacts/dot | list rebuilds /100 steps | worst overlap (% r) | "
-        "bare: no forces, same start (ms, contacts/dot) |",
-        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|",
-    ]
-    for r in rows:
-        lines.append(
-            f"| {r['scene']} | {r['N']:,} | {r['full_ms']:.2f} | {r['pymunk_ms']:.2f} | {r['forces_ms']:.2f} | "
-            f"{r['ratio']:.2f}x | {r['begins_per_step']:.0f} | {r['contacts_per_dot']:.2f} | "
-            f"{r['rebuilds_per_100']:.1f} | {r['overlap_pct']:.3f} | "
-            f"{r['bare_ms']:.2f} ms, {r['bare_contacts_per_dot']:.2f} |"
-        )
+COLUMNS = ["scene", "N", "total ms/step", "pymunk step", "our forces + I/O", "overhead total/pymunk",
+           "begin callbacks /step", "contacts/dot", "list rebuilds /100 steps", "worst overlap (% r)",
+           "bare: no forces, same start (ms, contacts/dot)"]
+
+
+def table(rows: list[dict]) -> Table:
+    return Table(
+        "Cost per step (dt = 1 ms, VanDerWaals + ThermalKicks + Drag, defaults) and worst overlap after the timed steps",
+        COLUMNS,
+        [[r["scene"], r["N"], r["full_ms"], r["pymunk_ms"], r["forces_ms"], f"{r['ratio']:.2f}x",
+          round(r["begins_per_step"]), r["contacts_per_dot"], r["rebuilds_per_100"], r["overlap_pct"],
+          f"{r['bare_ms']:.2f} ms, {r['bare_contacts_per_dot']:.2f}"] for r in rows])
+
+
+def exponents(rows: list[dict], kind: str) -> dict[str, float]:
+    """Log-log slopes of total, force-phase and pymunk cost against N for one scene kind."""
+    group = [r for r in rows if r["scene"] == kind]
+    if len(group) < 2:
+        return {}
+    ns = np.log([r["N"] for r in group])
+    return {key: float(np.polyfit(ns, np.log([r[key] for r in group]), 1)[0])
+            for key in ("full_ms", "forces_ms", "pymunk_ms")}
+
+
+def fit_lines(rows: list[dict]) -> str:
+    lines = []
     for kind in sorted({r["scene"] for r in rows}):
-        group = [r for r in rows if r["scene"] == kind]
-        if len(group) < 2:
-            continue
-        ns = np.log([r["N"] for r in group])
-        fits = [np.polyfit(ns, np.log([r[key] for r in group]), 1)[0] for key in ("full_ms", "forces_ms", "pymunk_ms")]
-        lines.append(f"\n{kind}: total step cost grows as N^{fits[0]:.2f} "
-                     f"(our forces N^{fits[1]:.2f}, pymunk N^{fits[2]:.2f})")
+        fit = exponents(rows, kind)
+        if fit:
+            lines.append(f"{kind}: total step cost grows as N^{fit['full_ms']:.2f} "
+                         f"(our forces N^{fit['forces_ms']:.2f}, pymunk N^{fit['pymunk_ms']:.2f})")
     return "\n".join(lines)
+
+
+def scaling_figure(rows: list[dict]) -> MplFigure:
+    fig = MplFigure(figsize=(6.4, 4.2))
+    ax = fig.add_subplot()
+    for kind, colour in (("packed", "C0"), ("loose", "C1")):
+        group = [r for r in rows if r["scene"] == kind]
+        if not group:
+            continue
+        n = np.array([r["N"] for r in group], float)
+        for key, style, label in (("full_ms", "o-", "total"), ("forces_ms", "s--", "our forces + I/O"),
+                                  ("pymunk_ms", "^:", "pymunk step")):
+            ms = np.array([r[key] for r in group])
+            slope = exponents(rows, kind).get(key, float("nan"))
+            ax.loglog(n, ms, style, color=colour, label=f"{kind}, {label} (N^{slope:.2f})")
+    ax.set_xlabel("dots N")
+    ax.set_ylabel("ms per step (dt = 1 ms)")
+    ax.set_title("qdots cost per step against N")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7)
+    return fig
+
+
+def run(quick: bool) -> list:
+    """Both scenes at every size of `SIZES`; table, scaling plot and fitted exponents."""
+    rows = []
+    for kind in ("packed", "loose"):
+        for n in SIZES[quick]:
+            # the largest boards get fewer timed steps, and the packed ones (touching from the start) a shorter
+            # warm-up: a 100,000-dot packed step takes ~0.2 s
+            big = n > 10000
+            rows.append(measure(n, kind, steps=40 if quick else (40 if big else 200), chunk=10 if big else 20,
+                                warmup_s=0.05 if big and kind == "packed" else 0.3))
+    packed = exponents(rows, "packed")
+    at_3000 = next(r for r in rows if r["scene"] == "packed" and r["N"] == 3000)
+    largest = max((r for r in rows if r["scene"] == "packed"), key=lambda r: r["N"])
+    return [
+        Headline("qdots step, 3,000 packed dots, vdW + kicks + drag (dt 1 ms)", f"{at_3000['full_ms']:.2f} ms/step",
+                 f"worst overlap {at_3000['overlap_pct']:.2f} % of r"),
+        Headline(f"qdots scaling, packed film, {SIZES[quick][0]:,} to {largest['N']:,} dots",
+                 f"N^{packed['full_ms']:.2f}; {largest['full_ms']:.0f} ms/step at {largest['N']:,}",
+                 f"worst overlap {largest['overlap_pct']:.2f} % of r"),
+        table(rows),
+        Note(fit_lines(rows) + f" (fit over N = {SIZES[quick][0]:,} to {SIZES[quick][-1]:,}). `total/pymunk` is "
+             "what our forces add to Chipmunk's own work on the same configuration; `bare` is the same start "
+             "with no forces (a different workload: without attraction the packed film relaxes)."),
+        Figure("qdots_scaling", scaling_figure(rows),
+               "qdots ms/step against N, packed (hexagonal, settled) and loose (square lattice) films, with "
+               "the fitted exponents."),
+    ]
 
 
 def machine() -> str:
@@ -149,7 +204,8 @@ def main(argv: list[str] | None = None) -> int:
     rows = [measure(n, kind, args.steps) for kind in args.scenes for n in args.sizes]
     print(machine())
     print("dt = 1 ms, defaults: VanDerWaals(thesis, skin 3 px) + ThermalKicks + Drag\n")
-    print(table(rows))
+    print(table(rows).markdown())
+    print("\n" + fit_lines(rows))
     return 0
 
 

@@ -29,6 +29,8 @@ import numpy as np
 from qdots.forster import TAU_NS, exciton_network
 from qdots.lqe import lqe_exact, lqe_monte_carlo
 
+from .report import Headline, Table, print_results
+
 DIAMETER = 15.0
 
 
@@ -95,36 +97,49 @@ def bias_rows() -> list[dict]:
     return rows
 
 
+def results(sizes: list[int], excitons: int, mc_size: int = 10_000) -> list:
+    exact = [exact_row(n) for n in sizes]
+    mc = monte_carlo_rows(mc_size, excitons)
+    largest = exact[-1]
+    gillespie = mc[0]
+    return [
+        Headline(f"exact LQE, close-packed film of {largest['N']:,} dots", f"{largest['build'] + largest['solve']:.2f} s",
+                 f"bound {largest['bound']:.0e}, measured {largest['measured']:.0e}"),
+        Headline(f"Gillespie Monte Carlo LQE, {mc_size:,} dots",
+                 f"{gillespie['excitons'] / gillespie['seconds']:,.0f} excitons/s",
+                 f"{abs(gillespie['lqe'] - gillespie['target']) / gillespie['se']:.1f} SE from exact"),
+        Table("lqe_exact on a close-packed film, R_F = 1 diameter, 1/3 traps, default tolerance 1e-3",
+              ["N", "partners/dot", "cutoff (px)", "network (s)", "solve (s)", "total (s)", "LQE", "error bound",
+               "measured cutoff error (reference)"],
+              [[r["N"], round(r["partners"]), r["cutoff"], r["build"], r["solve"], r["build"] + r["solve"],
+                f"{r['lqe']:.5f}", f"{r['bound']:.1e}", f"{r['measured']:.1e} ({r['reference']})"] for r in exact]),
+        Table(f"Monte Carlo on the {mc_size:,}-dot film (same network as its exact row)",
+              ["method", "excitons", "time (s)", "excitons/s", "LQE +- SE", "|MC - target| / SE (target)",
+               "scheme bias vs exact"],
+              [[r["method"], r["excitons"], r["seconds"], round(r["excitons"] / r["seconds"]),
+                f"{r['lqe']:.4f} +- {r['se']:.4f}", f"{abs(r['lqe'] - r['target']) / r['se']:.2f} ({r['target_name']})",
+                f"{r['bias']:+.2e}" if "bias" in r else "0 (no time step)"] for r in mc]),
+        Table("Thesis scheme dt bias (exact law of the scheme minus the continuous-time exact LQE), 900 dots",
+              ["R_F (diameters)", "dt / tau", "exact LQE", "thesis-scheme LQE", "bias", "relative bias", "time (s)"],
+              [[r["R_F"], r["dt"], f"{r['exact']:.5f}", f"{r['thesis']:.5f}", f"{r['bias']:+.2e}",
+                f"{r['bias'] / r['exact']:+.1%}", r["seconds"]] for r in bias_rows()]),
+    ]
+
+
+def run(quick: bool) -> list:
+    """Exact LQE at 10^3-10^5 dots (quick: 10^3), Monte Carlo rates, the thesis scheme's dt bias."""
+    if quick:
+        return results([1000], 100_000, mc_size=1000)
+    return results([1000, 10000, 100000], 1_000_000)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sizes", type=int, nargs="+", default=[1000, 10000, 100000])
     parser.add_argument("--excitons", type=int, default=1_000_000)
     args = parser.parse_args(argv)
     print(f"python {platform.python_version()}, numpy {np.__version__}, {platform.machine()}\n")
-    print("lqe_exact on a close-packed film, R_F = 1 diameter, 1/3 traps, default tolerance 1e-3\n")
-    print("| N | partners/dot | cutoff (px) | network (s) | solve (s) | total (s) | LQE | error bound | "
-          "measured cutoff error (reference) |")
-    print("|---:|---:|---:|---:|---:|---:|---:|---:|---|")
-    for n in args.sizes:
-        r = exact_row(n)
-        print(f"| {r['N']:,} | {r['partners']:.0f} | {r['cutoff']:.1f} | {r['build']:.3f} | {r['solve']:.3f} | "
-              f"{r['build'] + r['solve']:.3f} | {r['lqe']:.5f} | {r['bound']:.1e} | "
-              f"{r['measured']:.1e} ({r['reference']}) |")
-    print("\nMonte Carlo on the 10,000-dot film (same network as its exact row)\n")
-    print("| method | excitons | time (s) | excitons/s | LQE +- SE | |MC - target| / SE (target) | "
-          "scheme bias vs exact |")
-    print("|---|---:|---:|---:|---|---:|---:|")
-    for r in monte_carlo_rows(10_000, args.excitons):
-        bias = f"{r['bias']:+.2e}" if "bias" in r else "0 (no time step)"
-        print(f"| {r['method']} | {r['excitons']:,} | {r['seconds']:.2f} | {r['excitons'] / r['seconds']:,.0f} | "
-              f"{r['lqe']:.4f} +- {r['se']:.4f} | {abs(r['lqe'] - r['target']) / r['se']:.2f} ({r['target_name']}) | "
-              f"{bias} |")
-    print("\nThesis scheme dt bias (exact law of the scheme minus the continuous-time exact LQE), 900 dots\n")
-    print("| R_F (diameters) | dt / tau | exact LQE | thesis-scheme LQE | bias | relative bias | time (s) |")
-    print("|---:|---:|---:|---:|---:|---:|---:|")
-    for r in bias_rows():
-        print(f"| {r['R_F']:g} | {r['dt']:g} | {r['exact']:.5f} | {r['thesis']:.5f} | {r['bias']:+.2e} | "
-              f"{r['bias'] / r['exact']:+.1%} | {r['seconds']:.2f} |")
+    print_results(results(args.sizes, args.excitons))
     return 0
 
 

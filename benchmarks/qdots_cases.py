@@ -1,0 +1,255 @@
+"""Test problems of the qdots engine with exact or converged answers, each timed as it runs.
+
+Every case takes engine settings (`Simulation` keywords plus ``skin``, the van der Waals pair
+list's Verlet skin) and returns a `Measured`: the error against the exact answer and the wall
+time per simulated second of the same run.
+
+* `restitution`: an oblique impact (70 px/s, 9 px offset) from 6-12 start offsets; exact answer:
+  the event-driven impact at the exact contact time with the drawn restitution along the exact
+  normal. Error: largest |v - v_exact| / |v_rel|.
+* `gas_energy`: an elastic gas (restitution 1, no sticking, 50 % area fraction, rms speed 85 px/s);
+  exact answer: energy conserved. Error: |E(T) - E(0)| / E(0), mean over 4 seeds with its standard
+  error (the loss comes from rare contacts that last more than one step, so it varies ~10x
+  between seeds).
+* `vdw_pair`: two dots pulled together by the thesis's van der Waals proxy from an 8 px gap to
+  0.8 of the contact time; reference: `scipy.integrate.solve_ivp` (DOP853, rtol 1e-10) of the
+  dt -> 0 law. Error: largest position difference, px.
+* `dense_pack`: a polydisperse pack compressed by centre gravity (x1 or x10 the thesis's
+  750 px/s^2) with vdW, kicks and drag, settled once at the defaults and then run at the given
+  settings. Error: worst overlap (r_i + r_j - d) / mean radius of the pair (exact: 0).
+* `list_error`: the dense pack and a loose thermal film, the van der Waals velocity change from the
+  Verlet pair list against a brute-force pair search at the same instants (exact: equal).
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.integrate import solve_ivp
+
+import qdots
+from qdots.analysis import overlaps
+from qdots.forces import StepContext
+
+#: The engine's defaults (the knob values marked on every plot).
+DEFAULTS = {"dt": 1e-3, "substeps": 1, "iterations": 10, "collision_slop": 0.01, "collision_bias": None,
+            "spatial_hash": None, "skin": 3.0}
+
+
+@dataclass
+class Measured:
+    """Error against the exact answer and wall seconds per simulated second, from one run.
+
+    ``error_se`` is the standard error of ``error`` when it is a mean over seeds (0: deterministic).
+    """
+
+    error: float
+    cost: float
+    error_se: float = 0.0
+
+
+def engine(settings: dict) -> dict:
+    """The `Simulation` keywords of ``settings`` (everything but ``skin``)."""
+    return {k: v for k, v in {**DEFAULTS, **settings}.items() if k != "skin"}
+
+
+def skin(settings: dict) -> float:
+    return float(settings.get("skin", DEFAULTS["skin"]))
+
+
+def timed_run(sim: qdots.Simulation, seconds: float) -> float:
+    start = time.perf_counter()
+    sim.run(seconds)
+    return time.perf_counter() - start
+
+
+# ---------------------------------------------------------------- isolated oblique impact
+def exact_impact(p: np.ndarray, v: np.ndarray, r_sum: float, eps: float, t_end: float) -> np.ndarray:
+    """Velocities at ``t_end`` of two equal discs after one frictionless impact of restitution ``eps``."""
+    dp, dv = p[1] - p[0], v[1] - v[0]
+    a, b, c = dv @ dv, 2 * dp @ dv, dp @ dp - r_sum**2
+    t_hit = (-b - math.sqrt(b * b - 4 * a * c)) / (2 * a)
+    assert 0 < t_hit < t_end, "the dots must meet during the run"
+    n = dp + dv * t_hit
+    n /= np.linalg.norm(n)
+    j = 0.5 * (1 + eps) * (dv @ n)  # equal masses: each dot's normal velocity changes by this much
+    return np.array([v[0] + j * n, v[1] - j * n])
+
+
+def restitution(settings: dict, quick: bool) -> Measured:
+    seed, t_end = 4, 1.2
+    eps = qdots.Restitution().draw(np.random.default_rng(seed), approach_speed=math.inf)
+    worst, wall, simulated = 0.0, 0.0, 0.0
+    for shift in np.linspace(0.0, 1.0, 6 if quick else 12):
+        scene = qdots.Scene(box=(400, 200), positions=[[170 + shift, 100], [230, 109]], radii=[7.5, 7.5],
+                            velocities=[[60.0, 0.0], [-10.0, 0.0]])
+        sim = qdots.Simulation(scene, seed=seed, **engine(settings))
+        exact = exact_impact(scene.positions, scene.velocities, 15.0, eps, t_end)
+        wall += timed_run(sim, t_end)
+        simulated += sim.time
+        if sim.collisions.dot_dot != 1 or sim.collisions.dot_wall:
+            raise RuntimeError("the oblique impact case must have exactly one impact and no wall contact")
+        worst = max(worst, float(np.abs(sim.state().velocities - exact).max()) / 70.0)
+    return Measured(worst, wall / simulated)
+
+
+# ---------------------------------------------------------------- elastic gas
+def elastic_gas(n: int, seed: int, area_fraction: float = 0.5, rms_speed: float = 85.0) -> qdots.Scene:
+    """``n`` discs of 7.5 px on a jittered square lattice, Gaussian velocities, elastic everything."""
+    r = 7.5
+    side = int(math.ceil(math.sqrt(n)))
+    pitch = math.sqrt(math.pi * r * r / area_fraction)
+    rng = np.random.default_rng(seed)
+    ij = np.argwhere(np.ones((side, side)))[:n].astype(float)
+    play = max(0.0, (pitch - 2 * r) / 2 - 0.01)
+    positions = pitch * (ij + 0.5) + rng.uniform(-play, play, (n, 2))
+    return qdots.Scene(box=(pitch * side, pitch * side), positions=positions, radii=np.full(n, r),
+                       velocities=rng.normal(0.0, rms_speed / math.sqrt(2), (n, 2)),
+                       restitution=qdots.Restitution(mean=1.0, wall=1.0, sticking_speed=0.0))
+
+
+def gas_energy(settings: dict, quick: bool) -> Measured:
+    n, seconds, seeds = (300, 1.0, (0, 1)) if quick else (1000, 2.0, (0, 1, 2, 3))
+    errors, wall = [], 0.0
+    for seed in seeds:
+        scene = elastic_gas(n, seed)
+        e0 = 0.5 * float(np.sum(scene.velocities**2))
+        sim = qdots.Simulation(scene, seed=seed, **engine(settings))
+        wall += timed_run(sim, seconds)
+        errors.append(abs(sim.state().kinetic_energy() - e0) / e0)
+    return Measured(float(np.mean(errors)), wall / (seconds * len(seeds)),
+                    float(np.std(errors, ddof=1) / math.sqrt(len(errors))))
+
+
+# ---------------------------------------------------------------- two-body van der Waals
+@functools.lru_cache(maxsize=None)
+def vdw_reference(gap0: float = 8.0) -> tuple[float, float, float]:
+    """(t_end, x1, x2) of the dt -> 0 thesis-proxy approach from ``gap0``, by solve_ivp; t_end = 0.8 t_contact."""
+    force, r = qdots.VanDerWaals(), 7.5
+
+    def rhs(t, y):
+        gap = max(y[1] - y[0] - 2 * r, force.min_gap)
+        pull = 0.5 * (force.r0 / (gap - force.offset)) ** 7
+        return [y[2], y[3], pull, -pull]
+
+    touch = lambda t, y: y[1] - y[0] - 2 * r - 1.0  # noqa: E731 - a gap of 1 px
+    touch.terminal = True
+    y0 = [0.0, 2 * r + gap0, 0.0, 0.0]
+    t_contact = solve_ivp(rhs, (0, 100), y0, events=touch, rtol=1e-10, atol=1e-12).t_events[0][0]
+    t_end = round(0.8 * t_contact / 0.004) * 0.004  # whole steps for every dt that divides 4 ms
+    x1, x2 = solve_ivp(rhs, (0, t_end), y0, rtol=1e-10, atol=1e-12, method="DOP853").y[:2, -1]
+    return t_end, float(x1), float(x2)
+
+
+def vdw_pair(settings: dict, quick: bool) -> Measured:
+    t_end, x1, x2 = vdw_reference()
+    scene = qdots.Scene(box=(200, 100), positions=[[80, 50], [103, 50]], radii=[7.5, 7.5], closed=False)
+    sim = qdots.Simulation(scene, [qdots.VanDerWaals(skin=skin(settings))], seed=0, **engine(settings))
+    wall = timed_run(sim, t_end)
+    got = sim.state().positions[:, 0] - 80.0
+    return Measured(max(abs(got[0] - x1), abs(got[1] - x2)), wall / t_end)
+
+
+# ---------------------------------------------------------------- dense pack under centre gravity
+def pack_forces(centre: float, gravity: float, skin_px: float) -> list[qdots.Force]:
+    return [qdots.CenterGravity((centre, centre), 750.0 * gravity), qdots.VanDerWaals(skin=skin_px),
+            qdots.ThermalKicks(), qdots.Drag(1.0, 0.01)]
+
+
+@functools.lru_cache(maxsize=None)
+def settled_pack(gravity: float, quick: bool) -> qdots.Scene:
+    """A polydisperse pack (radii N(7.5, 0.75) px) pulled together for 3 s (quick: 150 dots, 2 s) at the defaults."""
+    n, side, settle = (150, 380, 2.0) if quick else (400, 600, 3.0)
+    rng = np.random.default_rng(0)
+    grid = np.array([(x, y) for x in range(20, side - 15, 25) for y in range(20, side - 15, 25)], float)
+    grid = grid[rng.permutation(len(grid))[:n]]
+    scene = qdots.Scene(box=(side, side), positions=grid, radii=rng.normal(7.5, 0.75, n).clip(5, 9.5))
+    sim = qdots.Simulation(scene, pack_forces(side / 2, gravity, DEFAULTS["skin"]), seed=1)
+    sim.run(settle)
+    return sim.board()
+
+
+def pack_simulation(settings: dict, gravity: float, quick: bool) -> qdots.Simulation:
+    scene = settled_pack(gravity, quick)
+    return qdots.Simulation(scene, pack_forces(scene.box[0] / 2, gravity, skin(settings)), seed=2,
+                            **engine(settings))
+
+
+def dense_pack(settings: dict, quick: bool, gravity: float) -> Measured:
+    """Worst overlap over the last 0.5 s (quick 0.25 s) after 0.1 s to adapt to the settings."""
+    sim = pack_simulation(settings, gravity, quick)
+    sim.run(0.1)
+    window, chunks = (0.25, 5) if quick else (0.5, 10)
+    worst, wall = 0.0, 0.0
+    for _ in range(chunks):
+        wall += timed_run(sim, window / chunks)
+        state = sim.state()
+        if not np.isfinite(state.positions).all():
+            return Measured(math.inf, wall / window)
+        worst = max(worst, overlaps(state)[0])
+    return Measured(worst, wall / window)
+
+
+# ---------------------------------------------------------------- Verlet pair list against brute force
+def loose_film(n: int) -> qdots.Scene:
+    """``n`` dots of 7.5 px on a jittered 17 px square lattice, thermal velocities."""
+    side = int(math.ceil(math.sqrt(n)))
+    rng = np.random.default_rng(5)
+    ij = np.argwhere(np.ones((side, side)))[:n].astype(float)
+    return qdots.Scene(box=(17.0 * side + 40,) * 2, positions=20 + 17.0 * ij + rng.uniform(-0.9, 0.9, (n, 2)),
+                       radii=np.full(n, 7.5), velocities=rng.normal(0, 10.0, (n, 2)))
+
+
+def list_force_error(sim: qdots.Simulation, steps: int) -> float:
+    """Largest |dv(list) - dv(brute force)| / max |dv| of the vdW force over ``steps`` further steps."""
+    listed = next(f for f in sim.forces if isinstance(f, qdots.VanDerWaals))
+    brute = qdots.VanDerWaals(**{**listed.params(), "skin": 0.0})
+    brute.bind(sim.radii, sim.masses)
+    worst = 0.0
+    for _ in range(steps):
+        state = sim.state()
+        out = []
+        for force in (listed, brute):
+            ctx = StepContext(time=sim.time, dt=sim.dt, x=state.positions[:, 0].copy(),
+                              y=state.positions[:, 1].copy(), velocity=state.velocities, radii=sim.radii,
+                              masses=sim.masses, rng=np.random.default_rng(0), dv=np.zeros_like(state.velocities))
+            force.kick(ctx)
+            out.append(ctx.dv)
+        scale = float(np.abs(out[1]).max()) or 1.0
+        worst = max(worst, float(np.abs(out[0] - out[1]).max()) / scale)
+        sim.step()
+    return worst
+
+
+def list_error(settings: dict, quick: bool, scene: str) -> Measured:
+    """Time a run of the pack (x10 gravity) or the loose film, then check the pair list on 10 more steps."""
+    if scene == "pack":
+        sim = pack_simulation(settings, 10.0, quick)
+        seconds = 0.25 if quick else 0.5
+    else:
+        sim = qdots.Simulation(loose_film(300 if quick else 2000),
+                               [qdots.VanDerWaals(skin=skin(settings)), qdots.ThermalKicks(), qdots.Drag()],
+                               seed=3, **engine(settings))
+        seconds = 0.3 if quick else 1.0
+    wall = timed_run(sim, seconds)
+    return Measured(list_force_error(sim, 10), wall / seconds)
+
+
+#: name -> (title, error axis label, round-off floor of the error, measure(settings, quick))
+CASES = {
+    "restitution": ("isolated oblique impact", "|v - v_exact| / |v_rel|", 1e-12, restitution),
+    "gas_energy": ("elastic gas, 50 % area fraction", "|dE| / E", 1e-12, gas_energy),
+    "vdw_pair": ("two-body vdW vs solve_ivp", "position error (px)", 1e-9, vdw_pair),
+    "pack_g1": ("dense pack, centre gravity x1", "worst overlap / r", 1e-6,
+                functools.partial(dense_pack, gravity=1.0)),
+    "pack_g10": ("dense pack, centre gravity x10", "worst overlap / r", 1e-6,
+                 functools.partial(dense_pack, gravity=10.0)),
+    "list_pack": ("pair list vs brute force, dense pack x10", "max |dv error| / max |dv|", 1e-15,
+                  functools.partial(list_error, scene="pack")),
+    "list_film": ("pair list vs brute force, loose film", "max |dv error| / max |dv|", 1e-15,
+                  functools.partial(list_error, scene="film")),
+}

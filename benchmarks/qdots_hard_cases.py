@@ -1,0 +1,276 @@
+"""qdots hard cases: stability, lost or escaped dots and overlap, with the time each takes.
+
+The same scenes are asserted by ``tests/test_hard_cases_qdots.py``; this module builds them,
+runs them and reports. Each case is sampled every `SAMPLE` seconds of its run. A case passes
+when every sample is finite, no dot left the box or crossed a wall segment (its side of every
+grating line is unchanged), no dot is swallowed by another (centre distance below the larger
+radius minus the smaller), and overlap stays within the documented tolerances:
+
+* *settled* (the last 40 % of the samples): below `qdots.simulation.ENGINE_OVERLAP_TOLERANCE`
+  (10 % of the pair's mean radius), the overlap beyond which the engine itself refuses a board
+  (`Simulation.board`, checkpoints);
+* *transient* (any sample): below 10 % plus ``impact_speed * dt / substeps / r``. Chipmunk has no
+  continuous collision detection: it sees a contact only once the discs overlap, so an impact at
+  normal speed v can overlap by v dt before it is resolved. ``impact_speed`` is each case's
+  bound on the normal approach speed, from its physics (stated where the case is built).
+
+Overlap is (r_i + r_j - d) / ((r_i + r_j) / 2), as in `qdots.analysis.overlaps` (r: the mean
+radius); dot-wall overlap is (r - distance to the segment) / r.
+
+Cases marked *known failure* are limits measured here and documented, not hidden: the tests
+expect them to fail (strict xfail), so a fix shows up as an unexpected pass.
+
+Run: ``python -m benchmarks.qdots_hard_cases [--quick]``
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+import qdots
+from qdots.scene import grating_segments, segment_distances
+from qdots.simulation import ENGINE_OVERLAP_TOLERANCE
+from qdots.units import thesis_kick_speed
+
+from .report import Headline, Note, Table, cli
+
+#: Simulated time between samples, s.
+SAMPLE = 0.05
+
+
+@dataclass(frozen=True)
+class HardCase:
+    """A scene, its forces and engine settings, how long to run it, and whether it is a known failure."""
+
+    name: str
+    build: Callable[[], tuple[qdots.Scene, list]]
+    seconds: float
+    impact_speed: float
+    settings: dict = field(default_factory=dict)
+    slow: bool = False
+    sample: float = SAMPLE
+    known_failure: str = ""
+
+
+def _channels(positions: np.ndarray, segments: np.ndarray) -> np.ndarray:
+    """For each dot, how many grating lines (horizontal segments) lie below its centre."""
+    return (positions[:, 1][:, None] > segments[:, 1][None, :]).sum(axis=1)
+
+
+def grating_corners(gravity: float) -> Callable:
+    """Dots in three rows per 75 px grating channel, pushed into the channels' lower-left corners."""
+    def build():
+        box = (300.0, 300.0)
+        positions = [(x, y0 + dy) for y0 in (0, 75, 150, 225) for x in np.arange(15.0, 290.0, 17.0)
+                     for dy in (15.0, 35.0, 55.0)]
+        scene = qdots.Scene(box=box, positions=positions, radii=np.full(len(positions), 7.0),
+                            segments=grating_segments(box, 75.0))
+        g = 750.0 * gravity
+        return scene, [qdots.Gravity((-g, -g)), qdots.VanDerWaals(), qdots.ThermalKicks()]
+    return build
+
+
+def centre_pack(gravity: float, n: int = 400) -> Callable:
+    """400 polydisperse dots (radii N(7.5, 0.75)) pulled to the centre at ``gravity`` x 750 px/s^2."""
+    def build():
+        rng = np.random.default_rng(0)
+        grid = np.array([(x, y) for x in range(20, 585, 25) for y in range(20, 585, 25)], float)
+        scene = qdots.Scene(box=(600.0, 600.0), positions=grid[rng.permutation(len(grid))[:n]],
+                            radii=rng.normal(7.5, 0.75, n).clip(5, 9.5))
+        return scene, [qdots.CenterGravity((300.0, 300.0), 750.0 * gravity), qdots.VanDerWaals(),
+                       qdots.ThermalKicks(), qdots.Drag(1.0, 0.01)]
+    return build
+
+
+def mixture(masses: str, centre_gravity: float = 0.0) -> Callable:
+    """60 dots of radius 15 px and 500 of 1.5 px (size ratio 10), vdW + kicks (+ centre gravity)."""
+    def build():
+        rng = np.random.default_rng(0)
+        positions, radii = [], []
+        for p in rng.uniform(30, 570, (5000, 2)):
+            r = 15.0 if len(positions) < 60 else 1.5
+            if all(math.dist(p, q) > r + s + 0.5 for q, s in zip(positions, radii)):
+                positions.append(p)
+                radii.append(r)
+            if len(positions) == 560:
+                break
+        radii = np.array(radii)
+        m = {"equal": np.ones(len(radii)), "volume": (radii / 7.5) ** 3}[masses]
+        scene = qdots.Scene(box=(600.0, 600.0), positions=positions, radii=radii, masses=m)
+        forces = [qdots.VanDerWaals(), qdots.ThermalKicks()]
+        if centre_gravity:
+            forces += [qdots.CenterGravity((300.0, 300.0), 750.0 * centre_gravity), qdots.Drag(1.0, 0.01)]
+        return scene, forces
+    return build
+
+
+def falling_gas(elasticity: float) -> Callable:
+    """400 dots at 100 px/s rms in a 420 px box under the thesis's gravity, restitution ``elasticity``."""
+    def build():
+        rng = np.random.default_rng(1)
+        ij = np.argwhere(np.ones((20, 20))).astype(float)
+        scene = qdots.Scene(box=(420.0, 420.0), positions=20 + 19 * ij + rng.uniform(-1, 1, (400, 2)),
+                            radii=np.full(400, 7.5), velocities=rng.normal(0, 100 / math.sqrt(2), (400, 2)),
+                            restitution=qdots.Restitution(mean=elasticity))
+        return scene, [qdots.Gravity()]
+    return build
+
+
+def head_on(multiple: float) -> Callable:
+    """Two blocks of 200 dots (17 px lattice) flying at each other at ``multiple`` x the thesis kick speed."""
+    def build():
+        v0 = multiple * float(thesis_kick_speed(1.0))
+        block = np.array([(100 + 17 * i, 60 + 17 * k) for i in range(10) for k in range(20)], float)
+        positions = np.vstack([block, block + [200, 0]])  # facing rows 32 px apart
+        velocities = np.vstack([np.tile([v0, 0.0], (200, 1)), np.tile([-v0, 0.0], (200, 1))])
+        return qdots.Scene(box=(800.0, 450.0), positions=positions, radii=np.full(400, 7.5),
+                           velocities=velocities), []
+    return build
+
+
+def large_film() -> tuple[qdots.Scene, list]:
+    """30,000 dots on a jittered 17 px lattice, thermal velocities, vdW + kicks + drag."""
+    from .qdots_cases import loose_film
+
+    return loose_film(30000), [qdots.VanDerWaals(), qdots.ThermalKicks(), qdots.Drag()]
+
+
+def fall_speed(acceleration: float, distance: float, quadratic_drag: float = 0.0) -> float:
+    """Speed after falling ``distance`` px at ``acceleration`` px/s^2, capped by the terminal speed of the drag."""
+    v = math.sqrt(2.0 * acceleration * distance)
+    return min(v, math.sqrt(acceleration / quadratic_drag)) if quadratic_drag else v
+
+
+KICK = float(thesis_kick_speed(1.0))
+#: Impact speed bounds: a dot sliding the whole channel (300 px) into the corner; two dots meeting
+#: head-on at the centre after falling up to 424 px (drag caps the speed); a gas dot at 3 sigma of
+#: its 100 px/s rms speed after falling 420 px, met head-on; the blocks' closing speed.
+CASES = [
+    HardCase("grating corners, gravity x1 into the corners", grating_corners(1.0), 2.0,
+             fall_speed(750 * math.sqrt(2), 300)),
+    HardCase("grating corners, gravity x10 into the corners", grating_corners(10.0), 2.0,
+             fall_speed(7500 * math.sqrt(2), 300)),
+    HardCase("centre gravity x30", centre_pack(30.0), 2.0, 2 * fall_speed(22500, 424, 0.01)),
+    HardCase("centre gravity x100, substeps 2", centre_pack(100.0), 1.5, 2 * fall_speed(75000, 424, 0.01),
+             {"substeps": 2}),
+    HardCase("centre gravity x100, defaults", centre_pack(100.0), 2.0, 2 * fall_speed(75000, 424, 0.01), slow=True,
+             known_failure="settles at ~12 % overlap (measured), over the 10 % the engine accepts; 2 substeps "
+                           "give ~3 %"),
+    HardCase("centre gravity x100, substeps 4", centre_pack(100.0), 1.0, 2 * fall_speed(75000, 424, 0.01),
+             {"substeps": 4}, slow=True,
+             known_failure="unstable: rms speed ~165 px/s and ~40 % overlap (measured). Stable with restitution 0, "
+                           "or 10 % overlap correction per sub-step, or slop 0.1 px: re-made contacts in the "
+                           "compressed pile get an elastic impact each time"),
+    HardCase("size ratio 10, equal masses, vdW film", mixture("equal"), 3.0, 50.0),
+    HardCase("size ratio 10, masses ~ r^3, vdW film, substeps 4", mixture("volume"), 1.5, 50.0, {"substeps": 4}),
+    HardCase("size ratio 10, masses ~ r^3, vdW film, defaults", mixture("volume"), 3.0, 50.0, slow=True,
+             known_failure="small dots (mass 1/1000 of the large) overlap by ~40-100 % (measured): the vdW proxy's "
+                           "acceleration goes as 1/m; dt 0.25 ms or 4 substeps bring it to ~2-6 %"),
+    HardCase("size ratio 10, masses ~ r^3, centre gravity x1", mixture("volume", 1.0), 2.0,
+             2 * fall_speed(750, 424, 0.01), slow=True,
+             known_failure="light dots are pushed into heavy ones (overlap > 100 % of the small radius, measured); "
+                           "more iterations, substeps or a smaller dt do not help: Chipmunk's iterative solver with "
+                           "a 1000:1 mass ratio under load"),
+    HardCase("elasticity 0.02, falling gas", falling_gas(0.02), 2.5, 2 * math.hypot(300, fall_speed(750, 420))),
+    HardCase("elasticity 0.98, falling gas", falling_gas(0.98), 2.5, 2 * math.hypot(300, fall_speed(750, 420))),
+    HardCase("head-on at 100x thermal speed (188 px/s)", head_on(100), 0.5, 200 * KICK, sample=0.002),
+    HardCase("head-on at 1000x thermal speed (1,876 px/s), substeps 8", head_on(1000), 0.1, 2000 * KICK,
+             {"substeps": 8}, sample=0.002),
+    HardCase("head-on at 3000x thermal speed (5,628 px/s), defaults", head_on(3000), 0.1, 6000 * KICK, slow=True,
+             sample=0.002,
+             known_failure="no continuous collision detection: at 5.6 px per step (0.75 r) dots pass through "
+                           "walls (measured). Keep the normal approach speed below ~0.1 r / dt (or use substeps)"),
+    HardCase("30,000 dots, vdW + kicks + drag, 10^3 steps", large_film, 1.0, 100.0, slow=True),
+]
+
+
+def _pair_overlaps(positions: np.ndarray, radii: np.ndarray) -> tuple[float, bool]:
+    """Worst overlap / mean radius of the pair, and whether some dot is inside another."""
+    pairs = cKDTree(positions).query_pairs(2.0 * float(radii.max()), output_type="ndarray")
+    if not len(pairs):
+        return 0.0, False
+    i, j = pairs.T
+    d = np.linalg.norm(positions[i] - positions[j], axis=1)
+    rsum = radii[i] + radii[j]
+    swallowed = bool((d < np.abs(radii[i] - radii[j]) + 1e-9).any())
+    return max(0.0, float(((rsum - d) / (0.5 * rsum)).max())), swallowed
+
+
+def check(case: HardCase) -> dict:
+    """Run ``case``; everything the tests assert, with the wall time."""
+    scene, forces = case.build()
+    sim = qdots.Simulation(scene, forces, seed=1, **case.settings)
+    walls, channels = scene.wall_segments(), _channels(scene.positions, scene.segments)
+    samples = max(1, round(case.seconds / case.sample))
+    pair, wall, finite, lost, crossed, wall_time = [], [], True, False, False, 0.0
+    for _ in range(samples):
+        start = time.perf_counter()
+        sim.run(case.seconds / samples)
+        wall_time += time.perf_counter() - start
+        s = sim.state()
+        if not (np.isfinite(s.positions).all() and np.isfinite(s.velocities).all()):
+            finite = False
+            break
+        overlap, swallowed = _pair_overlaps(s.positions, s.radii)
+        pair.append(overlap)
+        wall.append(max(0.0, float(((s.radii[:, None] - segment_distances(s.positions, walls))
+                                    / s.radii[:, None]).max())))
+        outside = (s.positions < 0).any() or (s.positions > np.array(s.box)).any()
+        lost = lost or swallowed or bool(outside) or sim.n_dots != scene.n_dots
+        crossed = crossed or not np.array_equal(_channels(s.positions, scene.segments), channels)
+    settled = slice(int(0.6 * samples), None)
+    step = sim.dt / sim.substeps
+    return {"case": case.name, "dots": sim.n_dots, "steps": sim.steps_taken, "wall_s": wall_time,
+            "finite": finite, "lost": lost, "crossed": crossed,
+            "overlap": max(pair + wall, default=math.inf), "settled": max(pair[settled] + wall[settled], default=math.inf),
+            "transient_tolerance": ENGINE_OVERLAP_TOLERANCE + case.impact_speed * step / float(scene.radii.min()),
+            "settled_tolerance": ENGINE_OVERLAP_TOLERANCE}
+
+
+def passed(result: dict) -> bool:
+    return (result["finite"] and not result["lost"] and not result["crossed"]
+            and result["settled"] < result["settled_tolerance"] and result["overlap"] < result["transient_tolerance"])
+
+
+def run(quick: bool) -> list:
+    """Every case (quick: those of the default test suite) with its time and verdict."""
+    cases = [c for c in CASES if not (quick and c.slow)]
+    rows, failures = [], []
+    for case in cases:
+        r = check(case)
+        ok = passed(r)
+        verdict = ("passes" if ok else "FAILS") + (" (known failure)" if case.known_failure else "")
+        if ok == bool(case.known_failure):
+            failures.append(case.name)
+        rows.append([case.name, r["dots"], r["steps"], r["wall_s"], 1e3 * r["wall_s"] / r["steps"],
+                     f"{100 * r['overlap']:.3g} (< {100 * r['transient_tolerance']:.3g})",
+                     f"{100 * r['settled']:.3g} (< {100 * r['settled_tolerance']:.3g})", "yes" if r["finite"] else "NO",
+                     "none" if not (r["lost"] or r["crossed"]) else "YES", verdict])
+    known = [c for c in cases if c.known_failure]
+    return [
+        Headline(f"qdots hard cases ({len(cases)}): finite, nothing lost or escaped, overlap within tolerance",
+                 f"{sum(r[3] for r in rows):.0f} s in all",
+                 f"{sum('passes' in r[-1] for r in rows)} pass, {len(known)} known failures"
+                 + (f"; UNEXPECTED: {', '.join(failures)}" if failures else "")),
+        Table(f"Hard cases at the defaults unless stated; sampled every {SAMPLE:g} s (head-on: 2 ms); overlaps (dots and walls) "
+              "in % of r, with their tolerance",
+              ["case", "dots", "steps", "wall (s)", "ms/step", "worst overlap, any sample", "settled overlap",
+               "finite", "lost / escaped / crossed", "verdict"], rows),
+        Note("Known failures (measured; the tests expect them, strict xfail):\n\n"
+             + "\n".join(f"- **{c.name}**: {c.known_failure}." for c in known) if known
+             else "Known failures are slow cases: run without --quick."),
+    ]
+
+
+def main(argv: list[str] | None = None) -> int:
+    return cli(run, __doc__.splitlines()[0], argv)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

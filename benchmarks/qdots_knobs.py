@@ -1,0 +1,218 @@
+"""qdots error against time, one curve per engine knob, defaults checked against the Pareto front.
+
+Knobs: time step ``dt``, Chipmunk ``substeps`` and solver ``iterations``, ``collision_slop``,
+overlap correction per step (``collision_bias``), the van der Waals pair list's Verlet ``skin``,
+and Chipmunk's spatial hash against its default bounding-box tree. Each knob is swept over the
+test problems it can affect (`benchmarks.qdots_cases`: isolated restitution, elastic-gas energy,
+two-body vdW against solve_ivp, worst overlap in a dense pack, pair list against brute force),
+every other setting at its default. Settings are run in turn, ``repeats`` times (cost: the
+fastest), so drifts in machine speed hit them alike. Cost is wall seconds per simulated second
+of the same run that gave the error. The Pareto rule is `benchmarks.pareto`.
+
+Last, the packing metrics of the ``fig2-2`` preset (scaled down) against dt: mean over seeds of
+the paired difference from the finest dt, with its standard error.
+
+Run: ``python -m benchmarks.qdots_knobs [--quick] [--figures DIR]``
+"""
+
+from __future__ import annotations
+
+import math
+import textwrap
+import time
+
+import numpy as np
+from matplotlib.figure import Figure as MplFigure
+
+import qdots
+from qdots.analysis import packing_summary
+from qdots.experiment import run_experiment
+from qdots.presets import get_preset
+
+from . import pareto
+from .qdots_cases import CASES, DEFAULTS
+from .report import Figure, Headline, Note, Table, cli
+
+
+def _bias(fraction: float) -> float:
+    """pymunk's collision_bias that corrects ``fraction`` of an overlap per 1 ms step."""
+    return (1.0 - fraction) ** 1000.0
+
+
+#: knob -> (what it is, [(label, settings, full, quick)], cases). The default setting is marked by `is_default`.
+KNOBS = {
+    "dt": ("time step", [("4 ms", {"dt": 4e-3}, True, False), ("2 ms", {"dt": 2e-3}, True, True),
+                         ("1 ms", {}, True, True), ("0.5 ms", {"dt": 5e-4}, True, True),
+                         ("0.25 ms", {"dt": 2.5e-4}, True, False)],
+           ["restitution", "gas_energy", "vdw_pair", "pack_g1", "pack_g10"]),
+    "substeps": ("Chipmunk steps per time step (dt 1 ms); grey: the dt curve", [
+        ("1", {}, True, True), ("2", {"substeps": 2}, True, True), ("4", {"substeps": 4}, True, True),
+        ("8", {"substeps": 8}, True, False)], ["restitution", "gas_energy", "pack_g1", "pack_g10"]),
+    "iterations": ("solver iterations per sub-step", [
+        ("5", {"iterations": 5}, True, True), ("10", {}, True, True), ("20", {"iterations": 20}, True, True),
+        ("40", {"iterations": 40}, True, False)], ["gas_energy", "pack_g1", "pack_g10"]),
+    "collision_slop": ("overlap left uncorrected (px)", [
+        ("0.001", {"collision_slop": 0.001}, True, False), ("0.01", {}, True, True),
+        ("0.1 (pymunk)", {"collision_slop": 0.1}, True, True), ("0.5", {"collision_slop": 0.5}, True, False)],
+        ["gas_energy", "pack_g1", "pack_g10"]),
+    "collision_bias": ("overlap corrected per step (collision_bias; > 52 % underflows at 1 ms)", [
+        ("10 %", {"collision_bias": _bias(0.1)}, True, True), ("20 %", {"collision_bias": _bias(0.2)}, True, False),
+        ("30 %", {}, True, True), ("50 %", {"collision_bias": _bias(0.5)}, True, True)],
+        ["pack_g1", "pack_g10"]),
+    "skin": ("Verlet skin of the vdW pair list (px)", [
+        ("0", {"skin": 0.0}, True, True), ("1", {"skin": 1.0}, True, False), ("3", {}, True, True),
+        ("6", {"skin": 6.0}, True, True), ("12", {"skin": 12.0}, True, False)],
+        ["list_pack", "list_film", "vdw_pair"]),
+    "spatial_index": ("Chipmunk's bounding-box tree against its spatial hash (cell px, count 10 N)", [
+        ("tree", {}, True, True), ("hash 8", {"spatial_hash": (8.0, 10000)}, True, False),
+        ("hash 16", {"spatial_hash": (16.0, 10000)}, True, True), ("hash 32", {"spatial_hash": (32.0, 10000)}, True, False)],
+        ["gas_energy", "pack_g1", "pack_g10"]),
+}
+
+
+def is_default(settings: dict) -> bool:
+    return all(DEFAULTS[k] == v for k, v in settings.items())
+
+
+def sweep(knob: str, quick: bool, repeats: int) -> dict[str, list[pareto.Point]]:
+    """Points (label, cost, error) of every setting of ``knob`` on each of its cases."""
+    _, settings, cases = KNOBS[knob]
+    chosen = [(label, s) for label, s, full, short in settings if (short if quick else full)]
+    points = {case: [pareto.Point(label, math.inf, math.nan, is_default(s)) for label, s in chosen] for case in cases}
+    for _ in range(repeats):
+        for case in cases:
+            measure = CASES[case][3]
+            for point, (label, s) in zip(points[case], chosen):
+                m = measure(s, quick)
+                point.time = min(point.time, m.cost)
+                if math.isnan(point.error):
+                    point.error, point.error_se = m.error, m.error_se
+    return points
+
+
+def knob_figure(knob: str, points: dict[str, list[pareto.Point]], dt_points: dict) -> MplFigure:
+    cases = list(points)
+    cols = min(3, len(cases))
+    rows = math.ceil(len(cases) / cols)
+    fig = MplFigure(figsize=(4.0 * cols, 3.4 * rows), layout="constrained")
+    for k, case in enumerate(cases):
+        title, ylabel, floor, _ = CASES[case]
+        ax = fig.add_subplot(rows, cols, k + 1)
+        reference = dt_points.get(case, []) if knob == "substeps" else []
+        pareto.plot(ax, points[case], title=textwrap.fill(title, 45), xlabel="wall s per simulated s",
+                    ylabel=ylabel, floor=floor, reference=reference, reference_label="dt 2 ... 0.25 ms")
+    fig.suptitle(f"{knob}: {KNOBS[knob][0]}", fontsize=10)
+    return fig
+
+
+def knob_table(knob: str, points: dict[str, list[pareto.Point]]) -> Table:
+    rows = []
+    for case, pts in points.items():
+        floor = CASES[case][2]
+        for p in pts:
+            error = f"{p.error:.2e}" + (f" +- {p.error_se:.1e}" if p.error_se else "")
+            rows.append([CASES[case][0], p.label + (" (default)" if p.default else ""), p.time * 1e3,
+                         error, pareto.verdict(pts, floor) if p.default else ""])
+    return Table(f"{knob}: {KNOBS[knob][0]}",
+                 ["case", "setting", "cost (ms wall per simulated s)", "error", "default vs the front"], rows)
+
+
+# ---------------------------------------------------------------- fig2-2 packing metrics against dt
+def packing_convergence(quick: bool) -> tuple[Table, MplFigure, dict]:
+    """Interior fraction and mean neighbours of the scaled fig2-2 film against dt, paired over seeds."""
+    factor, dts, seeds = (0.1, (2e-3, 1e-3, 5e-4), range(3)) if quick else (0.2, (2e-3, 1e-3, 5e-4, 2.5e-4), range(6))
+    base = get_preset("fig2-2", quick=factor)[0]
+    metrics = ("interior_fraction", "mean_neighbours_interior")
+    values = {dt: {m: [] for m in metrics} for dt in dts}
+    wall = {dt: [] for dt in dts}
+    for seed in seeds:
+        for dt in dts:
+            exp = base.replace(seed=154 + seed, engine=qdots.EngineSettings(dt=dt))
+            start = time.perf_counter()
+            sim = run_experiment(exp)
+            wall[dt].append(time.perf_counter() - start)
+            summary = packing_summary(sim.state())
+            for m in metrics:
+                values[dt][m].append(summary[m])
+    finest = dts[-1]
+    rows, stats = [], {}
+    for dt in dts:
+        row = [dt * 1e3, float(np.mean(wall[dt]))]
+        for m in metrics:
+            v = np.array(values[dt][m])
+            diff = v - np.array(values[finest][m])
+            se = float(diff.std(ddof=1) / math.sqrt(len(diff))) if len(diff) > 1 else math.nan
+            stats[(dt, m)] = (float(v.mean()), float(diff.mean()), se)
+            row += [f"{v.mean():.3f}", f"{diff.mean():+.3f} +- {se:.3f}" if dt != finest else "(reference)"]
+        rows.append(row)
+    table = Table(
+        f"fig2-2 preset x{factor:g} ({base.deposition.n_dots} dots, {base.deposition.n_dots * base.deposition.interval + base.deposition.settle:g} s), "
+        f"{len(seeds)} seeds: packing metrics against dt, paired differences from dt = {finest * 1e3:g} ms (mean +- SE)",
+        ["dt (ms)", "wall per run (s)", "interior fraction", "difference", "mean neighbours (interior)", "difference"],
+        rows)
+    fig = MplFigure(figsize=(8.0, 3.2), layout="constrained")
+    for k, m in enumerate(metrics):
+        ax = fig.add_subplot(1, 2, k + 1)
+        coarse = [dt for dt in dts if dt != finest]
+        t = [np.mean(wall[dt]) for dt in coarse]
+        d = [stats[(dt, m)][1] for dt in coarse]
+        se = [stats[(dt, m)][2] for dt in coarse]
+        ax.errorbar(t, d, yerr=se, fmt="o-", ms=4, capsize=3)
+        for dt, x, y in zip(coarse, t, d):
+            ax.annotate(f"{dt * 1e3:g} ms", (x, y), textcoords="offset points", xytext=(4, 4), fontsize=7)
+            if dt == DEFAULTS["dt"]:
+                ax.plot([x], [y], "*", color="red", ms=13, label="default")
+        ax.axhline(0.0, color="0.6", lw=0.8)
+        ax.set_xscale("log")
+        ax.set_xlabel("wall s per run", fontsize=8)
+        ax.set_ylabel(f"{m} minus dt = {finest * 1e3:g} ms", fontsize=8)
+        ax.legend(fontsize=7)
+        ax.tick_params(labelsize=7)
+    fig.suptitle(f"fig2-2 x{factor:g}: packing metrics converge as dt shrinks? (mean +- SE over {len(seeds)} seeds)",
+                 fontsize=9)
+    return table, fig, stats
+
+
+def run(quick: bool) -> list:
+    repeats = 1 if quick else 2
+    results, verdicts = [], []
+    dt_points: dict = {}
+    for knob in KNOBS:
+        points = sweep(knob, quick, repeats)
+        if knob == "dt":
+            dt_points = {case: [p for p in pts if p.label != "4 ms"] for case, pts in points.items()}
+        results.append(knob_table(knob, points))
+        results.append(Figure(f"qdots_knob_{knob}", knob_figure(knob, points, dt_points),
+                              f"{knob}: error against wall time per simulated second for each case; the red star "
+                              f"is the default; each subplot's title says whether it is on the Pareto front."))
+        for case, pts in points.items():
+            verdicts.append((knob, case, pareto.verdict(pts, CASES[case][2])))
+    table, fig, _ = packing_convergence(quick)
+    results += [table, Figure("qdots_fig2_2_dt", fig, "fig2-2 (scaled) packing metrics against dt: paired "
+                                                      "difference from the finest dt, mean +- SE over seeds.")]
+    off = [(k, c, v) for k, c, v in verdicts if v != "on the front"]
+    summary = (f"Defaults on the Pareto front in {len(verdicts) - len(off)} of {len(verdicts)} (knob, case) curves."
+               + ("" if not off else " Not on it: " + "; ".join(f"**{k}** / {CASES[c][0]}: {v}" for k, c, v in off)
+                  + "."))
+    default = {case: next(p for p in pts if p.default) for case, pts in dt_points.items()}
+    return [
+        Headline("qdots defaults, dense pack under centre gravity x1 / x10",
+                 f"{default['pack_g1'].time:.2f} / {default['pack_g10'].time:.2f} s wall per simulated s",
+                 f"worst overlap {100 * default['pack_g1'].error:.2f} / {100 * default['pack_g10'].error:.2f} % of r"),
+        Headline("qdots defaults, isolated impact / elastic gas / two-body vdW",
+                 f"{1e3 * default['gas_energy'].time:.0f} ms per simulated s (gas)",
+                 f"velocity {default['restitution'].error:.1e} of v_rel; energy {default['gas_energy'].error:.1e}; "
+                 f"position {default['vdw_pair'].error:.1e} px"),
+        Headline("qdots defaults against the Pareto front of 7 knobs",
+                 f"{len(verdicts) - len(off)} of {len(verdicts)} curves on the front",
+                 "; ".join(f"{k} on {CASES[c][0]}" for k, c, _ in off) or "none off"),
+        Note(summary),
+    ] + results
+
+
+def main(argv: list[str] | None = None) -> int:
+    return cli(run, __doc__.splitlines()[0], argv)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
