@@ -149,7 +149,7 @@ class Experiment:
     forces : tuple of dict
         Forces as ``Force.to_dict()`` tables (Force instances are accepted and
         converted); stored in full, every parameter spelled out.
-    engine : qdots.simulation.EngineSettings
+    engine : qdots.EngineSettings
         Time step, sub-steps, solver iterations, ...
     """
 

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import math
 import time
+import warnings
 import weakref
-from dataclasses import asdict, dataclass
 from typing import Callable, Iterable, Protocol, Sequence
 
 import numpy as np
@@ -16,17 +16,19 @@ from .bulk import BodyArrays
 from .collisions import DOT, WALL, CollisionCounter, install_handlers
 from .forces.base import Force, StepContext
 from .scene import Scene, segment_distances
+from .settings import OVERLAP_CORRECTION, EngineSettings  # noqa: F401 (public here too)
 from .state import State
 
-
-#: Fraction of an overlap corrected per sub-step by default. Measured on a dense pack under
-#: centre gravity at dt = 1 ms: 10 % leaves 0.60 % worst overlap (5.9 % at 10x gravity), 30 %
-#: leaves 0.32 % (1.5 %) at the same cost; 50 % starts to jitter (rms speed x1.7 at 10x gravity).
-OVERLAP_CORRECTION = 0.3
 
 #: Relative overlap accepted when a board is read back from a running simulation:
 #: soft contacts overlap by < 1 % of a radius at the defaults; 10 % guards against nonsense.
 ENGINE_OVERLAP_TOLERANCE = 0.1
+
+#: Largest travel per sub-step, in radii, that a run accepts without a warning. Chipmunk sees a
+#: contact only once two discs overlap, so a dot can overlap by what it travels in a sub-step; at
+#: ~0.75 r it passes through walls, while up to ~0.35 r the hard cases stay within their overlap
+#: tolerances (measured: `benchmarks.qdots_hard_cases`).
+SAFE_TRAVEL = 0.5
 
 
 def _weak(obj: object) -> Callable[[], object]:
@@ -42,57 +44,6 @@ class Writer(Protocol):
     every: int
 
     def write(self, state: State) -> None: ...
-
-
-@dataclass(frozen=True)
-class EngineSettings:
-    """The speed/accuracy knobs of the engine (see `Simulation` for their meaning)."""
-
-    dt: float = 1e-3
-    substeps: int = 1
-    iterations: int = 10
-    collision_slop: float = 0.01
-    collision_bias: float | None = None
-    spatial_hash: tuple[float, int] | None = None
-    threads: int = 1
-
-    def __post_init__(self) -> None:
-        if isinstance(self.dt, bool) or not (isinstance(self.dt, (int, float)) and math.isfinite(self.dt)
-                                             and self.dt > 0):
-            raise ValueError(f"dt must be > 0 s, got {self.dt!r}")
-        for name in ("substeps", "iterations"):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, np.integer)) and not isinstance(value, bool) and value >= 1):
-                raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
-        if isinstance(self.collision_slop, bool) or not (
-                isinstance(self.collision_slop, (int, float)) and math.isfinite(self.collision_slop)
-                and self.collision_slop >= 0):
-            raise ValueError(f"collision_slop must be >= 0 px, got {self.collision_slop!r}")
-        if self.collision_bias is not None and not (0.0 <= self.collision_bias < 1.0):
-            raise ValueError(f"collision_bias must be in [0, 1), got {self.collision_bias!r}")
-        if isinstance(self.threads, bool) or self.threads not in (1, 2):
-            raise ValueError(f"threads must be 1 or 2, got {self.threads!r}")
-        if self.spatial_hash is not None:
-            ok = isinstance(self.spatial_hash, (tuple, list)) and len(self.spatial_hash) == 2
-            if ok:
-                cell, count = self.spatial_hash
-                ok = (isinstance(cell, (int, float)) and not isinstance(cell, bool) and cell > 0
-                      and isinstance(count, (int, np.integer)) and not isinstance(count, bool) and count >= 1)
-            if not ok:
-                raise ValueError(f"spatial_hash must be (cell_size_px > 0, integer count >= 1), "
-                                 f"got {self.spatial_hash!r}")
-            object.__setattr__(self, "spatial_hash", (float(self.spatial_hash[0]), int(self.spatial_hash[1])))
-
-    @property
-    def bias(self) -> float:
-        """pymunk's collision_bias: given, or `OVERLAP_CORRECTION` per sub-step."""
-        if self.collision_bias is not None:
-            return float(self.collision_bias)
-        return (1.0 - OVERLAP_CORRECTION) ** (self.substeps / self.dt)
-
-    def to_dict(self) -> dict:
-        """Plain-data form (JSON/TOML friendly)."""
-        return {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(self).items()}
 
 
 class Simulation:
@@ -178,6 +129,7 @@ class Simulation:
         self.timings = {"forces": 0.0, "pymunk": 0.0}
         self.collisions = CollisionCounter()
         self._last_written: dict[int, tuple[Callable[[], object], int]] = {}
+        self._warned_travel = False
         self._build(scene)
 
     def _build(self, scene: Scene) -> None:
@@ -371,6 +323,18 @@ class Simulation:
         -------
         State
             The state at the end.
+
+        Raises
+        ------
+        FloatingPointError
+            When a position or velocity has become NaN or infinite (checked
+            between chunks of steps, at most 200 times per run).
+
+        Warns
+        -----
+        RuntimeWarning
+            Once per simulation, when a dot moves more than `SAFE_TRAVEL`
+            radii in one sub-step (contacts can then be missed).
         """
         if not (math.isfinite(seconds) and seconds >= 0):
             raise ValueError(f"seconds must be >= 0, got {seconds!r}")
@@ -394,6 +358,7 @@ class Simulation:
                 stop = min([end, self.steps_taken + chunk, *due])
                 done = stop - self.steps_taken
                 self.step(done)
+                self._check_motion()
                 if bar is not None:
                     bar.update(done)
                     bar.set_postfix_str(f"t = {self.time:.2f} s", refresh=False)
@@ -401,6 +366,22 @@ class Simulation:
             if bar is not None:
                 bar.close()
         return self.state()
+
+    def _check_motion(self) -> None:
+        """Stop on a non-finite state; warn (once) when contacts can be missed at this speed."""
+        if not self.n_dots:
+            return
+        position, velocity = self._io.read()
+        if not (np.isfinite(position).all() and np.isfinite(velocity).all()):
+            raise FloatingPointError(f"non-finite dot positions or velocities at t = {self.time:g} s "
+                                     f"(step {self.steps_taken}): a force or the time step is unstable")
+        travel = float((np.hypot(velocity[:, 0], velocity[:, 1]) / self.radii).max()) * self.dt / self.substeps
+        if travel > SAFE_TRAVEL and not self._warned_travel:
+            self._warned_travel = True
+            warnings.warn(f"at t = {self.time:g} s a dot moves {travel:.2f} radii per sub-step (> {SAFE_TRAVEL}): "
+                          "contacts are found only once discs overlap, so overlaps of that size and dots passing "
+                          "through walls become possible; use a smaller dt or more substeps", RuntimeWarning,
+                          stacklevel=3)
 
     def state(self) -> State:
         """A snapshot of the board (copies of every array)."""

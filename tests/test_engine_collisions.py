@@ -185,3 +185,28 @@ def test_elastic_gas_conserves_energy(rng, iterations, bound):
     assert sim.steps_taken == 10_000
     assert sim.collisions.dot_dot > 1000  # the test means something only if dots collide a lot
     assert drift < bound
+
+
+def test_too_fast_for_the_time_step_warns_once_and_a_normal_run_does_not(recwarn):
+    fast = qdots.Scene(box=(400, 200), positions=[[100, 100]], radii=[7.5], velocities=[[4500.0, 0.0]])
+    sim = qdots.Simulation(fast, seed=0)  # 4.5 px per 1 ms step = 0.6 r
+    with pytest.warns(RuntimeWarning, match=r"moves 0\.60 radii per sub-step \(> 0\.5\)"):
+        sim.run(0.5)
+    recwarn.clear()
+    sim.run(0.5)
+    assert not [w for w in recwarn if issubclass(w.category, RuntimeWarning)]  # once per simulation
+    qdots.Simulation(fast, seed=0, substeps=2).run(0.5)  # 0.3 r per sub-step: accepted
+    assert not [w for w in recwarn if issubclass(w.category, RuntimeWarning)]
+
+
+class _Blowup(qdots.forces.base.Force):
+    def kick(self, ctx):
+        ctx.dv[:] = np.nan
+
+
+def test_a_non_finite_state_stops_the_run_with_its_time():
+    scene = qdots.Scene(box=(400, 200), positions=[[100, 100], [200, 100]], radii=[7.5, 7.5])
+    sim = qdots.Simulation(scene, [_Blowup()], seed=0)
+    with pytest.raises(FloatingPointError, match=r"non-finite dot positions or velocities at t = 0\.005 s \(step 5\)"):
+        sim.run(1.0)  # checked every 1000 / 200 = 5 steps
+    assert sim.steps_taken == 5

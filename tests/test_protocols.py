@@ -205,7 +205,7 @@ def test_unknown_preset_lists_the_known_ones():
     (lambda: Experiment(grating=50.0, deposition=Deposition(protocol="center")), r"cannot be combined with a grating"),
     (lambda: Experiment(seed=-1), r"seed must be an integer >= 0"),
     (lambda: Experiment(name=""), r"name must be a non-empty string"),
-    (lambda: Experiment(engine={"dt": 1e-3}), r"engine must be a qdots.simulation.EngineSettings"),
+    (lambda: Experiment(engine={"dt": 1e-3}), r"engine must be a qdots.settings.EngineSettings"),
     (lambda: Experiment(forces=({"type": "Magnetic"},)), r"forces\[0\]: unknown force type 'Magnetic'"),
     (lambda: Experiment(forces=({"type": "Drag", "lin": 1.0},)), r"forces\[0\]: Drag has no parameter 'lin'"),
     (lambda: Experiment(deposition=Deposition(protocol="center", n_dots=5000)),
