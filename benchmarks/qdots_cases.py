@@ -113,7 +113,8 @@ def elastic_gas(n: int, seed: int, area_fraction: float = 0.5, rms_speed: float 
 
 
 def gas_energy(settings: dict, quick: bool) -> Measured:
-    n, seconds, seeds = (300, 1.0, (0, 1)) if quick else (1000, 2.0, (0, 1, 2, 3))
+    # energy is lost only in rare many-body impacts: 16 seeds resolve dt = 1 ms from 4 ms (4 did not)
+    n, seconds, seeds = (300, 1.0, (0, 1)) if quick else (1000, 2.0, range(16))
     errors, wall = [], 0.0
     for seed in seeds:
         scene = elastic_gas(n, seed)

@@ -89,13 +89,26 @@ class FastEngine(Engine):
         box = (g.nx * g.dx, g.ny * g.dy, 4.0 * (span + self._reach_limit()) + 1.0)
         return cKDTree(data, balanced_tree=False, compact_nodes=False, boxsize=box), shift
 
-    def _update_reaches(self) -> None:
-        self._oxide_reach = self.kernel.oxide_reach(self.zo)
-        self._metal_reach = self.kernel.star_reach(self.zm)
+    def _update_reaches(self, metal_moved: np.ndarray | None = None, oxide_moved: np.ndarray | None = None) -> None:
+        """Longest feature edge at each metal and oxide point (`FeatureKernel.star_reach`), everywhere
+        or where the heights of ``metal_moved`` / ``oxide_moved`` reach (a point's edges and cells)."""
+        if metal_moved is None:
+            self._metal_reach = self.kernel.star_reach(self.zm)
+            self._oxide_star = self.kernel.star_reach(self.zo)
+        else:
+            for reach, z, moved in ((self._metal_reach, self.zm, metal_moved), (self._oxide_star, self.zo, oxide_moved)):
+                near = np.zeros(self.grid.n, dtype=bool)  # a point's reach spans its interaction neighbours
+                near[moved] = True
+                for k in self._neighbours:
+                    shifted = k[moved]
+                    near[shifted[shifted >= 0]] = True
+                near = np.flatnonzero(near)
+                reach[near] = self.kernel.star_reach(z, near)
+        self._oxide_reach = self.kernel.oxide_reach(float(self._oxide_star.max()))
 
     def _reach_limit(self) -> float:
         return float(np.max(self.D[np.isfinite(self.D)], initial=0.0)) + float(np.max(self.zo - self.zm)) \
-            + 2.0 * self.max_feature_length()
+            + 2.0 * max(float(self._metal_reach.max()), float(self._oxide_star.max()))
 
     @staticmethod
     def _ball(tree: cKDTree, queries: np.ndarray, radius: np.ndarray, k: int = 16):
@@ -192,8 +205,8 @@ class FastEngine(Engine):
         owner, oxide = self.pair_m[rows], self.pair_o[rows]
         set_size = np.bincount(self.pair_m, minlength=n)[owner].astype(float)
         sharers = np.bincount(self.pair_o, minlength=n)[oxide].astype(float)
-        raised, _, rise = self.oxidize(owner, oxide, set_size, sharers, self.step)
-        self._update_reaches()
+        raised, lowered, rise = self.oxidize(owner, oxide, set_size, sharers, self.step)
+        self._update_reaches(lowered, raised)
         # points whose own features or whose oxide points moved: from scratch
         is_raised = np.zeros(n, dtype=bool)
         is_raised[raised] = True

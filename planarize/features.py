@@ -80,34 +80,36 @@ class FeatureKernel:
         zc = 0.25 * (((z[corners[..., 0]] + z[corners[..., 1]]) + z[corners[..., 2]]) + z[corners[..., 3]])
         return np.where(cells >= 0, zc, np.nan)
 
-    def star_reach(self, z: np.ndarray) -> np.ndarray:
-        """For each grid point, the distance to the far end of its longest feature edge, nm (shape (n,)).
+    def star_reach(self, z: np.ndarray, points: np.ndarray | None = None) -> np.ndarray:
+        """For each grid point (or each of ``points``), the distance to the far end of its longest
+        feature edge, nm (shape (n,) or like ``points``).
 
         Every point of a feature touching ``k`` (segment, and with exact
         distances half-diagonal or triangle) lies within this distance of ``k``.
         """
         g = self.grid
-        k = np.arange(g.n)
-        u = g.edge_neighbours
-        dz = np.where(u >= 0, z[u] - z[:, None], np.nan)
-        reach2 = np.nanmax(self._edge_x**2 + self._edge_y**2 + dz * dz, axis=1)
+        k = np.arange(g.n) if points is None else np.asarray(points, dtype=np.intp)
+        u = g.edge_neighbours[k]
+        zk = z[k][:, None]
+        dz = np.where(u >= 0, z[u] - zk, np.nan)
+        reach2 = np.fmax.reduce(self._edge_x**2 + self._edge_y**2 + dz * dz, axis=1)  # fmax: skips the nan
         if self.distance == "exact":
-            dz = self.centre_heights(z, k) - z[:, None]
-            reach2 = np.fmax(reach2, np.nanmax(self._half_x**2 + self._half_y**2 + dz * dz, axis=1))
+            dz = self.centre_heights(z, k) - zk
+            reach2 = np.fmax(reach2, np.fmax.reduce(self._half_x**2 + self._half_y**2 + dz * dz, axis=1))
         return np.sqrt(reach2)
 
     def max_feature_length(self, z: np.ndarray) -> float:
         """Longest feature edge of the surface ``z`` (flat), nm."""
         return float(self.star_reach(z).max())
 
-    def oxide_reach(self, zo: np.ndarray) -> float:
-        """How far (nm) the closest point of an oxide feature can lie from the nearest of its grid points.
+    def oxide_reach(self, longest: float) -> float:
+        """How far (nm) the closest point of an oxide feature can lie from the nearest of its grid points,
+        given the oxide's longest feature edge ``longest`` (`max_feature_length`).
 
         A segment's closest point is within half its length of one end; a
         half-diagonal or a triangle (exact distances) has only one or two
         real grid points (the centre is derived), so its whole length counts.
         """
-        longest = self.max_feature_length(zo)
         return 0.5 * longest if self.distance == "thesis" else longest
 
     # -- the kernel ------------------------------------------------------------------------

@@ -83,6 +83,9 @@ class Grid:
     def block(self, k) -> np.ndarray:
         """The points ``k`` and their 8 neighbours (those that exist), unique, sorted."""
         k = np.asarray(k).ravel()
-        out = [self.shift(k, di, dj) for di in (-1, 0, 1) for dj in (-1, 0, 1)]
-        out = np.concatenate(out)
-        return np.unique(out[out >= 0])
+        mark = np.zeros(self.n, dtype=bool)
+        for di in (-1, 0, 1):
+            for dj in (-1, 0, 1):
+                near = self.shift(k, di, dj)
+                mark[near[near >= 0]] = True
+        return np.flatnonzero(mark)
