@@ -25,7 +25,7 @@ import time
 import traceback
 from pathlib import Path
 
-from qdots.atomic import atomic_path
+from qdots.atomic import write_text_atomic
 
 from . import BENCHMARKS
 from .report import Figure, Headline, Note, machine_info, machine_line, save_figure, section_markdown
@@ -141,10 +141,8 @@ def main(argv: list[str] | None = None) -> int:
     (args.out / "figures").mkdir(parents=True, exist_ok=True)
     for figure in figures:
         save_figure(figure.figure, args.out / "figures" / f"{figure.name}.png")
-    with atomic_path(args.out / "performance.json") as tmp:
-        tmp.write_text(json.dumps(store, indent=1) + "\n")
-    with atomic_path(args.out / "performance.md") as tmp:
-        tmp.write_text(render(store))
+    write_text_atomic(args.out / "performance.json", json.dumps(store, indent=1) + "\n")
+    write_text_atomic(args.out / "performance.md", render(store))
     print(f"wrote {args.out / 'performance.md'} ({len(figures)} figures) in {time.perf_counter() - start:.0f} s")
     if failed:
         print(f"FAILED: {', '.join(failed)} (their previous sections were kept)", file=sys.stderr)

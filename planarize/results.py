@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from qdots.atomic import atomic_path
+from qdots.atomic import atomic_path, write_text_atomic
 from qdots.commands import write_csv
 
 from .anodize import Anodization, Snapshot
@@ -116,7 +116,4 @@ def history_json(run: Anodization) -> dict:
 
 def save_history_json(run: Anodization, path: str | os.PathLike) -> Path:
     """`history_json` written to ``path``, atomically."""
-    text = json.dumps(history_json(run), indent=1, allow_nan=False)
-    with atomic_path(path) as tmp:
-        tmp.write_text(text + "\n", encoding="utf-8")
-    return Path(path)
+    return write_text_atomic(path, json.dumps(history_json(run), indent=1, allow_nan=False) + "\n")

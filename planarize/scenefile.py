@@ -26,8 +26,8 @@ import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from qdots.atomic import atomic_path
-from qdots.tomlfile import check_keys, parse_toml, read_toml, toml_line, typed
+from qdots.atomic import write_text_atomic
+from qdots.tomlfile import check_keys, from_source, parse_toml, read_toml, toml_line, typed
 
 from . import scenes
 from .anodize import Anodization, anodize, engines
@@ -319,10 +319,7 @@ def save_scene(scene: PlanarizeScene, path: str | os.PathLike) -> Path:
     """Write ``scene`` to ``path`` as TOML, atomically; returns the path."""
     if not isinstance(scene, PlanarizeScene):
         raise TypeError(f"scene must be a PlanarizeScene, got {type(scene).__name__}")
-    text = scene_to_toml(scene)
-    with atomic_path(path) as tmp:
-        tmp.write_text(text, encoding="utf-8")
-    return Path(path)
+    return write_text_atomic(path, scene_to_toml(scene))
 
 
 def scene_from_dict(data: dict, base_dir: str | os.PathLike | None = None) -> PlanarizeScene:
@@ -358,14 +355,7 @@ def scene_from_dict(data: dict, base_dir: str | os.PathLike | None = None) -> Pl
 
 def scene_from_toml(text: str, source: str = "<string>", base_dir=None) -> PlanarizeScene:
     """Parse scene-file text; errors are ValueErrors starting with ``source``."""
-    return _from_data(parse_toml(text, source), source, base_dir)
-
-
-def _from_data(data: dict, source: str, base_dir) -> PlanarizeScene:
-    try:
-        return scene_from_dict(data, base_dir)
-    except ValueError as exc:
-        raise ValueError(f"{source}: {exc}") from None
+    return from_source(scene_from_dict, parse_toml(text, source), source, base_dir)
 
 
 def load_scene(path: str | os.PathLike) -> PlanarizeScene:
@@ -380,7 +370,7 @@ def load_scene(path: str | os.PathLike) -> PlanarizeScene:
         the message starts with the path.
     """
     path = Path(path)
-    return _from_data(read_toml(path, "scene file"), str(path), path.parent)
+    return from_source(scene_from_dict, read_toml(path, "scene file"), str(path), path.parent)
 
 
 # -- named scenes ------------------------------------------------------------------------------

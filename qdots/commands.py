@@ -18,7 +18,7 @@ from typing import Sequence
 
 from . import checkpoint
 from .analysis import packing_summary
-from .atomic import atomic_path
+from .atomic import write_text_atomic
 from .simulation import Simulation
 
 #: Simulated time between movie frames, s.
@@ -37,9 +37,7 @@ def write_csv(path: Path, rows: Sequence[dict]) -> Path:
     writer = csv.DictWriter(text, fieldnames=list(rows[0]), lineterminator="\n")
     writer.writeheader()
     writer.writerows(rows)
-    with atomic_path(path) as tmp:
-        tmp.write_text(text.getvalue())
-    return path
+    return write_text_atomic(path, text.getvalue())
 
 
 def print_table(title: str, rows: Sequence[tuple[str, str]]) -> None:

@@ -15,11 +15,11 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from .atomic import atomic_path
+from .atomic import write_text_atomic
 from .collisions import Restitution
 from .experiment import Board, Deposition, Experiment
 from .simulation import EngineSettings
-from .tomlfile import check_keys, parse_toml, read_toml, toml_line, typed
+from .tomlfile import check_keys, from_source, parse_toml, read_toml, toml_line, typed
 
 #: Top-level scalars: key -> (kind, comment).
 TOP = {
@@ -96,10 +96,7 @@ def save_experiment(exp: Experiment, path: str | os.PathLike) -> Path:
     """Write ``exp`` to ``path`` as TOML, atomically (whole or not at all); return the path."""
     if not isinstance(exp, Experiment):
         raise TypeError(f"exp must be a qdots.experiment.Experiment, got {type(exp).__name__}")
-    text = experiment_to_toml(exp)
-    with atomic_path(path) as tmp:
-        tmp.write_text(text, encoding="utf-8")
-    return Path(path)
+    return write_text_atomic(path, experiment_to_toml(exp))
 
 
 def _table(name: str, data) -> object:
@@ -140,14 +137,7 @@ def experiment_from_dict(data: dict) -> Experiment:
 
 def experiment_from_toml(text: str, source: str = "<string>") -> Experiment:
     """Parse scene-file text; errors are ValueErrors starting with ``source``."""
-    return _from_data(parse_toml(text, source), source)
-
-
-def _from_data(data: dict, source: str) -> Experiment:
-    try:
-        return experiment_from_dict(data)
-    except ValueError as exc:
-        raise ValueError(f"{source}: {exc}") from None
+    return from_source(experiment_from_dict, parse_toml(text, source), source)
 
 
 def load_experiment(path: str | os.PathLike) -> Experiment:
@@ -161,4 +151,4 @@ def load_experiment(path: str | os.PathLike) -> Experiment:
         If it cannot be read or decoded (UTF-8), is not valid TOML, or holds
         a bad key or value; the message starts with the path.
     """
-    return _from_data(read_toml(path, "scene file"), str(path))
+    return from_source(experiment_from_dict, read_toml(path, "scene file"), str(path))

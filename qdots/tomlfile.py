@@ -17,7 +17,7 @@ try:
 except ModuleNotFoundError:  # Python 3.10
     import tomli as tomllib
 
-__all__ = ["read_toml", "parse_toml", "toml_value", "toml_line", "typed", "check_keys", "tomllib"]
+__all__ = ["read_toml", "parse_toml", "from_source", "toml_value", "toml_line", "typed", "check_keys", "tomllib"]
 
 
 def parse_toml(text: str, source: str = "<string>") -> dict:
@@ -26,6 +26,14 @@ def parse_toml(text: str, source: str = "<string>") -> dict:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ValueError(f"{source}: invalid TOML: {exc}") from None
+
+
+def from_source(build, data: dict, source: str, *args):
+    """``build(data, *args)``, with a ValueError's message prefixed by ``source`` (a path or "<string>")."""
+    try:
+        return build(data, *args)
+    except ValueError as exc:
+        raise ValueError(f"{source}: {exc}") from None
 
 
 def read_toml(path: str | os.PathLike, what: str) -> dict:

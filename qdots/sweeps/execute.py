@@ -35,7 +35,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
-from ..atomic import atomic_path
+from ..atomic import write_text_atomic
 from .spec import Run, Sweep
 from .table import table_rows, write_table
 
@@ -236,8 +236,7 @@ def read_record(out: Path, run: Run) -> dict | None:
 
 
 def _write_json(path: Path, data: dict) -> None:
-    with atomic_path(path) as tmp:
-        tmp.write_text(json.dumps(data, indent=1), encoding="utf-8")
+    write_text_atomic(path, json.dumps(data, indent=1))
 
 
 def _finished(out: Path, run: Run, state_suffix: str | None) -> dict | None:
