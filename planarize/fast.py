@@ -1,4 +1,4 @@
-"""The fast engine: batched oxidation, KD-tree candidate searches, incremental distance updates.
+"""The fast engine: batched oxidation, bulk candidate searches, incremental distance updates.
 
 Each `advance` oxidizes every metal point whose distance is within
 ``tolerance`` of the smallest (one Eq 3.9 step each, fractions computed for
@@ -14,8 +14,10 @@ those:
 Each of those is recomputed exactly: its previous set gives an upper bound
 ``B`` of its new distance, and a feature closer than ``B`` must have a grid
 point within ``sqrt(B^2 + L^2)`` (``L`` the longest feature edge), so a
-KD-tree ball query of the oxide points lists every candidate. Periodic grids
-use the KD-tree's periodic box in x and y.
+ball query of the oxide points lists every candidate: a height pyramid
+(`planarize.pyramid`) and the compiled kernel (`planarize.compiled`) when
+numba is installed, else a KD-tree and the numpy kernel (same results).
+Periodic grids take the nearest periodic image in x and y.
 
 ``tolerance = 0`` oxidizes exact ties only and reproduces the reference
 engine to round-off; larger tolerances take larger batches (fewer sweeps)
@@ -24,6 +26,7 @@ at the cost of oxidizing some points slightly early.
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -31,7 +34,8 @@ from scipy.ndimage import maximum_filter, minimum_filter
 from scipy.spatial import cKDTree
 
 from .engine import Engine
-from .features import closest_sets
+from .pyramid import HeightPyramid
+from . import compiled, features
 
 #: Candidate pairs evaluated per kernel call (bounds memory: 33 distances each in exact mode).
 CHUNK_PAIRS = 400_000
@@ -45,11 +49,15 @@ class FastEngine(Engine):
     tolerance : float, optional
         Batch tolerance, nm (>= 0): points within this distance of the
         smallest are oxidized together. Default ``0.5 * step``.
+    jit : bool, optional
+        Use the numba-compiled kernel and height-pyramid search
+        (`planarize.compiled`, `planarize.pyramid`) instead of numpy and a
+        KD-tree; the results are identical. Default: when numba is installed.
     """
 
     name = "fast"
 
-    def __init__(self, metal, oxide=None, *, tolerance: float | None = None, **kwargs):
+    def __init__(self, metal, oxide=None, *, tolerance: float | None = None, jit: bool | None = None, **kwargs):
         super().__init__(metal, oxide, **kwargs)
         tolerance = 0.5 * self.step if tolerance is None else tolerance
         try:
@@ -59,6 +67,11 @@ class FastEngine(Engine):
         if not (math.isfinite(tolerance) and tolerance >= 0):
             raise ValueError(f"tolerance must be >= 0 nm, got {tolerance!r}")
         self.tolerance = max(tolerance, self.tie)
+        if jit and not compiled.AVAILABLE:
+            raise ImportError("jit=True needs numba: pip install 'qdots[fast]' (or numba)")
+        self.jit = compiled.AVAILABLE if jit is None else bool(jit)
+        self._closest = compiled.closest_sets if self.jit else features.closest_sets
+        self._pyramid = HeightPyramid(self.grid, self.zo) if self.jit else None
         g = self.grid
         self._x = g.i * g.dx
         self._y = g.j * g.dy
@@ -143,9 +156,10 @@ class FastEngine(Engine):
 
     # -- distances -------------------------------------------------------------------------
 
-    def _candidates(self, tree: cKDTree, shift: float, points: np.ndarray, bound: np.ndarray, k: int = 16):
+    def _candidates(self, search, points: np.ndarray, bound: np.ndarray):
         """(query index, anchor, oxide slots?, metal slots?) of the pairs that can hold a feature
-        closer than ``bound[i]`` to metal point ``points[i]``.
+        closer than ``bound[i]`` to metal point ``points[i]``; ``search(points, z, radius)`` lists
+        the grid points within ``radius[i]`` of ``(points[i], z[i])`` as (query index, point, distance).
 
         An oxide feature closer than ``B`` to metal point ``m`` has a grid point
         within ``sqrt(B^2 + R^2)`` of ``m``, ``R`` = `FeatureKernel.oxide_reach`;
@@ -157,23 +171,34 @@ class FastEngine(Engine):
         inflate = 1 + 1e-12
         r_ox = np.sqrt(bound**2 + self._oxide_reach**2) * inflate + self.tie
         r_me = np.sqrt(bound**2 + self._metal_reach[points] ** 2) * inflate + self.tie
-        queries = np.column_stack([self._x[points], self._y[points], self.zm[points] + shift])
-        which, anchors, gap = self._ball(tree, queries, np.maximum(r_ox, r_me), k)
+        which, anchors, gap = search(points, self.zm[points], np.maximum(r_ox, r_me))
         return which, anchors, gap <= r_ox[which], gap <= r_me[which]
+
+    def _tree_search(self, points=None, k: int = 16):
+        """`_candidates`'s search in a KD-tree of the oxide points (all, or ``points``)."""
+        tree, shift = self._tree(self.zo, points)
+
+        def search(points, z, radius):
+            return self._ball(tree, np.column_stack([self._x[points], self._y[points], z + shift]), radius, k)
+        return search
 
     def _recompute(self, points: np.ndarray, bound: np.ndarray) -> None:
         """Exact distance and set of ``points``, given an upper bound of each new distance."""
         if not len(points):
             return
-        tree, shift = self._tree(self.zo)
-        which, anchors, oxide_slots, metal_slots = self._candidates(tree, shift, points, bound)
+        if self._pyramid is None:
+            search = self._tree_search()
+        else:
+            self._pyramid.rebuild(self.zo)
+            search = functools.partial(self._pyramid.ball, self.zo)
+        which, anchors, oxide_slots, metal_slots = self._candidates(search, points, bound)
         metal = points[which]
         lengths = np.bincount(which, minlength=len(points))
         starts = np.concatenate([[0], np.cumsum(lengths)])
         found, distance, owner, oxide = [], [], [], []
         for lo, hi in _chunks(lengths, CHUNK_PAIRS):
             sel = slice(int(starts[lo]), int(starts[hi]))
-            f, d, ow, ox = closest_sets(self.kernel, self.zm, self.zo, metal[sel], anchors[sel], self.tie,
+            f, d, ow, ox = self._closest(self.kernel, self.zm, self.zo, metal[sel], anchors[sel], self.tie,
                                         oxide_slots[sel], metal_slots[sel])
             found.append(f)
             distance.append(d)
@@ -190,7 +215,7 @@ class FastEngine(Engine):
     def _bound(self, points: np.ndarray) -> np.ndarray:
         """Upper bound of each point's distance now: its distance to the features of its old set."""
         rows = np.isin(self.pair_m, points)
-        found, distance, _, _ = closest_sets(self.kernel, self.zm, self.zo, self.pair_m[rows], self.pair_o[rows],
+        found, distance, _, _ = self._closest(self.kernel, self.zm, self.zo, self.pair_m[rows], self.pair_o[rows],
                                              self.tie)
         bound = np.full(self.grid.n, np.inf)
         bound[found] = distance
@@ -268,13 +293,13 @@ class FastEngine(Engine):
             return
         anchors = self.grid.block(raised) if self.distance == "exact" else raised  # exact: cell centres moved
         # ask the other metal points that a raised feature can come closer to for the anchors within reach
-        tree, shift = self._tree(self.zo, anchors)
         metal = np.flatnonzero(~skip & self._below_raised(anchors, rise))
         # (few raised points are near any one metal point: a short k-nearest query, ball queries for the rest)
-        which, anchor, oxide_slots, metal_slots = self._candidates(tree, shift, metal, self.D[metal] + self.tie, k=4)
+        which, anchor, oxide_slots, metal_slots = self._candidates(self._tree_search(anchors, k=4), metal,
+                                                                   self.D[metal] + self.tie)
         if not len(which):
             return
-        found, distance, owner, oxide = closest_sets(self.kernel, self.zm, self.zo, metal[which], anchors[anchor],
+        found, distance, owner, oxide = self._closest(self.kernel, self.zm, self.zo, metal[which], anchors[anchor],
                                                      self.tie, oxide_slots, metal_slots)
         closer = distance < self.D[found] - self.tie
         tied = ~closer & (distance <= self.D[found] + self.tie)

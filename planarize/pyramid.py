@@ -1,0 +1,172 @@
+"""Ball queries on a height grid through a pyramid of height bounds (compiled with numba).
+
+The fast engine asks, for thousands of metal points per sweep, which oxide
+grid points lie within a radius in 3-D. A KD-tree must be rebuilt after every
+sweep because the oxide rises; a grid already sorts its points in x and y, so
+all it needs is height bounds per block. `HeightPyramid` keeps, for blocks of
+4^L x 4^L points (L = 1, 2, ... until a level has at most 4 x 4 blocks), the
+lowest and highest height in the block; a query descends only into blocks
+whose bounding box comes within the radius. Rebuilding the bounds costs one
+pass over the grid, far less than a KD-tree.
+
+Periodic grids use the nearest periodic image in x and y, as the engine's
+offsets do.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .compiled import _jit
+
+_FACTOR = 2
+
+
+class HeightPyramid:
+    """Block height bounds of a surface ``z`` (flat, C order) on a grid (`planarize.grid.Grid`)."""
+
+    def __init__(self, grid, z: np.ndarray):
+        self.grid = grid
+        shapes, offsets = [], [0]
+        bx, by, size = grid.nx, grid.ny, 1
+        while bx > _FACTOR or by > _FACTOR:
+            bx, by, size = -(-bx // _FACTOR), -(-by // _FACTOR), size * _FACTOR
+            shapes.append((bx, by, size))
+            offsets.append(offsets[-1] + bx * by)
+        if not shapes:  # a grid of at most 4 x 4 points: one level of 1 x 1 blocks
+            shapes.append((1, 1, _FACTOR))
+            offsets.append(1)
+        self.shapes = np.array(shapes, dtype=np.intp)  # (levels, 3): blocks in x, in y, points per block side
+        self.offsets = np.array(offsets, dtype=np.intp)
+        self.low = np.empty(offsets[-1])
+        self.high = np.empty(offsets[-1])
+        self.rebuild(z)
+
+    def rebuild(self, z: np.ndarray) -> None:
+        """Bounds from the heights ``z`` everywhere."""
+        _build(np.asarray(z, dtype=float), self.grid.nx, self.grid.ny, self.shapes, self.offsets, self.low, self.high)
+
+    def ball(self, z: np.ndarray, points: np.ndarray, zq: np.ndarray, radius: np.ndarray):
+        """Grid points within ``radius[q]`` (3-D, nm) of query ``q``, above grid point ``points[q]`` at
+        height ``zq[q]``.
+
+        Returns (query index, point index, distance) arrays, grouped by query
+        in query order (within a query, in no particular order).
+        """
+        g = self.grid
+        return _ball(z, np.asarray(points, dtype=np.intp), np.asarray(zq, dtype=float),
+                     np.asarray(radius, dtype=float), g.nx, g.ny, g.dx, g.dy, g.periodic, self.shapes, self.offsets,
+                     self.low, self.high)
+
+
+@_jit
+def _build(z, nx, ny, shapes, offsets, low, high):
+    low[:] = np.inf
+    high[:] = -np.inf
+    size = shapes[0, 2]
+    by, base = shapes[0, 1], offsets[0]
+    for i in range(nx):
+        for j in range(ny):
+            b = base + (i // size) * by + j // size
+            h = z[i * ny + j]
+            low[b] = min(low[b], h)
+            high[b] = max(high[b], h)
+    for level in range(1, len(shapes)):
+        below_by, below = shapes[level - 1, 1], offsets[level - 1]
+        by, base = shapes[level, 1], offsets[level]
+        for bi in range(shapes[level - 1, 0]):
+            for bj in range(below_by):
+                child = below + bi * below_by + bj
+                b = base + (bi // _FACTOR) * by + bj // _FACTOR
+                low[b] = min(low[b], low[child])
+                high[b] = max(high[b], high[child])
+
+
+@_jit
+def _runs(start, stop, n, size, out):
+    """Split the unwrapped index range ``start .. stop`` into pieces that each lie in one block of
+    ``size`` (indices wrap modulo ``n``); ``out[k] = (block, unwrapped first index of the block)``."""
+    count = 0
+    u = start
+    while u <= stop:
+        w = u % n
+        block = w // size
+        first = u - (w - block * size)
+        out[count, 0], out[count, 1] = block, first
+        count += 1
+        u = first + min(size, n - block * size)
+    return count
+
+
+@_jit
+def _ball(z, points, zq, radius, nx, ny, dx, dy, periodic, shapes, offsets, low, high):
+    top = len(shapes) - 1
+    capacity = 16 * len(points) + 64
+    which = np.empty(capacity, dtype=np.intp)
+    found = np.empty(capacity, dtype=np.intp)
+    gap = np.empty(capacity)
+    count = 0
+    # entries: level, block i, block j, unwrapped first row, unwrapped first column
+    stack = np.empty((64 + 16 * len(shapes), 5), dtype=np.intp)
+    runs_i = np.empty((8, 2), dtype=np.intp)
+    runs_j = np.empty((8, 2), dtype=np.intp)
+    for q in range(len(points)):
+        iq, jq, h, r2 = points[q] // ny, points[q] % ny, zq[q], radius[q] * radius[q]
+        wi, wj = int(radius[q] / dx), int(radius[q] / dy)
+        if periodic:  # each point once, at its nearest image
+            ua, ub = iq - min(wi, (nx - 1) // 2), iq + min(wi, nx // 2)
+            va, vb = jq - min(wj, (ny - 1) // 2), jq + min(wj, ny // 2)
+        else:
+            ua, ub = max(iq - wi, 0), min(iq + wi, nx - 1)
+            va, vb = max(jq - wj, 0), min(jq + wj, ny - 1)
+        start = 0  # the finest level whose blocks are as wide as the window: at most 3 x 3 of them
+        while start < top and shapes[start, 2] < max(ub - ua, vb - va) + 1:
+            start += 1
+        depth = 0
+        for a in range(_runs(ua, ub, nx, shapes[start, 2], runs_i)):
+            for b in range(_runs(va, vb, ny, shapes[start, 2], runs_j)):
+                stack[depth, 0], stack[depth, 1], stack[depth, 2] = start, runs_i[a, 0], runs_j[b, 0]
+                stack[depth, 3], stack[depth, 4] = runs_i[a, 1], runs_j[b, 1]
+                depth += 1
+        while depth:
+            depth -= 1
+            level, bi, bj, u0, v0 = stack[depth, 0], stack[depth, 1], stack[depth, 2], stack[depth, 3], stack[depth, 4]
+            size = shapes[level, 2]
+            u1 = u0 + min(size, nx - bi * size) - 1
+            v1 = v0 + min(size, ny - bj * size) - 1
+            if u1 < ua or u0 > ub or v1 < va or v0 > vb:
+                continue
+            b = offsets[level] + bi * shapes[level, 1] + bj
+            hx = max(0, u0 - iq, iq - u1) * dx
+            hy = max(0, v0 - jq, jq - v1) * dy
+            hz = max(0.0, low[b] - h, h - high[b])
+            if hx * hx + hy * hy + hz * hz > r2:
+                continue
+            if level > 0:
+                child = shapes[level - 1, 2]
+                for ci in range(bi * _FACTOR, min(bi * _FACTOR + _FACTOR, shapes[level - 1, 0])):
+                    for cj in range(bj * _FACTOR, min(bj * _FACTOR + _FACTOR, shapes[level - 1, 1])):
+                        stack[depth, 0], stack[depth, 1], stack[depth, 2] = level - 1, ci, cj
+                        stack[depth, 3] = u0 + ci * child - bi * size
+                        stack[depth, 4] = v0 + cj * child - bj * size
+                        depth += 1
+                continue
+            for u in range(max(u0, ua), min(u1, ub) + 1):
+                ex = (u - iq) * dx
+                row = (bi * size + u - u0) * ny
+                for v in range(max(v0, va), min(v1, vb) + 1):
+                    ey = (v - jq) * dy
+                    k = row + bj * size + v - v0
+                    ez = z[k] - h
+                    d2 = ex * ex + ey * ey + ez * ez
+                    if d2 <= r2:
+                        if count == capacity:
+                            capacity *= 2
+                            which = np.concatenate((which, np.empty(capacity - count, dtype=np.intp)))
+                            found = np.concatenate((found, np.empty(capacity - count, dtype=np.intp)))
+                            gap = np.concatenate((gap, np.empty(capacity - count)))
+                        which[count], found[count], gap[count] = q, k, math.sqrt(d2)
+                        count += 1
+    return which[:count], found[:count], gap[:count]

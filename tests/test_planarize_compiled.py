@@ -1,0 +1,98 @@
+"""The numba kernels against their numpy originals: same sets and distances bit for bit, same runs."""
+
+import numpy as np
+import pytest
+
+from planarize import Surface, anodize, compiled, scenes
+from planarize.features import FeatureKernel, closest_sets
+from planarize.grid import Grid
+from planarize.pyramid import HeightPyramid
+
+pytestmark = pytest.mark.skipif(not compiled.AVAILABLE, reason="numba is not installed")
+
+CASES = [(boundary, distance) for boundary in ("open", "periodic") for distance in ("thesis", "exact")]
+
+
+def rough_pair(grid, rng):
+    """Metal and oxide heights with steep and flat parts (flat parts make exact ties)."""
+    zm = rng.normal(scale=0.4, size=grid.n)
+    zm[: grid.n // 4] = 0.0
+    zo = zm + rng.uniform(0.0, 1.0, grid.n)
+    zo[: grid.n // 4] = 0.5
+    return zm, zo
+
+
+@pytest.mark.parametrize("boundary,distance", CASES)
+def test_closest_sets_match_the_numpy_kernel_bit_for_bit(boundary, distance, rng):
+    grid = Grid((9, 8), (0.5, 0.35), boundary == "periodic")
+    kernel = FeatureKernel(grid, distance)
+    zm, zo = rough_pair(grid, rng)
+    # a few nearby anchors per metal point, so that every kind of feature is sometimes the closest
+    m = np.sort(rng.integers(0, grid.n, 3000))
+    v = grid.shift(m, rng.integers(-2, 3, len(m)), rng.integers(-2, 3, len(m)))
+    keep = v >= 0
+    m, v = m[keep], v[keep]
+    oxide, metal = rng.random(len(m)) < 0.8, rng.random(len(m)) < 0.8
+    for masks in ((None, None), (oxide, metal), (np.zeros(len(m), bool), metal)):
+        expected = closest_sets(kernel, zm, zo, m, v, 1e-9, *masks)
+        got = compiled.closest_sets(kernel, zm, zo, m, v, 1e-9, *masks)
+        for a, b in zip(expected, got):
+            np.testing.assert_array_equal(a, b)
+    # unsorted input is sorted the same way
+    order = rng.permutation(len(m))
+    for a, b in zip(closest_sets(kernel, zm, zo, m[order], v[order], 1e-9),
+                    compiled.closest_sets(kernel, zm, zo, m[order], v[order], 1e-9)):
+        np.testing.assert_array_equal(a, b)
+
+
+def brute_ball(grid, z, points, zq, radius):
+    """Every (query, grid point, distance) within the radius, at the nearest periodic image."""
+    di = grid.i[None, :] - grid.i[points][:, None]
+    dj = grid.j[None, :] - grid.j[points][:, None]
+    if grid.periodic:
+        di = di - grid.nx * np.floor_divide(di + grid.nx // 2, grid.nx)
+        dj = dj - grid.ny * np.floor_divide(dj + grid.ny // 2, grid.ny)
+    d = np.sqrt((di * grid.dx) ** 2 + (dj * grid.dy) ** 2 + (z[None, :] - zq[:, None]) ** 2)
+    q, p = np.nonzero(d <= radius[:, None])
+    return q, p, d[q, p]
+
+
+@pytest.mark.parametrize("shape", [(2, 2), (5, 7), (17, 17), (70, 33)])
+@pytest.mark.parametrize("periodic", [False, True])
+def test_pyramid_ball_finds_exactly_the_points_within_reach(shape, periodic, rng):
+    grid = Grid(shape, (0.7, 0.4), periodic)
+    z = rng.normal(scale=2.0, size=grid.n)
+    pyramid = HeightPyramid(grid, z)
+    points = rng.integers(0, grid.n, 300)
+    zq = z[points] + rng.uniform(-3, 3, len(points))
+    radius = rng.choice([0.1, 0.8, 2.5, 9.0, 60.0], len(points))  # inside one cell .. beyond the grid
+    q, p, d = pyramid.ball(z, points, zq, radius)
+    assert np.all(np.diff(q) >= 0)  # grouped by query
+    got = sorted(zip(q.tolist(), p.tolist()))
+    eq, ep, ed = brute_ball(grid, z, points, zq, radius)
+    assert got == sorted(zip(eq.tolist(), ep.tolist()))
+    np.testing.assert_allclose(d[np.lexsort((p, q))], ed[np.lexsort((ep, eq))], rtol=1e-13)
+    # heights that changed are seen after a rebuild
+    z = z + rng.uniform(0, 1, grid.n)
+    pyramid.rebuild(z)
+    q, p, _ = pyramid.ball(z, points, zq, radius)
+    eq, ep, _ = brute_ball(grid, z, points, zq, radius)
+    assert sorted(zip(q.tolist(), p.tolist())) == sorted(zip(eq.tolist(), ep.tolist()))
+
+
+@pytest.mark.parametrize("boundary,distance", CASES)
+def test_fast_engine_runs_identically_with_and_without_jit(boundary, distance):
+    surface = Surface(scenes.hill().z, 0.25, boundary)
+    kwargs = dict(step=0.02, distance=distance, record=5)
+    compiled_run = anodize(surface, 0.4, jit=True, **kwargs)
+    numpy_run = anodize(surface, 0.4, jit=False, **kwargs)
+    np.testing.assert_array_equal(compiled_run.metal.z, numpy_run.metal.z)
+    np.testing.assert_array_equal(compiled_run.oxide.z, numpy_run.oxide.z)
+    np.testing.assert_array_equal(compiled_run.distances, numpy_run.distances)
+    assert compiled_run.history["iterations"][-1] == numpy_run.history["iterations"][-1]
+
+
+def test_jit_without_numba_is_a_clear_error(monkeypatch):
+    monkeypatch.setattr(compiled, "AVAILABLE", False)
+    with pytest.raises(ImportError, match="numba"):
+        anodize(scenes.hill(), 0.1, jit=True)
