@@ -115,8 +115,8 @@ def anodize(metal: Surface, thickness: float, *, step: float = 0.01, k_exp: floa
         Oxide volume per metal volume (>= 1; Ta 2.3, Al ~1.3).
     engine : {"fast", "reference", "matlab"}
         ``"reference"``: the thesis's sequential algorithm
-        (`planarize.reference`); ``"fast"``: the batched KD-tree engine
-        (`planarize.fast`); ``"matlab"``: the reference with the Matlab
+        (`planarize.reference`); ``"fast"``: the batched engine
+        (`planarize.fast`; compiled when numba is installed); ``"matlab"``: the reference with the Matlab
         listings' shortcuts, to measure what they cost.
     distance : {"thesis", "exact"}
         Point/segment distances as in the thesis, or exact distances to the

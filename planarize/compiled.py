@@ -19,6 +19,8 @@ import math
 
 import numpy as np
 
+from .geometry import triangle_frame
+
 try:
     import numba
 except ImportError:  # pragma: no cover - exercised only where numba is absent
@@ -36,6 +38,9 @@ def _jit(function):
     if numba is None:  # pragma: no cover
         return function
     return numba.njit(cache=True, nogil=True, error_model="numpy")(function)
+
+
+_triangle_frame = _jit(triangle_frame)
 
 
 @_jit
@@ -76,15 +81,8 @@ def _inside_triangle(px, py, pz, ax, ay, az, bx, by, bz, cx, cy, cz):
     d_bc = _segment(px, py, pz, bx, by, bz, cx, cy, cz)
     d_ca = _segment(px, py, pz, cx, cy, cz, ax, ay, az)
     distance = min(d_ab, d_bc, d_ca)  # the closest point is on an edge: a weight is 0
-    ux, uy, uz = bx - ax, by - ay, bz - az
-    vx, vy, vz = cx - ax, cy - ay, cz - az
-    wx, wy, wz = px - ax, py - ay, pz - az
-    d00 = ux * ux + uy * uy + uz * uz
-    d01 = ux * vx + uy * vy + uz * vz
-    d11 = vx * vx + vy * vy + vz * vz
-    d20 = wx * ux + wy * uy + wz * uz
-    d21 = wx * vx + wy * vy + wz * vz
-    det = d00 * d11 - d01 * d01
+    ux, uy, uz, vx, vy, vz, wx, wy, wz, d00, d01, d11, d20, d21, det = _triangle_frame(
+        px, py, pz, ax, ay, az, bx, by, bz, cx, cy, cz)
     if not det > 1e-12 * max(d00 * d11, _TINY):
         return _INF
     fb = (d11 * d20 - d01 * d21) / det

@@ -96,6 +96,24 @@ def point_triangle(p, a, b, c) -> tuple[np.ndarray, np.ndarray]:
     return distance, np.stack([wa, wb, wc], axis=-1)
 
 
+def triangle_frame(px, py, pz, ax, ay, az, bx, by, bz, cx, cy, cz):
+    """Edge vectors ``u = b - a``, ``v = c - a``, ``w = p - a``, their dot products ``u.u, u.v, v.v,
+    w.u, w.v`` and the Gram determinant, as a flat tuple.
+
+    Written with arithmetic operators only, so that the same code runs on
+    arrays here and on scalars in `planarize.compiled` (same results bit for bit).
+    """
+    ux, uy, uz = bx - ax, by - ay, bz - az
+    vx, vy, vz = cx - ax, cy - ay, cz - az
+    wx, wy, wz = px - ax, py - ay, pz - az
+    d00 = ux * ux + uy * uy + uz * uz
+    d01 = ux * vx + uy * vy + uz * vz
+    d11 = vx * vx + vy * vy + vz * vz
+    d20 = wx * ux + wy * uy + wz * uz
+    d21 = wx * vx + wy * vy + wz * vz
+    return ux, uy, uz, vx, vy, vz, wx, wy, wz, d00, d01, d11, d20, d21, d00 * d11 - d01 * d01
+
+
 def point_triangle_xyz(px, py, pz, ax, ay, az, bx, by, bz, cx, cy, cz):
     """`point_triangle` on coordinate arrays: returns ``(distance, wa, wb, wc)``."""
     px, py, pz, ax, ay, az, bx, by, bz, cx, cy, cz = np.broadcast_arrays(
@@ -112,15 +130,8 @@ def point_triangle_xyz(px, py, pz, ax, ay, az, bx, by, bz, cx, cy, cz):
     wb = np.where(on_ab, t_ab, np.where(on_bc, 1.0 - t_bc, zero))
     wc = np.where(on_ab, zero, np.where(on_bc, t_bc, 1.0 - t_ca))
     # the perpendicular foot, where the triangle has area and the foot is inside
-    ux, uy, uz = bx - ax, by - ay, bz - az
-    vx, vy, vz = cx - ax, cy - ay, cz - az
-    wx, wy, wz = px - ax, py - ay, pz - az
-    d00 = ux * ux + uy * uy + uz * uz
-    d01 = ux * vx + uy * vy + uz * vz
-    d11 = vx * vx + vy * vy + vz * vz
-    d20 = wx * ux + wy * uy + wz * uz
-    d21 = wx * vx + wy * vy + wz * vz
-    det = d00 * d11 - d01 * d01
+    ux, uy, uz, vx, vy, vz, wx, wy, wz, d00, d01, d11, d20, d21, det = triangle_frame(
+        px, py, pz, ax, ay, az, bx, by, bz, cx, cy, cz)
     area_ok = det > 1e-12 * np.maximum(d00 * d11, np.finfo(float).tiny)
     with np.errstate(invalid="ignore", divide="ignore"):
         fb = np.where(area_ok, (d11 * d20 - d01 * d21) / det, -1.0)
