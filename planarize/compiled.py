@@ -15,6 +15,7 @@ on the numpy kernel, with the same results, several times slower.
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -33,11 +34,13 @@ _TINY = float(np.finfo(float).tiny)
 _INF = math.inf
 
 
-def _jit(function):
+def _jit(function=None, *, inline: bool = False):
     # error_model="numpy": a division by zero gives inf/nan as in numpy, not an exception
+    if function is None:
+        return functools.partial(_jit, inline=inline)
     if numba is None:  # pragma: no cover
         return function
-    return numba.njit(cache=True, nogil=True, error_model="numpy")(function)
+    return numba.njit(cache=True, nogil=True, error_model="numpy", inline="always" if inline else "never")(function)
 
 
 _triangle_frame = _jit(triangle_frame)
@@ -95,38 +98,38 @@ def _inside_triangle(px, py, pz, ax, ay, az, bx, by, bz, cx, cy, cz):
     return face if face < distance else _INF
 
 
-@_jit
-def _segments(out, first, px, py, pz, z, k, di, dj, zref, dx, dy, edge_nb, step_i, step_j):
-    """Slots ``first .. first + 3``: the 4 grid segments at point ``k`` (offset ``di, dj``), seen from p."""
+@_jit(inline=True)
+def _segments(out, r, first, px, py, pz, z, k, di, dj, zref, dx, dy, edge_nb, step_i, step_j):
+    """Slots ``out[r, first .. first + 3]``: the 4 grid segments at point ``k`` (offset ``di, dj``), seen from p."""
     hx, hy, hz = di * dx, dj * dy, z[k] - zref
     for e in range(4):
         u = edge_nb[k, e]
         if u < 0:
-            out[first + e] = _INF
+            out[r, first + e] = _INF
             continue
         tx, ty, tz = (di + step_i[e]) * dx, (dj + step_j[e]) * dy, z[u] - zref
         if step_i[e] + step_j[e] > 0:  # always from the -x/-y end to the +x/+y end
-            out[first + e] = _foot(px, py, pz, hx, hy, hz, tx, ty, tz)
+            out[r, first + e] = _foot(px, py, pz, hx, hy, hz, tx, ty, tz)
         else:
-            out[first + e] = _foot(px, py, pz, tx, ty, tz, hx, hy, hz)
+            out[r, first + e] = _foot(px, py, pz, tx, ty, tz, hx, hy, hz)
 
 
 @_jit
-def _facets(out, first, px, py, pz, z, k, di, dj, zref, dx, dy, quad_cell, quad_corners, cell_corners,
+def _facets(out, r, first, px, py, pz, z, k, di, dj, zref, dx, dy, quad_cell, quad_corners, cell_corners,
             quad_i, quad_j, centre_i, centre_j):
-    """Slots ``first .. first + 11``: half-diagonals, then two triangles per quadrant, at point ``k``."""
+    """Slots ``out[r, first .. first + 11]``: half-diagonals, then two triangles per quadrant, at point ``k``."""
     hx, hy, hz = di * dx, dj * dy, z[k] - zref
     for q in range(4):
         cell = quad_cell[k, q]
         if cell < 0:
-            out[first + q] = _INF
-            out[first + 4 + 2 * q] = _INF
-            out[first + 5 + 2 * q] = _INF
+            out[r, first + q] = _INF
+            out[r, first + 4 + 2 * q] = _INF
+            out[r, first + 5 + 2 * q] = _INF
             continue
         c = cell_corners[cell]
         zc = 0.25 * (((z[c[0]] + z[c[1]]) + z[c[2]]) + z[c[3]])
         cx, cy, cz = (di + centre_i[q]) * dx, (dj + centre_j[q]) * dy, zc - zref
-        out[first + q] = _foot(px, py, pz, hx, hy, hz, cx, cy, cz)
+        out[r, first + q] = _foot(px, py, pz, hx, hy, hz, cx, cy, cz)
         for side in range(2):
             si = quad_i[q] if side == 0 else 0
             sj = 0 if side == 0 else quad_j[q]
@@ -136,13 +139,14 @@ def _facets(out, first, px, py, pz, z, k, di, dj, zref, dx, dy, quad_cell, quad_
                 d = _inside_triangle(px, py, pz, hx, hy, hz, tx, ty, tz, cx, cy, cz)
             else:
                 d = _inside_triangle(px, py, pz, tx, ty, tz, hx, hy, hz, cx, cy, cz)
-            out[first + 4 + side + 2 * q] = d
+            out[r, first + 4 + side + 2 * q] = d
 
 
-@_jit
-def _pair_slots(out, zm, zo, m, v, do_oxide, do_metal, exact, nx, ny, periodic, dx, dy, edge_nb, quad_cell,
+@_jit(inline=True)
+def _pair_slots(out, r, zm, zo, m, v, do_oxide, do_metal, exact, nx, ny, periodic, dx, dy, edge_nb, quad_cell,
                 quad_corners, cell_corners, step_i, step_j, quad_i, quad_j, centre_i, centre_j):
-    """`FeatureKernel.distances` of one (metal ``m``, anchor ``v``) pair, into ``out`` (filled with inf)."""
+    """`FeatureKernel.distances` of one (metal ``m``, anchor ``v``) pair, into row ``r`` of ``out`` (filled with
+    inf). (Rows are passed as (array, index), not as views: a view per pair costs more than the pair.)"""
     di = v // ny - m // ny
     dj = v % ny - m % ny
     if periodic:
@@ -151,19 +155,19 @@ def _pair_slots(out, zm, zo, m, v, do_oxide, do_metal, exact, nx, ny, periodic, 
     zref = zm[m]
     vx, vy, vz = di * dx, dj * dy, zo[v] - zref
     if do_oxide:
-        out[0] = math.sqrt(vx * vx + vy * vy + vz * vz)
-        _segments(out, 1, 0.0, 0.0, 0.0, zo, v, di, dj, zref, dx, dy, edge_nb, step_i, step_j)
+        out[r, 0] = math.sqrt(vx * vx + vy * vy + vz * vz)
+        _segments(out, r, 1, 0.0, 0.0, 0.0, zo, v, di, dj, zref, dx, dy, edge_nb, step_i, step_j)
         if exact:
-            _facets(out, 9, 0.0, 0.0, 0.0, zo, v, di, dj, zref, dx, dy, quad_cell, quad_corners, cell_corners,
+            _facets(out, r, 9, 0.0, 0.0, 0.0, zo, v, di, dj, zref, dx, dy, quad_cell, quad_corners, cell_corners,
                     quad_i, quad_j, centre_i, centre_j)
     if do_metal:
-        _segments(out, 5, vx, vy, vz, zm, m, 0, 0, zref, dx, dy, edge_nb, step_i, step_j)
+        _segments(out, r, 5, vx, vy, vz, zm, m, 0, 0, zref, dx, dy, edge_nb, step_i, step_j)
         if exact:
-            _facets(out, 21, vx, vy, vz, zm, m, 0, 0, zref, dx, dy, quad_cell, quad_corners, cell_corners,
+            _facets(out, r, 21, vx, vy, vz, zm, m, 0, 0, zref, dx, dy, quad_cell, quad_corners, cell_corners,
                     quad_i, quad_j, centre_i, centre_j)
 
 
-@_jit
+@_jit(inline=True)
 def _set_of(slot, v, edge_nb, quad_corners, into, count):
     """Append the oxide points of slot ``slot`` at anchor ``v`` (`FeatureKernel.oxide_sets`) to ``into``;
     past an open edge there are none (a slot that does not apply can be asked for when all are inf)."""
@@ -184,7 +188,7 @@ def _set_of(slot, v, edge_nb, quad_corners, into, count):
     return count
 
 
-@_jit
+@_jit(inline=True)
 def _sort_unique(values, count):
     """Sort ``values[:count]`` in place (insertion sort: a set has a few points) and drop repeats;
     return the new count."""
@@ -203,16 +207,10 @@ def _sort_unique(values, count):
     return kept
 
 
-@_jit
-def _closest_sets(zm, zo, m, v, tie, do_oxide, do_metal, n_slots, nx, ny, periodic, dx, dy, edge_nb, quad_cell,
+@_jit(inline=True)
+def _closest_sets(zm, zo, m, v, tie, do_oxide, do_metal, n_slots, exact, nx, ny, periodic, dx, dy, edge_nb, quad_cell,
                   quad_corners, cell_corners, step_i, step_j, quad_i, quad_j, centre_i, centre_j):
     n_pairs = len(m)
-    exact = n_slots > 9
-    dist = np.full((n_pairs, n_slots), _INF)
-    for r in range(n_pairs):
-        _pair_slots(dist[r], zm, zo, m[r], v[r], do_oxide[r], do_metal[r], exact, nx, ny, periodic, dx, dy,
-                    edge_nb, quad_cell, quad_corners, cell_corners, step_i, step_j, quad_i, quad_j, centre_i,
-                    centre_j)
     n_groups = 0
     for r in range(n_pairs):
         if r == 0 or m[r] != m[r - 1]:
@@ -222,22 +220,30 @@ def _closest_sets(zm, zo, m, v, tie, do_oxide, do_metal, n_slots, nx, ny, period
     owner = np.empty(4 * n_groups, dtype=np.intp)
     oxide = np.empty(4 * n_groups, dtype=np.intp)
     found = np.empty(64, dtype=np.intp)
+    dist = np.empty((16, n_slots))  # one group's pairs at a time: stays in cache
     n_out = 0
     start = 0
     for g in range(n_groups):
         stop = start + 1
         while stop < n_pairs and m[stop] == m[start]:
             stop += 1
+        if stop - start > len(dist):
+            dist = np.empty((2 * (stop - start), n_slots))
         low = _INF
         for r in range(start, stop):
+            row = r - start
+            dist[row, :] = _INF
+            _pair_slots(dist, row, zm, zo, m[r], v[r], do_oxide[r], do_metal[r], exact, nx, ny, periodic, dx, dy,
+                        edge_nb, quad_cell, quad_corners, cell_corners, step_i, step_j, quad_i, quad_j, centre_i,
+                        centre_j)
             for s in range(n_slots):
-                low = min(low, dist[r, s])
+                low = min(low, dist[row, s])
         points[g] = m[start]
         best[g] = low
         count = 0
         for r in range(start, stop):
             for s in range(n_slots):
-                if dist[r, s] <= low + tie:
+                if dist[r - start, s] <= low + tie:
                     if count + 4 > len(found):
                         found = np.concatenate((found, np.empty_like(found)))
                     count = _set_of(s, v[r], edge_nb, quad_corners, found, count)
@@ -254,6 +260,21 @@ def _closest_sets(zm, zo, m, v, tie, do_oxide, do_metal, n_slots, nx, ny, period
     return points, best, owner[:n_out], oxide[:n_out]
 
 
+# one compiled kernel per distance kind: with ``exact`` a constant, the thesis kind carries no facet code
+@_jit
+def _closest_sets_thesis(zm, zo, m, v, tie, do_oxide, do_metal, nx, ny, periodic, dx, dy, edge_nb, quad_cell,
+                         quad_corners, cell_corners, step_i, step_j, quad_i, quad_j, centre_i, centre_j):
+    return _closest_sets(zm, zo, m, v, tie, do_oxide, do_metal, 9, False, nx, ny, periodic, dx, dy, edge_nb,
+                         quad_cell, quad_corners, cell_corners, step_i, step_j, quad_i, quad_j, centre_i, centre_j)
+
+
+@_jit
+def _closest_sets_exact(zm, zo, m, v, tie, do_oxide, do_metal, nx, ny, periodic, dx, dy, edge_nb, quad_cell,
+                        quad_corners, cell_corners, step_i, step_j, quad_i, quad_j, centre_i, centre_j):
+    return _closest_sets(zm, zo, m, v, tie, do_oxide, do_metal, 33, True, nx, ny, periodic, dx, dy, edge_nb,
+                         quad_cell, quad_corners, cell_corners, step_i, step_j, quad_i, quad_j, centre_i, centre_j)
+
+
 def closest_sets(kernel, zm, zo, m, v, tie: float, oxide=None, metal=None):
     """`planarize.features.closest_sets`, compiled: same arguments, same results bit for bit."""
     m, v = np.asarray(m, dtype=np.intp), np.asarray(v, dtype=np.intp)
@@ -264,7 +285,8 @@ def closest_sets(kernel, zm, zo, m, v, tie: float, oxide=None, metal=None):
         order = np.argsort(m, kind="stable")
         m, v, oxide, metal = m[order], v[order], oxide[order], metal[order]
     g = kernel.grid
-    return _closest_sets(zm, zo, m, v, float(tie), oxide, metal, kernel.n_slots, g.nx, g.ny, g.periodic, g.dx,
+    closest = _closest_sets_exact if kernel.n_slots > 9 else _closest_sets_thesis
+    return closest(zm, zo, m, v, float(tie), oxide, metal, g.nx, g.ny, g.periodic, g.dx,
                          g.dy, g.edge_neighbours, g.quadrant_cell, g.quadrant_corners, g.cell_corners,
                          kernel._step_i, kernel._step_j, kernel._quad_i, kernel._quad_j, kernel._centre_i,
                          kernel._centre_j)

@@ -28,6 +28,8 @@ from __future__ import annotations
 
 import functools
 import math
+import os
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 from scipy.ndimage import maximum_filter, minimum_filter
@@ -39,6 +41,8 @@ from . import compiled, features
 
 #: Candidate pairs evaluated per kernel call (bounds memory: 33 distances each in exact mode).
 CHUNK_PAIRS = 400_000
+#: Fewest points per thread worth a thread of their own (below, the hand-over costs more than it saves).
+POINTS_PER_THREAD = 512
 
 
 class FastEngine(Engine):
@@ -53,11 +57,16 @@ class FastEngine(Engine):
         Use the numba-compiled kernel and height-pyramid search
         (`planarize.compiled`, `planarize.pyramid`) instead of numpy and a
         KD-tree; the results are identical. Default: when numba is installed.
+    threads : int, optional
+        Threads for the compiled distance updates (the compiled code runs
+        without the GIL); the results do not depend on it. Default: the CPUs
+        this process may use. Ignored without ``jit``.
     """
 
     name = "fast"
 
-    def __init__(self, metal, oxide=None, *, tolerance: float | None = None, jit: bool | None = None, **kwargs):
+    def __init__(self, metal, oxide=None, *, tolerance: float | None = None, jit: bool | None = None,
+                 threads: int | None = None, **kwargs):
         super().__init__(metal, oxide, **kwargs)
         tolerance = 0.5 * self.step if tolerance is None else tolerance
         try:
@@ -70,6 +79,11 @@ class FastEngine(Engine):
         if jit and not compiled.AVAILABLE:
             raise ImportError("jit=True needs numba: pip install 'qdots[fast]' (or numba)")
         self.jit = compiled.AVAILABLE if jit is None else bool(jit)
+        if threads is None:
+            threads = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+        if isinstance(threads, bool) or not isinstance(threads, (int, np.integer)) or threads < 1:
+            raise ValueError(f"threads must be a whole number >= 1, got {threads!r}")
+        self.threads = int(threads) if self.jit else 1
         self._closest = compiled.closest_sets if self.jit else features.closest_sets
         self._pyramid = HeightPyramid(self.grid, self.zo) if self.jit else None
         g = self.grid
@@ -191,6 +205,18 @@ class FastEngine(Engine):
         else:
             self._pyramid.rebuild(self.zo)
             search = functools.partial(self._pyramid.ball, self.zo)
+        parts = self._map(lambda part: self._closest_within(search, points[part], bound[part]),
+                          self._split(len(points)))
+        found, distance, owner, oxide = (np.concatenate(column) for column in zip(*parts))
+        self.D[found] = distance
+        keep = np.ones(self.grid.n, dtype=bool)
+        keep[points] = False
+        keep = keep[self.pair_m]
+        self.pair_m = np.concatenate([self.pair_m[keep], owner])
+        self.pair_o = np.concatenate([self.pair_o[keep], oxide])
+
+    def _closest_within(self, search, points: np.ndarray, bound: np.ndarray):
+        """`_recompute`'s work for ``points``: (points, distances, set rows' metal points, their oxide points)."""
         which, anchors, oxide_slots, metal_slots = self._candidates(search, points, bound)
         metal = points[which]
         lengths = np.bincount(which, minlength=len(points))
@@ -204,22 +230,35 @@ class FastEngine(Engine):
             distance.append(d)
             owner.append(f[ow])
             oxide.append(ox)
-        found = np.concatenate(found)
-        self.D[found] = np.concatenate(distance)
-        keep = np.ones(self.grid.n, dtype=bool)
-        keep[points] = False
-        keep = keep[self.pair_m]
-        self.pair_m = np.concatenate([self.pair_m[keep], *owner])
-        self.pair_o = np.concatenate([self.pair_o[keep], *oxide])
+        return tuple(np.concatenate(column) for column in (found, distance, owner, oxide))
 
     def _bound(self, points: np.ndarray) -> np.ndarray:
-        """Upper bound of each point's distance now: its distance to the features of its old set."""
+        """Upper bound of each point's distance now (``points`` sorted): its distance to the features of its
+        old set."""
         rows = np.isin(self.pair_m, points)
-        found, distance, _, _ = self._closest(self.kernel, self.zm, self.zo, self.pair_m[rows], self.pair_o[rows],
-                                             self.tie)
+        m, o = self.pair_m[rows], self.pair_o[rows]
+        order = np.argsort(m, kind="stable")
+        m, o = m[order], o[order]
+
+        def part_bound(part):
+            sel = slice(np.searchsorted(m, points[part.start]), np.searchsorted(m, points[part.stop - 1], "right"))
+            return self._closest(self.kernel, self.zm, self.zo, m[sel], o[sel], self.tie)[:2]
         bound = np.full(self.grid.n, np.inf)
-        bound[found] = distance
+        for found, distance in self._map(part_bound, self._split(len(points))):
+            bound[found] = distance
         return bound[points]
+
+    def _split(self, n: int) -> list[slice]:
+        """``range(n)`` in consecutive parts, one per thread (at least `POINTS_PER_THREAD` items each)."""
+        parts = max(1, min(self.threads, n // POINTS_PER_THREAD))
+        edges = np.linspace(0, n, parts + 1).astype(int)
+        return [slice(a, b) for a, b in zip(edges[:-1], edges[1:])]
+
+    def _map(self, function, parts: list) -> list:
+        """``function`` over ``parts``, in threads when there are several (the compiled code releases the GIL)."""
+        if len(parts) == 1:
+            return [function(parts[0])]
+        return list(_pool(len(parts)).map(function, parts))
 
     # -- one sweep -------------------------------------------------------------------------
 
@@ -316,6 +355,12 @@ class FastEngine(Engine):
             pm, po = key // self.grid.n, key % self.grid.n
         self.pair_m, self.pair_o = pm, po
         self.D[found] = np.minimum(self.D[found], np.where(closer | tied, distance, np.inf))
+
+
+@functools.lru_cache(maxsize=None)
+def _pool(threads: int) -> ThreadPoolExecutor:
+    """One pool per thread count, kept for the life of the process (a pool per sweep costs more than a sweep)."""
+    return ThreadPoolExecutor(threads, thread_name_prefix="planarize")
 
 
 def _chunks(lengths: np.ndarray, limit: int):

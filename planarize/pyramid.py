@@ -100,6 +100,22 @@ def _runs(start, stop, n, size, out):
     return count
 
 
+@_jit(inline=True)
+def _near(level, bi, bj, u0, v0, iq, jq, h, r2, ua, ub, va, vb, nx, ny, dx, dy, shapes, offsets, low, high):
+    """Whether block ``(bi, bj)`` of ``level`` (first row/column ``u0, v0`` unwrapped) can hold a point within
+    the query's window and ball."""
+    size = shapes[level, 2]
+    u1 = u0 + min(size, nx - bi * size) - 1
+    v1 = v0 + min(size, ny - bj * size) - 1
+    if u1 < ua or u0 > ub or v1 < va or v0 > vb:
+        return False
+    b = offsets[level] + bi * shapes[level, 1] + bj
+    hx = max(0, u0 - iq, iq - u1) * dx
+    hy = max(0, v0 - jq, jq - v1) * dy
+    hz = max(0.0, low[b] - h, h - high[b])
+    return hx * hx + hy * hy + hz * hz <= r2
+
+
 @_jit
 def _ball(z, points, zq, radius, nx, ny, dx, dy, periodic, shapes, offsets, low, high):
     top = len(shapes) - 1
@@ -108,7 +124,7 @@ def _ball(z, points, zq, radius, nx, ny, dx, dy, periodic, shapes, offsets, low,
     found = np.empty(capacity, dtype=np.intp)
     gap = np.empty(capacity)
     count = 0
-    # entries: level, block i, block j, unwrapped first row, unwrapped first column
+    # entries: level, block i, block j, unwrapped first row, unwrapped first column (blocks already tested)
     stack = np.empty((64 + 16 * len(shapes), 5), dtype=np.intp)
     runs_i = np.empty((8, 2), dtype=np.intp)
     runs_j = np.empty((8, 2), dtype=np.intp)
@@ -127,32 +143,29 @@ def _ball(z, points, zq, radius, nx, ny, dx, dy, periodic, shapes, offsets, low,
         depth = 0
         for a in range(_runs(ua, ub, nx, shapes[start, 2], runs_i)):
             for b in range(_runs(va, vb, ny, shapes[start, 2], runs_j)):
-                stack[depth, 0], stack[depth, 1], stack[depth, 2] = start, runs_i[a, 0], runs_j[b, 0]
-                stack[depth, 3], stack[depth, 4] = runs_i[a, 1], runs_j[b, 1]
-                depth += 1
+                if _near(start, runs_i[a, 0], runs_j[b, 0], runs_i[a, 1], runs_j[b, 1], iq, jq, h, r2, ua, ub,
+                         va, vb, nx, ny, dx, dy, shapes, offsets, low, high):
+                    stack[depth, 0], stack[depth, 1], stack[depth, 2] = start, runs_i[a, 0], runs_j[b, 0]
+                    stack[depth, 3], stack[depth, 4] = runs_i[a, 1], runs_j[b, 1]
+                    depth += 1
         while depth:
             depth -= 1
             level, bi, bj, u0, v0 = stack[depth, 0], stack[depth, 1], stack[depth, 2], stack[depth, 3], stack[depth, 4]
             size = shapes[level, 2]
-            u1 = u0 + min(size, nx - bi * size) - 1
-            v1 = v0 + min(size, ny - bj * size) - 1
-            if u1 < ua or u0 > ub or v1 < va or v0 > vb:
-                continue
-            b = offsets[level] + bi * shapes[level, 1] + bj
-            hx = max(0, u0 - iq, iq - u1) * dx
-            hy = max(0, v0 - jq, jq - v1) * dy
-            hz = max(0.0, low[b] - h, h - high[b])
-            if hx * hx + hy * hy + hz * hz > r2:
-                continue
             if level > 0:
                 child = shapes[level - 1, 2]
                 for ci in range(bi * _FACTOR, min(bi * _FACTOR + _FACTOR, shapes[level - 1, 0])):
                     for cj in range(bj * _FACTOR, min(bj * _FACTOR + _FACTOR, shapes[level - 1, 1])):
-                        stack[depth, 0], stack[depth, 1], stack[depth, 2] = level - 1, ci, cj
-                        stack[depth, 3] = u0 + ci * child - bi * size
-                        stack[depth, 4] = v0 + cj * child - bj * size
-                        depth += 1
+                        cu0 = u0 + ci * child - bi * size
+                        cv0 = v0 + cj * child - bj * size
+                        if _near(level - 1, ci, cj, cu0, cv0, iq, jq, h, r2, ua, ub, va, vb, nx, ny, dx, dy, shapes,
+                                 offsets, low, high):
+                            stack[depth, 0], stack[depth, 1], stack[depth, 2] = level - 1, ci, cj
+                            stack[depth, 3], stack[depth, 4] = cu0, cv0
+                            depth += 1
                 continue
+            u1 = u0 + min(size, nx - bi * size) - 1
+            v1 = v0 + min(size, ny - bj * size) - 1
             for u in range(max(u0, ua), min(u1, ub) + 1):
                 ex = (u - iq) * dx
                 row = (bi * size + u - u0) * ny
