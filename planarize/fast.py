@@ -233,19 +233,18 @@ class FastEngine(Engine):
         return tuple(np.concatenate(column) for column in (found, distance, owner, oxide))
 
     def _bound(self, points: np.ndarray) -> np.ndarray:
-        """Upper bound of each point's distance now (``points`` sorted): its distance to the features of its
-        old set."""
+        """Upper bound of each point's distance now: its distance to the nearest oxide point of its old set.
+
+        (A vertex is a feature point, so this bounds the distance; it exceeds
+        the distance to the old closest feature by at most a half edge, which
+        widens the candidate search by a few hundredths of a nm at 100 nm.)
+        """
         rows = np.isin(self.pair_m, points)
         m, o = self.pair_m[rows], self.pair_o[rows]
-        order = np.argsort(m, kind="stable")
-        m, o = m[order], o[order]
-
-        def part_bound(part):
-            sel = slice(np.searchsorted(m, points[part.start]), np.searchsorted(m, points[part.stop - 1], "right"))
-            return self._closest(self.kernel, self.zm, self.zo, m[sel], o[sel], self.tie)[:2]
+        di, dj = self.grid.offsets(m, o)
+        gap = np.sqrt((di * self.grid.dx) ** 2 + (dj * self.grid.dy) ** 2 + (self.zo[o] - self.zm[m]) ** 2)
         bound = np.full(self.grid.n, np.inf)
-        for found, distance in self._map(part_bound, self._split(len(points))):
-            bound[found] = distance
+        np.minimum.at(bound, m, gap)
         return bound[points]
 
     def _split(self, n: int) -> list[slice]:
