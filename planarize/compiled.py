@@ -290,3 +290,43 @@ def closest_sets(kernel, zm, zo, m, v, tie: float, oxide=None, metal=None):
                          g.dy, g.edge_neighbours, g.quadrant_cell, g.quadrant_corners, g.cell_corners,
                          kernel._step_i, kernel._step_j, kernel._quad_i, kernel._quad_j, kernel._centre_i,
                          kernel._centre_j)
+
+
+@_jit
+def _star(z, k, exact, edge_nb, edge2, quad_cell, cell_corners, half2):
+    zk = z[k]
+    reach2 = -_INF
+    for e in range(4):
+        u = edge_nb[k, e]
+        if u >= 0:
+            dz = z[u] - zk
+            reach2 = max(reach2, edge2[e] + dz * dz)
+    if exact:
+        for q in range(4):
+            cell = quad_cell[k, q]
+            if cell >= 0:
+                c = cell_corners[cell]
+                dz = 0.25 * (((z[c[0]] + z[c[1]]) + z[c[2]]) + z[c[3]]) - zk
+                reach2 = max(reach2, half2[q] + dz * dz)
+    return math.sqrt(reach2)
+
+
+@_jit
+def _star_reach_near(z, moved, neighbours, reach, exact, edge_nb, edge2, quad_cell, cell_corners, half2):
+    for a in range(len(moved)):
+        k = moved[a]
+        reach[k] = _star(z, k, exact, edge_nb, edge2, quad_cell, cell_corners, half2)
+        for b in range(neighbours.shape[1]):
+            u = neighbours[k, b]
+            if u >= 0:
+                reach[u] = _star(z, u, exact, edge_nb, edge2, quad_cell, cell_corners, half2)
+
+
+def star_reach_near(kernel, z, moved, neighbours, reach) -> None:
+    """`FeatureKernel.star_reach` of the surface ``z``, recomputed in place in ``reach`` at the points
+    ``moved`` and at their ``neighbours`` (rows of point indices, -1 for none): the points whose
+    feature edges a move of ``moved`` changes. Same values bit for bit."""
+    g = kernel.grid
+    _star_reach_near(z, np.asarray(moved, dtype=np.intp), neighbours, reach, kernel.distance == "exact",
+                     g.edge_neighbours, kernel._edge_x ** 2 + kernel._edge_y ** 2, g.quadrant_cell, g.cell_corners,
+                     kernel._half_x ** 2 + kernel._half_y ** 2)

@@ -97,6 +97,7 @@ class FastEngine(Engine):
         reach = ((1, 0), (-1, 0), (0, 1), (0, -1)) if self.distance == "thesis" else \
             tuple((di, dj) for di in (-1, 0, 1) for dj in (-1, 0, 1) if di or dj)
         self._neighbours = [g.shift(np.arange(g.n), di, dj) for di, dj in reach]
+        self._neighbour_table = np.stack(self._neighbours, axis=1)
         self._update_reaches()
         everything = np.arange(g.n)
         self._recompute(everything, self.zo - self.zm)  # the oxide straight above bounds every distance
@@ -122,6 +123,9 @@ class FastEngine(Engine):
         if metal_moved is None:
             self._metal_reach = self.kernel.star_reach(self.zm)
             self._oxide_star = self.kernel.star_reach(self.zo)
+        elif self.jit:
+            compiled.star_reach_near(self.kernel, self.zm, metal_moved, self._neighbour_table, self._metal_reach)
+            compiled.star_reach_near(self.kernel, self.zo, oxide_moved, self._neighbour_table, self._oxide_star)
         else:
             for reach, z, moved in ((self._metal_reach, self.zm, metal_moved), (self._oxide_star, self.zo, oxide_moved)):
                 near = np.zeros(self.grid.n, dtype=bool)  # a point's reach spans its interaction neighbours

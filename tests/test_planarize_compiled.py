@@ -96,3 +96,37 @@ def test_jit_without_numba_is_a_clear_error(monkeypatch):
     monkeypatch.setattr(compiled, "AVAILABLE", False)
     with pytest.raises(ImportError, match="numba"):
         anodize(scenes.hill(), 0.1, jit=True)
+
+
+@pytest.mark.parametrize("boundary,distance", CASES)
+def test_star_reach_near_matches_the_numpy_reach_bit_for_bit(boundary, distance, rng):
+    from planarize.fast import FastEngine
+
+    surface = Surface(rng.normal(scale=0.4, size=(9, 8)), (0.5, 0.35), boundary)
+    engine = FastEngine(surface, distance=distance)
+    kernel = engine.kernel
+    z = surface.z.ravel().copy()
+    reach = kernel.star_reach(z)
+    moved = rng.choice(engine.grid.n, 12, replace=False)
+    z[moved] -= rng.uniform(0.0, 2.0, len(moved))  # steep new edges at and around the moved points
+    compiled.star_reach_near(kernel, z, moved, engine._neighbour_table, reach)
+    np.testing.assert_array_equal(reach, kernel.star_reach(z))
+
+
+@pytest.mark.parametrize("distance", ["thesis", "exact"])
+def test_threads_do_not_change_results(distance, monkeypatch):
+    from planarize import fast
+
+    monkeypatch.setattr(fast, "POINTS_PER_THREAD", 4)  # split even the hill's few updated points
+    kwargs = dict(step=0.02, distance=distance, record=5)
+    one = anodize(scenes.hill(), 0.4, threads=1, **kwargs)
+    three = anodize(scenes.hill(), 0.4, threads=3, **kwargs)
+    np.testing.assert_array_equal(one.metal.z, three.metal.z)
+    np.testing.assert_array_equal(one.oxide.z, three.oxide.z)
+    np.testing.assert_array_equal(one.distances, three.distances)
+
+
+@pytest.mark.parametrize("threads", [0, -1, 1.5, True, "2"])
+def test_bad_thread_counts_are_refused(threads):
+    with pytest.raises(ValueError, match="threads"):
+        anodize(scenes.hill(), 0.1, threads=threads)
