@@ -11,13 +11,15 @@ those:
 * the points within reach of a raised oxide point (they may be closer):
   found with a 3-D KD-tree of the metal points.
 
-Each of those is recomputed exactly: its previous set gives an upper bound
-``B`` of its new distance, and a feature closer than ``B`` must have a grid
-point within ``sqrt(B^2 + L^2)`` (``L`` the longest feature edge), so a
-ball query of the oxide points lists every candidate: a height pyramid
-(`planarize.pyramid`) and the compiled kernel (`planarize.compiled`) when
-numba is installed, else a KD-tree and the numpy kernel (same results).
-Periodic grids take the nearest periodic image in x and y.
+Each of those is recomputed exactly: the nearest oxide point of its previous
+set gives an upper bound ``B`` of its new distance, and a feature closer
+than ``B`` must have a grid point within ``sqrt(B^2 + L^2)`` (``L`` the
+longest feature edge), so a ball query of the oxide points lists every
+candidate: a height pyramid (`planarize.pyramid`) and the compiled kernel
+(`planarize.compiled`) when numba is installed, split over ``threads``
+threads, else a KD-tree and the numpy kernel. The results are the same bit
+for bit either way and for any thread count. Periodic grids take the
+nearest periodic image in x and y.
 
 ``tolerance = 0`` oxidizes exact ties only and reproduces the reference
 engine to round-off; larger tolerances take larger batches (fewer sweeps)
@@ -364,6 +366,10 @@ class FastEngine(Engine):
 def _pool(threads: int) -> ThreadPoolExecutor:
     """One pool per thread count, kept for the life of the process (a pool per sweep costs more than a sweep)."""
     return ThreadPoolExecutor(threads, thread_name_prefix="planarize")
+
+
+if hasattr(os, "register_at_fork"):  # a forked child (e.g. a sweep worker) has none of the pools' threads
+    os.register_at_fork(after_in_child=_pool.cache_clear)
 
 
 def _chunks(lengths: np.ndarray, limit: int):

@@ -130,3 +130,20 @@ def test_threads_do_not_change_results(distance, monkeypatch):
 def test_bad_thread_counts_are_refused(threads):
     with pytest.raises(ValueError, match="threads"):
         anodize(scenes.hill(), 0.1, threads=threads)
+
+
+def _oxide_after_hill_run():
+    return anodize(scenes.hill(), 0.1, step=0.02, threads=2).oxide.z
+
+
+@pytest.mark.skipif(not hasattr(__import__("os"), "fork"), reason="needs fork")
+def test_a_forked_process_runs_its_own_threads(monkeypatch):
+    import multiprocessing
+
+    from planarize import fast
+
+    monkeypatch.setattr(fast, "POINTS_PER_THREAD", 4)
+    here = _oxide_after_hill_run()  # this process now has a thread pool; a forked child must not wait on it
+    with multiprocessing.get_context("fork").Pool(1) as pool:
+        there = pool.apply_async(_oxide_after_hill_run).get(timeout=60)
+    np.testing.assert_array_equal(here, there)
