@@ -320,6 +320,8 @@ class FastEngine(Engine):
         feature (the anchor's 3 x 3 block, before the rise) within reach.
         """
         g = self.grid
+        if float(self.zm.max()) + self.tie < float(self.zo[g.block(anchors)].min()) - rise:
+            return np.zeros(g.n, dtype=bool)  # the whole metal lies below every raised feature (thick oxide)
         shape = (g.nx, g.ny)
         mode = "wrap" if g.periodic else "nearest"
         low = np.full(shape, np.inf)
@@ -338,6 +340,8 @@ class FastEngine(Engine):
         anchors = self.grid.block(raised) if self.distance == "exact" else raised  # exact: cell centres moved
         # ask the other metal points that a raised feature can come closer to for the anchors within reach
         metal = np.flatnonzero(~skip & self._below_raised(anchors, rise))
+        if not len(metal):
+            return
         # (few raised points are near any one metal point: a short k-nearest query, ball queries for the rest)
         which, anchor, oxide_slots, metal_slots = self._candidates(self._tree_search(anchors, k=4), metal,
                                                                    self.D[metal] + self.tie)
