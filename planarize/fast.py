@@ -256,8 +256,7 @@ class FastEngine(Engine):
     def _split(self, n: int) -> list[slice]:
         """``range(n)`` in consecutive parts, one per thread (at least `POINTS_PER_THREAD` items each)."""
         parts = max(1, min(self.threads, n // POINTS_PER_THREAD))
-        edges = np.linspace(0, n, parts + 1).astype(int)
-        return [slice(a, b) for a, b in zip(edges[:-1], edges[1:])]
+        return [slice(n * p // parts, n * (p + 1) // parts) for p in range(parts)]
 
     def _map(self, function, parts: list) -> list:
         """``function`` over ``parts``, in threads when there are several (the compiled code releases the GIL)."""
@@ -320,8 +319,8 @@ class FastEngine(Engine):
         feature (the anchor's 3 x 3 block, before the rise) within reach.
         """
         g = self.grid
-        if float(self.zm.max()) + self.tie < float(self.zo[g.block(anchors)].min()) - rise:
-            return np.zeros(g.n, dtype=bool)  # the whole metal lies below every raised feature (thick oxide)
+        if float(self.zm.max()) + self.tie < float(self.zo.min()) - rise:
+            return np.zeros(g.n, dtype=bool)  # the whole metal lies below the whole oxide (thick oxide)
         shape = (g.nx, g.ny)
         mode = "wrap" if g.periodic else "nearest"
         low = np.full(shape, np.inf)
