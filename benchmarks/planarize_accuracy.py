@@ -6,7 +6,7 @@ Two cases, each run at its default settings and with one knob changed at a time:
 * ``ta``: a 200 nm patch of the thesis's Ta roughness to 40 nm (default: refined 4x = 41 x 41 at
   5 nm, step 0.5 nm);
 
-both at k_exp 2.3, fast engine, default batch tolerance (half a step), thesis distances.
+both at k_exp 2.3, fast engine, default batch tolerance (a tenth of a step), thesis distances.
 The error of a setting is the largest relative difference of its metal and oxide RMS from the
 converged answer's, at ten evenly spaced oxide thicknesses (each interpolated in its history).
 The converged answer is the same surface on a grid 4x finer than the default with a 4x smaller

@@ -1,6 +1,6 @@
 """The fast planarization engine against its goals (issue 7): time AND error, measured in one run.
 
-Cases (k_exp 2.3, thesis distances, exact volume accounting, default batch tolerance step / 2):
+Cases (k_exp 2.3, thesis distances, exact volume accounting, default batch tolerance step / 10):
 
 * ``hill``: the thesis hill, 17 x 17 at 0.25 nm, to 1 nm in 0.01 nm steps (goal < 0.5 s). Error:
   largest relative RMS difference from the reference's at every 0.1 nm (the reference's answer

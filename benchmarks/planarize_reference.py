@@ -10,7 +10,7 @@ For each case, in the same run:
 * the reference engine (the thesis algorithm), stopped after ``--budget`` seconds if unfinished:
   wall time, oxide thickness reached, metal-point updates per second, and the volume balance
   error (oxide gained / ((k_exp - 1) metal lost) - 1; exact accounting makes it round-off);
-* the fast engine at its default batch tolerance (half a step) and at tolerance 0 (exact ties only):
+* the fast engine at its default batch tolerance (a tenth of a step) and at tolerance 0 (exact ties only):
   wall time, and the largest difference of its metal and oxide RMS from the reference's at the
   recorded thicknesses (every 0.1 nm the reference reached).
 

@@ -330,3 +330,66 @@ def star_reach_near(kernel, z, moved, neighbours, reach) -> None:
     _star_reach_near(z, np.asarray(moved, dtype=np.intp), neighbours, reach, kernel.distance == "exact",
                      g.edge_neighbours, kernel._edge_x ** 2 + kernel._edge_y ** 2, g.quadrant_cell, g.cell_corners,
                      kernel._half_x ** 2 + kernel._half_y ** 2)
+
+
+@_jit
+def _batch(distance, tolerance, tie, neighbours, pair_m, pair_o):
+    n = len(distance)
+    d = np.full(n, _INF)
+    low = distance.min()
+    for p in range(n):
+        if distance[p] <= low + tolerance:
+            d[p] = distance[p]
+    rival = np.full(n, _INF)
+    for p in range(n):
+        if d[p] < _INF:
+            for b in range(neighbours.shape[1]):
+                u = neighbours[p, b]
+                if u >= 0:
+                    rival[p] = min(rival[p], d[u])
+    first = np.full(n, _INF)
+    for r in range(len(pair_m)):
+        first[pair_o[r]] = min(first[pair_o[r]], d[pair_m[r]])
+    for r in range(len(pair_m)):
+        m = pair_m[r]
+        if d[m] < _INF:
+            rival[m] = min(rival[m], first[pair_o[r]])
+    out = np.zeros(n, dtype=np.bool_)
+    for p in range(n):
+        out[p] = d[p] < _INF and not rival[p] < d[p] - tie
+    return out
+
+
+def batch(distance, tolerance: float, tie: float, neighbours, pair_m, pair_o) -> np.ndarray:
+    """`FastEngine._batch`, compiled: the points within ``tolerance`` of the smallest ``distance`` that
+    no interacting candidate (a neighbour in ``neighbours``, or a sharer of an oxide point through the
+    set rows ``pair_m``, ``pair_o``) is more than ``tie`` closer than (boolean mask)."""
+    return _batch(distance, float(tolerance), float(tie), neighbours, pair_m, pair_o)
+
+
+@_jit
+def _vertex_bound(points, pair_m, pair_o, zm, zo, nx, ny, dx, dy, periodic):
+    where = np.full(len(zm), -1, dtype=np.intp)
+    for a in range(len(points)):
+        where[points[a]] = a
+    bound = np.full(len(points), _INF)
+    for r in range(len(pair_m)):
+        m, o = pair_m[r], pair_o[r]
+        a = where[m]
+        if a < 0:
+            continue
+        di = o // ny - m // ny
+        dj = o % ny - m % ny
+        if periodic:
+            di = di - nx * ((di + nx // 2) // nx)
+            dj = dj - ny * ((dj + ny // 2) // ny)
+        ex, ey, ez = di * dx, dj * dy, zo[o] - zm[m]
+        bound[a] = min(bound[a], math.sqrt(ex * ex + ey * ey + ez * ez))
+    return bound
+
+
+def vertex_bound(grid, zm, zo, points, pair_m, pair_o) -> np.ndarray:
+    """For each of ``points``, the distance to the nearest oxide point of its set (rows ``pair_m``,
+    ``pair_o``; nearest periodic image), nm: `FastEngine._bound`, compiled."""
+    return _vertex_bound(np.asarray(points, dtype=np.intp), pair_m, pair_o, zm, zo, grid.nx, grid.ny, grid.dx,
+                         grid.dy, grid.periodic)

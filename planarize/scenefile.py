@@ -85,7 +85,7 @@ RUN = {
     "engine": ("str", " | ".join(f'"{e}"' for e in engines()) + ' ("reference": the thesis algorithm, slow)'),
     "distance": ("str", '"thesis" (points and segments) | "exact" (the triangulated surfaces)'),
     "volume": ("str", '"exact" | "thesis" (equal point weights)'),
-    "tolerance": ("float?", "nm, fast engine batch tolerance, >= 0; unset: step / 4"),
+    "tolerance": ("float?", "nm, fast engine batch tolerance, >= 0; unset: step / 10"),
     "record": ("record", "history rows: a count n (n + 1 evenly spaced) or [thicknesses nm]"),
     "snapshots": ("floats?", "[thicknesses nm] at which both surfaces are kept, in [0, thickness]; unset: [0, thickness]"),
 }

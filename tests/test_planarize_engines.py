@@ -143,16 +143,16 @@ ZRANGE = ("metal_zrange_nm", "oxide_zrange_nm")
 RANDOM = Surface(4 + np.random.default_rng(5).uniform(-0.25, 0.25, (4, 4)), 1.0).refine(4)
 
 
-# Allowed RMS / z-range differences at every 0.1 nm: the fast engine at its default tolerance measured
-# (RMS, z-range) hill 3.3 / 4.3 %, depression 1.8 / 9.2 %, tilted 0.5 / 1.9 %, random 1.2 / 3.7 %. The
-# reference itself moves by 3.5 / 15.6, 2.0 / 10.9, 0.3 / 2.1 and 0.9 / 2.6 % when its exact ties are
-# broken by 1e-9 nm of height noise: the goal of 2 % is below the reference's own reproducibility on
-# the hill (docs/performance.md).
+# Allowed RMS / z-range differences at every 0.1 nm: the fast engine at its default tolerance (a tenth
+# of a step) measured (RMS, z-range) hill 1.5 / 6.2 %, depression 1.7 / 5.9 %, tilted 0.5 / 1.7 %,
+# random 0.8 / 2.9 %: the RMS goal of 2 % is met. The z-range (a difference of two extremes) is noisier:
+# the reference itself moves by 15.6 % (hill), 10.9, 2.1 and 2.6 % when its exact ties are broken by
+# 1e-9 nm of height noise (docs/performance.md).
 @pytest.mark.parametrize("surface, rms_allowed, zrange_allowed", [
-    pytest.param(scenes.hill(), 0.04, 0.08, id="hill"),
-    pytest.param(scenes.depression(), 0.025, 0.12, id="depression"),
+    pytest.param(scenes.hill(), 0.02, 0.07, id="hill"),
+    pytest.param(scenes.depression(), 0.02, 0.07, id="depression"),
     pytest.param(scenes.tilted_plane(), 0.01, 0.03, id="tilted"),
-    pytest.param(RANDOM, 0.02, 0.06, id="random", marks=pytest.mark.slow),
+    pytest.param(RANDOM, 0.01, 0.04, id="random", marks=pytest.mark.slow),
 ])
 def test_fast_engine_matches_the_reference(surface, rms_allowed, zrange_allowed):
     targets = np.arange(1, 11) * 0.1
@@ -161,7 +161,7 @@ def test_fast_engine_matches_the_reference(surface, rms_allowed, zrange_allowed)
     assert history_difference(run, ref, targets, RMS) < rms_allowed
     assert history_difference(run, ref, targets, ZRANGE) < zrange_allowed
     np.testing.assert_allclose(run.history["volume_error"], 0.0, atol=1e-12)
-    assert run.history["iterations"][-1] < ref.history["iterations"][-1] / 2
+    assert run.history["iterations"][-1] < 0.75 * ref.history["iterations"][-1]  # batches do form
 
 
 def test_no_expansion_and_large_expansion_are_sane():
