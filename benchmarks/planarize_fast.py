@@ -58,13 +58,30 @@ def random_surface(n: int, seed: int = 0) -> Surface:
     return Surface(1000.0 + 6.0 * z / z.std(), 5.0, "periodic")
 
 
-def hill_case(budget: float) -> dict:
+def tie_broken_errors(surface: Surface, copies: int = 5) -> list[float]:
+    """The default run's error against the reference on copies of ``surface`` whose exact ties are broken
+    by 1e-9 nm of height noise (the thesis hill's symmetry makes ties that both engines batch alike)."""
+    errors = []
+    for seed in range(1, copies + 1):
+        z = surface.z + np.random.default_rng(seed).normal(scale=1e-9, size=surface.z.shape)
+        copy = Surface(z, surface.spacing, surface.boundary)
+        ref = anodize(copy, 1.0, step=0.01, tolerance=0.0, record=200)
+        run = anodize(copy, 1.0, step=0.01, record=200)
+        errors.append(history_difference(run, ref, np.arange(1, 11) * 0.1))
+    return errors
+
+
+def hill_case(budget: float, copies: int = 5) -> dict:
     surface = scenes.hill()
     ref = anodize(surface, 1.0, step=0.01, tolerance=0.0, record=200)
     run = anodize(surface, 1.0, step=0.01, record=200)
     ref_wall, exact = reference_time(surface, 1.0, 0.01, int(ref.history["point_updates"][-1]), budget)
-    return _row("hill 17x17 to 1 nm", run, history_difference(run, ref, np.arange(1, 11) * 0.1), 0.5,
-                reference_s=ref_wall, reference_measured=exact)
+    row = _row("hill 17x17 to 1 nm", run, history_difference(run, ref, np.arange(1, 11) * 0.1), 0.5,
+               reference_s=ref_wall, reference_measured=exact)
+    errors = tie_broken_errors(surface, copies)
+    row["note"] += (f"; {len(errors)} copies with ties broken: RMS error mean {100 * np.mean(errors):.1f} %, "
+                    f"max {100 * np.max(errors):.1f} %")
+    return row
 
 
 def random65_case(budget: float) -> dict:
@@ -157,7 +174,7 @@ def run(quick: bool, budget: float = 120.0) -> list:
 
     from .report import Figure, Headline, Table
 
-    rows = [hill_case(5.0 if quick else budget), ta_case(quick)]
+    rows = [hill_case(5.0 if quick else budget, 2 if quick else 5), ta_case(quick)]
     if not quick:
         periodic_budget = float(os.environ.get("PLANARIZE_PERIODIC_BUDGET", budget))
         rows += [random65_case(budget), periodic_case(1025, periodic_budget)]

@@ -147,3 +147,21 @@ def test_a_forked_process_runs_its_own_threads(monkeypatch):
     with multiprocessing.get_context("fork").Pool(1) as pool:
         there = pool.apply_async(_oxide_after_hill_run).get(timeout=60)
     np.testing.assert_array_equal(here, there)
+
+
+@pytest.mark.parametrize("boundary,distance", CASES)
+def test_compiled_batch_and_bound_match_numpy(boundary, distance, rng):
+    from planarize.fast import FastEngine
+
+    surface = Surface(rng.normal(scale=0.4, size=(12, 9)), (0.5, 0.35), boundary)
+    jit = FastEngine(surface, distance=distance, tolerance=0.05)
+    plain = FastEngine(surface, distance=distance, tolerance=0.05, jit=False)
+    for _ in range(5):
+        # distances with exact ties and a spread around the tolerance
+        distance_now = np.round(rng.uniform(0.0, 0.2, surface.z.size), 2)
+        jit.D[:], plain.D[:] = distance_now, distance_now
+        np.testing.assert_array_equal(jit._batch(), plain._batch())
+        points = np.sort(rng.choice(surface.z.size, 30, replace=False))
+        np.testing.assert_array_equal(jit._bound(points), plain._bound(points))
+        jit.advance()
+        plain.advance()
