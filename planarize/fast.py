@@ -244,9 +244,10 @@ class FastEngine(Engine):
     def _bound(self, points: np.ndarray) -> np.ndarray:
         """Upper bound of each point's distance now: its distance to the nearest oxide point of its old set.
 
-        (A vertex is a feature point, so this bounds the distance; it exceeds
-        the distance to the old closest feature by at most a half edge, which
-        widens the candidate search by a few hundredths of a nm at 100 nm.)
+        (The point-to-point distance is one of the feature pairs the distance is
+        the smallest of, so this bounds it from above; it is looser than the
+        old closest pair by at most a feature's size, which at 100 nm of oxide
+        widens the candidate search by hundredths of a nm.)
         """
         if self.jit:
             return compiled.vertex_bound(self.grid, self.zm, self.zo, points, self.pair_m, self.pair_o)
