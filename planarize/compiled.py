@@ -35,7 +35,8 @@ _INF = math.inf
 
 
 def _jit(function=None, *, inline: bool = False):
-    # error_model="numpy": a division by zero gives inf/nan as in numpy, not an exception
+    # error_model="numpy": a division by zero gives inf/nan as in numpy, not an exception; inline: for small
+    # helpers called per pair with many array arguments, where a call costs more than the work
     if function is None:
         return functools.partial(_jit, inline=inline)
     if numba is None:  # pragma: no cover
@@ -167,7 +168,7 @@ def _pair_slots(out, r, zm, zo, m, v, do_oxide, do_metal, exact, nx, ny, periodi
                     quad_i, quad_j, centre_i, centre_j)
 
 
-@_jit(inline=True)
+@_jit
 def _set_of(slot, v, edge_nb, quad_corners, into, count):
     """Append the oxide points of slot ``slot`` at anchor ``v`` (`FeatureKernel.oxide_sets`) to ``into``;
     past an open edge there are none (a slot that does not apply can be asked for when all are inf)."""
@@ -188,7 +189,7 @@ def _set_of(slot, v, edge_nb, quad_corners, into, count):
     return count
 
 
-@_jit(inline=True)
+@_jit
 def _sort_unique(values, count):
     """Sort ``values[:count]`` in place (insertion sort: a set has a few points) and drop repeats;
     return the new count."""
