@@ -313,24 +313,19 @@ def _star(z, k, exact, edge_nb, edge2, quad_cell, cell_corners, half2):
 
 
 @_jit
-def _star_reach_near(z, moved, neighbours, reach, exact, edge_nb, edge2, quad_cell, cell_corners, half2):
-    for a in range(len(moved)):
-        k = moved[a]
-        reach[k] = _star(z, k, exact, edge_nb, edge2, quad_cell, cell_corners, half2)
-        for b in range(neighbours.shape[1]):
-            u = neighbours[k, b]
-            if u >= 0:
-                reach[u] = _star(z, u, exact, edge_nb, edge2, quad_cell, cell_corners, half2)
+def _star_reach(z, points, exact, edge_nb, edge2, quad_cell, cell_corners, half2):
+    reach = np.empty(len(points))
+    for a in range(len(points)):
+        reach[a] = _star(z, points[a], exact, edge_nb, edge2, quad_cell, cell_corners, half2)
+    return reach
 
 
-def star_reach_near(kernel, z, moved, neighbours, reach) -> None:
-    """`FeatureKernel.star_reach` of the surface ``z``, recomputed in place in ``reach`` at the points
-    ``moved`` and at their ``neighbours`` (rows of point indices, -1 for none): the points whose
-    feature edges a move of ``moved`` changes. Same values bit for bit."""
+def star_reach(kernel, z, points) -> np.ndarray:
+    """`FeatureKernel.star_reach` of the surface ``z`` at ``points``, compiled: same values bit for bit."""
     g = kernel.grid
-    _star_reach_near(z, np.asarray(moved, dtype=np.intp), neighbours, reach, kernel.distance == "exact",
-                     g.edge_neighbours, kernel._edge_x ** 2 + kernel._edge_y ** 2, g.quadrant_cell, g.cell_corners,
-                     kernel._half_x ** 2 + kernel._half_y ** 2)
+    return _star_reach(z, np.asarray(points, dtype=np.intp), kernel.distance == "exact", g.edge_neighbours,
+                       kernel._edge_x ** 2 + kernel._edge_y ** 2, g.quadrant_cell, g.cell_corners,
+                       kernel._half_x ** 2 + kernel._half_y ** 2)
 
 
 @_jit
@@ -369,28 +364,22 @@ def batch(distance, tolerance: float, tie: float, neighbours, pair_m, pair_o) ->
 
 
 @_jit
-def _vertex_bound(points, pair_m, pair_o, zm, zo, nx, ny, dx, dy, periodic):
-    where = np.full(len(zm), -1, dtype=np.intp)
-    for a in range(len(points)):
-        where[points[a]] = a
-    bound = np.full(len(points), _INF)
-    for r in range(len(pair_m)):
-        m, o = pair_m[r], pair_o[r]
-        a = where[m]
-        if a < 0:
-            continue
+def _vertex_gap(metal, oxide, zm, zo, nx, ny, dx, dy, periodic):
+    gap = np.empty(len(metal))
+    for a in range(len(metal)):
+        m, o = metal[a], oxide[a]
         di = o // ny - m // ny
         dj = o % ny - m % ny
         if periodic:
             di = di - nx * ((di + nx // 2) // nx)
             dj = dj - ny * ((dj + ny // 2) // ny)
         ex, ey, ez = di * dx, dj * dy, zo[o] - zm[m]
-        bound[a] = min(bound[a], math.sqrt(ex * ex + ey * ey + ez * ez))
-    return bound
+        gap[a] = math.sqrt(ex * ex + ey * ey + ez * ez)
+    return gap
 
 
-def vertex_bound(grid, zm, zo, points, pair_m, pair_o) -> np.ndarray:
-    """For each of ``points``, the distance to the nearest oxide point of its set (rows ``pair_m``,
-    ``pair_o``; nearest periodic image), nm: `FastEngine._bound`, compiled."""
-    return _vertex_bound(np.asarray(points, dtype=np.intp), pair_m, pair_o, zm, zo, grid.nx, grid.ny, grid.dx,
-                         grid.dy, grid.periodic)
+def vertex_gap(grid, zm, zo, metal, oxide) -> np.ndarray:
+    """Distance from each metal point ``metal[a]`` to the oxide point ``oxide[a]`` (nearest periodic image), nm:
+    `FastEngine._vertex_gap`, compiled."""
+    return _vertex_gap(np.asarray(metal, dtype=np.intp), np.asarray(oxide, dtype=np.intp), zm, zo, grid.nx, grid.ny,
+                       grid.dx, grid.dy, grid.periodic)

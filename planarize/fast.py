@@ -38,13 +38,17 @@ from scipy.ndimage import maximum_filter, minimum_filter
 from scipy.spatial import cKDTree
 
 from .engine import Engine
-from .pyramid import HeightPyramid
+from .pyramid import BallCache, HeightPyramid
 from . import compiled, features
 
 #: Candidate pairs evaluated per kernel call (bounds memory: 33 distances each in exact mode).
 CHUNK_PAIRS = 400_000
 #: Fewest points per thread worth a thread of their own (below, the hand-over costs more than it saves).
 POINTS_PER_THREAD = 512
+#: How much wider (in steps) a metal point's candidate search is made when its result is kept for later sweeps.
+CACHE_MARGIN = 1.0
+#: Sweeps between exact measurements of the longest feature edges (in between, upper bounds that only grow).
+REACH_REFRESH = 64
 
 
 class FastEngine(Engine):
@@ -91,6 +95,7 @@ class FastEngine(Engine):
         self.threads = int(threads) if self.jit else 1
         self._closest = compiled.closest_sets if self.jit else features.closest_sets
         self._pyramid = HeightPyramid(self.grid, self.zo) if self.jit else None
+        self._cache = None  # candidate searches kept once distances can only grow (`_ball_cache`)
         g = self.grid
         self._x = g.i * g.dx
         self._y = g.j * g.dy
@@ -103,6 +108,7 @@ class FastEngine(Engine):
             tuple((di, dj) for di in (-1, 0, 1) for dj in (-1, 0, 1) if di or dj)
         self._neighbours = [g.shift(np.arange(g.n), di, dj) for di, dj in reach]
         self._neighbour_table = np.stack(self._neighbours, axis=1)
+        self._near = np.full(g.n, -1, dtype=np.intp)  # per metal point, the nearest oxide point of its set
         self._update_reaches()
         everything = np.arange(g.n)
         self._recompute(everything, self.zo - self.zm)  # the oxide straight above bounds every distance
@@ -122,29 +128,33 @@ class FastEngine(Engine):
         box = (g.nx * g.dx, g.ny * g.dy, 4.0 * (span + self._reach_limit()) + 1.0)
         return cKDTree(data, balanced_tree=False, compact_nodes=False, boxsize=box), shift
 
+    def _star(self, z: np.ndarray, points: np.ndarray) -> np.ndarray:
+        """`FeatureKernel.star_reach` of ``z`` at ``points`` (compiled when jit)."""
+        return compiled.star_reach(self.kernel, z, points) if self.jit else self.kernel.star_reach(z, points)
+
     def _update_reaches(self, metal_moved: np.ndarray | None = None, oxide_moved: np.ndarray | None = None) -> None:
-        """Longest feature edge at each metal and oxide point (`FeatureKernel.star_reach`), everywhere
-        or where the heights of ``metal_moved`` / ``oxide_moved`` reach (a point's edges and cells)."""
-        if metal_moved is None:
-            self._metal_reach = self.kernel.star_reach(self.zm)
-            self._oxide_star = self.kernel.star_reach(self.zo)
-        elif self.jit:
-            compiled.star_reach_near(self.kernel, self.zm, metal_moved, self._neighbour_table, self._metal_reach)
-            compiled.star_reach_near(self.kernel, self.zo, oxide_moved, self._neighbour_table, self._oxide_star)
+        """Upper bounds of the longest metal and oxide feature edges, nm.
+
+        Measured exactly every `REACH_REFRESH` sweeps (and when no moves are
+        given); in between, raised to the longest edge at the points that
+        moved: every edge that changed touches one of them (with exact
+        distances, the half-diagonals of the cells around them too).
+        """
+        if metal_moved is None or self.iterations - self._reach_checked >= REACH_REFRESH:
+            everything = np.arange(self.grid.n)
+            self._metal_longest = float(self._star(self.zm, everything).max())
+            self._oxide_longest = float(self._star(self.zo, everything).max())
+            self._reach_checked = self.iterations
         else:
-            for reach, z, moved in ((self._metal_reach, self.zm, metal_moved), (self._oxide_star, self.zo, oxide_moved)):
-                near = np.zeros(self.grid.n, dtype=bool)  # a point's reach spans its interaction neighbours
-                near[moved] = True
-                for k in self._neighbours:
-                    shifted = k[moved]
-                    near[shifted[shifted >= 0]] = True
-                near = np.flatnonzero(near)
-                reach[near] = self.kernel.star_reach(z, near)
-        self._oxide_reach = self.kernel.oxide_reach(float(self._oxide_star.max()))
+            for moved, z, name in ((metal_moved, self.zm, "_metal_longest"), (oxide_moved, self.zo, "_oxide_longest")):
+                if len(moved):
+                    near = self.grid.block(moved) if self.distance == "exact" else moved
+                    setattr(self, name, max(getattr(self, name), float(self._star(z, near).max())))
+        self._oxide_reach = self.kernel.oxide_reach(self._oxide_longest)
 
     def _reach_limit(self) -> float:
         return float(np.max(self.D[np.isfinite(self.D)], initial=0.0)) + float(np.max(self.zo - self.zm)) \
-            + 2.0 * max(float(self._metal_reach.max()), float(self._oxide_star.max()))
+            + 2.0 * max(self._metal_longest, self._oxide_longest)
 
     @staticmethod
     def _ball(tree: cKDTree, queries: np.ndarray, radius: np.ndarray, k: int = 16):
@@ -193,7 +203,7 @@ class FastEngine(Engine):
         """
         inflate = 1 + 1e-12
         r_ox = np.sqrt(bound**2 + self._oxide_reach**2) * inflate + self.tie
-        r_me = np.sqrt(bound**2 + self._metal_reach[points] ** 2) * inflate + self.tie
+        r_me = np.sqrt(bound**2 + self._star(self.zm, points) ** 2) * inflate + self.tie
         which, anchors, gap = search(points, self.zm[points], np.maximum(r_ox, r_me))
         return which, anchors, gap <= r_ox[which], gap <= r_me[which]
 
@@ -213,11 +223,12 @@ class FastEngine(Engine):
             search = self._tree_search()
         else:
             self._pyramid.rebuild(self.zo)
-            search = functools.partial(self._pyramid.ball, self.zo)
+            search = functools.partial(self._pyramid.ball, self.zo, cache=self._ball_cache())
         parts = self._map(lambda part: self._closest_within(search, points[part], bound[part]),
                           self._split(len(points)))
         found, distance, owner, oxide = (np.concatenate(column) for column in zip(*parts))
         self.D[found] = distance
+        self._remember_nearest(owner, oxide)
         keep = np.ones(self.grid.n, dtype=bool)
         keep[points] = False
         keep = keep[self.pair_m]
@@ -241,23 +252,45 @@ class FastEngine(Engine):
             oxide.append(ox)
         return tuple(np.concatenate(column) for column in (found, distance, owner, oxide))
 
+    def _ball_cache(self) -> BallCache | None:
+        """The kept candidate searches, once the whole oxide lies above the whole metal (else None).
+
+        From then on metal points only sink and oxide points only rise, so
+        every metal-oxide grid distance only grows and a search's result stays
+        a superset of any later search up to the same radius (`BallCache`);
+        the state then lasts, since the metal's top only falls and the oxide's
+        bottom only rises.
+        """
+        if self._cache is None and float(self.zm.max()) + self.tie < float(self.zo.min()):
+            self._cache = BallCache(self.grid.n, CACHE_MARGIN * self.step)
+        return self._cache
+
+    def _vertex_gap(self, metal: np.ndarray, oxide: np.ndarray) -> np.ndarray:
+        """Distance between metal and oxide grid points (nearest periodic image), nm."""
+        if self.jit:
+            return compiled.vertex_gap(self.grid, self.zm, self.zo, metal, oxide)
+        di, dj = self.grid.offsets(metal, oxide)
+        return np.sqrt((di * self.grid.dx) ** 2 + (dj * self.grid.dy) ** 2 + (self.zo[oxide] - self.zm[metal]) ** 2)
+
+    def _remember_nearest(self, owner: np.ndarray, oxide: np.ndarray) -> None:
+        """Note each metal point's nearest oxide point among its new set rows ``owner, oxide`` (grouped by owner)."""
+        if not len(owner):
+            return
+        gap = self._vertex_gap(owner, oxide)
+        start = np.flatnonzero(np.concatenate([[True], owner[1:] != owner[:-1]]))
+        nearest = gap == np.repeat(np.minimum.reduceat(gap, start), np.diff(np.append(start, len(owner))))
+        self._near[owner[nearest]] = oxide[nearest]  # (of equally near ones, any will do)
+
     def _bound(self, points: np.ndarray) -> np.ndarray:
-        """Upper bound of each point's distance now: its distance to the nearest oxide point of its old set.
+        """Upper bound of each point's distance now: its distance to the oxide point of its set that was
+        nearest when the set was found.
 
         (The point-to-point distance is one of the feature pairs the distance is
         the smallest of, so this bounds it from above; it is looser than the
         old closest pair by at most a feature's size, which at 100 nm of oxide
         widens the candidate search by hundredths of a nm.)
         """
-        if self.jit:
-            return compiled.vertex_bound(self.grid, self.zm, self.zo, points, self.pair_m, self.pair_o)
-        rows = np.isin(self.pair_m, points)
-        m, o = self.pair_m[rows], self.pair_o[rows]
-        di, dj = self.grid.offsets(m, o)
-        gap = np.sqrt((di * self.grid.dx) ** 2 + (dj * self.grid.dy) ** 2 + (self.zo[o] - self.zm[m]) ** 2)
-        bound = np.full(self.grid.n, np.inf)
-        np.minimum.at(bound, m, gap)
-        return bound[points]
+        return self._vertex_gap(points, self._near[points])
 
     def _split(self, n: int) -> list[slice]:
         """``range(n)`` in consecutive parts, one per thread (at least `POINTS_PER_THREAD` items each)."""
@@ -333,7 +366,7 @@ class FastEngine(Engine):
         low = np.full(shape, np.inf)
         block_low = minimum_filter(self.zo.reshape(shape), size=3, mode=mode) - rise
         low.flat[anchors] = block_low.flat[anchors]
-        reach = math.sqrt(float(self.D.max()) ** 2 + max(self._oxide_reach, float(self._metal_reach.max())) ** 2)
+        reach = math.sqrt(float(self.D.max()) ** 2 + max(self._oxide_reach, self._metal_longest) ** 2)
         size = [min(2 * math.ceil(reach / d) + 1, 2 * n + 1) for d, n in ((g.dx, g.nx), (g.dy, g.ny))]
         near_low = minimum_filter(low, size=size, mode="wrap" if g.periodic else "constant", cval=np.inf)
         high = maximum_filter(self.zm.reshape(shape), size=3, mode=mode)
@@ -369,6 +402,11 @@ class FastEngine(Engine):
             key = np.unique(pm * self.grid.n + po)
             pm, po = key // self.grid.n, key % self.grid.n
         self.pair_m, self.pair_o = pm, po
+        # the nearest set point: among the new rows, and for a tie also the old nearest
+        kept = found[tied]
+        metal = np.concatenate([found[owner[new]], kept])
+        order = np.argsort(metal, kind="stable")
+        self._remember_nearest(metal[order], np.concatenate([oxide[new], self._near[kept]])[order])
         self.D[found] = np.minimum(self.D[found], np.where(closer | tied, distance, np.inf))
 
 

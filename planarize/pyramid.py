@@ -48,17 +48,44 @@ class HeightPyramid:
         """Bounds from the heights ``z`` everywhere."""
         _build(np.asarray(z, dtype=float), self.grid.nx, self.grid.ny, self.shapes, self.offsets, self.low, self.high)
 
-    def ball(self, z: np.ndarray, points: np.ndarray, zq: np.ndarray, radius: np.ndarray):
+    def ball(self, z: np.ndarray, points: np.ndarray, zq: np.ndarray, radius: np.ndarray, cache=None):
         """Grid points within ``radius[q]`` (3-D, nm) of query ``q``, above grid point ``points[q]`` at
         height ``zq[q]``.
 
         Returns (query index, point index, distance) arrays, grouped by query
-        in query order (within a query, in no particular order).
+        in query order (within a query, in no particular order). With a
+        `BallCache` (valid only while no grid point comes closer to a query
+        point: see there), a query point asked before with a radius at least
+        as large is answered from the points found then.
         """
         g = self.grid
+        if cache is None:
+            cache = _NO_CACHE
         return _ball(z, np.asarray(points, dtype=np.intp), np.asarray(zq, dtype=float),
                      np.asarray(radius, dtype=float), g.nx, g.ny, g.dx, g.dy, g.periodic, self.shapes, self.offsets,
-                     self.low, self.high)
+                     self.low, self.high, cache is not _NO_CACHE, cache.points, cache.count, cache.radius,
+                     cache.margin)
+
+
+class BallCache:
+    """What each query point's last pyramid search found, searched a ``margin`` (nm) wider than asked.
+
+    Valid only while the distance between every query point and every grid
+    point can only grow: then a point outside the wider radius then is still
+    outside it, and a later query with a radius up to the wider one needs only
+    the points found. (The fast engine's metal points once the whole oxide
+    lies above the whole metal: metal points only sink, oxide points only
+    rise.) Each query point keeps at most ``capacity`` points.
+    """
+
+    def __init__(self, n: int, margin: float, capacity: int = 48):
+        self.margin = float(margin)
+        self.points = np.zeros((n, capacity), dtype=np.int32)
+        self.count = np.full(n, -1, dtype=np.int32)  # -1: nothing kept
+        self.radius = np.zeros(n)
+
+
+_NO_CACHE = BallCache(0, 0.0, 0)
 
 
 @_jit
@@ -116,8 +143,20 @@ def _near(level, bi, bj, u0, v0, iq, jq, h, r2, ua, ub, va, vb, nx, ny, dx, dy, 
     return hx * hx + hy * hy + hz * hz <= r2
 
 
+@_jit(inline=True)
+def _push(which, found, gap, count, q, k, d):
+    """Append (query ``q``, point ``k``, distance ``d``) at ``count``, growing the arrays if full."""
+    if count == len(which):
+        which = np.concatenate((which, np.empty(count, dtype=np.intp)))
+        found = np.concatenate((found, np.empty(count, dtype=np.intp)))
+        gap = np.concatenate((gap, np.empty(count)))
+    which[count], found[count], gap[count] = q, k, d
+    return which, found, gap
+
+
 @_jit
-def _ball(z, points, zq, radius, nx, ny, dx, dy, periodic, shapes, offsets, low, high):
+def _ball(z, points, zq, radius, nx, ny, dx, dy, periodic, shapes, offsets, low, high, use_cache, kept, kept_count,
+          kept_radius, margin):
     top = len(shapes) - 1
     capacity = 16 * len(points) + 64
     which = np.empty(capacity, dtype=np.intp)
@@ -129,8 +168,26 @@ def _ball(z, points, zq, radius, nx, ny, dx, dy, periodic, shapes, offsets, low,
     runs_i = np.empty((8, 2), dtype=np.intp)
     runs_j = np.empty((8, 2), dtype=np.intp)
     for q in range(len(points)):
-        iq, jq, h, r2 = points[q] // ny, points[q] % ny, zq[q], radius[q] * radius[q]
-        wi, wj = int(radius[q] / dx), int(radius[q] / dy)
+        p = points[q]
+        iq, jq, h, r2 = p // ny, p % ny, zq[q], radius[q] * radius[q]
+        if use_cache and kept_count[p] >= 0 and radius[q] <= kept_radius[p]:
+            for c in range(kept_count[p]):
+                k = kept[p, c]
+                di = k // ny - iq
+                dj = k % ny - jq
+                if periodic:
+                    di = di - nx * ((di + nx // 2) // nx)
+                    dj = dj - ny * ((dj + ny // 2) // ny)
+                ex, ey, ez = di * dx, dj * dy, z[k] - h
+                d2 = ex * ex + ey * ey + ez * ez
+                if d2 <= r2:
+                    which, found, gap = _push(which, found, gap, count, q, k, math.sqrt(d2))
+                    count += 1
+            continue
+        search = radius[q] + margin if use_cache else radius[q]
+        wide2 = search * search  # the blocks and points searched; those within r2 are answered
+        stored = 0
+        wi, wj = int(search / dx), int(search / dy)
         if periodic:  # each point once, at its nearest image
             ua, ub = iq - min(wi, (nx - 1) // 2), iq + min(wi, nx // 2)
             va, vb = jq - min(wj, (ny - 1) // 2), jq + min(wj, ny // 2)
@@ -143,7 +200,7 @@ def _ball(z, points, zq, radius, nx, ny, dx, dy, periodic, shapes, offsets, low,
         depth = 0
         for a in range(_runs(ua, ub, nx, shapes[start, 2], runs_i)):
             for b in range(_runs(va, vb, ny, shapes[start, 2], runs_j)):
-                if _near(start, runs_i[a, 0], runs_j[b, 0], runs_i[a, 1], runs_j[b, 1], iq, jq, h, r2, ua, ub,
+                if _near(start, runs_i[a, 0], runs_j[b, 0], runs_i[a, 1], runs_j[b, 1], iq, jq, h, wide2, ua, ub,
                          va, vb, nx, ny, dx, dy, shapes, offsets, low, high):
                     stack[depth, 0], stack[depth, 1], stack[depth, 2] = start, runs_i[a, 0], runs_j[b, 0]
                     stack[depth, 3], stack[depth, 4] = runs_i[a, 1], runs_j[b, 1]
@@ -158,7 +215,7 @@ def _ball(z, points, zq, radius, nx, ny, dx, dy, periodic, shapes, offsets, low,
                     for cj in range(bj * _FACTOR, min(bj * _FACTOR + _FACTOR, shapes[level - 1, 1])):
                         cu0 = u0 + ci * child - bi * size
                         cv0 = v0 + cj * child - bj * size
-                        if _near(level - 1, ci, cj, cu0, cv0, iq, jq, h, r2, ua, ub, va, vb, nx, ny, dx, dy, shapes,
+                        if _near(level - 1, ci, cj, cu0, cv0, iq, jq, h, wide2, ua, ub, va, vb, nx, ny, dx, dy, shapes,
                                  offsets, low, high):
                             stack[depth, 0], stack[depth, 1], stack[depth, 2] = level - 1, ci, cj
                             stack[depth, 3], stack[depth, 4] = cu0, cv0
@@ -174,12 +231,14 @@ def _ball(z, points, zq, radius, nx, ny, dx, dy, periodic, shapes, offsets, low,
                     k = row + bj * size + v - v0
                     ez = z[k] - h
                     d2 = ex * ex + ey * ey + ez * ez
+                    if use_cache and d2 <= wide2:
+                        if stored < kept.shape[1]:
+                            kept[p, stored] = k
+                        stored += 1
                     if d2 <= r2:
-                        if count == capacity:
-                            capacity *= 2
-                            which = np.concatenate((which, np.empty(capacity - count, dtype=np.intp)))
-                            found = np.concatenate((found, np.empty(capacity - count, dtype=np.intp)))
-                            gap = np.concatenate((gap, np.empty(capacity - count)))
-                        which[count], found[count], gap[count] = q, k, math.sqrt(d2)
+                        which, found, gap = _push(which, found, gap, count, q, k, math.sqrt(d2))
                         count += 1
+        if use_cache:
+            kept_count[p] = stored if stored <= kept.shape[1] else -1
+            kept_radius[p] = search
     return which[:count], found[:count], gap[:count]

@@ -6,7 +6,7 @@ import pytest
 from planarize import Surface, anodize, compiled, scenes
 from planarize.features import FeatureKernel, closest_sets
 from planarize.grid import Grid
-from planarize.pyramid import HeightPyramid
+from planarize.pyramid import BallCache, HeightPyramid
 
 pytestmark = pytest.mark.skipif(not compiled.AVAILABLE, reason="numba is not installed")
 
@@ -80,6 +80,39 @@ def test_pyramid_ball_finds_exactly_the_points_within_reach(shape, periodic, rng
     assert sorted(zip(q.tolist(), p.tolist())) == sorted(zip(eq.tolist(), ep.tolist()))
 
 
+@pytest.mark.parametrize("periodic", [False, True])
+def test_kept_searches_answer_like_fresh_ones_while_distances_grow(periodic, rng):
+    grid = Grid((23, 19), (2.0, 1.5), periodic)
+    z = rng.normal(scale=0.5, size=grid.n) + 5.0  # the searched surface lies above every query point
+    pyramid = HeightPyramid(grid, z)
+    cache = BallCache(grid.n, margin=0.5, capacity=12)  # small: some queries overflow and are not kept
+    points = rng.permutation(grid.n)[:150]
+    zq = rng.normal(scale=0.5, size=len(points))
+    radius = rng.uniform(5.0, 6.0, len(points))
+    for sweep in range(6):
+        kept = pyramid.ball(z, points, zq, radius, cache=cache)
+        fresh = pyramid.ball(z, points, zq, radius)
+        assert sorted(zip(*(a.tolist() for a in kept))) == sorted(zip(*(a.tolist() for a in fresh)))
+        if sweep == 0:
+            assert np.any(cache.count >= 0) and np.any(cache.count[points] < 0)
+        # the surface rises and the query points sink: every distance grows; radii grow, some past the margin
+        z = z + rng.uniform(0.0, 0.3, grid.n)
+        pyramid.rebuild(z)
+        zq = zq - rng.uniform(0.0, 0.2, len(points))
+        radius = radius + rng.uniform(0.0, 0.4, len(points))
+
+
+def test_kept_searches_leave_a_thick_oxide_run_unchanged():
+    surface = Surface(np.random.default_rng(3).normal(scale=0.1, size=(12, 12)), 0.5, "periodic")
+    kwargs = dict(step=0.05, record=5)
+    compiled_run = anodize(surface, 1.0, jit=True, **kwargs)
+    numpy_run = anodize(surface, 1.0, jit=False, **kwargs)
+    np.testing.assert_array_equal(compiled_run.metal.z, numpy_run.metal.z)
+    np.testing.assert_array_equal(compiled_run.oxide.z, numpy_run.oxide.z)
+    np.testing.assert_array_equal(compiled_run.distances, numpy_run.distances)
+    assert compiled_run.metal.z.max() < compiled_run.oxide.z.min()  # the searches were kept for a while
+
+
 @pytest.mark.parametrize("boundary,distance", CASES)
 def test_fast_engine_runs_identically_with_and_without_jit(boundary, distance):
     surface = Surface(scenes.hill().z, 0.25, boundary)
@@ -99,18 +132,27 @@ def test_jit_without_numba_is_a_clear_error(monkeypatch):
 
 
 @pytest.mark.parametrize("boundary,distance", CASES)
-def test_star_reach_near_matches_the_numpy_reach_bit_for_bit(boundary, distance, rng):
+def test_star_reach_matches_the_numpy_reach_bit_for_bit(boundary, distance, rng):
     from planarize.fast import FastEngine
 
     surface = Surface(rng.normal(scale=0.4, size=(9, 8)), (0.5, 0.35), boundary)
-    engine = FastEngine(surface, distance=distance)
-    kernel = engine.kernel
+    kernel = FastEngine(surface, distance=distance).kernel
     z = surface.z.ravel().copy()
-    reach = kernel.star_reach(z)
-    moved = rng.choice(engine.grid.n, 12, replace=False)
-    z[moved] -= rng.uniform(0.0, 2.0, len(moved))  # steep new edges at and around the moved points
-    compiled.star_reach_near(kernel, z, moved, engine._neighbour_table, reach)
-    np.testing.assert_array_equal(reach, kernel.star_reach(z))
+    moved = rng.choice(z.size, 12, replace=False)
+    z[moved] -= rng.uniform(0.0, 2.0, len(moved))  # steep edges at and around the moved points
+    points = rng.permutation(z.size)[:40]
+    np.testing.assert_array_equal(compiled.star_reach(kernel, z, points), kernel.star_reach(z, points))
+
+
+@pytest.mark.parametrize("distance", ["thesis", "exact"])
+def test_longest_edge_bounds_hold_between_measurements(distance):
+    from planarize.fast import FastEngine
+
+    engine = FastEngine(scenes.hill(), step=0.05, distance=distance)
+    for _ in range(30):
+        engine.advance()
+        assert engine._metal_longest >= engine.kernel.max_feature_length(engine.zm)
+        assert engine._oxide_longest >= engine.kernel.max_feature_length(engine.zo)
 
 
 @pytest.mark.parametrize("distance", ["thesis", "exact"])
