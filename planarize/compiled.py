@@ -64,6 +64,65 @@ def _foot(px, py, pz, ax, ay, az, bx, by, bz):
     return math.sqrt(max(d2, 0.0))
 
 
+@_jit(inline=True)
+def _nearest_image(di, dj, nx, ny, periodic):
+    """Grid offsets ``di, dj`` (each within the grid's size) of the nearest periodic image:
+    ``di - nx * floor((di + nx // 2) / nx)`` as `Grid.offsets` has it, without a division."""
+    if periodic:
+        if di + nx // 2 >= nx:
+            di -= nx
+        elif di + nx // 2 < 0:
+            di += nx
+        if dj + ny // 2 >= ny:
+            dj -= ny
+        elif dj + ny // 2 < 0:
+            dj += ny
+    return di, dj
+
+
+@_jit(inline=True)
+def _own_segments(seg, zm, m, dx, dy, edge_nb, step_i, step_j):
+    """The 4 grid segments at metal point ``m``, relative to it, as `_segments` orients them: row ``e`` of
+    ``seg`` holds the start, direction and squared length (or a negative length: no segment there). They are
+    the same for every anchor paired with ``m``, so they are set up once per metal point."""
+    zref = zm[m]
+    for e in range(4):
+        u = edge_nb[m, e]
+        if u < 0:
+            seg[e, 6] = -1.0
+            continue
+        tx, ty, tz = step_i[e] * dx, step_j[e] * dy, zm[u] - zref
+        if step_i[e] + step_j[e] > 0:  # from m to u
+            ax, ay, az, bx, by, bz = 0.0, 0.0, 0.0, tx, ty, tz
+        else:
+            ax, ay, az, bx, by, bz = tx, ty, tz, 0.0, 0.0, 0.0
+        ux, uy, uz = bx - ax, by - ay, bz - az
+        seg[e, 0], seg[e, 1], seg[e, 2], seg[e, 3], seg[e, 4], seg[e, 5] = ax, ay, az, ux, uy, uz
+        seg[e, 6] = ux * ux + uy * uy + uz * uz
+
+
+@_jit(inline=True)
+def _own_feet(out, r, first, px, py, pz, seg):
+    """Slots ``out[r, first .. first + 3]``: `_foot` of point p on the 4 segments set up by `_own_segments`."""
+    for e in range(4):
+        length2 = seg[e, 6]
+        if length2 < 0:
+            out[r, first + e] = _INF
+            continue
+        ux, uy, uz = seg[e, 3], seg[e, 4], seg[e, 5]
+        wx, wy, wz = px - seg[e, 0], py - seg[e, 1], pz - seg[e, 2]
+        along = wx * ux + wy * uy + wz * uz
+        if not 0 < along < length2:
+            out[r, first + e] = _INF
+            continue
+        t = along / length2
+        if not 0 < t < 1:
+            out[r, first + e] = _INF
+            continue
+        d2 = wx * wx + wy * wy + wz * wz - t * along
+        out[r, first + e] = math.sqrt(max(d2, 0.0))
+
+
 @_jit
 def _segment(px, py, pz, ax, ay, az, bx, by, bz):
     """`planarize.geometry.point_segment_xyz` for one point: (distance, t)."""
@@ -145,14 +204,12 @@ def _facets(out, r, first, px, py, pz, z, k, di, dj, zref, dx, dy, quad_cell, qu
 
 @_jit(inline=True)
 def _pair_slots(out, r, zm, zo, m, v, do_oxide, do_metal, exact, nx, ny, periodic, dx, dy, edge_nb, quad_cell,
-                quad_corners, cell_corners, step_i, step_j, quad_i, quad_j, centre_i, centre_j):
-    """`FeatureKernel.distances` of one (metal ``m``, anchor ``v``) pair, into row ``r`` of ``out`` (filled with
-    inf). (Rows are passed as (array, index), not as views: a view per pair costs more than the pair.)"""
-    di = v // ny - m // ny
-    dj = v % ny - m % ny
-    if periodic:
-        di = di - nx * ((di + nx // 2) // nx)
-        dj = dj - ny * ((dj + ny // 2) // ny)
+                quad_corners, cell_corners, step_i, step_j, quad_i, quad_j, centre_i, centre_j, own, mi, mj):
+    """`FeatureKernel.distances` of one (metal ``m`` at row ``mi``, column ``mj``, anchor ``v``) pair, into row
+    ``r`` of ``out`` (filled with inf). (Rows are passed as (array, index), not as views: a view per pair costs
+    more than the pair.)"""
+    vi = v // ny
+    di, dj = _nearest_image(vi - mi, v - vi * ny - mj, nx, ny, periodic)
     zref = zm[m]
     vx, vy, vz = di * dx, dj * dy, zo[v] - zref
     if do_oxide:
@@ -162,7 +219,7 @@ def _pair_slots(out, r, zm, zo, m, v, do_oxide, do_metal, exact, nx, ny, periodi
             _facets(out, r, 9, 0.0, 0.0, 0.0, zo, v, di, dj, zref, dx, dy, quad_cell, quad_corners, cell_corners,
                     quad_i, quad_j, centre_i, centre_j)
     if do_metal:
-        _segments(out, r, 5, vx, vy, vz, zm, m, 0, 0, zref, dx, dy, edge_nb, step_i, step_j)
+        _own_feet(out, r, 5, vx, vy, vz, own)  # = _segments(out, r, 5, vx, vy, vz, zm, m, 0, 0, zref, ...)
         if exact:
             _facets(out, r, 21, vx, vy, vz, zm, m, 0, 0, zref, dx, dy, quad_cell, quad_corners, cell_corners,
                     quad_i, quad_j, centre_i, centre_j)
@@ -222,6 +279,7 @@ def _closest_sets(zm, zo, m, v, tie, do_oxide, do_metal, n_slots, exact, nx, ny,
     oxide = np.empty(4 * n_groups, dtype=np.intp)
     found = np.empty(64, dtype=np.intp)
     dist = np.empty((16, n_slots))  # one group's pairs at a time: stays in cache
+    own = np.empty((4, 7))
     n_out = 0
     start = 0
     for g in range(n_groups):
@@ -230,13 +288,16 @@ def _closest_sets(zm, zo, m, v, tie, do_oxide, do_metal, n_slots, exact, nx, ny,
             stop += 1
         if stop - start > len(dist):
             dist = np.empty((2 * (stop - start), n_slots))
+        _own_segments(own, zm, m[start], dx, dy, edge_nb, step_i, step_j)
+        mi = m[start] // ny
+        mj = m[start] - mi * ny
         low = _INF
         for r in range(start, stop):
             row = r - start
             dist[row, :] = _INF
             _pair_slots(dist, row, zm, zo, m[r], v[r], do_oxide[r], do_metal[r], exact, nx, ny, periodic, dx, dy,
                         edge_nb, quad_cell, quad_corners, cell_corners, step_i, step_j, quad_i, quad_j, centre_i,
-                        centre_j)
+                        centre_j, own, mi, mj)
             for s in range(n_slots):
                 low = min(low, dist[row, s])
         points[g] = m[start]
@@ -336,6 +397,19 @@ def _batch(distance, tolerance, tie, neighbours, pair_m, pair_o):
     for p in range(n):
         if distance[p] <= low + tolerance:
             d[p] = distance[p]
+    set_size = np.zeros(n, dtype=np.intp)
+    sharers = np.zeros(n, dtype=np.intp)
+    first = np.full(n, _INF)
+    candidate_rows = np.empty(len(pair_m), dtype=np.intp)
+    n_rows = 0
+    for r in range(len(pair_m)):  # the one pass over every set row
+        m, o = pair_m[r], pair_o[r]
+        set_size[m] += 1
+        sharers[o] += 1
+        if d[m] < _INF:
+            first[o] = min(first[o], d[m])
+            candidate_rows[n_rows] = r
+            n_rows += 1
     rival = np.full(n, _INF)
     for p in range(n):
         if d[p] < _INF:
@@ -343,24 +417,87 @@ def _batch(distance, tolerance, tie, neighbours, pair_m, pair_o):
                 u = neighbours[p, b]
                 if u >= 0:
                     rival[p] = min(rival[p], d[u])
-    first = np.full(n, _INF)
-    for r in range(len(pair_m)):
-        first[pair_o[r]] = min(first[pair_o[r]], d[pair_m[r]])
-    for r in range(len(pair_m)):
-        m = pair_m[r]
-        if d[m] < _INF:
-            rival[m] = min(rival[m], first[pair_o[r]])
+    for a in range(n_rows):
+        r = candidate_rows[a]
+        rival[pair_m[r]] = min(rival[pair_m[r]], first[pair_o[r]])
     out = np.zeros(n, dtype=np.bool_)
     for p in range(n):
         out[p] = d[p] < _INF and not rival[p] < d[p] - tie
-    return out
+    rows = np.empty(n_rows, dtype=np.intp)
+    count = 0
+    for a in range(n_rows):
+        r = candidate_rows[a]
+        if out[pair_m[r]]:
+            rows[count] = r
+            count += 1
+    rows = rows[:count]
+    row_size = np.empty(count)
+    row_sharers = np.empty(count)
+    for a in range(count):
+        row_size[a] = set_size[pair_m[rows[a]]]
+        row_sharers[a] = sharers[pair_o[rows[a]]]
+    return out, rows, row_size, row_sharers
 
 
-def batch(distance, tolerance: float, tie: float, neighbours, pair_m, pair_o) -> np.ndarray:
+def batch(distance, tolerance: float, tie: float, neighbours, pair_m, pair_o):
     """`FastEngine._batch`, compiled: the points within ``tolerance`` of the smallest ``distance`` that
     no interacting candidate (a neighbour in ``neighbours``, or a sharer of an oxide point through the
-    set rows ``pair_m``, ``pair_o``) is more than ``tie`` closer than (boolean mask)."""
+    set rows ``pair_m``, ``pair_o``) is more than ``tie`` closer than (boolean mask); their set rows
+    (ascending), and for each row its set's size and its oxide point's number of sharers."""
     return _batch(distance, float(tolerance), float(tie), neighbours, pair_m, pair_o)
+
+
+@_jit
+def _stale(in_batch, raised, neighbours, pair_m, pair_o):
+    n = len(in_batch)
+    stale = in_batch.copy()
+    for p in range(n):
+        if in_batch[p]:
+            for b in range(neighbours.shape[1]):
+                u = neighbours[p, b]
+                if u >= 0:
+                    stale[u] = True
+    is_raised = np.zeros(n, dtype=np.bool_)
+    for a in range(len(raised)):
+        is_raised[raised[a]] = True
+    for r in range(len(pair_m)):
+        if is_raised[pair_o[r]]:
+            stale[pair_m[r]] = True
+    return stale
+
+
+def stale(in_batch, raised, neighbours, pair_m, pair_o) -> np.ndarray:
+    """`FastEngine._stale`, compiled: the oxidized points, their ``neighbours`` and the points whose set
+    (rows ``pair_m``, ``pair_o``) holds a ``raised`` oxide point (boolean mask)."""
+    return _stale(in_batch, np.asarray(raised, dtype=np.intp), neighbours, pair_m, pair_o)
+
+
+@_jit
+def _replace_rows(pair_m, pair_o, points, owner, oxide, n):
+    drop = np.zeros(n, dtype=np.bool_)
+    for a in range(len(points)):
+        drop[points[a]] = True
+    keep = 0
+    for r in range(len(pair_m)):
+        if not drop[pair_m[r]]:
+            keep += 1
+    new_m = np.empty(keep + len(owner), dtype=np.intp)
+    new_o = np.empty(keep + len(owner), dtype=np.intp)
+    c = 0
+    for r in range(len(pair_m)):
+        if not drop[pair_m[r]]:
+            new_m[c], new_o[c] = pair_m[r], pair_o[r]
+            c += 1
+    new_m[c:] = owner
+    new_o[c:] = oxide
+    return new_m, new_o
+
+
+def replace_rows(pair_m, pair_o, points, owner, oxide, n: int):
+    """The set rows ``pair_m, pair_o`` without those of ``points``, then the rows ``owner, oxide``
+    appended (``n``: the number of metal points): `FastEngine._replace_rows`, compiled."""
+    return _replace_rows(pair_m, pair_o, np.asarray(points, dtype=np.intp), np.asarray(owner, dtype=np.intp),
+                         np.asarray(oxide, dtype=np.intp), n)
 
 
 @_jit
@@ -368,11 +505,8 @@ def _vertex_gap(metal, oxide, zm, zo, nx, ny, dx, dy, periodic):
     gap = np.empty(len(metal))
     for a in range(len(metal)):
         m, o = metal[a], oxide[a]
-        di = o // ny - m // ny
-        dj = o % ny - m % ny
-        if periodic:
-            di = di - nx * ((di + nx // 2) // nx)
-            dj = dj - ny * ((dj + ny // 2) // ny)
+        mi, oi = m // ny, o // ny
+        di, dj = _nearest_image(oi - mi, (o - oi * ny) - (m - mi * ny), nx, ny, periodic)
         ex, ey, ez = di * dx, dj * dy, zo[o] - zm[m]
         gap[a] = math.sqrt(ex * ex + ey * ey + ez * ez)
     return gap

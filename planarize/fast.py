@@ -229,11 +229,16 @@ class FastEngine(Engine):
         found, distance, owner, oxide = (np.concatenate(column) for column in zip(*parts))
         self.D[found] = distance
         self._remember_nearest(owner, oxide)
+        self.pair_m, self.pair_o = self._replace_rows(points, owner, oxide)
+
+    def _replace_rows(self, points: np.ndarray, owner: np.ndarray, oxide: np.ndarray):
+        """The set rows without those of ``points``, with the rows ``owner, oxide`` appended."""
+        if self.jit:
+            return compiled.replace_rows(self.pair_m, self.pair_o, points, owner, oxide, self.grid.n)
         keep = np.ones(self.grid.n, dtype=bool)
         keep[points] = False
         keep = keep[self.pair_m]
-        self.pair_m = np.concatenate([self.pair_m[keep], owner])
-        self.pair_o = np.concatenate([self.pair_o[keep], oxide])
+        return np.concatenate([self.pair_m[keep], owner]), np.concatenate([self.pair_o[keep], oxide])
 
     def _closest_within(self, search, points: np.ndarray, bound: np.ndarray):
         """`_recompute`'s work for ``points``: (points, distances, set rows' metal points, their oxide points)."""
@@ -305,35 +310,40 @@ class FastEngine(Engine):
     # -- one sweep -------------------------------------------------------------------------
 
     def advance(self) -> None:
-        n = self.grid.n
-        in_batch = self._batch()
-        rows = in_batch[self.pair_m]
-        owner, oxide = self.pair_m[rows], self.pair_o[rows]
-        set_size = np.bincount(self.pair_m, minlength=n)[owner].astype(float)
-        sharers = np.bincount(self.pair_o, minlength=n)[oxide].astype(float)
-        raised, lowered, rise = self.oxidize(owner, oxide, set_size, sharers, self.step)
+        in_batch, rows, set_size, sharers = self._batch()
+        raised, lowered, rise = self.oxidize(self.pair_m[rows], self.pair_o[rows], set_size, sharers, self.step)
         self._update_reaches(lowered, raised)
         # points whose own features or whose oxide points moved: from scratch
-        is_raised = np.zeros(n, dtype=bool)
-        is_raised[raised] = True
-        stale = np.zeros(n, dtype=bool)
-        batch = np.flatnonzero(in_batch)
-        stale[batch] = True
-        for k in self._neighbours:  # the points sharing a feature with an oxidized one
-            stale[k[batch][k[batch] >= 0]] = True
-        stale[self.pair_m[is_raised[self.pair_o]]] = True
+        stale = self._stale(in_batch, raised)
         points = np.flatnonzero(stale)
         self._recompute(points, self._bound(points))
         # the others near a raised oxide point: take it if it is now as close or closer
         self._take_closer(raised, stale, rise)
 
-    def _batch(self) -> np.ndarray:
+    def _stale(self, in_batch: np.ndarray, raised: np.ndarray) -> np.ndarray:
+        """The points whose distance may have grown (boolean mask): the oxidized ones, the points sharing
+        a feature with one, and the points whose set holds a ``raised`` oxide point."""
+        if self.jit:
+            return compiled.stale(in_batch, raised, self._neighbour_table, self.pair_m, self.pair_o)
+        is_raised = np.zeros(self.grid.n, dtype=bool)
+        is_raised[raised] = True
+        stale = in_batch.copy()
+        batch = np.flatnonzero(in_batch)
+        for k in self._neighbours:
+            stale[k[batch][k[batch] >= 0]] = True
+        stale[self.pair_m[is_raised[self.pair_o]]] = True
+        return stale
+
+    def _batch(self):
         """The points to oxidize now: within ``tolerance`` of the smallest distance, and each the
         closest among the candidates it interacts with (shares an oxide point or a feature with).
 
         Interacting points are oxidized one after the other, as in the sequential algorithm
         (oxidizing them together biases the result: it planarizes too fast); points that do
         not interact commute, so oxidizing them together changes nothing.
+
+        Returns the points (boolean mask), their set rows (ascending), and for each row the size
+        of its set and the number of sets holding its oxide point (Eq 3.9's shares).
         """
         if self.jit:
             return compiled.batch(self.D, self.tolerance, self.tie, self._neighbour_table, self.pair_m, self.pair_o)
@@ -347,7 +357,11 @@ class FastEngine(Engine):
         np.minimum.at(first, self.pair_o[rows], d[self.pair_m[rows]])
         np.minimum.at(rival, self.pair_m[rows], first[self.pair_o[rows]])
         # exact ties go together (as in the reference); a strictly closer rival makes a point wait
-        return np.isfinite(d) & ~(rival < d - self.tie)
+        in_batch = np.isfinite(d) & ~(rival < d - self.tie)
+        rows = np.flatnonzero(in_batch[self.pair_m])
+        set_size = np.bincount(self.pair_m, minlength=g.n)[self.pair_m[rows]].astype(float)
+        sharers = np.bincount(self.pair_o, minlength=g.n)[self.pair_o[rows]].astype(float)
+        return in_batch, rows, set_size, sharers
 
     def _below_raised(self, anchors: np.ndarray, rise: float) -> np.ndarray:
         """Metal points that a raised feature may have come closer to (boolean, shape (n,)).

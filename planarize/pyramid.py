@@ -19,7 +19,7 @@ import math
 
 import numpy as np
 
-from .compiled import _jit
+from .compiled import _jit, _nearest_image
 
 _FACTOR = 2
 
@@ -173,11 +173,8 @@ def _ball(z, points, zq, radius, nx, ny, dx, dy, periodic, shapes, offsets, low,
         if use_cache and kept_count[p] >= 0 and radius[q] <= kept_radius[p]:
             for c in range(kept_count[p]):
                 k = kept[p, c]
-                di = k // ny - iq
-                dj = k % ny - jq
-                if periodic:
-                    di = di - nx * ((di + nx // 2) // nx)
-                    dj = dj - ny * ((dj + ny // 2) // ny)
+                ki = k // ny
+                di, dj = _nearest_image(ki - iq, k - ki * ny - jq, nx, ny, periodic)
                 ex, ey, ez = di * dx, dj * dy, z[k] - h
                 d2 = ex * ex + ey * ey + ez * ez
                 if d2 <= r2:

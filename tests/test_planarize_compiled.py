@@ -202,7 +202,10 @@ def test_compiled_batch_and_bound_match_numpy(boundary, distance, rng):
         # distances with exact ties and a spread around the tolerance
         distance_now = np.round(rng.uniform(0.0, 0.2, surface.z.size), 2)
         jit.D[:], plain.D[:] = distance_now, distance_now
-        np.testing.assert_array_equal(jit._batch(), plain._batch())
+        for got, expected in zip(jit._batch(), plain._batch()):
+            np.testing.assert_array_equal(got, expected)
+        raised = rng.choice(surface.z.size, 7, replace=False)
+        np.testing.assert_array_equal(jit._stale(jit._batch()[0], raised), plain._stale(plain._batch()[0], raised))
         points = np.sort(rng.choice(surface.z.size, 30, replace=False))
         np.testing.assert_array_equal(jit._bound(points), plain._bound(points))
         jit.advance()
