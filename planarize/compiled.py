@@ -448,6 +448,22 @@ def batch(distance, tolerance: float, tie: float, neighbours, pair_m, pair_o):
 
 
 @_jit
+def _within(which, gap, r_ox, r_me):
+    oxide = np.empty(len(which), dtype=np.bool_)
+    metal = np.empty(len(which), dtype=np.bool_)
+    for a in range(len(which)):
+        oxide[a] = gap[a] <= r_ox[which[a]]
+        metal[a] = gap[a] <= r_me[which[a]]
+    return oxide, metal
+
+
+def within(which, gap, r_ox, r_me):
+    """For search results (query ``which``, distance ``gap``): within the query's oxide radius ``r_ox``,
+    and within its metal radius ``r_me`` (two boolean arrays)."""
+    return _within(which, gap, r_ox, r_me)
+
+
+@_jit
 def _stale(in_batch, raised, neighbours, pair_m, pair_o):
     n = len(in_batch)
     stale = in_batch.copy()

@@ -189,10 +189,9 @@ class FastEngine(Engine):
 
     # -- distances -------------------------------------------------------------------------
 
-    def _candidates(self, search, points: np.ndarray, bound: np.ndarray):
-        """(query index, anchor, oxide slots?, metal slots?) of the pairs that can hold a feature
-        closer than ``bound[i]`` to metal point ``points[i]``; ``search(points, z, radius)`` lists
-        the grid points within ``radius[i]`` of ``(points[i], z[i])`` as (query index, point, distance).
+    def _radii(self, points: np.ndarray, bound: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Search radii (oxide features, metal features) around metal points ``points`` for the
+        features that can be closer than ``bound[i]`` to them.
 
         An oxide feature closer than ``B`` to metal point ``m`` has a grid point
         within ``sqrt(B^2 + R^2)`` of ``m``, ``R`` = `FeatureKernel.oxide_reach`;
@@ -204,7 +203,15 @@ class FastEngine(Engine):
         inflate = 1 + 1e-12
         r_ox = np.sqrt(bound**2 + self._oxide_reach**2) * inflate + self.tie
         r_me = np.sqrt(bound**2 + self._star(self.zm, points) ** 2) * inflate + self.tie
+        return r_ox, r_me
+
+    def _candidates(self, search, points: np.ndarray, r_ox: np.ndarray, r_me: np.ndarray):
+        """(query index, anchor, oxide slots?, metal slots?) of the pairs within the radii `_radii` of
+        metal points ``points``; ``search(points, z, radius)`` lists the grid points within
+        ``radius[i]`` of ``(points[i], z[i])`` as (query index, point, distance)."""
         which, anchors, gap = search(points, self.zm[points], np.maximum(r_ox, r_me))
+        if self.jit:  # (in a thread: compiled code runs without the GIL, numpy's small steps hold it)
+            return (which, anchors) + compiled.within(which, gap, r_ox, r_me)
         return which, anchors, gap <= r_ox[which], gap <= r_me[which]
 
     def _tree_search(self, points=None, k: int = 16):
@@ -224,7 +231,8 @@ class FastEngine(Engine):
         else:
             self._pyramid.rebuild(self.zo)
             search = functools.partial(self._pyramid.ball, self.zo, cache=self._ball_cache())
-        parts = self._map(lambda part: self._closest_within(search, points[part], bound[part]),
+        r_ox, r_me = self._radii(points, bound)
+        parts = self._map(lambda part: self._closest_within(search, points[part], r_ox[part], r_me[part]),
                           self._split(len(points)))
         found, distance, owner, oxide = (np.concatenate(column) for column in zip(*parts))
         self.D[found] = distance
@@ -240,10 +248,14 @@ class FastEngine(Engine):
         keep = keep[self.pair_m]
         return np.concatenate([self.pair_m[keep], owner]), np.concatenate([self.pair_o[keep], oxide])
 
-    def _closest_within(self, search, points: np.ndarray, bound: np.ndarray):
+    def _closest_within(self, search, points: np.ndarray, r_ox: np.ndarray, r_me: np.ndarray):
         """`_recompute`'s work for ``points``: (points, distances, set rows' metal points, their oxide points)."""
-        which, anchors, oxide_slots, metal_slots = self._candidates(search, points, bound)
+        which, anchors, oxide_slots, metal_slots = self._candidates(search, points, r_ox, r_me)
         metal = points[which]
+        if len(which) <= CHUNK_PAIRS:
+            found, distance, owner, oxide = self._closest(self.kernel, self.zm, self.zo, metal, anchors, self.tie,
+                                                          oxide_slots, metal_slots)
+            return found, distance, found[owner], oxide
         lengths = np.bincount(which, minlength=len(points))
         starts = np.concatenate([[0], np.cumsum(lengths)])
         found, distance, owner, oxide = [], [], [], []
@@ -397,7 +409,7 @@ class FastEngine(Engine):
             return
         # (few raised points are near any one metal point: a short k-nearest query, ball queries for the rest)
         which, anchor, oxide_slots, metal_slots = self._candidates(self._tree_search(anchors, k=4), metal,
-                                                                   self.D[metal] + self.tie)
+                                                                   *self._radii(metal, self.D[metal] + self.tie))
         if not len(which):
             return
         found, distance, owner, oxide = self._closest(self.kernel, self.zm, self.zo, metal[which], anchors[anchor],
