@@ -17,7 +17,10 @@ than ``B`` must have a grid point within ``sqrt(B^2 + L^2)`` (``L`` the
 longest feature edge), so a ball query of the oxide points lists every
 candidate: a height pyramid (`planarize.pyramid`) and the compiled kernel
 (`planarize.compiled`) when numba is installed, split over ``threads``
-threads, else a KD-tree and the numpy kernel. The results are the same bit
+threads, else a KD-tree and the numpy kernel. A metal point below the whole
+oxide only moves away from every oxide point from then on, so its search,
+made a little wider, is kept and answers its later searches up to that
+radius (`planarize.pyramid.BallCache`). The results are the same bit
 for bit either way and for any thread count. Periodic grids take the
 nearest periodic image in x and y.
 
@@ -95,7 +98,8 @@ class FastEngine(Engine):
         self.threads = int(threads) if self.jit else 1
         self._closest = compiled.closest_sets if self.jit else features.closest_sets
         self._pyramid = HeightPyramid(self.grid, self.zo) if self.jit else None
-        self._cache = None  # candidate searches kept once distances can only grow (`_ball_cache`)
+        # candidate searches of metal points below the whole oxide, kept (their distances can only grow)
+        self._cache = BallCache(self.grid.n, CACHE_MARGIN * self.step) if self.jit else None
         g = self.grid
         self._x = g.i * g.dx
         self._y = g.j * g.dy
@@ -230,7 +234,7 @@ class FastEngine(Engine):
             search = self._tree_search()
         else:
             self._pyramid.rebuild(self.zo)
-            search = functools.partial(self._pyramid.ball, self.zo, cache=self._ball_cache())
+            search = functools.partial(self._pyramid.ball, self.zo, cache=self._cache)
         r_ox, r_me = self._radii(points, bound)
         parts = self._map(lambda part: self._closest_within(search, points[part], r_ox[part], r_me[part]),
                           self._split(len(points)))
@@ -268,19 +272,6 @@ class FastEngine(Engine):
             owner.append(f[ow])
             oxide.append(ox)
         return tuple(np.concatenate(column) for column in (found, distance, owner, oxide))
-
-    def _ball_cache(self) -> BallCache | None:
-        """The kept candidate searches, once the whole oxide lies above the whole metal (else None).
-
-        From then on metal points only sink and oxide points only rise, so
-        every metal-oxide grid distance only grows and a search's result stays
-        a superset of any later search up to the same radius (`BallCache`);
-        the state then lasts, since the metal's top only falls and the oxide's
-        bottom only rises.
-        """
-        if self._cache is None and float(self.zm.max()) + self.tie < float(self.zo.min()):
-            self._cache = BallCache(self.grid.n, CACHE_MARGIN * self.step)
-        return self._cache
 
     def _vertex_gap(self, metal: np.ndarray, oxide: np.ndarray) -> np.ndarray:
         """Distance between metal and oxide grid points (nearest periodic image), nm."""

@@ -54,9 +54,10 @@ class HeightPyramid:
 
         Returns (query index, point index, distance) arrays, grouped by query
         in query order (within a query, in no particular order). With a
-        `BallCache` (valid only while no grid point comes closer to a query
-        point: see there), a query point asked before with a radius at least
-        as large is answered from the points found then.
+        `BallCache`, a query point asked before with a radius at least as
+        large is answered from the points found then; the caller guarantees
+        that between calls query points only sink and grid points only rise
+        (see `BallCache`).
         """
         g = self.grid
         if cache is None:
@@ -70,12 +71,12 @@ class HeightPyramid:
 class BallCache:
     """What each query point's last pyramid search found, searched a ``margin`` (nm) wider than asked.
 
-    Valid only while the distance between every query point and every grid
-    point can only grow: then a point outside the wider radius then is still
-    outside it, and a later query with a radius up to the wider one needs only
-    the points found. (The fast engine's metal points once the whole oxide
-    lies above the whole metal: metal points only sink, oxide points only
-    rise.) Each query point keeps at most ``capacity`` points.
+    A search is kept only for a query point below every grid point: if from
+    then on query points only sink and grid points only rise (the fast
+    engine's metal and oxide), its distance to every grid point only grows, so
+    a point outside the wider radius then is still outside it, and a later
+    query with a radius up to the wider one needs only the points found.
+    Each query point keeps at most ``capacity`` points.
     """
 
     def __init__(self, n: int, margin: float, capacity: int = 48):
@@ -165,6 +166,9 @@ def _ball(z, points, zq, radius, nx, ny, dx, dy, periodic, shapes, offsets, low,
     count = 0
     # entries: level, block i, block j, unwrapped first row, unwrapped first column (blocks already tested)
     stack = np.empty((64 + 16 * len(shapes), 5), dtype=np.intp)
+    floor = np.inf  # the lowest grid point: searches from below it can be kept
+    for b in range(offsets[top], offsets[top + 1]):
+        floor = min(floor, low[b])
     runs_i = np.empty((8, 2), dtype=np.intp)
     runs_j = np.empty((8, 2), dtype=np.intp)
     for q in range(len(points)):
@@ -181,7 +185,8 @@ def _ball(z, points, zq, radius, nx, ny, dx, dy, periodic, shapes, offsets, low,
                     which, found, gap = _push(which, found, gap, count, q, k, math.sqrt(d2))
                     count += 1
             continue
-        search = radius[q] + margin if use_cache else radius[q]
+        keep = use_cache and h < floor
+        search = radius[q] + margin if keep else radius[q]
         wide2 = search * search  # the blocks and points searched; those within r2 are answered
         stored = 0
         wi, wj = int(search / dx), int(search / dy)
@@ -228,14 +233,14 @@ def _ball(z, points, zq, radius, nx, ny, dx, dy, periodic, shapes, offsets, low,
                     k = row + bj * size + v - v0
                     ez = z[k] - h
                     d2 = ex * ex + ey * ey + ez * ez
-                    if use_cache and d2 <= wide2:
+                    if keep and d2 <= wide2:
                         if stored < kept.shape[1]:
                             kept[p, stored] = k
                         stored += 1
                     if d2 <= r2:
                         which, found, gap = _push(which, found, gap, count, q, k, math.sqrt(d2))
                         count += 1
-        if use_cache:
+        if keep:
             kept_count[p] = stored if stored <= kept.shape[1] else -1
             kept_radius[p] = search
     return which[:count], found[:count], gap[:count]
