@@ -390,61 +390,62 @@ def star_reach(kernel, z, points) -> np.ndarray:
 
 
 @_jit
-def _batch(distance, tolerance, tie, neighbours, pair_m, pair_o):
+def _batch(distance, tolerance, tie, neighbours, pair_o, start, sharers, d, first):
     n = len(distance)
-    d = np.full(n, _INF)
     low = distance.min()
+    count = 0
     for p in range(n):
         if distance[p] <= low + tolerance:
-            d[p] = distance[p]
-    set_size = np.zeros(n, dtype=np.intp)
-    sharers = np.zeros(n, dtype=np.intp)
-    first = np.full(n, _INF)
-    candidate_rows = np.empty(len(pair_m), dtype=np.intp)
-    n_rows = 0
-    for r in range(len(pair_m)):  # the one pass over every set row
-        m, o = pair_m[r], pair_o[r]
-        set_size[m] += 1
-        sharers[o] += 1
-        if d[m] < _INF:
-            first[o] = min(first[o], d[m])
-            candidate_rows[n_rows] = r
-            n_rows += 1
-    rival = np.full(n, _INF)
-    for p in range(n):
-        if d[p] < _INF:
-            for b in range(neighbours.shape[1]):
-                u = neighbours[p, b]
-                if u >= 0:
-                    rival[p] = min(rival[p], d[u])
-    for a in range(n_rows):
-        r = candidate_rows[a]
-        rival[pair_m[r]] = min(rival[pair_m[r]], first[pair_o[r]])
-    out = np.zeros(n, dtype=np.bool_)
-    for p in range(n):
-        out[p] = d[p] < _INF and not rival[p] < d[p] - tie
-    rows = np.empty(n_rows, dtype=np.intp)
-    count = 0
-    for a in range(n_rows):
-        r = candidate_rows[a]
-        if out[pair_m[r]]:
-            rows[count] = r
             count += 1
-    rows = rows[:count]
-    row_size = np.empty(count)
-    row_sharers = np.empty(count)
-    for a in range(count):
-        row_size[a] = set_size[pair_m[rows[a]]]
-        row_sharers[a] = sharers[pair_o[rows[a]]]
+    candidates = np.empty(count, dtype=np.intp)
+    count = 0
+    for p in range(n):  # d: inf except at the candidates (restored before returning)
+        if distance[p] <= low + tolerance:
+            d[p] = distance[p]
+            candidates[count] = p
+            count += 1
+    for p in candidates:  # first: per oxide point, the smallest candidate distance holding it
+        for r in range(start[p], start[p + 1]):
+            first[pair_o[r]] = min(first[pair_o[r]], d[p])
+    out = np.zeros(n, dtype=np.bool_)
+    n_rows = 0
+    for p in candidates:
+        rival = _INF
+        for b in range(neighbours.shape[1]):
+            u = neighbours[p, b]
+            if u >= 0:
+                rival = min(rival, d[u])
+        for r in range(start[p], start[p + 1]):
+            rival = min(rival, first[pair_o[r]])
+        if not rival < d[p] - tie:
+            out[p] = True
+            n_rows += start[p + 1] - start[p]
+    rows = np.empty(n_rows, dtype=np.intp)
+    row_size = np.empty(n_rows)
+    row_sharers = np.empty(n_rows)
+    c = 0
+    for p in candidates:
+        if out[p]:
+            for r in range(start[p], start[p + 1]):
+                rows[c] = r
+                row_size[c] = start[p + 1] - start[p]
+                row_sharers[c] = sharers[pair_o[r]]
+                c += 1
+    for p in candidates:
+        for r in range(start[p], start[p + 1]):
+            first[pair_o[r]] = _INF
+        d[p] = _INF
     return out, rows, row_size, row_sharers
 
 
-def batch(distance, tolerance: float, tie: float, neighbours, pair_m, pair_o):
+def batch(distance, tolerance: float, tie: float, neighbours, pair_o, start, sharers, d, first):
     """`FastEngine._batch`, compiled: the points within ``tolerance`` of the smallest ``distance`` that
-    no interacting candidate (a neighbour in ``neighbours``, or a sharer of an oxide point through the
-    set rows ``pair_m``, ``pair_o``) is more than ``tie`` closer than (boolean mask); their set rows
-    (ascending), and for each row its set's size and its oxide point's number of sharers."""
-    return _batch(distance, float(tolerance), float(tie), neighbours, pair_m, pair_o)
+    no interacting candidate (a neighbour in ``neighbours``, or a sharer of an oxide point) is more than
+    ``tie`` closer than (boolean mask); their set rows (ascending), and for each row its set's size and
+    its oxide point's number of sharers. The set rows of point ``p`` are ``start[p]:start[p + 1]`` of
+    ``pair_o``; ``sharers`` counts the rows of each oxide point; ``d`` and ``first`` are scratch arrays
+    of inf (length of ``distance``), left as they were."""
+    return _batch(distance, float(tolerance), float(tie), neighbours, pair_o, start, sharers, d, first)
 
 
 @_jit
@@ -489,31 +490,44 @@ def stale(in_batch, raised, neighbours, pair_m, pair_o) -> np.ndarray:
 
 
 @_jit
-def _replace_rows(pair_m, pair_o, points, owner, oxide, n):
-    drop = np.zeros(n, dtype=np.bool_)
-    for a in range(len(points)):
-        drop[points[a]] = True
-    keep = 0
-    for r in range(len(pair_m)):
-        if not drop[pair_m[r]]:
-            keep += 1
-    new_m = np.empty(keep + len(owner), dtype=np.intp)
-    new_o = np.empty(keep + len(owner), dtype=np.intp)
+def _replace_rows(pair_m, pair_o, start, sharers, points, owner, oxide):
+    n = len(start) - 1
+    size = len(pair_m)
+    for p in points:
+        size -= start[p + 1] - start[p]
+    size += len(owner)
+    new_m = np.empty(size, dtype=np.intp)
+    new_o = np.empty(size, dtype=np.intp)
+    new_start = np.empty(n + 1, dtype=np.intp)
     c = 0
-    for r in range(len(pair_m)):
-        if not drop[pair_m[r]]:
-            new_m[c], new_o[c] = pair_m[r], pair_o[r]
-            c += 1
-    new_m[c:] = owner
-    new_o[c:] = oxide
-    return new_m, new_o
+    a = 0  # next of points
+    j = 0  # next row of owner, oxide
+    for p in range(n):  # a merge: rows stay sorted by metal point
+        new_start[p] = c
+        if a < len(points) and points[a] == p:
+            a += 1
+            for r in range(start[p], start[p + 1]):
+                sharers[pair_o[r]] -= 1
+            while j < len(owner) and owner[j] == p:
+                new_m[c], new_o[c] = p, oxide[j]
+                sharers[oxide[j]] += 1
+                c += 1
+                j += 1
+        else:
+            for r in range(start[p], start[p + 1]):
+                new_m[c], new_o[c] = p, pair_o[r]
+                c += 1
+    new_start[n] = c
+    return new_m, new_o, new_start
 
 
-def replace_rows(pair_m, pair_o, points, owner, oxide, n: int):
-    """The set rows ``pair_m, pair_o`` without those of ``points``, then the rows ``owner, oxide``
-    appended (``n``: the number of metal points): `FastEngine._replace_rows`, compiled."""
-    return _replace_rows(pair_m, pair_o, np.asarray(points, dtype=np.intp), np.asarray(owner, dtype=np.intp),
-                         np.asarray(oxide, dtype=np.intp), n)
+def replace_rows(pair_m, pair_o, start, sharers, points, owner, oxide):
+    """`FastEngine._replace_rows`, compiled: the set rows (sorted by metal point, those of point ``p`` at
+    ``start[p]:start[p + 1]``) with those of ``points`` (ascending) replaced by the rows ``owner, oxide``
+    (every owner among ``points``, ascending); returns the new rows and starts, updates ``sharers`` (the
+    number of rows of each oxide point) in place."""
+    return _replace_rows(pair_m, pair_o, start, sharers, np.asarray(points, dtype=np.intp),
+                         np.asarray(owner, dtype=np.intp), np.asarray(oxide, dtype=np.intp))
 
 
 @_jit

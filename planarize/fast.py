@@ -103,8 +103,13 @@ class FastEngine(Engine):
         g = self.grid
         self._x = g.i * g.dx
         self._y = g.j * g.dy
-        self.pair_m = np.zeros(0, dtype=np.intp)  # (metal point, oxide point) rows of the oxide sets
+        # the oxide sets as (metal point, oxide point) rows sorted by metal point: those of point p are rows
+        # _start[p]:_start[p + 1]; _sharers counts the rows of each oxide point
+        self.pair_m = np.zeros(0, dtype=np.intp)
         self.pair_o = np.zeros(0, dtype=np.intp)
+        self._start = np.zeros(g.n + 1, dtype=np.intp)
+        self._sharers = np.zeros(g.n, dtype=np.intp)
+        self._scratch = (np.full(g.n, np.inf), np.full(g.n, np.inf)) if self.jit else None  # for `_batch`
         self.D[:] = np.inf
         # points interact when they share a feature: grid segments (4 neighbours), and with exact
         # distances also cell centres (8 neighbours)
@@ -241,16 +246,24 @@ class FastEngine(Engine):
         found, distance, owner, oxide = (np.concatenate(column) for column in zip(*parts))
         self.D[found] = distance
         self._remember_nearest(owner, oxide)
-        self.pair_m, self.pair_o = self._replace_rows(points, owner, oxide)
+        self._replace_rows(points, owner, oxide)
 
-    def _replace_rows(self, points: np.ndarray, owner: np.ndarray, oxide: np.ndarray):
-        """The set rows without those of ``points``, with the rows ``owner, oxide`` appended."""
+    def _replace_rows(self, points: np.ndarray, owner: np.ndarray, oxide: np.ndarray) -> None:
+        """Replace the sets of ``points`` (ascending) by the rows ``owner, oxide`` (owners among ``points``,
+        ascending)."""
         if self.jit:
-            return compiled.replace_rows(self.pair_m, self.pair_o, points, owner, oxide, self.grid.n)
-        keep = np.ones(self.grid.n, dtype=bool)
+            self.pair_m, self.pair_o, self._start = compiled.replace_rows(
+                self.pair_m, self.pair_o, self._start, self._sharers, points, owner, oxide)
+            return
+        n = self.grid.n
+        keep = np.ones(n, dtype=bool)
         keep[points] = False
         keep = keep[self.pair_m]
-        return np.concatenate([self.pair_m[keep], owner]), np.concatenate([self.pair_o[keep], oxide])
+        pm, po = np.concatenate([self.pair_m[keep], owner]), np.concatenate([self.pair_o[keep], oxide])
+        order = np.argsort(pm, kind="stable")
+        self.pair_m, self.pair_o = pm[order], po[order]
+        self._start = np.concatenate([[0], np.cumsum(np.bincount(self.pair_m, minlength=n))])
+        self._sharers = np.bincount(self.pair_o, minlength=n)
 
     def _closest_within(self, search, points: np.ndarray, r_ox: np.ndarray, r_me: np.ndarray):
         """`_recompute`'s work for ``points``: (points, distances, set rows' metal points, their oxide points)."""
@@ -349,7 +362,8 @@ class FastEngine(Engine):
         of its set and the number of sets holding its oxide point (Eq 3.9's shares).
         """
         if self.jit:
-            return compiled.batch(self.D, self.tolerance, self.tie, self._neighbour_table, self.pair_m, self.pair_o)
+            return compiled.batch(self.D, self.tolerance, self.tie, self._neighbour_table, self.pair_o, self._start,
+                                  self._sharers, *self._scratch)
         g = self.grid
         d = np.where(self.D <= self.D.min() + self.tolerance, self.D, np.inf)
         rival = np.full(g.n, np.inf)  # smallest distance of an interacting candidate
@@ -362,9 +376,8 @@ class FastEngine(Engine):
         # exact ties go together (as in the reference); a strictly closer rival makes a point wait
         in_batch = np.isfinite(d) & ~(rival < d - self.tie)
         rows = np.flatnonzero(in_batch[self.pair_m])
-        set_size = np.bincount(self.pair_m, minlength=g.n)[self.pair_m[rows]].astype(float)
-        sharers = np.bincount(self.pair_o, minlength=g.n)[self.pair_o[rows]].astype(float)
-        return in_batch, rows, set_size, sharers
+        set_size = np.diff(self._start)[self.pair_m[rows]].astype(float)
+        return in_batch, rows, set_size, self._sharers[self.pair_o[rows]].astype(float)
 
     def _below_raised(self, anchors: np.ndarray, rise: float) -> np.ndarray:
         """Metal points that a raised feature may have come closer to (boolean, shape (n,)).
@@ -409,16 +422,14 @@ class FastEngine(Engine):
         tied = ~closer & (distance <= self.D[found] + self.tie)
         if not (closer.any() or tied.any()):
             return
-        replace = np.zeros(self.grid.n, dtype=bool)
-        replace[found[closer]] = True
-        keep = ~replace[self.pair_m]
+        # a closer point's set is replaced, a tied point's grows
         new = (closer | tied)[owner]
-        pm = np.concatenate([self.pair_m[keep], found[owner[new]]])
-        po = np.concatenate([self.pair_o[keep], oxide[new]])
-        if tied.any():  # a tie adds to the set: drop duplicates
-            key = np.unique(pm * self.grid.n + po)
+        pm, po = found[owner[new]], oxide[new]
+        if tied.any():
+            old = np.isin(self.pair_m, found[tied])
+            key = np.unique(np.concatenate([pm, self.pair_m[old]]) * self.grid.n + np.concatenate([po, self.pair_o[old]]))
             pm, po = key // self.grid.n, key % self.grid.n
-        self.pair_m, self.pair_o = pm, po
+        self._replace_rows(found[closer | tied], pm, po)
         # the nearest set point: among the new rows, and for a tie also the old nearest
         kept = found[tied]
         metal = np.concatenate([found[owner[new]], kept])
