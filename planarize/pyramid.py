@@ -19,7 +19,7 @@ import math
 
 import numpy as np
 
-from .compiled import _jit, _nearest_image
+from .compiled import _jit
 
 _FACTOR = 2
 
@@ -64,7 +64,7 @@ class HeightPyramid:
             cache = _NO_CACHE
         return _ball(z, np.asarray(points, dtype=np.intp), np.asarray(zq, dtype=float),
                      np.asarray(radius, dtype=float), g.nx, g.ny, g.dx, g.dy, g.periodic, self.shapes, self.offsets,
-                     self.low, self.high, cache is not _NO_CACHE, cache.points, cache.count, cache.radius,
+                     self.low, self.high, cache is not _NO_CACHE, cache.offsets, cache.count, cache.radius,
                      cache.margin)
 
 
@@ -76,12 +76,14 @@ class BallCache:
     engine's metal and oxide), its distance to every grid point only grows, so
     a point outside the wider radius then is still outside it, and a later
     query with a radius up to the wider one needs only the points found.
-    Each query point keeps at most ``capacity`` points.
+    Each query point keeps at most ``capacity`` points, as grid offsets of
+    at most 127 rows and columns (2 bytes each: the table is read at random,
+    so its size is its cost).
     """
 
-    def __init__(self, n: int, margin: float, capacity: int = 48):
+    def __init__(self, n: int, margin: float, capacity: int = 40):
         self.margin = float(margin)
-        self.points = np.zeros((n, capacity), dtype=np.int32)
+        self.offsets = np.zeros((n, capacity, 2), dtype=np.int8)
         self.count = np.full(n, -1, dtype=np.int32)  # -1: nothing kept
         self.radius = np.zeros(n)
 
@@ -176,9 +178,12 @@ def _ball(z, points, zq, radius, nx, ny, dx, dy, periodic, shapes, offsets, low,
         iq, jq, h, r2 = p // ny, p % ny, zq[q], radius[q] * radius[q]
         if use_cache and kept_count[p] >= 0 and radius[q] <= kept_radius[p]:
             for c in range(kept_count[p]):
-                k = kept[p, c]
-                ki = k // ny
-                di, dj = _nearest_image(ki - iq, k - ki * ny - jq, nx, ny, periodic)
+                di, dj = np.intp(kept[p, c, 0]), np.intp(kept[p, c, 1])
+                u, v = iq + di, jq + dj
+                if periodic:
+                    u += nx if u < 0 else (-nx if u >= nx else 0)
+                    v += ny if v < 0 else (-ny if v >= ny else 0)
+                k = u * ny + v
                 ex, ey, ez = di * dx, dj * dy, z[k] - h
                 d2 = ex * ex + ey * ey + ez * ez
                 if d2 <= r2:
@@ -234,8 +239,10 @@ def _ball(z, points, zq, radius, nx, ny, dx, dy, periodic, shapes, offsets, low,
                     ez = z[k] - h
                     d2 = ex * ex + ey * ey + ez * ez
                     if keep and d2 <= wide2:
-                        if stored < kept.shape[1]:
-                            kept[p, stored] = k
+                        if stored < kept.shape[1] and abs(u - iq) <= 127 and abs(v - jq) <= 127:
+                            kept[p, stored, 0], kept[p, stored, 1] = u - iq, v - jq
+                        else:
+                            stored = kept.shape[1]  # too many or too far: not kept
                         stored += 1
                     if d2 <= r2:
                         which, found, gap = _push(which, found, gap, count, q, k, math.sqrt(d2))
