@@ -547,3 +547,45 @@ def vertex_gap(grid, zm, zo, metal, oxide) -> np.ndarray:
     `FastEngine._vertex_gap`, compiled."""
     return _vertex_gap(np.asarray(metal, dtype=np.intp), np.asarray(oxide, dtype=np.intp), zm, zo, grid.nx, grid.ny,
                        grid.dx, grid.dy, grid.periodic)
+
+
+@_jit
+def _radii(zm, points, bound, oxide_reach, tie, exact, edge_nb, edge2, quad_cell, cell_corners, half2):
+    inflate = 1 + 1e-12
+    r_ox = np.empty(len(points))
+    r_me = np.empty(len(points))
+    for a in range(len(points)):
+        star = _star(zm, points[a], exact, edge_nb, edge2, quad_cell, cell_corners, half2)
+        r_ox[a] = math.sqrt(bound[a] * bound[a] + oxide_reach * oxide_reach) * inflate + tie
+        r_me[a] = math.sqrt(bound[a] * bound[a] + star * star) * inflate + tie
+    return r_ox, r_me
+
+
+def radii(kernel, zm, points, bound, oxide_reach: float, tie: float):
+    """`FastEngine._radii`, compiled: the oxide and metal search radii of metal points ``points``."""
+    g = kernel.grid
+    return _radii(zm, np.asarray(points, dtype=np.intp), np.asarray(bound, dtype=float), float(oxide_reach),
+                  float(tie), kernel.distance == "exact", g.edge_neighbours, kernel._edge_x ** 2 + kernel._edge_y ** 2,
+                  g.quadrant_cell, g.cell_corners, kernel._half_x ** 2 + kernel._half_y ** 2)
+
+
+@_jit
+def _remember_nearest(owner, oxide, near, zm, zo, nx, ny, dx, dy, periodic):
+    gap = _vertex_gap(owner, oxide, zm, zo, nx, ny, dx, dy, periodic)
+    start = 0
+    while start < len(owner):
+        best = start
+        stop = start + 1
+        while stop < len(owner) and owner[stop] == owner[start]:
+            if gap[stop] <= gap[best]:  # of equally near ones, the last
+                best = stop
+            stop += 1
+        near[owner[start]] = oxide[best]
+        start = stop
+
+
+def remember_nearest(grid, zm, zo, owner, oxide, near) -> None:
+    """`FastEngine._remember_nearest`, compiled: for each metal point of the set rows ``owner, oxide``
+    (grouped by owner), ``near[point]`` = its rows' oxide point nearest to it."""
+    _remember_nearest(np.asarray(owner, dtype=np.intp), np.asarray(oxide, dtype=np.intp), near, zm, zo, grid.nx,
+                      grid.ny, grid.dx, grid.dy, grid.periodic)

@@ -155,10 +155,14 @@ class FastEngine(Engine):
             self._oxide_longest = float(self._star(self.zo, everything).max())
             self._reach_checked = self.iterations
         else:
-            for moved, z, name in ((metal_moved, self.zm, "_metal_longest"), (oxide_moved, self.zo, "_oxide_longest")):
-                if len(moved):
-                    near = self.grid.block(moved) if self.distance == "exact" else moved
-                    setattr(self, name, max(getattr(self, name), float(self._star(z, near).max())))
+            def longest(job):
+                moved, z = job
+                near = self.grid.block(moved) if self.distance == "exact" else moved
+                return float(self._star(z, near).max(initial=0.0))
+            jobs = [(metal_moved, self.zm), (oxide_moved, self.zo)]
+            metal, oxide = self._map(longest, jobs) if self.threads > 1 else map(longest, jobs)
+            self._metal_longest = max(self._metal_longest, metal)
+            self._oxide_longest = max(self._oxide_longest, oxide)
         self._oxide_reach = self.kernel.oxide_reach(self._oxide_longest)
 
     def _reach_limit(self) -> float:
@@ -209,6 +213,8 @@ class FastEngine(Engine):
         closest point ``q`` is a perpendicular foot, ``|m - a|^2 = d^2 + |q - a|^2``
         for every grid point ``a`` of the feature.)
         """
+        if self.jit:
+            return compiled.radii(self.kernel, self.zm, points, bound, self._oxide_reach, self.tie)
         inflate = 1 + 1e-12
         r_ox = np.sqrt(bound**2 + self._oxide_reach**2) * inflate + self.tie
         r_me = np.sqrt(bound**2 + self._star(self.zm, points) ** 2) * inflate + self.tie
@@ -231,8 +237,8 @@ class FastEngine(Engine):
             return self._ball(tree, np.column_stack([self._x[points], self._y[points], z + shift]), radius, k)
         return search
 
-    def _recompute(self, points: np.ndarray, bound: np.ndarray) -> None:
-        """Exact distance and set of ``points``, given an upper bound of each new distance."""
+    def _recompute(self, points: np.ndarray, bound: np.ndarray | None = None) -> None:
+        """Exact distance and set of ``points``, given an upper bound of each new distance (default `_bound`)."""
         if not len(points):
             return
         if self._pyramid is None:
@@ -240,12 +246,10 @@ class FastEngine(Engine):
         else:
             self._pyramid.rebuild(self.zo)
             search = functools.partial(self._pyramid.ball, self.zo, cache=self._cache)
-        r_ox, r_me = self._radii(points, bound)
-        parts = self._map(lambda part: self._closest_within(search, points[part], r_ox[part], r_me[part]),
+        parts = self._map(lambda part: self._closest_within(search, points[part], None if bound is None else bound[part]),
                           self._split(len(points)))
         found, distance, owner, oxide = (np.concatenate(column) for column in zip(*parts))
         self.D[found] = distance
-        self._remember_nearest(owner, oxide)
         self._replace_rows(points, owner, oxide)
 
     def _replace_rows(self, points: np.ndarray, owner: np.ndarray, oxide: np.ndarray) -> None:
@@ -265,13 +269,17 @@ class FastEngine(Engine):
         self._start = np.concatenate([[0], np.cumsum(np.bincount(self.pair_m, minlength=n))])
         self._sharers = np.bincount(self.pair_o, minlength=n)
 
-    def _closest_within(self, search, points: np.ndarray, r_ox: np.ndarray, r_me: np.ndarray):
-        """`_recompute`'s work for ``points``: (points, distances, set rows' metal points, their oxide points)."""
+    def _closest_within(self, search, points: np.ndarray, bound: np.ndarray | None):
+        """`_recompute`'s work for ``points`` (in a thread; each step compiled when jit): their distances
+        and sets, as (points, distances, set rows' metal points, their oxide points); notes each one's
+        nearest set point."""
+        r_ox, r_me = self._radii(points, self._bound(points) if bound is None else bound)
         which, anchors, oxide_slots, metal_slots = self._candidates(search, points, r_ox, r_me)
         metal = points[which]
         if len(which) <= CHUNK_PAIRS:
             found, distance, owner, oxide = self._closest(self.kernel, self.zm, self.zo, metal, anchors, self.tie,
                                                           oxide_slots, metal_slots)
+            self._remember_nearest(found[owner], oxide)
             return found, distance, found[owner], oxide
         lengths = np.bincount(which, minlength=len(points))
         starts = np.concatenate([[0], np.cumsum(lengths)])
@@ -284,7 +292,9 @@ class FastEngine(Engine):
             distance.append(d)
             owner.append(f[ow])
             oxide.append(ox)
-        return tuple(np.concatenate(column) for column in (found, distance, owner, oxide))
+        found, distance, owner, oxide = (np.concatenate(column) for column in (found, distance, owner, oxide))
+        self._remember_nearest(owner, oxide)
+        return found, distance, owner, oxide
 
     def _vertex_gap(self, metal: np.ndarray, oxide: np.ndarray) -> np.ndarray:
         """Distance between metal and oxide grid points (nearest periodic image), nm."""
@@ -295,12 +305,16 @@ class FastEngine(Engine):
 
     def _remember_nearest(self, owner: np.ndarray, oxide: np.ndarray) -> None:
         """Note each metal point's nearest oxide point among its new set rows ``owner, oxide`` (grouped by owner)."""
+        if self.jit:
+            compiled.remember_nearest(self.grid, self.zm, self.zo, owner, oxide, self._near)
+            return
         if not len(owner):
             return
         gap = self._vertex_gap(owner, oxide)
         start = np.flatnonzero(np.concatenate([[True], owner[1:] != owner[:-1]]))
-        nearest = gap == np.repeat(np.minimum.reduceat(gap, start), np.diff(np.append(start, len(owner))))
-        self._near[owner[nearest]] = oxide[nearest]  # (of equally near ones, any will do)
+        nearest = np.flatnonzero(gap == np.repeat(np.minimum.reduceat(gap, start), np.diff(np.append(start, len(owner)))))
+        last = np.append(owner[nearest][1:] != owner[nearest][:-1], True)  # of equally near ones, the last
+        self._near[owner[nearest[last]]] = oxide[nearest[last]]
 
     def _bound(self, points: np.ndarray) -> np.ndarray:
         """Upper bound of each point's distance now: its distance to the oxide point of its set that was
@@ -332,7 +346,7 @@ class FastEngine(Engine):
         # points whose own features or whose oxide points moved: from scratch
         stale = self._stale(in_batch, raised)
         points = np.flatnonzero(stale)
-        self._recompute(points, self._bound(points))
+        self._recompute(points)
         # the others near a raised oxide point: take it if it is now as close or closer
         self._take_closer(raised, stale, rise)
 
