@@ -50,6 +50,8 @@ CHUNK_PAIRS = 400_000
 POINTS_PER_THREAD = 512
 #: How much wider (in steps) a metal point's candidate search is made when its result is kept for later sweeps.
 CACHE_MARGIN = 1.0
+#: Side of the tiles (points) in which `FastEngine._below_raised` first looks for metal points a raised feature may reach.
+TILE = 8
 #: Sweeps between exact measurements of the longest feature edges (in between, upper bounds that only grow).
 REACH_REFRESH = 64
 
@@ -401,20 +403,48 @@ class FastEngine(Engine):
         farther from it. So a metal point can gain only if the highest point of
         its features (its 3 x 3 block) is above the lowest point of a raised
         feature (the anchor's 3 x 3 block, before the rise) within reach.
+
+        The test is made first for tiles of `TILE` x `TILE` points (the lowest
+        raised feature within reach of any point of the tile against the tile's
+        highest metal point), then point by point in the tiles that pass,
+        against their tile's lowest raised feature: a superset of the points
+        that can gain, found without a pass over the grid per point.
         """
         g = self.grid
+        out = np.zeros(g.n, dtype=bool)
         if float(self.zm.max()) + self.tie < float(self.zo.min()) - rise:
-            return np.zeros(g.n, dtype=bool)  # the whole metal lies below the whole oxide (thick oxide)
-        shape = (g.nx, g.ny)
-        mode = "wrap" if g.periodic else "nearest"
-        low = np.full(shape, np.inf)
-        block_low = minimum_filter(self.zo.reshape(shape), size=3, mode=mode) - rise
-        low.flat[anchors] = block_low.flat[anchors]
+            return out  # the whole metal lies below the whole oxide (thick oxide)
+        block = [(di, dj) for di in (-1, 0, 1) for dj in (-1, 0, 1)]
+        low = np.full(len(anchors), np.inf)
+        for di, dj in block:
+            k = g.shift(anchors, di, dj)
+            ok = k >= 0
+            low[ok] = np.minimum(low[ok], self.zo[k[ok]])
+        tiles = (-(-g.nx // TILE), -(-g.ny // TILE))
+        tile_low = np.full(tiles, np.inf)
+        np.minimum.at(tile_low, (g.i[anchors] // TILE, g.j[anchors] // TILE), low - rise)
         reach = math.sqrt(float(self.D.max()) ** 2 + max(self._oxide_reach, self._metal_longest) ** 2)
-        size = [min(2 * math.ceil(reach / d) + 1, 2 * n + 1) for d, n in ((g.dx, g.nx), (g.dy, g.ny))]
-        near_low = minimum_filter(low, size=size, mode="wrap" if g.periodic else "constant", cval=np.inf)
-        high = maximum_filter(self.zm.reshape(shape), size=3, mode=mode)
-        return (high + self.tie >= near_low).ravel()
+        # tiles within reach of a point: its own and ceil(cells / TILE) on each side (+1: a partial last tile)
+        size = [min(2 * (math.ceil(math.ceil(reach / d) / TILE) + 1) + 1, 2 * t + 1)
+                for d, t in ((g.dx, tiles[0]), (g.dy, tiles[1]))]
+        mode = "wrap" if g.periodic else "constant"
+        near_low = minimum_filter(tile_low, size=size, mode=mode, cval=np.inf)
+        padded = np.full((tiles[0] * TILE, tiles[1] * TILE), -np.inf)
+        padded[: g.nx, : g.ny] = self.zm.reshape(g.nx, g.ny)
+        tile_high = padded.reshape(tiles[0], TILE, tiles[1], TILE).max(axis=(1, 3))
+        tile_high = maximum_filter(tile_high, size=3, mode=mode, cval=-np.inf)  # and the rim of 3 x 3 blocks
+        maybe = (tile_high + self.tie >= near_low).ravel()
+        if not maybe.any():
+            return out
+        tile = (g.i // TILE) * tiles[1] + g.j // TILE
+        points = np.flatnonzero(maybe[tile])
+        high = np.full(len(points), -np.inf)
+        for di, dj in block:
+            k = g.shift(points, di, dj)
+            ok = k >= 0
+            high[ok] = np.maximum(high[ok], self.zm[k[ok]])
+        out[points] = high + self.tie >= near_low.ravel()[tile[points]]
+        return out
 
     def _take_closer(self, raised: np.ndarray, skip: np.ndarray, rise: float) -> None:
         """Metal points near the raised oxide points take them if now as close or closer than their set."""
