@@ -49,7 +49,7 @@ CHUNK_PAIRS = 400_000
 #: Fewest points per thread worth a thread of their own (below, the hand-over costs more than it saves).
 POINTS_PER_THREAD = 512
 #: How much wider (in steps) a metal point's candidate search is made when its result is kept for later sweeps.
-CACHE_MARGIN = 1.0
+CACHE_MARGIN = 0.5
 #: Side of the tiles (points) in which `FastEngine._below_raised` first looks for metal points a raised feature may reach.
 TILE = 8
 #: Sweeps between exact measurements of the longest feature edges (in between, upper bounds that only grow).
