@@ -162,7 +162,8 @@ class FastEngine(Engine):
                 near = self.grid.block(moved) if self.distance == "exact" else moved
                 return float(self._star(z, near).max(initial=0.0))
             jobs = [(metal_moved, self.zm), (oxide_moved, self.zo)]
-            metal, oxide = self._map(longest, jobs) if self.threads > 1 else map(longest, jobs)
+            side_by_side = self.threads > 1 and min(len(metal_moved), len(oxide_moved)) >= POINTS_PER_THREAD
+            metal, oxide = self._map(longest, jobs) if side_by_side else map(longest, jobs)
             self._metal_longest = max(self._metal_longest, metal)
             self._oxide_longest = max(self._oxide_longest, oxide)
         self._oxide_reach = self.kernel.oxide_reach(self._oxide_longest)
@@ -405,46 +406,46 @@ class FastEngine(Engine):
         feature (the anchor's 3 x 3 block, before the rise) within reach.
 
         The test is made first for tiles of `TILE` x `TILE` points (the lowest
-        raised feature within reach of any point of the tile against the tile's
-        highest metal point), then point by point in the tiles that pass,
-        against their tile's lowest raised feature: a superset of the points
-        that can gain, found without a pass over the grid per point.
+        oxide point of any tile holding an anchor, or its rim, within reach of
+        the tile, against the tile's highest metal point and its rim); where
+        few tiles pass, then point by point in them (a superset of the points
+        that can gain), else with whole-grid filters (exactly).
         """
         g = self.grid
         out = np.zeros(g.n, dtype=bool)
         if float(self.zm.max()) + self.tie < float(self.zo.min()) - rise:
             return out  # the whole metal lies below the whole oxide (thick oxide)
-        block = [(di, dj) for di in (-1, 0, 1) for dj in (-1, 0, 1)]
-        low = np.full(len(anchors), np.inf)
-        for di, dj in block:
-            k = g.shift(anchors, di, dj)
-            ok = k >= 0
-            low[ok] = np.minimum(low[ok], self.zo[k[ok]])
         tiles = (-(-g.nx // TILE), -(-g.ny // TILE))
-        tile_low = np.full(tiles, np.inf)
-        np.minimum.at(tile_low, (g.i[anchors] // TILE, g.j[anchors] // TILE), low - rise)
+        mode = "wrap" if g.periodic else "constant"
         reach = math.sqrt(float(self.D.max()) ** 2 + max(self._oxide_reach, self._metal_longest) ** 2)
         # tiles within reach of a point: its own and ceil(cells / TILE) on each side (+1: a partial last tile)
         size = [min(2 * (math.ceil(math.ceil(reach / d) / TILE) + 1) + 1, 2 * t + 1)
                 for d, t in ((g.dx, tiles[0]), (g.dy, tiles[1]))]
-        mode = "wrap" if g.periodic else "constant"
-        near_low = minimum_filter(tile_low, size=size, mode=mode, cval=np.inf)
-        padded = np.full((tiles[0] * TILE, tiles[1] * TILE), -np.inf)
-        padded[: g.nx, : g.ny] = self.zm.reshape(g.nx, g.ny)
-        tile_high = padded.reshape(tiles[0], TILE, tiles[1], TILE).max(axis=(1, 3))
-        tile_high = maximum_filter(tile_high, size=3, mode=mode, cval=-np.inf)  # and the rim of 3 x 3 blocks
-        maybe = (tile_high + self.tie >= near_low).ravel()
+        has_anchor = np.zeros(tiles, dtype=bool)
+        has_anchor[g.i[anchors] // TILE, g.j[anchors] // TILE] = True
+        low = np.where(has_anchor, _tile_extreme(self.zo, g, tiles, np.min, mode) - rise, np.inf)
+        near_low = minimum_filter(low, size=size, mode=mode, cval=np.inf)
+        maybe = (_tile_extreme(self.zm, g, tiles, np.max, mode) + self.tie >= near_low).ravel()
         if not maybe.any():
             return out
+        shape = (g.nx, g.ny)
+        if maybe.mean() > 1 / 8:  # many tiles: whole-grid filters cost less than blocks point by point
+            edge = "wrap" if g.periodic else "nearest"
+            low = np.full(shape, np.inf)
+            low.flat[anchors] = minimum_filter(self.zo.reshape(shape), size=3, mode=edge).flat[anchors] - rise
+            size = [min(2 * math.ceil(reach / d) + 1, 2 * n + 1) for d, n in ((g.dx, g.nx), (g.dy, g.ny))]
+            near = minimum_filter(low, size=size, mode=mode, cval=np.inf)
+            return (maximum_filter(self.zm.reshape(shape), size=3, mode=edge) + self.tie >= near).ravel()
         tile = (g.i // TILE) * tiles[1] + g.j // TILE
         points = np.flatnonzero(maybe[tile])
-        high = np.full(len(points), -np.inf)
-        for di, dj in block:
-            k = g.shift(points, di, dj)
-            ok = k >= 0
-            high[ok] = np.maximum(high[ok], self.zm[k[ok]])
-        out[points] = high + self.tie >= near_low.ravel()[tile[points]]
+        out[points] = self._block_extreme(self.zm, points, np.max) + self.tie >= near_low.ravel()[tile[points]]
         return out
+
+    def _block_extreme(self, z: np.ndarray, points: np.ndarray, extreme) -> np.ndarray:
+        """``extreme`` (np.min or np.max) of ``z`` over the 3 x 3 block around each of ``points``."""
+        step = np.array([-1, 0, 1])
+        k = self.grid.shift(points[:, None], np.repeat(step, 3)[None, :], np.tile(step, 3)[None, :])
+        return extreme(np.where(k >= 0, z[k], z[points][:, None]), axis=1)  # (past an open edge: the point itself)
 
     def _take_closer(self, raised: np.ndarray, skip: np.ndarray, rise: float) -> None:
         """Metal points near the raised oxide points take them if now as close or closer than their set."""
@@ -490,6 +491,17 @@ def _pool(threads: int) -> ThreadPoolExecutor:
 
 if hasattr(os, "register_at_fork"):  # a forked child (e.g. a sweep worker) has none of the pools' threads
     os.register_at_fork(after_in_child=_pool.cache_clear)
+
+
+def _tile_extreme(z: np.ndarray, grid, tiles: tuple[int, int], extreme, mode: str) -> np.ndarray:
+    """``extreme`` (np.min or np.max) of the heights ``z`` over each tile of `TILE` x `TILE` points and
+    the points around it (shape ``tiles``)."""
+    fill = np.inf if extreme is np.min else -np.inf
+    padded = np.full((tiles[0] * TILE, tiles[1] * TILE), fill)
+    padded[: grid.nx, : grid.ny] = z.reshape(grid.nx, grid.ny)
+    per_tile = extreme(padded.reshape(tiles[0], TILE, tiles[1], TILE), axis=(1, 3))
+    rim = minimum_filter if extreme is np.min else maximum_filter
+    return rim(per_tile, size=3, mode=mode, cval=fill)
 
 
 def _chunks(lengths: np.ndarray, limit: int):
