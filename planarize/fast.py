@@ -37,12 +37,11 @@ import os
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
-from scipy.ndimage import maximum_filter, minimum_filter
-from scipy.spatial import cKDTree
 
+from .closer import TakeCloser
 from .engine import Engine
 from .pyramid import BallCache, HeightPyramid
-from . import compiled, features
+from . import bookkeeping, compiled, features
 
 #: Candidate pairs evaluated per kernel call (bounds memory: 33 distances each in exact mode).
 CHUNK_PAIRS = 400_000
@@ -50,13 +49,11 @@ CHUNK_PAIRS = 400_000
 POINTS_PER_THREAD = 512
 #: How much wider (in steps) a metal point's candidate search is made when its result is kept for later sweeps.
 CACHE_MARGIN = 0.5
-#: Side of the tiles (points) in which `FastEngine._below_raised` first looks for metal points a raised feature may reach.
-TILE = 8
 #: Sweeps between exact measurements of the longest feature edges (in between, upper bounds that only grow).
 REACH_REFRESH = 64
 
 
-class FastEngine(Engine):
+class FastEngine(TakeCloser, Engine):
     """Batched, vectorized engine. See `planarize.engine.Engine` for the common parameters.
 
     Parameters
@@ -124,21 +121,6 @@ class FastEngine(Engine):
         everything = np.arange(g.n)
         self._recompute(everything, self.zo - self.zm)  # the oxide straight above bounds every distance
 
-    # -- KD-trees --------------------------------------------------------------------------
-
-    def _tree(self, z: np.ndarray, points=None) -> tuple[cKDTree, float]:
-        """3-D tree of grid points at heights ``z``; returns it and the z shift applied to queries."""
-        g = self.grid
-        idx = slice(None) if points is None else points
-        shift = -float(min(self.zm.min(), self.zo.min()))
-        data = np.column_stack([self._x[idx], self._y[idx], z[idx] + shift])
-        if not g.periodic:
-            return cKDTree(data, balanced_tree=False, compact_nodes=False), shift
-        span = float(max(self.zm.max(), self.zo.max())) + shift
-        # z must not wrap: make its period far longer than any query reaches
-        box = (g.nx * g.dx, g.ny * g.dy, 4.0 * (span + self._reach_limit()) + 1.0)
-        return cKDTree(data, balanced_tree=False, compact_nodes=False, boxsize=box), shift
-
     def _star(self, z: np.ndarray, points: np.ndarray) -> np.ndarray:
         """`FeatureKernel.star_reach` of ``z`` at ``points`` (compiled when jit)."""
         return compiled.star_reach(self.kernel, z, points) if self.jit else self.kernel.star_reach(z, points)
@@ -168,41 +150,6 @@ class FastEngine(Engine):
             self._oxide_longest = max(self._oxide_longest, oxide)
         self._oxide_reach = self.kernel.oxide_reach(self._oxide_longest)
 
-    def _reach_limit(self) -> float:
-        return float(np.max(self.D[np.isfinite(self.D)], initial=0.0)) + float(np.max(self.zo - self.zm)) \
-            + 2.0 * max(self._metal_longest, self._oxide_longest)
-
-    @staticmethod
-    def _ball(tree: cKDTree, queries: np.ndarray, radius: np.ndarray, k: int = 16):
-        """Tree points within ``radius[i]`` of each query, grouped by query.
-
-        Returns (query index, point index, distance) arrays. A k-nearest query
-        runs at C speed; the few queries whose k-th neighbour is still inside
-        their radius are redone as ball queries.
-        """
-        if not len(queries):
-            return np.zeros(0, dtype=np.intp), np.zeros(0, dtype=np.intp), np.zeros(0)
-        k = min(k, tree.n)
-        dist, idx = tree.query(queries, k=k, distance_upper_bound=float(radius.max()))
-        dist, idx = dist.reshape(len(queries), k), idx.reshape(len(queries), k)
-        inside = dist <= radius[:, None]
-        more = np.flatnonzero(inside[:, -1]) if k < tree.n else np.zeros(0, dtype=np.intp)
-        inside[more] = False
-        q = np.broadcast_to(np.arange(len(queries))[:, None], inside.shape)[inside]
-        p, d = idx[inside], dist[inside]
-        if len(more):
-            found = tree.query_ball_point(queries[more], radius[more], return_sorted=False)
-            extra_q = np.repeat(more, [len(f) for f in found])
-            extra_p = np.concatenate([np.asarray(f, dtype=np.intp) for f in found])
-            gap = tree.data[extra_p] - queries[extra_q]
-            if tree.boxsize is not None:  # nearest periodic image
-                gap -= tree.boxsize * np.round(gap / tree.boxsize)
-            order = np.argsort(np.concatenate([q, extra_q]), kind="stable")
-            q = np.concatenate([q, extra_q])[order]
-            p = np.concatenate([p, extra_p])[order]
-            d = np.concatenate([d, np.sqrt((gap * gap).sum(axis=1))])[order]
-        return q, p, d
-
     # -- distances -------------------------------------------------------------------------
 
     def _radii(self, points: np.ndarray, bound: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -217,7 +164,7 @@ class FastEngine(Engine):
         for every grid point ``a`` of the feature.)
         """
         if self.jit:
-            return compiled.radii(self.kernel, self.zm, points, bound, self._oxide_reach, self.tie)
+            return bookkeeping.radii(self.kernel, self.zm, points, bound, self._oxide_reach, self.tie)
         inflate = 1 + 1e-12
         r_ox = np.sqrt(bound**2 + self._oxide_reach**2) * inflate + self.tie
         r_me = np.sqrt(bound**2 + self._star(self.zm, points) ** 2) * inflate + self.tie
@@ -229,16 +176,8 @@ class FastEngine(Engine):
         ``radius[i]`` of ``(points[i], z[i])`` as (query index, point, distance)."""
         which, anchors, gap = search(points, self.zm[points], np.maximum(r_ox, r_me))
         if self.jit:  # (in a thread: compiled code runs without the GIL, numpy's small steps hold it)
-            return (which, anchors) + compiled.within(which, gap, r_ox, r_me)
+            return (which, anchors) + bookkeeping.within(which, gap, r_ox, r_me)
         return which, anchors, gap <= r_ox[which], gap <= r_me[which]
-
-    def _tree_search(self, points=None, k: int = 16):
-        """`_candidates`'s search in a KD-tree of the oxide points (all, or ``points``)."""
-        tree, shift = self._tree(self.zo, points)
-
-        def search(points, z, radius):
-            return self._ball(tree, np.column_stack([self._x[points], self._y[points], z + shift]), radius, k)
-        return search
 
     def _recompute(self, points: np.ndarray, bound: np.ndarray | None = None) -> None:
         """Exact distance and set of ``points``, given an upper bound of each new distance (default `_bound`)."""
@@ -259,7 +198,7 @@ class FastEngine(Engine):
         """Replace the sets of ``points`` (ascending) by the rows ``owner, oxide`` (owners among ``points``,
         ascending)."""
         if self.jit:
-            self.pair_m, self.pair_o, self._start = compiled.replace_rows(
+            self.pair_m, self.pair_o, self._start = bookkeeping.replace_rows(
                 self.pair_m, self.pair_o, self._start, self._sharers, points, owner, oxide)
             return
         n = self.grid.n
@@ -302,14 +241,14 @@ class FastEngine(Engine):
     def _vertex_gap(self, metal: np.ndarray, oxide: np.ndarray) -> np.ndarray:
         """Distance between metal and oxide grid points (nearest periodic image), nm."""
         if self.jit:
-            return compiled.vertex_gap(self.grid, self.zm, self.zo, metal, oxide)
+            return bookkeeping.vertex_gap(self.grid, self.zm, self.zo, metal, oxide)
         di, dj = self.grid.offsets(metal, oxide)
         return np.sqrt((di * self.grid.dx) ** 2 + (dj * self.grid.dy) ** 2 + (self.zo[oxide] - self.zm[metal]) ** 2)
 
     def _remember_nearest(self, owner: np.ndarray, oxide: np.ndarray) -> None:
         """Note each metal point's nearest oxide point among its new set rows ``owner, oxide`` (grouped by owner)."""
         if self.jit:
-            compiled.remember_nearest(self.grid, self.zm, self.zo, owner, oxide, self._near)
+            bookkeeping.remember_nearest(self.grid, self.zm, self.zo, owner, oxide, self._near)
             return
         if not len(owner):
             return
@@ -357,7 +296,7 @@ class FastEngine(Engine):
         """The points whose distance may have grown (boolean mask): the oxidized ones, the points sharing
         a feature with one, and the points whose set holds a ``raised`` oxide point."""
         if self.jit:
-            return compiled.stale(in_batch, raised, self._neighbour_table, self.pair_m, self.pair_o)
+            return bookkeeping.stale(in_batch, raised, self._neighbour_table, self.pair_m, self.pair_o)
         is_raised = np.zeros(self.grid.n, dtype=bool)
         is_raised[raised] = True
         stale = in_batch.copy()
@@ -379,7 +318,7 @@ class FastEngine(Engine):
         of its set and the number of sets holding its oxide point (Eq 3.9's shares).
         """
         if self.jit:
-            return compiled.batch(self.D, self.tolerance, self.tie, self._neighbour_table, self.pair_o, self._start,
+            return bookkeeping.batch(self.D, self.tolerance, self.tie, self._neighbour_table, self.pair_o, self._start,
                                   self._sharers, *self._scratch)
         g = self.grid
         d = np.where(self.D <= self.D.min() + self.tolerance, self.D, np.inf)
@@ -396,93 +335,6 @@ class FastEngine(Engine):
         set_size = np.diff(self._start)[self.pair_m[rows]].astype(float)
         return in_batch, rows, set_size, self._sharers[self.pair_o[rows]].astype(float)
 
-    def _below_raised(self, anchors: np.ndarray, rise: float) -> np.ndarray:
-        """Metal points that a raised feature may have come closer to (boolean, shape (n,)).
-
-        Raising points of a feature moves every point of it up; a point of the
-        metal's own features that lies below all of the old feature gets only
-        farther from it. So a metal point can gain only if the highest point of
-        its features (its 3 x 3 block) is above the lowest point of a raised
-        feature (the anchor's 3 x 3 block, before the rise) within reach.
-
-        The test is made first for tiles of `TILE` x `TILE` points (the lowest
-        oxide point of any tile holding an anchor, or its rim, within reach of
-        the tile, against the tile's highest metal point and its rim); where
-        few tiles pass, then point by point in them (a superset of the points
-        that can gain), else with whole-grid filters (exactly).
-        """
-        g = self.grid
-        out = np.zeros(g.n, dtype=bool)
-        if float(self.zm.max()) + self.tie < float(self.zo.min()) - rise:
-            return out  # the whole metal lies below the whole oxide (thick oxide)
-        tiles = (-(-g.nx // TILE), -(-g.ny // TILE))
-        mode = "wrap" if g.periodic else "constant"
-        reach = math.sqrt(float(self.D.max()) ** 2 + max(self._oxide_reach, self._metal_longest) ** 2)
-        # tiles within reach of a point: its own and ceil(cells / TILE) on each side (+1: a partial last tile)
-        size = [min(2 * (math.ceil(math.ceil(reach / d) / TILE) + 1) + 1, 2 * t + 1)
-                for d, t in ((g.dx, tiles[0]), (g.dy, tiles[1]))]
-        has_anchor = np.zeros(tiles, dtype=bool)
-        has_anchor[g.i[anchors] // TILE, g.j[anchors] // TILE] = True
-        low = np.where(has_anchor, _tile_extreme(self.zo, g, tiles, np.min, mode) - rise, np.inf)
-        near_low = minimum_filter(low, size=size, mode=mode, cval=np.inf)
-        maybe = (_tile_extreme(self.zm, g, tiles, np.max, mode) + self.tie >= near_low).ravel()
-        if not maybe.any():
-            return out
-        shape = (g.nx, g.ny)
-        if maybe.mean() > 1 / 8:  # many tiles: whole-grid filters cost less than blocks point by point
-            edge = "wrap" if g.periodic else "nearest"
-            low = np.full(shape, np.inf)
-            low.flat[anchors] = minimum_filter(self.zo.reshape(shape), size=3, mode=edge).flat[anchors] - rise
-            size = [min(2 * math.ceil(reach / d) + 1, 2 * n + 1) for d, n in ((g.dx, g.nx), (g.dy, g.ny))]
-            near = minimum_filter(low, size=size, mode=mode, cval=np.inf)
-            return (maximum_filter(self.zm.reshape(shape), size=3, mode=edge) + self.tie >= near).ravel()
-        tile = (g.i // TILE) * tiles[1] + g.j // TILE
-        points = np.flatnonzero(maybe[tile])
-        out[points] = self._block_extreme(self.zm, points, np.max) + self.tie >= near_low.ravel()[tile[points]]
-        return out
-
-    def _block_extreme(self, z: np.ndarray, points: np.ndarray, extreme) -> np.ndarray:
-        """``extreme`` (np.min or np.max) of ``z`` over the 3 x 3 block around each of ``points``."""
-        step = np.array([-1, 0, 1])
-        k = self.grid.shift(points[:, None], np.repeat(step, 3)[None, :], np.tile(step, 3)[None, :])
-        return extreme(np.where(k >= 0, z[k], z[points][:, None]), axis=1)  # (past an open edge: the point itself)
-
-    def _take_closer(self, raised: np.ndarray, skip: np.ndarray, rise: float) -> None:
-        """Metal points near the raised oxide points take them if now as close or closer than their set."""
-        if not len(raised):
-            return
-        anchors = self.grid.block(raised) if self.distance == "exact" else raised  # exact: cell centres moved
-        # ask the other metal points that a raised feature can come closer to for the anchors within reach
-        metal = np.flatnonzero(~skip & self._below_raised(anchors, rise))
-        if not len(metal):
-            return
-        # (few raised points are near any one metal point: a short k-nearest query, ball queries for the rest)
-        which, anchor, oxide_slots, metal_slots = self._candidates(self._tree_search(anchors, k=4), metal,
-                                                                   *self._radii(metal, self.D[metal] + self.tie))
-        if not len(which):
-            return
-        found, distance, owner, oxide = self._closest(self.kernel, self.zm, self.zo, metal[which], anchors[anchor],
-                                                     self.tie, oxide_slots, metal_slots)
-        closer = distance < self.D[found] - self.tie
-        tied = ~closer & (distance <= self.D[found] + self.tie)
-        if not (closer.any() or tied.any()):
-            return
-        # a closer point's set is replaced, a tied point's grows
-        new = (closer | tied)[owner]
-        pm, po = found[owner[new]], oxide[new]
-        if tied.any():
-            old = np.isin(self.pair_m, found[tied])
-            key = np.unique(np.concatenate([pm, self.pair_m[old]]) * self.grid.n + np.concatenate([po, self.pair_o[old]]))
-            pm, po = key // self.grid.n, key % self.grid.n
-        self._replace_rows(found[closer | tied], pm, po)
-        # the nearest set point: among the new rows, and for a tie also the old nearest
-        kept = found[tied]
-        metal = np.concatenate([found[owner[new]], kept])
-        order = np.argsort(metal, kind="stable")
-        self._remember_nearest(metal[order], np.concatenate([oxide[new], self._near[kept]])[order])
-        self.D[found] = np.minimum(self.D[found], np.where(closer | tied, distance, np.inf))
-
-
 @functools.lru_cache(maxsize=None)
 def _pool(threads: int) -> ThreadPoolExecutor:
     """One pool per thread count, kept for the life of the process (a pool per sweep costs more than a sweep)."""
@@ -491,17 +343,6 @@ def _pool(threads: int) -> ThreadPoolExecutor:
 
 if hasattr(os, "register_at_fork"):  # a forked child (e.g. a sweep worker) has none of the pools' threads
     os.register_at_fork(after_in_child=_pool.cache_clear)
-
-
-def _tile_extreme(z: np.ndarray, grid, tiles: tuple[int, int], extreme, mode: str) -> np.ndarray:
-    """``extreme`` (np.min or np.max) of the heights ``z`` over each tile of `TILE` x `TILE` points and
-    the points around it (shape ``tiles``)."""
-    fill = np.inf if extreme is np.min else -np.inf
-    padded = np.full((tiles[0] * TILE, tiles[1] * TILE), fill)
-    padded[: grid.nx, : grid.ny] = z.reshape(grid.nx, grid.ny)
-    per_tile = extreme(padded.reshape(tiles[0], TILE, tiles[1], TILE), axis=(1, 3))
-    rim = minimum_filter if extreme is np.min else maximum_filter
-    return rim(per_tile, size=3, mode=mode, cval=fill)
 
 
 def _chunks(lengths: np.ndarray, limit: int):
