@@ -18,7 +18,11 @@ Cases (k_exp 2.3, thesis distances, exact volume accounting, default batch toler
   seconds; time to 200 nm is extrapolated linearly in oxide thickness (the per-nm cost is
   flat after the first nm on the Ta film: see the ``ta`` row's history; it is higher in the first
   nm, so the extrapolation overestimates) and the peak memory is the child's maximum resident
-  set. ``PLANARIZE_PERIODIC_BUDGET=3600`` (seconds) runs it to the end instead.
+  set. ``PLANARIZE_PERIODIC_BUDGET=3600`` (seconds) runs it to the end instead; the cost per nm
+  is then reported by thickness band.
+* ``periodic knobs`` (full mode): the same surface statistics on 257 x 257 points to 200 nm, with
+  the step and the batch tolerance changed from the defaults: time against the change of the
+  roughness history from the default run, and from a run at half the default step.
 
 Run: ``python -m benchmarks.planarize_fast [--quick]`` (or ``python -m benchmarks --only planarize_fast``).
 """
@@ -112,12 +116,35 @@ def _periodic_child(n: int, thickness: float, budget: float, queue) -> None:
     engine = FastEngine(surface, step=0.5)
     setup = time.perf_counter() - start
     reached = []
+    crossings = {}  # band edge (nm) -> wall time when first reached
     while engine.thickness < thickness and time.perf_counter() - start < budget:
         engine.advance()
-        reached.append((engine.thickness, time.perf_counter() - start))
+        now = time.perf_counter() - start
+        reached.append((engine.thickness, now))
+        for edge in BANDS:
+            if edge not in crossings and engine.thickness >= edge:
+                crossings[edge] = (engine.thickness, now)
     queue.put({"setup_s": setup, "wall_s": time.perf_counter() - start, "thickness": engine.thickness,
                "volume_error": engine.oxide_gained() / ((engine.k_exp - 1) * engine.metal_lost()) - 1,
-               "sweeps": engine.iterations, "trace": reached[:: max(1, len(reached) // 50)]})
+               "sweeps": engine.iterations, "trace": reached[:: max(1, len(reached) // 50)],
+               "crossings": crossings})
+
+
+#: Oxide thicknesses (nm) at which the 1025 x 1025 run's cost per nm is split into bands.
+BANDS = (1.0, 10.0, 50.0, 100.0, 150.0, 200.0)
+
+
+def band_costs(setup_s: float, crossings: dict) -> list[tuple[str, float]]:
+    """(band, wall s per nm of oxide in it) between consecutive `BANDS` edges reached (the first band
+    from the start, setup excluded)."""
+    out, last = [], (0.0, 0.0)
+    for edge in BANDS:
+        if edge not in crossings:
+            break
+        thick, wall = crossings[edge]
+        out.append((f"{last[0]:.0f}-{thick:.0f} nm", (wall - last[1]) / max(thick - last[0], 1e-9)))
+        last = (thick, wall)
+    return out
 
 
 def periodic_case(n: int, budget: float) -> dict:
@@ -137,7 +164,31 @@ def periodic_case(n: int, budget: float) -> dict:
             "measured": result["thickness"] >= 200,
             "note": f"ran {result['wall_s']:.0f} s to {result['thickness']:.2f} nm, {per_nm:.0f} s/nm after; "
                     f"setup {result['setup_s']:.0f} s; peak memory {peak_gb:.2f} GB (goal < 4)",
-            "rms_error": float("nan"), "volume_error": result["volume_error"]}
+            "rms_error": float("nan"), "volume_error": result["volume_error"],
+            "bands": band_costs(result["setup_s"], result["crossings"])}
+
+
+#: (step nm, batch tolerance in steps) of the knob table; the first is the default, the last the finer reference.
+KNOBS = ((0.5, 0.1), (0.5, 0.5), (0.5, 1.0), (1.0, 0.5), (2.0, 0.5), (0.25, 0.1))
+
+
+def periodic_knobs(n: int, thickness: float) -> list:
+    """Time against the change of the roughness history, for the step and the batch tolerance on a periodic
+    random surface (`random_surface`): Table rows."""
+    runs = {}
+    for step, tolerance in KNOBS:
+        runs[step, tolerance] = anodize(random_surface(n), thickness, step=step, tolerance=tolerance * step,
+                                        record=100)
+    default, finer = runs[KNOBS[0]], runs[KNOBS[-1]]
+    at = np.linspace(thickness / 10, thickness, 10)
+    rows = []
+    for (step, tolerance), run in runs.items():
+        h = run.history
+        rows.append([step, tolerance, round(run.wall_s, 1), round(run.wall_s / thickness, 3), int(h["iterations"][-1]),
+                     int(h["point_updates"][-1]), round(100 * history_difference(run, default, at), 2),
+                     round(100 * history_difference(run, finer, at), 2),
+                     "default" if (step, tolerance) == KNOBS[0] else ("finer" if (step, tolerance) == KNOBS[-1] else "")])
+    return rows
 
 
 def _row(case, run, error, goal, reference_s=None, reference_measured=True) -> dict:
@@ -187,6 +238,19 @@ def run(quick: bool, budget: float = 120.0) -> list:
                         f"{100 * row['rms_error']:.1f} % RMS vs reference" if row["rms_error"] == row["rms_error"]
                         else row.get("note", "")) for row in rows if row["goal_s"]]
     results.append(table)
+    bands = [row for row in rows if row.get("bands")]
+    if bands:
+        results.append(Table(f"{bands[0]['case']}: cost by oxide thickness", ["band", "wall s per nm"],
+                             [[band, round(cost, 2)] for band, cost in bands[0]["bands"]],
+                             note="Wall time per nm of oxide between the thicknesses given (setup excluded)."))
+    knob_n, knob_thickness = (65, 20.0) if quick else (257, 200.0)
+    results.append(Table(
+        f"periodic {knob_n}x{knob_n} to {knob_thickness:g} nm: step and batch tolerance against time",
+        ["step (nm)", "tolerance (steps)", "wall s", "s per nm", "sweeps", "point updates",
+         "RMS change vs default (%)", "RMS change vs step 0.25 nm (%)", ""],
+        periodic_knobs(knob_n, knob_thickness),
+        note="RMS change: largest relative difference of the metal and oxide RMS roughness at ten thicknesses. "
+             "Same surface statistics as the 1025 x 1025 case (which costs ~20x the 257 x 257 default run)."))
     sizes = (17, 33, 65) if quick else (17, 33, 65, 129, 257, 513)
     points = scaling(sizes, 2.0 if quick else 3.0)
     n = np.array([p[0] for p in points], float)
