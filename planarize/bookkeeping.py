@@ -18,18 +18,15 @@ from .compiled import _INF, _jit, _nearest_image, _star
 @_jit
 def _batch(distance, tolerance, tie, neighbours, pair_o, start, sharers, d, first):
     n = len(distance)
-    low = distance.min()
+    limit = distance.min() + tolerance
+    candidates = np.empty(n, dtype=np.intp)
     count = 0
-    for p in range(n):
-        if distance[p] <= low + tolerance:
-            count += 1
-    candidates = np.empty(count, dtype=np.intp)
-    count = 0
-    for p in range(n):  # d: inf except at the candidates (restored before returning)
-        if distance[p] <= low + tolerance:
-            d[p] = distance[p]
-            candidates[count] = p
-            count += 1
+    for p in range(n):  # every point written, the candidates counted: no branch to mispredict
+        candidates[count] = p
+        count += distance[p] <= limit
+    candidates = candidates[:count]
+    for p in candidates:  # d: inf except at the candidates (restored before returning)
+        d[p] = distance[p]
     for p in candidates:  # first: per oxide point, the smallest candidate distance holding it
         for r in range(start[p], start[p + 1]):
             first[pair_o[r]] = min(first[pair_o[r]], d[p])
@@ -43,9 +40,9 @@ def _batch(distance, tolerance, tie, neighbours, pair_o, start, sharers, d, firs
                 rival = min(rival, d[u])
         for r in range(start[p], start[p + 1]):
             rival = min(rival, first[pair_o[r]])
-        if not rival < d[p] - tie:
-            out[p] = True
-            n_rows += start[p + 1] - start[p]
+        taken = not rival < d[p] - tie
+        out[p] = taken
+        n_rows += taken * (start[p + 1] - start[p])
     rows = np.empty(n_rows, dtype=np.intp)
     row_size = np.empty(n_rows)
     row_sharers = np.empty(n_rows)
@@ -103,9 +100,8 @@ def _stale(in_batch, raised, neighbours, pair_m, pair_o):
     is_raised = np.zeros(n, dtype=np.bool_)
     for a in range(len(raised)):
         is_raised[raised[a]] = True
-    for r in range(len(pair_m)):
-        if is_raised[pair_o[r]]:
-            stale[pair_m[r]] = True
+    for r in range(len(pair_m)):  # rows are sorted by metal point: the writes stream, a branch would mispredict
+        stale[pair_m[r]] |= is_raised[pair_o[r]]
     return stale
 
 

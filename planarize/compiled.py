@@ -55,13 +55,11 @@ def _foot(px, py, pz, ax, ay, az, bx, by, bz):
     wx, wy, wz = px - ax, py - ay, pz - az
     length2 = ux * ux + uy * uy + uz * uz
     along = wx * ux + wy * uy + wz * uz
-    if not 0 < along < length2:  # then t <= 0 or t >= 1 (length2 > 0): no division needed
-        return _INF
+    # computed whether or not the foot is inside, then chosen: a branch per pair mispredicts often
     t = along / length2
-    if not 0 < t < 1:
-        return _INF
-    d2 = wx * wx + wy * wy + wz * wz - t * along
-    return math.sqrt(max(d2, 0.0))
+    inside = (0 < along) & (along < length2) & (0 < t) & (t < 1)
+    value = math.sqrt(max(wx * wx + wy * wy + wz * wz - t * along, 0.0))
+    return value if inside else _INF
 
 
 @_jit(inline=True)
@@ -112,15 +110,10 @@ def _own_feet(out, r, first, px, py, pz, seg):
         ux, uy, uz = seg[e, 3], seg[e, 4], seg[e, 5]
         wx, wy, wz = px - seg[e, 0], py - seg[e, 1], pz - seg[e, 2]
         along = wx * ux + wy * uy + wz * uz
-        if not 0 < along < length2:
-            out[r, first + e] = _INF
-            continue
-        t = along / length2
-        if not 0 < t < 1:
-            out[r, first + e] = _INF
-            continue
-        d2 = wx * wx + wy * wy + wz * wz - t * along
-        out[r, first + e] = math.sqrt(max(d2, 0.0))
+        t = along / length2  # as in `_foot`: computed, then chosen
+        inside = (0 < along) & (along < length2) & (0 < t) & (t < 1)
+        value = math.sqrt(max(wx * wx + wy * wy + wz * wz - t * along, 0.0))
+        out[r, first + e] = value if inside else _INF
 
 
 @_jit

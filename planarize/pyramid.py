@@ -147,13 +147,16 @@ def _near(level, bi, bj, u0, v0, iq, jq, h, r2, ua, ub, va, vb, nx, ny, dx, dy, 
 
 
 @_jit(inline=True)
-def _push(which, found, gap, count, q, k, d):
-    """Append (query ``q``, point ``k``, distance ``d``) at ``count``, growing the arrays if full."""
-    if count == len(which):
-        which = np.concatenate((which, np.empty(count, dtype=np.intp)))
-        found = np.concatenate((found, np.empty(count, dtype=np.intp)))
-        gap = np.concatenate((gap, np.empty(count)))
-    which[count], found[count], gap[count] = q, k, d
+def _grow(which, found, gap, need):
+    """The result arrays with room for at least ``need`` entries (doubled as often as it takes).
+
+    (Each candidate is then written at the end and counted only if it is inside the ball: no branch
+    per candidate, which mispredicts often.)"""
+    while need > len(which):
+        n = len(which)
+        which = np.concatenate((which, np.empty(n, dtype=np.intp)))
+        found = np.concatenate((found, np.empty(n, dtype=np.intp)))
+        gap = np.concatenate((gap, np.empty(n)))
     return which, found, gap
 
 
@@ -177,6 +180,7 @@ def _ball(z, points, zq, radius, nx, ny, dx, dy, periodic, shapes, offsets, low,
         p = points[q]
         iq, jq, h, r2 = p // ny, p % ny, zq[q], radius[q] * radius[q]
         if use_cache and kept_count[p] >= 0 and radius[q] <= kept_radius[p]:
+            which, found, gap = _grow(which, found, gap, count + kept_count[p])
             for c in range(kept_count[p]):
                 di, dj = np.intp(kept[p, c, 0]), np.intp(kept[p, c, 1])
                 u, v = iq + di, jq + dj
@@ -186,9 +190,8 @@ def _ball(z, points, zq, radius, nx, ny, dx, dy, periodic, shapes, offsets, low,
                 k = u * ny + v
                 ex, ey, ez = di * dx, dj * dy, z[k] - h
                 d2 = ex * ex + ey * ey + ez * ez
-                if d2 <= r2:
-                    which, found, gap = _push(which, found, gap, count, q, k, math.sqrt(d2))
-                    count += 1
+                which[count], found[count], gap[count] = q, k, math.sqrt(d2)
+                count += d2 <= r2
             continue
         keep = use_cache and h < floor
         search = radius[q] + margin if keep else radius[q]
@@ -230,6 +233,7 @@ def _ball(z, points, zq, radius, nx, ny, dx, dy, periodic, shapes, offsets, low,
                 continue
             u1 = u0 + min(size, nx - bi * size) - 1
             v1 = v0 + min(size, ny - bj * size) - 1
+            which, found, gap = _grow(which, found, gap, count + size * size)
             for u in range(max(u0, ua), min(u1, ub) + 1):
                 ex = (u - iq) * dx
                 row = (bi * size + u - u0) * ny
@@ -244,9 +248,8 @@ def _ball(z, points, zq, radius, nx, ny, dx, dy, periodic, shapes, offsets, low,
                         else:
                             stored = kept.shape[1]  # too many or too far: not kept
                         stored += 1
-                    if d2 <= r2:
-                        which, found, gap = _push(which, found, gap, count, q, k, math.sqrt(d2))
-                        count += 1
+                    which[count], found[count], gap[count] = q, k, math.sqrt(d2)
+                    count += d2 <= r2
         if keep:
             kept_count[p] = stored if stored <= kept.shape[1] else -1
             kept_radius[p] = search
