@@ -136,8 +136,8 @@ BANDS = (1.0, 10.0, 50.0, 100.0, 150.0, 200.0)
 
 def band_costs(setup_s: float, crossings: dict) -> list[tuple[str, float]]:
     """(band, wall s per nm of oxide in it) between consecutive `BANDS` edges reached (the first band
-    from the start, setup excluded)."""
-    out, last = [], (0.0, 0.0)
+    from the end of the engine's setup, which took ``setup_s``)."""
+    out, last = [], (0.0, setup_s)
     for edge in BANDS:
         if edge not in crossings:
             break
