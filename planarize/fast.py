@@ -74,6 +74,12 @@ class FastEngine(TakeCloser, Engine):
         Threads for the compiled distance updates (the compiled code runs
         without the GIL); the results do not depend on it. Default: the CPUs
         this process may use. Ignored without ``jit``.
+
+    Attributes
+    ----------
+    recomputed : int
+        Exact distance recomputations (candidate search and set) so far: the engine's main cost, several per
+        point update because an update moves features that other points' distances were measured to.
     """
 
     name = "fast"
@@ -119,6 +125,7 @@ class FastEngine(TakeCloser, Engine):
         self._neighbours = [g.shift(np.arange(g.n), di, dj) for di, dj in reach]
         self._neighbour_table = np.stack(self._neighbours, axis=1)
         self._near = np.full(g.n, -1, dtype=np.intp)  # per metal point, the nearest oxide point of its set
+        self.recomputed = 0
         self._update_reaches()
         everything = np.arange(g.n)
         self._recompute(everything, self.zo - self.zm)  # the oxide straight above bounds every distance
@@ -185,6 +192,7 @@ class FastEngine(TakeCloser, Engine):
         """Exact distance and set of ``points``, given an upper bound of each new distance (default `_bound`)."""
         if not len(points):
             return
+        self.recomputed += len(points)
         if self._pyramid is None:
             search = self._tree_search()
         else:

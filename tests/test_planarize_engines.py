@@ -55,6 +55,16 @@ def test_distances_and_sets_stay_exact(engine_class, distance, name):
     assert engine.thickness > 0
 
 
+def test_fast_engine_counts_its_distance_recomputations():
+    """Every point is searched once at the start, and each oxidized point at least once per update."""
+    engine = FastEngine(small_surfaces()["hill"], step=0.01)
+    assert engine.recomputed == engine.grid.n
+    for _ in range(20):
+        before, updates = engine.recomputed, engine.point_updates
+        engine.advance()
+        assert engine.recomputed - before >= engine.point_updates - updates > 0
+
+
 @pytest.mark.parametrize("distance", ["thesis", "exact"])
 @pytest.mark.parametrize("name", list(small_surfaces()))
 def test_fast_engine_at_zero_tolerance_is_the_reference(distance, name):
