@@ -16,7 +16,7 @@ from .compiled import _INF, _jit, _nearest_image, _star
 
 
 @_jit
-def _batch(distance, tolerance, tie, neighbours, pair_o, start, sharers, d, first):
+def _batch(distance, tolerance, tie, wait, neighbours, pair_o, start, sharers, d, first):
     n = len(distance)
     limit = distance.min() + tolerance
     candidates = np.empty(n, dtype=np.intp)
@@ -26,7 +26,7 @@ def _batch(distance, tolerance, tie, neighbours, pair_o, start, sharers, d, firs
         count += distance[p] <= limit
     candidates = candidates[:count]
     for p in candidates:  # d: inf except at the candidates (restored before returning)
-        d[p] = distance[p]
+        d[p] = distance[p] if wait else 0.0  # (together: no candidate is closer than another)
     for p in candidates:  # first: per oxide point, the smallest candidate distance holding it
         for r in range(start[p], start[p + 1]):
             first[pair_o[r]] = min(first[pair_o[r]], d[p])
@@ -61,14 +61,14 @@ def _batch(distance, tolerance, tie, neighbours, pair_o, start, sharers, d, firs
     return out, rows, row_size, row_sharers
 
 
-def batch(distance, tolerance: float, tie: float, neighbours, pair_o, start, sharers, d, first):
+def batch(distance, tolerance: float, tie: float, wait: bool, neighbours, pair_o, start, sharers, d, first):
     """`FastEngine._batch`, compiled: the points within ``tolerance`` of the smallest ``distance`` that
-    no interacting candidate (a neighbour in ``neighbours``, or a sharer of an oxide point) is more than
-    ``tie`` closer than (boolean mask); their set rows (ascending), and for each row its set's size and
+    (if ``wait``) no interacting candidate (a neighbour in ``neighbours``, or a sharer of an oxide point) is
+    more than ``tie`` closer than (boolean mask); their set rows (ascending), and for each row its set's size and
     its oxide point's number of sharers. The set rows of point ``p`` are ``start[p]:start[p + 1]`` of
     ``pair_o``; ``sharers`` counts the rows of each oxide point; ``d`` and ``first`` are scratch arrays
     of inf (length of ``distance``), left as they were."""
-    return _batch(distance, float(tolerance), float(tie), neighbours, pair_o, start, sharers, d, first)
+    return _batch(distance, float(tolerance), float(tie), bool(wait), neighbours, pair_o, start, sharers, d, first)
 
 
 @_jit

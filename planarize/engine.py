@@ -35,6 +35,8 @@ from .surface import Surface, volume_weights
 
 #: Volume accounting: exact for the piecewise-linear surface, or the thesis's equal weights.
 VOLUME_RULES = ("exact", "thesis")
+#: What the fast engine does with interacting candidates of a batch: one after the other, or together.
+INTERACTING = ("wait", "together")
 
 
 def check_parameters(k_exp: float, step: float) -> tuple[float, float]:

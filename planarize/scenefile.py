@@ -31,7 +31,7 @@ from qdots.tomlfile import check_keys, from_source, parse_toml, read_toml, toml_
 
 from . import scenes
 from .anodize import Anodization, anodize, engines
-from .engine import VOLUME_RULES
+from .engine import INTERACTING, VOLUME_RULES
 from .features import DISTANCES
 from .io import FORMATS, LENGTH_UNITS, load_heights
 from .surface import Surface
@@ -86,6 +86,8 @@ RUN = {
     "distance": ("str", '"thesis" (points and segments) | "exact" (the triangulated surfaces)'),
     "volume": ("str", '"exact" | "thesis" (equal point weights)'),
     "tolerance": ("float?", "nm, fast engine batch tolerance, >= 0; unset: step / 10"),
+    "interacting": ("str", '"wait" | "together" (fast engine: interacting candidates of a batch; together is faster, '
+                           'changes the result by what the tolerance lets in)'),
     "record": ("record", "history rows: a count n (n + 1 evenly spaced) or [thicknesses nm]"),
     "snapshots": ("floats?", "[thicknesses nm] at which both surfaces are kept, in [0, thickness]; unset: [0, thickness]"),
 }
@@ -214,6 +216,7 @@ class RunSettings:
     distance: str = "thesis"
     volume: str = "exact"
     tolerance: float | None = None
+    interacting: str = "wait"
     record: int | list = 50
     snapshots: list | None = None
 
@@ -225,7 +228,8 @@ class RunSettings:
         _at_least("k_exp", self.k_exp, 1.0, "")
         if self.tolerance is not None:
             _at_least("tolerance", self.tolerance, 0.0, "nm")
-        for key, allowed in (("engine", tuple(engines())), ("distance", DISTANCES), ("volume", VOLUME_RULES)):
+        for key, allowed in (("engine", tuple(engines())), ("distance", DISTANCES), ("volume", VOLUME_RULES),
+                             ("interacting", INTERACTING)):
             if getattr(self, key) not in allowed:
                 raise ValueError(f"{key} must be one of {', '.join(map(repr, allowed))}, got {getattr(self, key)!r}")
         if isinstance(self.record, int) and self.record < 1:
@@ -237,9 +241,11 @@ class RunSettings:
 
     def options(self) -> dict:
         """Keyword arguments of `planarize.anodize` (all but the surface and ``progress``)."""
-        out = {key: getattr(self, key) for key in RUN if key != "tolerance"}
-        if self.tolerance is not None and self.engine == "fast":  # the reference engine has no batches
-            out["tolerance"] = self.tolerance
+        out = {key: getattr(self, key) for key in RUN if key not in ("tolerance", "interacting")}
+        if self.engine == "fast":  # the reference engine has no batches
+            out["interacting"] = self.interacting
+            if self.tolerance is not None:
+                out["tolerance"] = self.tolerance
         return out
 
 

@@ -115,10 +115,11 @@ def test_kept_searches_leave_a_thick_oxide_run_unchanged():
     assert compiled_run.metal.z.max() < compiled_run.oxide.z.min()  # every search was kept for a while
 
 
+@pytest.mark.parametrize("interacting", ["wait", "together"])
 @pytest.mark.parametrize("boundary,distance", CASES)
-def test_fast_engine_runs_identically_with_and_without_jit(boundary, distance):
+def test_fast_engine_runs_identically_with_and_without_jit(boundary, distance, interacting):
     surface = Surface(scenes.hill().z, 0.25, boundary)
-    kwargs = dict(step=0.02, distance=distance, record=5)
+    kwargs = dict(step=0.02, distance=distance, record=5, interacting=interacting, tolerance=0.02)
     compiled_run = anodize(surface, 0.4, jit=True, **kwargs)
     numpy_run = anodize(surface, 0.4, jit=False, **kwargs)
     np.testing.assert_array_equal(compiled_run.metal.z, numpy_run.metal.z)
@@ -193,13 +194,14 @@ def test_a_forked_process_runs_its_own_threads(monkeypatch):
     np.testing.assert_array_equal(here, there)
 
 
+@pytest.mark.parametrize("interacting", ["wait", "together"])
 @pytest.mark.parametrize("boundary,distance", CASES)
-def test_compiled_batch_and_bound_match_numpy(boundary, distance, rng):
+def test_compiled_batch_and_bound_match_numpy(boundary, distance, interacting, rng):
     from planarize.fast import FastEngine
 
     surface = Surface(rng.normal(scale=0.4, size=(12, 9)), (0.5, 0.35), boundary)
-    jit = FastEngine(surface, distance=distance, tolerance=0.05)
-    plain = FastEngine(surface, distance=distance, tolerance=0.05, jit=False)
+    jit = FastEngine(surface, distance=distance, tolerance=0.05, interacting=interacting)
+    plain = FastEngine(surface, distance=distance, tolerance=0.05, interacting=interacting, jit=False)
     for _ in range(5):
         # distances with exact ties and a spread around the tolerance
         distance_now = np.round(rng.uniform(0.0, 0.2, surface.z.size), 2)

@@ -55,6 +55,34 @@ def test_distances_and_sets_stay_exact(engine_class, distance, name):
     assert engine.thickness > 0
 
 
+@pytest.mark.parametrize("name", list(small_surfaces()))
+def test_interacting_together_at_zero_tolerance_is_the_default(name):
+    """At tolerance 0 no candidate is closer than another by more than round-off: nothing waits."""
+    runs = [anodize(small_surfaces()[name], 0.3, step=0.01, tolerance=0.0, interacting=mode, record=5)
+            for mode in ("wait", "together")]
+    np.testing.assert_array_equal(runs[0].metal.z, runs[1].metal.z)
+    np.testing.assert_array_equal(runs[0].oxide.z, runs[1].oxide.z)
+
+
+@pytest.mark.parametrize("distance", ["thesis", "exact"])
+def test_interacting_together_keeps_distances_and_volume_exact(distance):
+    """With every candidate of a wide batch oxidized, sets and distances stay exact, volume balances, and
+    the batches are larger than when interacting candidates wait."""
+    surface = small_surfaces()["periodic"]
+    engines = {mode: FastEngine(surface, step=0.01, tolerance=0.03, distance=distance, interacting=mode)
+               for mode in ("wait", "together")}
+    together = engines["together"]
+    for k in range(40):
+        if k % 10 == 0:
+            best, sets = brute_force(together)
+            np.testing.assert_array_equal(together.D, best)
+            assert engine_sets(together) == sets
+        for engine in engines.values():
+            engine.advance()
+    assert together.point_updates > engines["wait"].point_updates
+    assert abs(together.oxide_gained() / ((together.k_exp - 1) * together.metal_lost()) - 1) < 1e-12
+
+
 def test_fast_engine_counts_its_distance_recomputations():
     """Every point is searched once at the start, and each oxidized point at least once per update."""
     engine = FastEngine(small_surfaces()["hill"], step=0.01)
@@ -213,6 +241,7 @@ def test_cliffs_and_spikes_stay_finite(kind, distance):
     ({"record": 0}, "record"),
     ({"snapshots": [2.0]}, "snapshots"),
     ({"tolerance": -1}, "tolerance"),
+    ({"interacting": "first"}, "interacting"),
 ])
 def test_bad_run_parameters(kwargs, message):
     args = {"thickness": 0.1, **kwargs}

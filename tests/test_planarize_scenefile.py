@@ -71,6 +71,8 @@ def test_scene_runs_with_overrides():
     assert run.parameters["step"] == 0.04 and run.initial.shape == (5, 5) and len(run.history["target_nm"]) == 4
     assert SCENES["hill"].replace(run={"engine": "reference", "tolerance": 0.1}).run.options()["engine"] == "reference"
     assert "tolerance" not in SCENES["hill"].replace(run={"engine": "reference", "tolerance": 0.1}).run.options()
+    assert SCENES["hill"].replace(run={"interacting": "together"}).run.options()["interacting"] == "together"
+    assert "interacting" not in SCENES["hill"].replace(run={"engine": "reference"}).run.options()
 
 
 @pytest.mark.parametrize("text, match", [
@@ -100,6 +102,7 @@ def test_scene_runs_with_overrides():
     ("[run]\ndistance = 'far'", r"run.distance must be one of 'thesis', 'exact'"),
     ("[run]\nvolume = 'mean'", r"run.volume must be one of 'exact', 'thesis'"),
     ("[run]\ntolerance = -1", r"run.tolerance must be >= 0 nm"),
+    ("[run]\ninteracting = 'first'", r"run.interacting must be one of 'wait', 'together'"),
     ("[run]\nrecord = 0", r"run.record must be a count >= 1"),
     ("[run]\nrecord = 'all'", r"run.record must be an integer count or a list"),
     ("[run]\nsnapshots = [0, 5]", r"run.snapshots must lie in \[0, thickness = 1.0\] nm"),
