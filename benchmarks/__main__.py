@@ -25,7 +25,7 @@ import time
 import traceback
 from pathlib import Path
 
-from qdots.atomic import write_text_atomic
+from labrig.files import write_text_atomic
 
 from . import BENCHMARKS
 from .report import Figure, Headline, Note, machine_info, machine_line, save_figure, section_markdown

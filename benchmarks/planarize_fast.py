@@ -37,7 +37,6 @@ import time
 import numpy as np
 from scipy.ndimage import gaussian_filter
 
-
 from planarize import Surface, anodize, scenes
 from planarize.metrics import history_difference
 from planarize.reference import ReferenceEngine

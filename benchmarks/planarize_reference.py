@@ -31,9 +31,8 @@ from pathlib import Path
 
 import numpy as np
 
-from qdots.commands import write_csv
-
 import planarize
+from labrig.files import write_csv
 from planarize.metrics import history_row
 from planarize.reference import ReferenceEngine
 

@@ -24,7 +24,7 @@ from typing import Callable, Sequence
 
 from matplotlib.figure import Figure as MplFigure
 
-from qdots.atomic import atomic_path
+from labrig.files import atomic_path
 
 
 @dataclass

@@ -28,10 +28,9 @@ import tempfile
 import time
 from dataclasses import dataclass
 
+from labrig.sweeps import Sweep, run_sweep
 from qdots.experiment_sweep import ExperimentRunner, experiment_to_dict
 from qdots.presets import PRESETS
-from qdots.sweeps import Sweep, run_sweep
-
 
 #: Columns that measure the machine, not the run: left out of the table comparison.
 TIMINGS = ("wall_s", "cpu_s")
@@ -96,7 +95,7 @@ def main(argv: list[str] | None = None) -> int:
         try:
             from distributed import LocalCluster
         except ImportError:
-            print("(no dask.distributed: pip install 'qdots[sweep]' for the Dask row)\n")
+            print("(no dask.distributed: pip install 'nanodisorder[sweep]' for the Dask row)\n")
         else:
             with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
                 results.append(("dask LocalCluster", 2, *timed(sweep, runner, scheduler=cluster.scheduler_address)))

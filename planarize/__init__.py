@@ -11,6 +11,6 @@ from .anodize import Anodization, Snapshot, anodize, engines
 from .metrics import rms, z_range
 from .surface import Surface
 
-__version__ = "0.1.0"
+from labrig import __version__  # noqa: E402,F401 (one version for the distribution)
 
 __all__ = ["Surface", "anodize", "Anodization", "Snapshot", "engines", "rms", "z_range", "scenes"]

@@ -13,6 +13,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from labrig.validate import InputError
+
 from .engine import Engine
 from .metrics import history_row
 from .surface import Surface
@@ -86,14 +88,14 @@ class Anodization:
 def _targets(spec, thickness: float, name: str) -> np.ndarray:
     if isinstance(spec, (int, np.integer)) and not isinstance(spec, bool):
         if spec < 1:
-            raise ValueError(f"{name} must be a count >= 1 or a list of thicknesses, got {spec!r}")
+            raise InputError(f"{name} must be a count >= 1 or a list of thicknesses, got {spec!r}")
         return np.linspace(0.0, thickness, int(spec) + 1) if spec > 1 else np.array([0.0, thickness])
     try:
         values = np.unique(np.asarray(spec, dtype=float).ravel())
     except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a count or a list of thicknesses (nm), got {spec!r}") from None
+        raise InputError(f"{name} must be a count or a list of thicknesses (nm), got {spec!r}") from None
     if values.size and not (np.isfinite(values).all() and values.min() >= 0 and values.max() <= thickness):
-        raise ValueError(f"{name} must lie in [0, thickness = {thickness:g}] nm, got {spec!r}")
+        raise InputError(f"{name} must lie in [0, thickness = {thickness:g}] nm, got {spec!r}")
     return values
 
 
@@ -142,13 +144,13 @@ def anodize(metal: Surface, thickness: float, *, step: float = 0.01, k_exp: floa
     """
     available = engines()
     if engine not in available:
-        raise ValueError(f"engine must be one of {tuple(available)}, got {engine!r}")
+        raise InputError(f"engine must be one of {tuple(available)}, got {engine!r}")
     try:
         thickness = float(thickness)
     except (TypeError, ValueError):
-        raise ValueError(f"thickness must be a number of nm, got {thickness!r}") from None
+        raise InputError(f"thickness must be a number of nm, got {thickness!r}") from None
     if not (math.isfinite(thickness) and thickness >= 0):
-        raise ValueError(f"thickness must be >= 0 nm, got {thickness!r}")
+        raise InputError(f"thickness must be >= 0 nm, got {thickness!r}")
     rows_at = _targets(record, thickness, "record")
     shots_at = _targets([0.0, thickness] if snapshots is None else snapshots, thickness, "snapshots")
     sim = available[engine](metal, oxide, k_exp=k_exp, step=step, distance=distance, volume=volume,

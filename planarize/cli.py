@@ -16,7 +16,7 @@ import sys
 from pathlib import Path
 from typing import Sequence
 
-from qdots.cliutil import Parser, UsageError, float_in, fraction, run_main
+from labrig.cli import Parser, UsageError, float_in, fraction, run_main
 
 from .anodize import engines
 from .scenefile import SCENES
@@ -89,7 +89,7 @@ def _add_sweep(subparsers) -> None:
 
 
 def _add_sweep_plot(subparsers) -> None:
-    from qdots.sweeps.command import add_plot_parser
+    from labrig.sweeps.command import add_plot_parser
 
     add_plot_parser(subparsers, "planarize")
 

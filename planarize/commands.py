@@ -15,7 +15,9 @@ from pathlib import Path
 
 import numpy as np
 
-from qdots.commands import print_table, slug
+from labrig.cli import print_table
+from labrig.files import slug
+from labrig.validate import InputError
 
 from . import render
 from .anodize import Anodization
@@ -111,6 +113,6 @@ def import_scene(path: Path, *, thickness: float, step: float | None = None, nam
     if step is None:
         span = z_range(spec.build())
         if span <= 0:
-            raise ValueError(f"{path}: the surface is flat (z-range 0): pass a step")
+            raise InputError(f"{path}: the surface is flat (z-range 0): pass a step")
         step = float(f"{span / 100:.0e}")
     return PlanarizeScene(name or Path(path).stem, surface=spec, run=RunSettings(thickness=thickness, step=step, **run))

@@ -29,6 +29,8 @@ import math
 
 import numpy as np
 
+from labrig.validate import InputError
+
 from .features import FeatureKernel
 from .grid import Grid
 from .surface import Surface, volume_weights
@@ -44,11 +46,11 @@ def check_parameters(k_exp: float, step: float) -> tuple[float, float]:
     try:
         k_exp, step = float(k_exp), float(step)
     except (TypeError, ValueError):
-        raise ValueError(f"k_exp and step must be numbers, got {k_exp!r} and {step!r}") from None
+        raise InputError(f"k_exp and step must be numbers, got {k_exp!r} and {step!r}") from None
     if not (math.isfinite(k_exp) and k_exp >= 1.0):
-        raise ValueError(f"k_exp (oxide volume per metal volume) must be >= 1, got {k_exp!r}")
+        raise InputError(f"k_exp (oxide volume per metal volume) must be >= 1, got {k_exp!r}")
     if not (math.isfinite(step) and step > 0):
-        raise ValueError(f"step must be > 0 nm, got {step!r}")
+        raise InputError(f"step must be > 0 nm, got {step!r}")
     return k_exp, step
 
 
@@ -79,14 +81,14 @@ class Engine:
         if not isinstance(metal, Surface):
             raise TypeError(f"metal must be a planarize.Surface, got {type(metal).__name__}")
         if volume not in VOLUME_RULES:
-            raise ValueError(f"volume must be one of {VOLUME_RULES}, got {volume!r}")
+            raise InputError(f"volume must be one of {VOLUME_RULES}, got {volume!r}")
         self.k_exp, self.step = check_parameters(k_exp, step)
         if oxide is None:
             oxide = metal
         elif (oxide.shape, oxide.spacing, oxide.boundary) != (metal.shape, metal.spacing, metal.boundary):
-            raise ValueError(f"oxide must be on the metal's grid: {oxide!r} vs {metal!r}")
+            raise InputError(f"oxide must be on the metal's grid: {oxide!r} vs {metal!r}")
         elif np.any(oxide.z < metal.z):
-            raise ValueError("oxide must lie nowhere below the metal")
+            raise InputError("oxide must lie nowhere below the metal")
         self.surface = metal
         self.grid = Grid(metal.shape, metal.spacing, metal.periodic)
         self.kernel = FeatureKernel(self.grid, distance)

@@ -38,10 +38,12 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
+from labrig.validate import InputError
+
+from . import bookkeeping, compiled, features
 from .closer import TakeCloser
 from .engine import INTERACTING, Engine
 from .pyramid import BallCache, HeightPyramid
-from . import bookkeeping, compiled, features
 
 #: Candidate pairs evaluated per kernel call (bounds memory: 33 distances each in exact mode).
 CHUNK_PAIRS = 400_000
@@ -99,20 +101,20 @@ class FastEngine(TakeCloser, Engine):
         try:
             tolerance = float(tolerance)
         except (TypeError, ValueError):
-            raise ValueError(f"tolerance must be a number of nm, got {tolerance!r}") from None
+            raise InputError(f"tolerance must be a number of nm, got {tolerance!r}") from None
         if not (math.isfinite(tolerance) and tolerance >= 0):
-            raise ValueError(f"tolerance must be >= 0 nm, got {tolerance!r}")
+            raise InputError(f"tolerance must be >= 0 nm, got {tolerance!r}")
         self.tolerance = max(tolerance, self.tie)
         if interacting not in INTERACTING:
-            raise ValueError(f"interacting must be one of {INTERACTING}, got {interacting!r}")
+            raise InputError(f"interacting must be one of {INTERACTING}, got {interacting!r}")
         self.interacting = interacting
         if jit and not compiled.AVAILABLE:
-            raise ImportError("jit=True needs numba: pip install 'qdots[fast]' (or numba)")
+            raise ImportError("jit=True needs numba: pip install 'nanodisorder[fast]' (or numba)")
         self.jit = compiled.AVAILABLE if jit is None else bool(jit)
         if threads is None:
             threads = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
         if isinstance(threads, bool) or not isinstance(threads, (int, np.integer)) or threads < 1:
-            raise ValueError(f"threads must be a whole number >= 1, got {threads!r}")
+            raise InputError(f"threads must be a whole number >= 1, got {threads!r}")
         self.threads = int(threads) if self.jit else 1
         self._closest = compiled.closest_sets if self.jit else features.closest_sets
         self._pyramid = HeightPyramid(self.grid, self.zo) if self.jit else None

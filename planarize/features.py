@@ -32,6 +32,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from labrig.validate import InputError
+
 from .geometry import point_triangle_xyz, segment_foot_xyz
 from .grid import EDGE_DIRECTIONS, QUADRANTS, Grid
 
@@ -50,7 +52,7 @@ class FeatureKernel:
 
     def __init__(self, grid: Grid, distance: str = "thesis"):
         if distance not in DISTANCES:
-            raise ValueError(f"distance must be one of {DISTANCES}, got {distance!r}")
+            raise InputError(f"distance must be one of {DISTANCES}, got {distance!r}")
         self.grid = grid
         self.distance = distance
         self.n_slots = 9 if distance == "thesis" else 33

@@ -19,6 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
+from labrig.validate import InputError
+
 from .io import FILE_UNITS, _file_unit, _given_spacing, _scales
 from .surface import Surface
 
@@ -27,7 +29,7 @@ def _gwyfile():
     try:
         import gwyfile
     except ImportError:
-        raise ValueError('reading and writing .gwy files needs the gwyfile package: pip install "qdots[afm]" '
+        raise InputError('reading and writing .gwy files needs the gwyfile package: pip install "nanodisorder[afm]" '
                          "(or pip install gwyfile)") from None
     return gwyfile
 
@@ -42,7 +44,7 @@ def _load_gwy(path: Path):
     try:
         return gwyfile.load(str(path))
     except Exception as exc:  # gwyfile asserts on a bad magic number and fails on truncated data
-        raise ValueError(f"not a readable Gwyddion file: {type(exc).__name__} {exc}".rstrip()) from None
+        raise InputError(f"not a readable Gwyddion file: {type(exc).__name__} {exc}".rstrip()) from None
 
 
 def _unit(value) -> str | None:
@@ -69,39 +71,39 @@ def read_gwy(path, unit, z_unit, spacing, channel):
     """Heights, pixel size and unit scales of one channel (the reader `planarize.io.load_heights` calls)."""
     channels = _channels(_load_gwy(path))
     if not channels:
-        raise ValueError("the file holds no data channel (GwyDataField)")
+        raise InputError("the file holds no data channel (GwyDataField)")
     if channel is None:
         # a channel without a unit may be heights: then the user must give the unit
         heights = [c for c in channels if c["z_unit"] in FILE_UNITS] or [c for c in channels if not c["z_unit"]]
         if not heights:
-            raise ValueError(f"no height channel (values in a length unit); channels: {_describe(channels)}")
+            raise InputError(f"no height channel (values in a length unit); channels: {_describe(channels)}")
         chosen = heights[0]
     else:
         wanted = [c for c in channels if (c["number"] == channel if isinstance(channel, int)
                                           else c["title"].lower() == str(channel).lower())]
         if not wanted:
-            raise ValueError(f"no channel {channel!r}; channels: {_describe(channels)}")
+            raise InputError(f"no channel {channel!r}; channels: {_describe(channels)}")
         chosen = wanted[0]
     label = f"channel {chosen['number']} {chosen['title']!r}"
     try:
         stated_z = None if chosen["z_unit"] is None else _file_unit(chosen["z_unit"], f"{label} values")
     except ValueError as exc:
         heights = [c for c in channels if c["z_unit"] in FILE_UNITS]
-        raise ValueError(f"{exc}: not a height channel; height channels: {_describe(heights)}") from None
+        raise InputError(f"{exc}: not a height channel; height channels: {_describe(heights)}") from None
     stated_xy = None if chosen["xy_unit"] is None else _file_unit(chosen["xy_unit"], f"{label} lateral sizes")
     xy_scale, z_scale = _scales(stated_xy, stated_z, unit, z_unit)
     field = chosen["field"]
     ny, nx = chosen["shape"]
     data = np.asarray(field["data"], dtype=float)
     if data.size != nx * ny:
-        raise ValueError(f"{label}: {data.size} values for {nx} x {ny} pixels")
+        raise InputError(f"{label}: {data.size} values for {nx} x {ny} pixels")
     real = (field.get("xreal"), field.get("yreal"))
     stated = all(v is not None for v in real)
     given = _given_spacing(spacing, stated)
     if stated:
         for name, v in zip(("xreal", "yreal"), real):
             if not (math.isfinite(v) and v > 0):
-                raise ValueError(f"{label}: {name} must be > 0, got {v!r}")
+                raise InputError(f"{label}: {name} must be > 0, got {v!r}")
         pixel = (real[0] / nx, real[1] / ny)
     else:
         pixel = given

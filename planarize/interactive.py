@@ -9,12 +9,14 @@ A slider over the oxide thicknesses at which the run kept both surfaces
 (``snapshots=`` of `planarize.anodize`) shows the metal and oxide surfaces in
 3-D and along the centre line, next to the run's RMS and z-range curves with a
 marker at the selected thickness. Needs the ``widgets`` extra
-(``pip install "qdots[widgets]"``).
+(``pip install "nanodisorder[widgets]"``).
 """
 
 from __future__ import annotations
 
 import numpy as np
+
+from labrig.validate import InputError
 
 from .anodize import Anodization
 from .metrics import rms, z_range
@@ -28,13 +30,13 @@ def nearest_snapshot(run: Anodization, thickness: float) -> int:
     Ties go to the thinner one.
     """
     if not run.snapshots:
-        raise ValueError("the run kept no snapshots: pass snapshots=[...] to planarize.anodize")
+        raise InputError("the run kept no snapshots: pass snapshots=[...] to planarize.anodize")
     try:
         thickness = float(thickness)
     except (TypeError, ValueError):
-        raise ValueError(f"thickness must be a number of nm, got {thickness!r}") from None
+        raise InputError(f"thickness must be a number of nm, got {thickness!r}") from None
     if not np.isfinite(thickness):
-        raise ValueError(f"thickness must be finite, got {thickness!r}")
+        raise InputError(f"thickness must be finite, got {thickness!r}")
     return int(np.argmin([abs(s.thickness - thickness) for s in run.snapshots]))
 
 
@@ -66,15 +68,15 @@ class ThicknessExplorer:
     """
 
     def __init__(self, run: Anodization, *, size: tuple[float, float] = (12.0, 4.0), mesh: int = 40):
-        from qdots.interactive import require_widgets, widget_figure
+        from labrig.widgets import require_widgets, widget_figure
 
         w = require_widgets("planarize.interactive")
         if not isinstance(run, Anodization):
             raise TypeError(f"run must be a planarize.Anodization, got {type(run).__name__}")
         if not run.snapshots:
-            raise ValueError("the run kept no snapshots: pass snapshots=[...] to planarize.anodize")
+            raise InputError("the run kept no snapshots: pass snapshots=[...] to planarize.anodize")
         if isinstance(mesh, bool) or not isinstance(mesh, int) or mesh < 2:
-            raise ValueError(f"mesh must be an integer >= 2, got {mesh!r}")
+            raise InputError(f"mesh must be an integer >= 2, got {mesh!r}")
         self.run, self.mesh = run, mesh
         self.figure = widget_figure(size)
         self.slider = w.SelectionSlider(options=list(zip(_labels(run), range(len(run.snapshots)))), value=0,

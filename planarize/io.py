@@ -18,7 +18,7 @@ Formats (chosen by suffix, or ``format=``):
     A 2-D array laid out like `Surface.z`; ``spacing`` and ``unit`` must be given.
 ``"gwy"`` (``.gwy``)
     A Gwyddion file, read with the ``gwyfile`` package (``pip install
-    "qdots[afm]"``; `planarize.gwy`). One channel is imported: by number or
+    "nanodisorder[afm]"``; `planarize.gwy`). One channel is imported: by number or
     title, by default the first whose values are lengths. Pixel size and
     units come from the file.
 
@@ -43,7 +43,8 @@ from pathlib import Path
 
 import numpy as np
 
-from qdots.atomic import atomic_path
+from labrig.files import atomic_path
+from labrig.validate import InputError
 
 from .surface import Surface, check_heights
 
@@ -64,7 +65,7 @@ MAX_PIXEL_ASPECT = 8.0
 def unit_scale(unit: str, name: str = "unit") -> float:
     """nm per ``unit`` (a key of `LENGTH_UNITS`), or a ValueError naming the allowed units."""
     if unit not in LENGTH_UNITS:
-        raise ValueError(f"{name} must be a length unit, one of {', '.join(LENGTH_UNITS)}; got {unit!r}")
+        raise InputError(f"{name} must be a length unit, one of {', '.join(LENGTH_UNITS)}; got {unit!r}")
     return LENGTH_UNITS[unit]
 
 
@@ -72,7 +73,7 @@ def _file_unit(unit, what: str) -> str:
     """A length unit stated in a file (SI spelling), or a ValueError saying what it is instead."""
     unit = "" if unit is None else str(unit).strip()
     if unit not in FILE_UNITS:
-        raise ValueError(f"{what} are in {unit or 'no unit'!r}, not a length "
+        raise InputError(f"{what} are in {unit or 'no unit'!r}, not a length "
                          f"(supported: {', '.join(FILE_UNITS)})")
     return unit
 
@@ -82,11 +83,11 @@ def _agree(stated: str | None, given: str | None, name: str, what: str) -> float
     if given is not None:
         scale = unit_scale(given, name)
         if stated is not None and not math.isclose(scale, FILE_UNITS[stated], rel_tol=1e-12):
-            raise ValueError(f"{name}={given!r} contradicts the file, whose {what} are in {stated!r}; "
+            raise InputError(f"{name}={given!r} contradicts the file, whose {what} are in {stated!r}; "
                              f"leave {name} out")
         return scale
     if stated is None:
-        raise ValueError(f"the file does not state the unit of its {what}: pass {name} "
+        raise InputError(f"the file does not state the unit of its {what}: pass {name} "
                          f"({', '.join(LENGTH_UNITS)})")
     return FILE_UNITS[stated]
 
@@ -96,9 +97,9 @@ def _pair(spacing, name: str = "spacing") -> tuple[float, float]:
     try:
         dx, dy = (float(v) for v in pair)
     except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a number or a pair (dx, dy), got {spacing!r}") from None
+        raise InputError(f"{name} must be a number or a pair (dx, dy), got {spacing!r}") from None
     if not all(math.isfinite(v) and v > 0 for v in (dx, dy)):
-        raise ValueError(f"{name} must be finite and > 0, got {spacing!r}")
+        raise InputError(f"{name} must be finite and > 0, got {spacing!r}")
     return dx, dy
 
 
@@ -106,7 +107,7 @@ def check_aspect(dx: float, dy: float, max_aspect: float = MAX_PIXEL_ASPECT) -> 
     """ValueError unless the pixel ``dx`` x ``dy`` is at most ``max_aspect`` times longer than wide."""
     aspect = max(dx, dy) / min(dx, dy)
     if aspect > max_aspect * (1 + 1e-9):
-        raise ValueError(f"pixels are {dx:.6g} x {dy:.6g} nm (aspect {aspect:.3g}); rectangular pixels up to "
+        raise InputError(f"pixels are {dx:.6g} x {dy:.6g} nm (aspect {aspect:.3g}); rectangular pixels up to "
                          f"aspect {max_aspect:g} are supported (accuracy follows the coarser spacing): resample "
                          f"the scan, or pass a larger max_aspect")
 
@@ -168,10 +169,10 @@ def load_heights(path, *, unit: str | None = None, z_unit: str | None = None, sp
     if format is None:
         format = SUFFIXES.get(path.suffix.lower())
         if format is None:
-            raise ValueError(f"{path}: unknown height-map suffix {path.suffix!r}; use one of "
+            raise InputError(f"{path}: unknown height-map suffix {path.suffix!r}; use one of "
                              f"{', '.join(SUFFIXES)} or pass format= ({', '.join(FORMATS)})")
     elif format not in FORMATS:
-        raise ValueError(f"format must be one of {FORMATS}, got {format!r}")
+        raise InputError(f"format must be one of {FORMATS}, got {format!r}")
     if not path.is_file():
         raise FileNotFoundError(f"height map {str(path)!r} does not exist")
     try:
@@ -185,7 +186,7 @@ def load_heights(path, *, unit: str | None = None, z_unit: str | None = None, sp
         check_aspect(dx, dy, max_aspect)
         surface = Surface(z, (dx, dy), boundary)
     except ValueError as exc:
-        raise ValueError(f"{path}: {exc}") from None
+        raise InputError(f"{path}: {exc}") from None
     return level_plane(surface) if level else surface
 
 
@@ -199,9 +200,9 @@ def _scales(stated_xy, stated_z, unit, z_unit) -> tuple[float, float]:
 
 def _given_spacing(spacing, stated: bool):
     if spacing is not None and stated:
-        raise ValueError("the file states its grid spacing: leave spacing out")
+        raise InputError("the file states its grid spacing: leave spacing out")
     if spacing is None and not stated:
-        raise ValueError("the file does not state its grid spacing: pass spacing (in unit)")
+        raise InputError("the file does not state its grid spacing: pass spacing (in unit)")
     return None if spacing is None else _pair(spacing)
 
 
@@ -210,7 +211,7 @@ def _text_table(path: Path) -> tuple[dict, np.ndarray]:
     try:
         text = path.read_bytes().decode("utf-8-sig")
     except (OSError, UnicodeDecodeError) as exc:
-        raise ValueError(f"cannot read the file as UTF-8 text: {exc}") from None
+        raise InputError(f"cannot read the file as UTF-8 text: {exc}") from None
     header, rows, lengths = {}, [], []
     delimiter, first = None, True
     for number, line in enumerate(text.splitlines(), start=1):
@@ -232,15 +233,15 @@ def _text_table(path: Path) -> tuple[dict, np.ndarray]:
                 first = False
                 continue  # a first line of column names
             bad = next(f for f in fields if not _is_number(f))
-            raise ValueError(f"line {number}: cannot read {bad.strip()!r} as a number") from None
+            raise InputError(f"line {number}: cannot read {bad.strip()!r} as a number") from None
         first = False
         rows.append(values)
         lengths.append(len(values))
     if not rows:
-        raise ValueError("no numbers in the file")
+        raise InputError("no numbers in the file")
     if min(lengths) != max(lengths):
         odd = next(k for k, n in enumerate(lengths) if n != lengths[0])
-        raise ValueError(f"wrong shape: rows have different numbers of values ({lengths[0]} in the first "
+        raise InputError(f"wrong shape: rows have different numbers of values ({lengths[0]} in the first "
                          f"data row, {lengths[odd]} in data row {odd + 1})")
     return header, np.array(rows, dtype=float)
 
@@ -262,23 +263,23 @@ def _quantity(header: dict, key: str) -> tuple[float, str] | None:
         return None
     match = _QUANTITY.match(header[key])
     if not match or not _is_number(match.group(1)):
-        raise ValueError(f"header {key!r}: cannot read {header[key]!r} as a number and a unit")
+        raise InputError(f"header {key!r}: cannot read {header[key]!r} as a number and a unit")
     return float(match.group(1)), _file_unit(match.group(2), f"header {key!r} values")
 
 
 def _read_xyz(path, unit, z_unit, spacing, channel):
     if channel is not None:
-        raise ValueError("channel applies to .gwy files only")
+        raise InputError("channel applies to .gwy files only")
     header, table = _text_table(path)
     if table.shape[1] != 3:
-        raise ValueError(f"wrong shape: an XYZ file has 3 columns (x y z), this one has {table.shape[1]}")
+        raise InputError(f"wrong shape: an XYZ file has 3 columns (x y z), this one has {table.shape[1]}")
     stated_xy = _file_unit(header["xy units"], "header 'XY units'") if "xy units" in header else None
     stated_z = _file_unit(header["value units"], "header 'Value units'") if "value units" in header else None
     xy_scale, z_scale = _scales(stated_xy, stated_z, unit, z_unit)
     _given_spacing(spacing, stated=True)
     x, y, z = table.T
     if not (np.isfinite(x).all() and np.isfinite(y).all()):
-        raise ValueError("x and y coordinates must be finite")
+        raise InputError("x and y coordinates must be finite")
     i, x0, dx = _axis(x, "x")
     j, y0, dy = _axis(y, "y")
     nx, ny = int(i.max()) + 1, int(j.max()) + 1
@@ -286,7 +287,7 @@ def _read_xyz(path, unit, z_unit, spacing, channel):
     if (counts != 1).any():
         k = int(np.flatnonzero(counts != 1)[0])
         missing, repeated = int((counts == 0).sum()), int((counts > 1).sum())
-        raise ValueError(f"irregular grid: the x and y values span {nx} x {ny} points, but {missing} grid point(s) "
+        raise InputError(f"irregular grid: the x and y values span {nx} x {ny} points, but {missing} grid point(s) "
                          f"are missing and {repeated} repeated (the first at x = {x0 + k // ny * dx:.6g}, "
                          f"y = {y0 + k % ny * dy:.6g}); resample onto a regular grid first")
     heights = np.empty(nx * ny)
@@ -299,7 +300,7 @@ def _axis(values: np.ndarray, name: str) -> tuple[np.ndarray, float, float]:
     ordered = np.sort(values)
     span = float(ordered[-1] - ordered[0])
     if span <= 0:
-        raise ValueError(f"every point has the same {name}: not a 2-D grid")
+        raise InputError(f"every point has the same {name}: not a 2-D grid")
     # coordinates of one grid line differ by rounding only; lines are >= span / 4096 apart
     tol = 1e-4 * span
     starts = np.concatenate([[0], np.flatnonzero(np.diff(ordered) > tol) + 1])
@@ -307,29 +308,29 @@ def _axis(values: np.ndarray, name: str) -> tuple[np.ndarray, float, float]:
     step = (levels[-1] - levels[0]) / (len(levels) - 1)
     gaps = np.diff(levels)
     if np.abs(gaps - step).max() > 1e-3 * step:
-        raise ValueError(f"irregular grid: {name} values are not evenly spaced (steps from {gaps.min():.6g} "
+        raise InputError(f"irregular grid: {name} values are not evenly spaced (steps from {gaps.min():.6g} "
                          f"to {gaps.max():.6g}); resample onto a regular grid first")
     index = np.rint((values - levels[0]) / step).astype(int)
     if np.abs(values - levels[0] - index * step).max() > 1e-3 * step:
-        raise ValueError(f"irregular grid: some {name} values lie between grid lines")
+        raise InputError(f"irregular grid: some {name} values lie between grid lines")
     return index, float(levels[0]), float(step)
 
 
 def _read_matrix(path, unit, z_unit, spacing, channel):
     if channel is not None:
-        raise ValueError("channel applies to .gwy files only")
+        raise InputError("channel applies to .gwy files only")
     header, z = _text_table(path)
     width, height = _quantity(header, "width"), _quantity(header, "height")
     stated_z = _file_unit(header["value units"], "header 'Value units'") if "value units" in header else None
     if (width is None) != (height is None):
-        raise ValueError("the header states only one of Width and Height")
+        raise InputError("the header states only one of Width and Height")
     if width is None:  # plain matrix: rows are x, as in Surface.z
         xy_scale, z_scale = _scales(None, stated_z, unit, z_unit)
         return z, _given_spacing(spacing, stated=False), xy_scale, z_scale
     # Gwyddion text export: rows are image rows (y); Width spans the columns
     _given_spacing(spacing, stated=True)
     if width[1] != height[1]:
-        raise ValueError("the header states Width and Height in different units")
+        raise InputError("the header states Width and Height in different units")
     xy_scale, z_scale = _scales(width[1], stated_z, unit, z_unit)
     ny, nx = z.shape
     return z.T, (width[0] / nx, height[0] / ny), xy_scale, z_scale
@@ -337,13 +338,13 @@ def _read_matrix(path, unit, z_unit, spacing, channel):
 
 def _read_npy(path, unit, z_unit, spacing, channel):
     if channel is not None:
-        raise ValueError("channel applies to .gwy files only")
+        raise InputError("channel applies to .gwy files only")
     try:
         z = np.load(path, allow_pickle=False)
     except (OSError, ValueError, EOFError) as exc:
-        raise ValueError(f"cannot read the file as a .npy array: {exc}") from None
+        raise InputError(f"cannot read the file as a .npy array: {exc}") from None
     if not (np.issubdtype(z.dtype, np.number) and not np.iscomplexobj(z)):
-        raise ValueError(f"heights must be real numbers, the array holds {z.dtype}")
+        raise InputError(f"heights must be real numbers, the array holds {z.dtype}")
     xy_scale, z_scale = _scales(None, None, unit, z_unit)
     return z, _given_spacing(spacing, stated=False), xy_scale, z_scale
 
@@ -364,7 +365,7 @@ def save_heights(surface: Surface, path, *, format: str | None = None, title: st
     path = Path(path)
     format = format or SUFFIXES.get(path.suffix.lower())
     if format not in FORMATS:
-        raise ValueError(f"cannot tell the format of {str(path)!r}: use a suffix of {', '.join(SUFFIXES)} "
+        raise InputError(f"cannot tell the format of {str(path)!r}: use a suffix of {', '.join(SUFFIXES)} "
                          f"or pass format= ({', '.join(FORMATS)})")
     (nx, ny), (dx, dy) = surface.shape, surface.spacing
     with atomic_path(path) as tmp:

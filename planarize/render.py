@@ -2,7 +2,7 @@
 
 Figures are built on matplotlib's object API (no pyplot state) except when a
 ``draw_*`` function is asked to make its own axes, so that it shows in
-notebooks. Files are written atomically (`qdots.atomic`): a crash never
+notebooks. Files are written atomically (`labrig.files`): a crash never
 leaves a half-written PNG or MP4.
 """
 
@@ -18,8 +18,9 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.colors import Normalize
 from matplotlib.figure import Figure
 
-from qdots.atomic import atomic_path
-from qdots.render import FigureMovie
+from labrig.files import atomic_path
+from labrig.movies import FigureMovie
+from labrig.validate import InputError
 
 from .anodize import Anodization
 from .surface import Surface
@@ -71,11 +72,11 @@ def draw_slice(run: Anodization, ax=None, *, index: int | None = None, axis: int
     matplotlib.axes.Axes
     """
     if axis not in (0, 1):
-        raise ValueError(f"axis must be 0 (along x) or 1 (along y), got {axis!r}")
+        raise InputError(f"axis must be 0 (along x) or 1 (along y), got {axis!r}")
     n_across = run.initial.shape[1 - axis]
     index = n_across // 2 if index is None else index
     if not (isinstance(index, numbers.Integral) and 0 <= index < n_across):
-        raise ValueError(f"index must be a grid line in [0, {n_across - 1}], got {index!r}")
+        raise InputError(f"index must be a grid line in [0, {n_across - 1}], got {index!r}")
     ax = _axes(ax)
     coord = run.initial.x if axis == 0 else run.initial.y
 
@@ -164,7 +165,7 @@ def draw_surface(surface: Surface, ax=None, *, half_range: float | None = None, 
     ax = _axes(ax, projection="3d", figsize=(6, 5))
     half = surface_scale([surface]) if half_range is None else float(half_range)
     if not (math.isfinite(half) and half > 0):
-        raise ValueError(f"half_range must be > 0 nm, got {half_range!r}")
+        raise InputError(f"half_range must be > 0 nm, got {half_range!r}")
     mean = float(surface.z.mean())
     x, y = np.meshgrid(surface.x, surface.y, indexing="ij")
     face = matplotlib.colormaps[cmap](Normalize(-half, half)(surface.z - mean))
@@ -191,11 +192,11 @@ def snapshots_figure(run: Anodization, which: str = "oxide", *, cmap: str = "vir
         Panels per row.
     """
     if which not in ("oxide", "metal", "both"):
-        raise ValueError(f"which must be 'oxide', 'metal' or 'both', got {which!r}")
+        raise InputError(f"which must be 'oxide', 'metal' or 'both', got {which!r}")
     kinds = ("oxide", "metal") if which == "both" else (which,)
     panels = [(getattr(shot, kind), f"{kind}, {shot.target:.4g} nm oxide") for shot in run.snapshots for kind in kinds]
     if not panels:
-        raise ValueError("the run has no snapshots")
+        raise InputError("the run has no snapshots")
     half = surface_scale([s for s, _ in panels])
     columns = len(kinds) * max(1, columns // len(kinds))
     rows = math.ceil(len(panels) / columns)
@@ -235,7 +236,7 @@ def history_figure(run: Anodization, title: str | None = None) -> Figure:
 def save_figure(fig: Figure, path, dpi: int = 100) -> Path:
     """Write ``fig`` to ``path`` (format from the suffix, e.g. PNG), atomically."""
     if not (isinstance(dpi, numbers.Real) and dpi > 0):
-        raise ValueError(f"dpi must be > 0, got {dpi!r}")
+        raise InputError(f"dpi must be > 0, got {dpi!r}")
     path = Path(path)
     with atomic_path(path) as tmp:
         fig.savefig(tmp, dpi=dpi)
@@ -264,14 +265,14 @@ class SurfaceMovie(FigureMovie):
 
     def __init__(self, path, half_range: float, fps: float = 10, size_px: int = 600, cmap: str = "viridis"):
         if not (isinstance(half_range, numbers.Real) and math.isfinite(half_range) and half_range > 0):
-            raise ValueError(f"half_range must be > 0 nm, got {half_range!r}")
+            raise InputError(f"half_range must be > 0 nm, got {half_range!r}")
         self.half_range, self.cmap = float(half_range), cmap
         super().__init__(path, fps, size_px)
 
     def write(self, surface: Surface, title: str | None = None) -> None:
         """Render ``surface`` and append it as one frame."""
         if self.closed:
-            raise ValueError(f"SurfaceMovie for {self.path} is closed")
+            raise InputError(f"SurfaceMovie for {self.path} is closed")
         self.figure.clear()
         draw_surface(surface, self.figure.add_subplot(projection="3d"), half_range=self.half_range,
                      cmap=self.cmap, title=title)
@@ -284,9 +285,9 @@ def save_movie(run: Anodization, path, which: str = "oxide", fps: float = 10, si
     Take many snapshots for a smooth movie, e.g. ``anodize(..., snapshots=np.linspace(0, t, 51))``.
     """
     if which not in ("oxide", "metal"):
-        raise ValueError(f"which must be 'oxide' or 'metal', got {which!r}")
+        raise InputError(f"which must be 'oxide' or 'metal', got {which!r}")
     if not run.snapshots:
-        raise ValueError("the run has no snapshots to make a movie of")
+        raise InputError("the run has no snapshots to make a movie of")
     surfaces = [getattr(shot, which) for shot in run.snapshots]
     with SurfaceMovie(path, surface_scale(surfaces), fps=fps, size_px=size_px) as movie:
         for shot, surface in zip(run.snapshots, surfaces):

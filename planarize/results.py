@@ -23,8 +23,8 @@ from pathlib import Path
 
 import numpy as np
 
-from qdots.atomic import atomic_path, write_text_atomic
-from qdots.commands import write_csv
+from labrig.files import atomic_path, write_csv, write_text_atomic
+from labrig.validate import InputError
 
 from .anodize import Anodization, Snapshot
 from .surface import Surface
@@ -77,9 +77,9 @@ def load_run(path: str | os.PathLike) -> Anodization:
             arrays = {key: data[key] for key in data.files}
         metadata = json.loads(str(arrays.pop("metadata")))
         if metadata.get("format") != FORMAT:
-            raise ValueError(f"not a planarize run file (format {metadata.get('format')!r})")
+            raise InputError(f"not a planarize run file (format {metadata.get('format')!r})")
         if metadata.get("version") != VERSION:
-            raise ValueError(f"unsupported run file version {metadata.get('version')!r} (this is {VERSION})")
+            raise InputError(f"unsupported run file version {metadata.get('version')!r} (this is {VERSION})")
         spacing, boundary = tuple(metadata["spacing"]), metadata["boundary"]
 
         def surface(z) -> Surface:
@@ -94,7 +94,7 @@ def load_run(path: str | os.PathLike) -> Anodization:
                            surface(arrays["metal"]), surface(arrays["oxide"]),
                            None if np.isnan(distances).all() else distances)
     except (OSError, ValueError, KeyError, TypeError, EOFError) as exc:
-        raise ValueError(f"{path}: cannot read the run file: {exc}") from None
+        raise InputError(f"{path}: cannot read the run file: {exc}") from None
 
 
 def save_history_csv(run: Anodization, path: str | os.PathLike) -> Path:

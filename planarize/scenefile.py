@@ -8,8 +8,8 @@ defaults are those of the `planarize.scenes` functions). `scene_to_toml`
 writes every key with units and allowed ranges in comments; floats are
 written with ``repr`` and read back exactly, so ``load_scene(save_scene(s))
 == s``. Unknown keys, wrong types and out-of-range values raise a
-ValueError naming the file and the full key (e.g. ``run.step``), as qdots
-scene files do (`qdots.scenefile`, whose TOML writer and checks this reuses).
+`labrig.validate.InputError` naming the file and the full key (e.g. ``run.step``); the TOML
+reading, writing and key checks are `labrig.tomlfile`'s.
 
 Surface kinds: ``"hill"``, ``"depression"``, ``"bump"``, ``"tilted_plane"``,
 ``"random_roughness"`` (seeded by the top-level ``seed``) and ``"file"``
@@ -26,8 +26,9 @@ import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from qdots.atomic import write_text_atomic
-from qdots.tomlfile import check_keys, from_source, parse_toml, read_toml, toml_line, typed
+from labrig.files import write_text_atomic
+from labrig.tomlfile import check_keys, from_source, parse_toml, read_toml, toml_line
+from labrig.validate import InputError, typed
 
 from . import scenes
 from .anodize import Anodization, anodize, engines
@@ -121,22 +122,22 @@ def _check_type(key: str, value, kind: str):
     if plain == "float2":
         if isinstance(value, (list, tuple)) and len(value) == 2 and all(map(is_number, value)):
             return [float(v) for v in value]
-        raise ValueError(f"{key} must be a list of two numbers, got {value!r}")
+        raise InputError(f"{key} must be a list of two numbers, got {value!r}")
     if plain == "scales":
         if isinstance(value, (list, tuple)) and value and all(
                 isinstance(p, (list, tuple)) and len(p) == 2 and all(map(is_number, p)) for p in value):
             return [[float(w), float(h)] for w, h in value]
-        raise ValueError(f"{key} must be a non-empty list of [width, height] pairs (nm), got {value!r}")
+        raise InputError(f"{key} must be a non-empty list of [width, height] pairs (nm), got {value!r}")
     if plain == "floats":
         if isinstance(value, (list, tuple)) and all(map(is_number, value)):
             return [float(v) for v in value]
-        raise ValueError(f"{key} must be a list of numbers (nm), got {value!r}")
+        raise InputError(f"{key} must be a list of numbers (nm), got {value!r}")
     if plain == "record":
         if isinstance(value, int) and not isinstance(value, bool):
             return value
         if isinstance(value, (list, tuple)) and all(map(is_number, value)):
             return [float(v) for v in value]
-        raise ValueError(f"{key} must be an integer count or a list of thicknesses (nm), got {value!r}")
+        raise InputError(f"{key} must be an integer count or a list of thicknesses (nm), got {value!r}")
     if plain == "spacing":
         if is_number(value):
             return float(value)
@@ -144,7 +145,7 @@ def _check_type(key: str, value, kind: str):
     if plain == "channel":
         if isinstance(value, str) or (isinstance(value, int) and not isinstance(value, bool)):
             return value
-        raise ValueError(f"{key} must be a channel number or title, got {value!r}")
+        raise InputError(f"{key} must be a channel number or title, got {value!r}")
     return typed(key, value, plain)
 
 
@@ -163,24 +164,24 @@ class SurfaceSpec:
 
     def __post_init__(self):
         if self.kind not in SURFACES:
-            raise ValueError(f"kind must be one of {', '.join(map(repr, SURFACES))}, got {self.kind!r}")
+            raise InputError(f"kind must be one of {', '.join(map(repr, SURFACES))}, got {self.kind!r}")
         schema = SURFACES[self.kind][1]
         if not isinstance(self.params, dict):
-            raise ValueError(f"params must be a dict, got {type(self.params).__name__}")
+            raise InputError(f"params must be a dict, got {type(self.params).__name__}")
         check_keys("surface", self.params, ["kind", *schema])
         if self.kind == "file" and "path" not in self.params:
-            raise ValueError("surface.path is required for kind = \"file\" (the height map to import)")
+            raise InputError("surface.path is required for kind = \"file\" (the height map to import)")
         given = {key: _check_type(f"surface.{key}", value, schema[key][0]) for key, value in self.params.items()}
         full = {**_defaults(self.kind), **given}
         object.__setattr__(self, "params", {key: full[key] for key in schema if key in full})
         if self.kind == "file":
             for key in ("unit", "z_unit"):
                 if full.get(key) is not None and full[key] not in LENGTH_UNITS:
-                    raise ValueError(f"surface.{key} must be one of {', '.join(LENGTH_UNITS)}, got {full[key]!r}")
+                    raise InputError(f"surface.{key} must be one of {', '.join(LENGTH_UNITS)}, got {full[key]!r}")
             if full.get("format") is not None and full["format"] not in FORMATS:
-                raise ValueError(f"surface.format must be one of {FORMATS}, got {full['format']!r}")
+                raise InputError(f"surface.format must be one of {FORMATS}, got {full['format']!r}")
             if not full["max_aspect"] >= 1:
-                raise ValueError(f"surface.max_aspect must be >= 1, got {full['max_aspect']!r}")
+                raise InputError(f"surface.max_aspect must be >= 1, got {full['max_aspect']!r}")
         else:
             self.build()  # the builders check every value
 
@@ -197,7 +198,7 @@ class SurfaceSpec:
         try:
             return builder(**params)
         except (ValueError, TypeError) as exc:
-            raise ValueError(_name_key(str(exc), params)) from None
+            raise InputError(_name_key(str(exc), params)) from None
 
 
 def _name_key(message: str, keys) -> str:
@@ -231,13 +232,13 @@ class RunSettings:
         for key, allowed in (("engine", tuple(engines())), ("distance", DISTANCES), ("volume", VOLUME_RULES),
                              ("interacting", INTERACTING)):
             if getattr(self, key) not in allowed:
-                raise ValueError(f"{key} must be one of {', '.join(map(repr, allowed))}, got {getattr(self, key)!r}")
+                raise InputError(f"{key} must be one of {', '.join(map(repr, allowed))}, got {getattr(self, key)!r}")
         if isinstance(self.record, int) and self.record < 1:
-            raise ValueError(f"record must be a count >= 1 or a list of thicknesses, got {self.record!r}")
+            raise InputError(f"record must be a count >= 1 or a list of thicknesses, got {self.record!r}")
         for key in ("record", "snapshots"):
             values = getattr(self, key)
             if isinstance(values, list) and not all(0 <= v <= self.thickness for v in values):
-                raise ValueError(f"{key} must lie in [0, thickness = {self.thickness!r}] nm, got {values!r}")
+                raise InputError(f"{key} must lie in [0, thickness = {self.thickness!r}] nm, got {values!r}")
 
     def options(self) -> dict:
         """Keyword arguments of `planarize.anodize` (all but the surface and ``progress``)."""
@@ -251,7 +252,7 @@ class RunSettings:
 
 def _at_least(key: str, value: float, low: float, unit: str, open_: bool = False) -> None:
     if not (math.isfinite(value) and (value > low if open_ else value >= low)):
-        raise ValueError(f"{key} must be {'>' if open_ else '>='} {low:g}{' ' + unit if unit else ''}, got {value!r}")
+        raise InputError(f"{key} must be {'>' if open_ else '>='} {low:g}{' ' + unit if unit else ''}, got {value!r}")
 
 
 @dataclass(frozen=True)
@@ -275,9 +276,9 @@ class PlanarizeScene:
     def __post_init__(self):
         _check_type("name", self.name, "str")
         if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
-            raise ValueError(f"seed must be an integer >= 0, got {self.seed!r}")
+            raise InputError(f"seed must be an integer >= 0, got {self.seed!r}")
         if not isinstance(self.surface, SurfaceSpec) or not isinstance(self.run, RunSettings):
-            raise ValueError("surface must be a SurfaceSpec and run a RunSettings")
+            raise InputError("surface must be a SurfaceSpec and run a RunSettings")
 
     def build_surface(self) -> Surface:
         """The starting metal surface."""
@@ -298,7 +299,7 @@ class PlanarizeScene:
         (rounded, at least 1); thickness, records and snapshots unchanged.
         """
         if not (isinstance(fraction, (int, float)) and 0 < fraction <= 1):
-            raise ValueError(f"quick fraction must be in (0, 1], got {fraction!r}")
+            raise InputError(f"quick fraction must be in (0, 1], got {fraction!r}")
         params = dict(self.surface.params)
         if "refine" in params:
             params["refine"] = max(1, round(params["refine"] * fraction))
@@ -337,25 +338,25 @@ def scene_from_dict(data: dict, base_dir: str | os.PathLike | None = None) -> Pl
         Naming the full key of an unknown key, a wrong type or an out-of-range value.
     """
     if not isinstance(data, dict):
-        raise ValueError(f"a scene must be a table, got {type(data).__name__}")
+        raise InputError(f"a scene must be a table, got {type(data).__name__}")
     check_keys("", data, [*TOP, "surface", "run"])
     top = {key: _check_type(key, data[key], kind) for key, (kind, _) in TOP.items() if key in data}
     surface = data.get("surface", {})
     run = data.get("run", {})
     for name, table in (("surface", surface), ("run", run)):
         if not isinstance(table, dict):
-            raise ValueError(f"{name} must be a table ([{name}]), got {table!r}")
+            raise InputError(f"{name} must be a table ([{name}]), got {table!r}")
     params = {k: v for k, v in surface.items() if k != "kind"}
     kind = _check_type("surface.kind", surface.get("kind", "hill"), "str")
     if kind not in SURFACES:
-        raise ValueError(f"surface.kind must be one of {', '.join(map(repr, SURFACES))}, got {kind!r}")
+        raise InputError(f"surface.kind must be one of {', '.join(map(repr, SURFACES))}, got {kind!r}")
     if kind == "file" and isinstance(params.get("path"), str) and base_dir is not None:
         params["path"] = str(Path(base_dir, params["path"]))
     check_keys("run", run, list(RUN))
     try:
         run_settings = RunSettings(**run)
     except ValueError as exc:
-        raise ValueError(f"run.{exc}") from None
+        raise InputError(f"run.{exc}") from None
     return PlanarizeScene(**top, surface=SurfaceSpec(kind, params), run=run_settings)
 
 
@@ -397,7 +398,7 @@ SCENES = {
 def get_scene(name: str) -> PlanarizeScene:
     """A built-in scene by name (`SCENES`)."""
     if name not in SCENES:
-        raise ValueError(f"unknown scene {name!r}; built-in scenes: {', '.join(SCENES)}")
+        raise InputError(f"unknown scene {name!r}; built-in scenes: {', '.join(SCENES)}")
     return SCENES[name]
 
 

@@ -10,6 +10,8 @@ import math
 
 import numpy as np
 
+from labrig.validate import InputError
+
 from .surface import BOUNDARIES, Surface
 
 
@@ -17,15 +19,15 @@ def _check(name: str, value, low: float = 0.0, low_open: bool = True) -> float:
     try:
         value = float(value)
     except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a number, got {value!r}") from None
+        raise InputError(f"{name} must be a number, got {value!r}") from None
     if not math.isfinite(value) or value < low or (low_open and value == low):
-        raise ValueError(f"{name} must be {'>' if low_open else '>='} {low:g}, got {value!r}")
+        raise InputError(f"{name} must be {'>' if low_open else '>='} {low:g}, got {value!r}")
     return value
 
 
 def _count(name: str, value, low: int) -> int:
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
-        raise ValueError(f"{name} must be an integer >= {low}, got {value!r}")
+        raise InputError(f"{name} must be an integer >= {low}, got {value!r}")
     return int(value)
 
 
@@ -52,7 +54,7 @@ def bump(height: float = 4.5, *, base: float = 4.0, points: int = 5, spacing: fl
     """
     points = _count("points", points, 3)
     if points % 2 == 0:
-        raise ValueError(f"points must be odd (the bump sits on the centre point), got {points}")
+        raise InputError(f"points must be odd (the bump sits on the centre point), got {points}")
     z = np.full((points, points), _check("base", base, low_open=False))
     z[points // 2, points // 2] = _check("height", height, low_open=False)
     return Surface(z, _check("spacing", spacing), boundary).refine(_count("refine", refine, 1), method)
@@ -76,7 +78,7 @@ def tilted_plane(slope: tuple[float, float] = (0.2, 0.0), *, base: float = 4.0, 
     """
     sx, sy = (float(s) for s in slope)
     if not (math.isfinite(sx) and math.isfinite(sy)):
-        raise ValueError(f"slope must be finite, got {slope!r}")
+        raise InputError(f"slope must be finite, got {slope!r}")
     points = _count("points", points, 2)
     spacing = _check("spacing", spacing)
     x = np.arange(points) * spacing
@@ -117,21 +119,21 @@ def random_roughness(size: float = 500.0, *, thickness: float = 1000.0, scales=T
         Seed of the random heights.
     """
     if boundary not in BOUNDARIES:
-        raise ValueError(f"boundary must be one of {BOUNDARIES}, got {boundary!r}")
+        raise InputError(f"boundary must be one of {BOUNDARIES}, got {boundary!r}")
     size = _check("size", size)
     try:
         scales = [(_check("scale width", w), _check("scale height", h, low_open=False)) for w, h in scales]
     except (TypeError, ValueError) as exc:
-        raise ValueError(f"scales must be (width, height) pairs in nm, widest first: {exc}") from None
+        raise InputError(f"scales must be (width, height) pairs in nm, widest first: {exc}") from None
     if not scales:
-        raise ValueError("scales must hold at least one (width, height) pair")
+        raise InputError("scales must hold at least one (width, height) pair")
     rng = np.random.default_rng(seed)
     spacing = scales[0][0] / 2.0
     cells = size / spacing
     if abs(cells - round(cells)) > 1e-9 * cells or round(cells) < 1:
-        raise ValueError(f"size ({size:g} nm) must be a whole number of half the widest width ({spacing:g} nm)")
+        raise InputError(f"size ({size:g} nm) must be a whole number of half the widest width ({spacing:g} nm)")
     if boundary == "periodic" and round(cells) < 2:
-        raise ValueError(f"a periodic sample must span at least two of the widest grid cells "
+        raise InputError(f"a periodic sample must span at least two of the widest grid cells "
                          f"(size >= {2 * spacing:g} nm), got size {size:g} nm")
     n = int(round(cells)) + (0 if boundary == "periodic" else 1)
     surface = Surface(np.full((n, n), _check("thickness", thickness, low_open=False)), spacing, boundary)
@@ -139,7 +141,7 @@ def random_roughness(size: float = 500.0, *, thickness: float = 1000.0, scales=T
         if k:
             factor = spacing / (width / 2.0)
             if abs(factor - round(factor)) > 1e-9 * factor or round(factor) < 1:
-                raise ValueError(f"each scale width must divide the previous one: {scales[k - 1][0]:g} nm "
+                raise InputError(f"each scale width must divide the previous one: {scales[k - 1][0]:g} nm "
                                  f"into {width:g} nm")
             surface = surface.refine(int(round(factor)), "linear")
             spacing = width / 2.0

@@ -21,6 +21,8 @@ import math
 import numpy as np
 from scipy.interpolate import CubicSpline
 
+from labrig.validate import InputError
+
 #: Boundary conditions: "open" (a finite sample with edges) or "periodic" (the grid tiles the plane).
 BOUNDARIES = ("open", "periodic")
 #: Refinement methods: bilinear (the thesis) or tensor-product cubic spline.
@@ -30,15 +32,15 @@ REFINE_METHODS = ("linear", "cubic")
 def _spacing(value) -> tuple[float, float]:
     pair = (value, value) if np.ndim(value) == 0 else tuple(value)
     if len(pair) != 2:
-        raise ValueError(f"spacing must be a number or a pair (dx, dy), got {value!r}")
+        raise InputError(f"spacing must be a number or a pair (dx, dy), got {value!r}")
     out = []
     for name, v in zip(("dx", "dy"), pair):
         try:
             v = float(v)
         except (TypeError, ValueError):
-            raise ValueError(f"spacing {name} must be a number, got {v!r}") from None
+            raise InputError(f"spacing {name} must be a number, got {v!r}") from None
         if not (math.isfinite(v) and v > 0):
-            raise ValueError(f"spacing {name} must be finite and > 0 nm, got {v!r}")
+            raise InputError(f"spacing {name} must be finite and > 0 nm, got {v!r}")
         out.append(v)
     return out[0], out[1]
 
@@ -48,15 +50,15 @@ def check_heights(z, name: str = "z") -> np.ndarray:
     try:
         z = np.array(z, dtype=float)
     except (TypeError, ValueError) as exc:
-        raise ValueError(f"{name} must be a 2-D array of heights: {exc}") from None
+        raise InputError(f"{name} must be a 2-D array of heights: {exc}") from None
     if z.ndim != 2:
-        raise ValueError(f"{name} must be a 2-D array of heights, got {z.ndim} dimension(s) {z.shape}")
+        raise InputError(f"{name} must be a 2-D array of heights, got {z.ndim} dimension(s) {z.shape}")
     if z.shape[0] < 2 or z.shape[1] < 2:
-        raise ValueError(f"{name} must have at least 2 x 2 points, got {z.shape[0]} x {z.shape[1]}")
+        raise InputError(f"{name} must have at least 2 x 2 points, got {z.shape[0]} x {z.shape[1]}")
     bad = ~np.isfinite(z)
     if bad.any():
         i, j = np.argwhere(bad)[0]
-        raise ValueError(f"{name} has {int(bad.sum())} non-finite height(s) (NaN or inf), "
+        raise InputError(f"{name} has {int(bad.sum())} non-finite height(s) (NaN or inf), "
                          f"the first at [{i}, {j}] = {z[i, j]}")
     return z
 
@@ -91,7 +93,7 @@ class Surface:
 
     def __init__(self, z, spacing=1.0, boundary: str = "open"):
         if boundary not in BOUNDARIES:
-            raise ValueError(f"boundary must be one of {BOUNDARIES}, got {boundary!r}")
+            raise InputError(f"boundary must be one of {BOUNDARIES}, got {boundary!r}")
         self._z = check_heights(z)
         self._z.flags.writeable = False
         self.dx, self.dy = _spacing(spacing)
@@ -186,9 +188,9 @@ class Surface:
             derivative (thesis weakness 3).
         """
         if isinstance(factor, bool) or not isinstance(factor, (int, np.integer)) or factor < 1:
-            raise ValueError(f"factor must be an integer >= 1, got {factor!r}")
+            raise InputError(f"factor must be an integer >= 1, got {factor!r}")
         if method not in REFINE_METHODS:
-            raise ValueError(f"method must be one of {REFINE_METHODS}, got {method!r}")
+            raise InputError(f"method must be one of {REFINE_METHODS}, got {method!r}")
         factor = int(factor)
         z = self._z
         for axis in (0, 1):

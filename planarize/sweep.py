@@ -1,6 +1,6 @@
 """Sweeps of planarize runs: a base scene, axes over its keys, seeds; one roughness row per run.
 
-The engine is `qdots.sweeps` (local cores or a Dask cluster, resumable, one
+The engine is `labrig.sweeps` (local cores or a Dask cluster, resumable, one
 table); this module supplies the runner. A run's parameters are a scene
 file's (`planarize.scenefile`: ``name``, ``seed``, ``[surface]``, ``[run]``),
 checked like one (an unknown key is an error naming it, e.g. ``run.k_exps``)
@@ -32,8 +32,9 @@ import os
 from dataclasses import dataclass
 from pathlib import Path
 
-from qdots.sweeps import SweepResult, load_sweep_file
-from qdots.sweeps.files import SweepFile, run_loaded
+from labrig.sweeps import SweepResult, load_sweep_file
+from labrig.sweeps.files import SweepFile, run_loaded
+from labrig.validate import InputError
 
 from .scenefile import RUN, SCENES, PlanarizeScene, load_scene, scene_from_dict
 
@@ -96,12 +97,12 @@ def _read_base(name: str, base_dir: Path) -> dict:
         return scene_to_dict(SCENES[name])
     path = base_dir / name
     if not path.is_file() and not name.endswith(".toml"):
-        raise ValueError(f"base {name!r} is neither a built-in scene ({', '.join(SCENES)}) nor a scene file")
+        raise InputError(f"base {name!r} is neither a built-in scene ({', '.join(SCENES)}) nor a scene file")
     return scene_to_dict(load_scene(path))
 
 
 def load_sweep(path: str | os.PathLike) -> SweepFile:
-    """Read a planarize sweep file (`qdots.sweeps.files`); its seeds go to the scene's ``seed``.
+    """Read a planarize sweep file (`labrig.sweeps.files`); its seeds go to the scene's ``seed``.
 
     An inline ``[base]`` table's ``surface.path`` (a measured height map) is
     relative to the sweep file, as in a scene file.
@@ -118,13 +119,13 @@ def run_sweep_file(path: str | os.PathLike, out: str | os.PathLike | None = None
                    **options) -> SweepResult:
     """Run a planarize sweep file (see the module docstring); ``out`` overrides its ``output.dir``.
 
-    ``options`` go to `qdots.sweeps.run_sweep` (``workers``, ``scheduler``, ``retries``, ``progress``).
+    ``options`` go to `labrig.sweeps.run_sweep` (``workers``, ``scheduler``, ``retries``, ``progress``).
     """
     return run_loaded(load_sweep(path), AnodizeRunner(quick), out, **options)
 
 
 def add_sweep_command(subparsers) -> None:
     """``planarize sweep SWEEP.toml [--out DIR] [--workers N] [--scheduler ADDRESS] [--quick F]``."""
-    from qdots.sweeps.command import add_sweep_command as add
+    from labrig.sweeps.command import add_sweep_command as add
 
     add(subparsers, "planarize", "planarize runs", load_sweep, AnodizeRunner, "a first look: steps 1/F times larger, refinement F times smaller")

@@ -8,14 +8,14 @@
 """
 
 from ._malloc import ALLOCATOR_TUNED
+from .checkpoint import load, read_state, save
 from .collisions import Restitution
 from .forces import CenterGravity, Drag, Force, Gravity, Langevin, ThermalKicks, VanDerWaals
 from .scene import Scene, grating_segments
-from .checkpoint import load, read_state, save
 from .simulation import EngineSettings, Simulation
 from .state import State
 
-__version__ = "0.1.0"
+from labrig import __version__  # noqa: E402,F401 (one version for the distribution)
 
 __all__ = [
     "Scene",

@@ -13,6 +13,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
+from labrig.validate import InputError
+
 #: Neighbour rules: "text" is the thesis's prose (section 2.4), "code" its Java (Appendix A).
 RULES = ("text", "code")
 #: A dot with at least this many neighbours is "interior" (thesis Fig 2-4).
@@ -25,15 +27,15 @@ def _arrays(state) -> tuple[np.ndarray, np.ndarray]:
         positions = np.asarray(state.positions, dtype=float)
         radii = np.asarray(state.radii, dtype=float)
     except AttributeError:
-        raise ValueError(
+        raise InputError(
             f"state must have positions and radii attributes, got {type(state).__name__}"
         ) from None
     if positions.size == 0:
         positions = positions.reshape(0, 2)
     if positions.ndim != 2 or positions.shape[1] != 2:
-        raise ValueError(f"state.positions must have shape (N, 2), got {positions.shape}")
+        raise InputError(f"state.positions must have shape (N, 2), got {positions.shape}")
     if radii.shape != (len(positions),):
-        raise ValueError(f"state.radii must have shape ({len(positions)},), got {radii.shape}")
+        raise InputError(f"state.radii must have shape ({len(positions)},), got {radii.shape}")
     return positions, radii
 
 
@@ -108,7 +110,7 @@ def neighbour_edges(state, rule: str = "text", mean_radius: float | None = None
     """
     positions, radii = _arrays(state)
     if rule not in RULES:
-        raise ValueError(f"rule must be one of {RULES}, got {rule!r}")
+        raise InputError(f"rule must be one of {RULES}, got {rule!r}")
     if len(radii) < 2:
         empty = np.zeros(0, dtype=np.intp)
         return empty, empty, np.zeros(0)
@@ -117,7 +119,7 @@ def neighbour_edges(state, rule: str = "text", mean_radius: float | None = None
         if mean_radius is None:
             mean_radius = float(radii.mean())
         elif not (isinstance(mean_radius, (int, float)) and math.isfinite(mean_radius) and mean_radius > 0):
-            raise ValueError(f"mean_radius must be > 0 px, got {mean_radius!r}")
+            raise InputError(f"mean_radius must be > 0 px, got {mean_radius!r}")
         i, j, d = _pairs(positions, 2.0 * rmax + mean_radius)
         near = d - radii[i] - radii[j] < mean_radius
         i_sees_j = j_sees_i = near
@@ -258,14 +260,14 @@ def fill_within_radius(state, radius, center=None) -> FillCurve:
     positions, radii = _arrays(state)
     big = np.atleast_1d(np.asarray(radius, dtype=float))
     if big.ndim != 1 or not big.size or not np.all(np.isfinite(big) & (big > 0)):
-        raise ValueError(f"radius must be finite circle radii > 0 px, got {radius!r}")
+        raise InputError(f"radius must be finite circle radii > 0 px, got {radius!r}")
     if center is None:
         box = getattr(state, "box", None)
         center = (0.5 * float(box[0]), 0.5 * float(box[1])) if box is not None else \
             (tuple(positions.mean(axis=0)) if len(positions) else (0.0, 0.0))
     c = np.asarray(center, dtype=float)
     if c.shape != (2,) or not np.all(np.isfinite(c)):
-        raise ValueError(f"center must be two finite coordinates, px, got {center!r}")
+        raise InputError(f"center must be two finite coordinates, px, got {center!r}")
     d = np.sqrt(((positions - c) ** 2).sum(axis=1))
     reach = d - radii < big.max()
     covered = _disc_in_circle_area(radii[reach, None], d[reach, None], big[None, :]).sum(axis=0)
@@ -303,7 +305,7 @@ def size_separation_correlation(state, pairs: str = "neighbours", rule: str = "t
         In [-1, 1]; nan with fewer than two pairs or equal sizes (no variance).
     """
     if pairs not in ("neighbours", "all"):
-        raise ValueError(f"pairs must be 'neighbours' or 'all', got {pairs!r}")
+        raise InputError(f"pairs must be 'neighbours' or 'all', got {pairs!r}")
     positions, radii = _arrays(state)
     sums = np.zeros(6)  # n, sx, sy, sxx, sxy, syy
     def add(x, y):

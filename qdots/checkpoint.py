@@ -34,7 +34,9 @@ from pathlib import Path
 import numpy as np
 import pymunk
 
-from .atomic import atomic_path
+from labrig.files import atomic_path
+from labrig.validate import InputError
+
 from .collisions import Restitution
 from .forces import force_from_dict
 from .scene import Scene
@@ -101,15 +103,15 @@ def _read(path: str | os.PathLike) -> tuple[dict, dict[str, np.ndarray]]:
         with np.load(path, allow_pickle=False) as archive:
             missing = [name for name in ("metadata", *ARRAYS) if name not in archive.files]
             if missing:
-                raise ValueError(f"missing {', '.join(missing)}")
+                raise InputError(f"missing {', '.join(missing)}")
             arrays = {name: archive[name] for name in ARRAYS}
             metadata = json.loads(str(archive["metadata"]))
     except (zipfile.BadZipFile, EOFError, OSError, ValueError, KeyError, json.JSONDecodeError) as exc:
-        raise ValueError(f"{path} is not a readable qdots state file ({type(exc).__name__}: {exc})") from None
+        raise InputError(f"{path} is not a readable qdots state file ({type(exc).__name__}: {exc})") from None
     if not isinstance(metadata, dict) or metadata.get("format") != FORMAT:
-        raise ValueError(f"{path} is not a qdots state file (format {metadata.get('format')!r})")
+        raise InputError(f"{path} is not a qdots state file (format {metadata.get('format')!r})")
     if metadata.get("version") != VERSION:
-        raise ValueError(f"{path} has state format version {metadata.get('version')!r}; "
+        raise InputError(f"{path} has state format version {metadata.get('version')!r}; "
                          f"this qdots reads version {VERSION}")
     return metadata, arrays
 
@@ -130,7 +132,7 @@ def _scene(metadata: dict, arrays: dict[str, np.ndarray], path: str | os.PathLik
                      closed=bool(metadata["closed"]), restitution=Restitution(**metadata["restitution"]),
                      overlap_tolerance=ENGINE_OVERLAP_TOLERANCE)
     except (KeyError, TypeError, ValueError) as exc:
-        raise ValueError(f"{path}: saved board is invalid ({exc})") from None
+        raise InputError(f"{path}: saved board is invalid ({exc})") from None
 
 
 def load(path: str | os.PathLike) -> Simulation:
@@ -156,5 +158,5 @@ def load(path: str | os.PathLike) -> Simulation:
         for name, count in metadata["collisions"].items():
             setattr(sim.collisions, name, int(count))
     except (KeyError, TypeError, ValueError) as exc:
-        raise ValueError(f"{path}: saved run is invalid ({type(exc).__name__}: {exc})") from None
+        raise InputError(f"{path}: saved run is invalid ({type(exc).__name__}: {exc})") from None
     return sim

@@ -18,13 +18,18 @@ from typing import Sequence
 
 import numpy as np
 
-from .cliutil import Parser, float_in, fraction, int_at_least, run_main
+from labrig.cli import Parser, float_in, fraction, int_in, run_main
+from labrig.validate import MAX_SEED
 
 #: Demo board, px, and mean dot diameter, px (the thesis's diameter on a quarter of its board).
 DEMO_BOX = (300.0, 300.0)
 DEMO_DIAMETER = 15.0
 #: Simulated time between movie frames, s.
 DEMO_FRAME_INTERVAL = 0.2
+#: Most dots the demo board takes (a 300 x 300 px board holds about 460 close-packed 15 px dots).
+DEMO_MAX_DOTS = 460
+#: Most trap draws `qdots analyze` averages.
+MAX_DRAWS = 10_000
 
 
 def _add_demo(subparsers) -> None:
@@ -36,8 +41,8 @@ def _add_demo(subparsers) -> None:
     )
     p.add_argument("--out", type=Path, default=Path("qdots-demo"), metavar="DIR",
                    help="output directory, created if missing (default ./qdots-demo)")
-    p.add_argument("--seed", type=int_at_least(0), default=1, help="random seed (default 1)")
-    p.add_argument("--dots", type=int_at_least(1), default=150, metavar="N",
+    p.add_argument("--seed", type=int_in(0, MAX_SEED), default=1, help="random seed (default 1)")
+    p.add_argument("--dots", type=int_in(1, DEMO_MAX_DOTS), default=150, metavar="N",
                    help="number of dots (default 150)")
     p.add_argument("--seconds", type=float_in(0.0, math.inf, low_open=True), default=20.0, metavar="T",
                    help="simulated time, s (default 20)")
@@ -62,7 +67,7 @@ def _add_run(subparsers) -> None:
                                           "(.npz, resumable), a picture, a summary row and optionally a movie.")
     p.add_argument("scene", type=Path, metavar="SCENE.toml", help="scene file")
     _add_outputs(p, "qdots-run")
-    p.add_argument("--seed", type=int_at_least(0), default=None, help="override the file's seed")
+    p.add_argument("--seed", type=int_in(0, MAX_SEED), default=None, help="override the file's seed")
     p.add_argument("--quick", type=fraction, default=None,
                    metavar="F", help="scale the run down by F (fewer dots, shorter times) for a first look")
     p.set_defaults(func=_run_scene)
@@ -119,8 +124,8 @@ def _add_analyze(subparsers) -> None:
                    help="Förster radius, px (default: the mean diameter)")
     p.add_argument("--traps", type=float_in(0.0, 1.0, high_open=False), default=1 / 3, metavar="F",
                    help="fraction of trap dots (default 1/3)")
-    p.add_argument("--draws", type=int_at_least(1), default=8, help="trap draws to average (default 8)")
-    p.add_argument("--seed", type=int_at_least(0), default=0, help="seed of the trap draws (default 0)")
+    p.add_argument("--draws", type=int_in(1, MAX_DRAWS), default=8, help="trap draws to average (default 8)")
+    p.add_argument("--seed", type=int_in(0, MAX_SEED), default=0, help="seed of the trap draws (default 0)")
     p.set_defaults(func=_run_analyze)
 
 
@@ -131,7 +136,7 @@ def _add_sweep(subparsers) -> None:
 
 
 def _add_sweep_plot(subparsers) -> None:
-    from .sweeps.command import add_plot_parser
+    from labrig.sweeps.command import add_plot_parser
 
     add_plot_parser(subparsers, "qdots")
 
@@ -159,7 +164,9 @@ def _run_scene(args: argparse.Namespace) -> int:
 
 
 def _run_preset(args: argparse.Namespace) -> int:
-    from .commands import run_experiments, slug
+    from labrig.files import slug
+
+    from .commands import run_experiments
     from .presets import get_preset
     from .scenefile import save_experiment
 
@@ -204,8 +211,10 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _run_demo(args: argparse.Namespace) -> int:
     import qdots
+    from labrig.cli import print_table
+    from labrig.files import write_csv
+
     from .analysis import packing_summary
-    from .commands import print_table, write_csv
     from .placement import random_sequential
     from .render import MovieWriter, save_png
 

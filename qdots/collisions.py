@@ -23,6 +23,8 @@ from dataclasses import dataclass
 import numpy as np
 import pymunk
 
+from labrig.validate import InputError
+
 #: pymunk collision types of the two kinds of shape.
 DOT = 1
 WALL = 2
@@ -55,9 +57,9 @@ class Restitution:
         for name in ("mean", "wall"):
             value = getattr(self, name)
             if not (math.isfinite(value) and 0.0 <= value <= 1.0):
-                raise ValueError(f"Restitution.{name} must be in [0, 1], got {value!r}")
+                raise InputError(f"Restitution.{name} must be in [0, 1], got {value!r}")
         if not (math.isfinite(self.sticking_speed) and self.sticking_speed >= 0.0):
-            raise ValueError(f"Restitution.sticking_speed must be >= 0 px/s, got {self.sticking_speed!r}")
+            raise InputError(f"Restitution.sticking_speed must be >= 0 px/s, got {self.sticking_speed!r}")
 
     @property
     def std(self) -> float:

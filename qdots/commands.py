@@ -9,41 +9,20 @@ provenance, and one ``summary.csv`` row; all files atomically.
 from __future__ import annotations
 
 import csv
-import io
-import re
 import time
 from contextlib import ExitStack
 from pathlib import Path
 from typing import Sequence
 
+from labrig.cli import print_table
+from labrig.files import slug, write_csv
+
 from . import checkpoint
 from .analysis import packing_summary
-from .atomic import write_text_atomic
 from .simulation import Simulation
 
 #: Simulated time between movie frames, s.
 FRAME_INTERVAL = 0.5
-
-
-def slug(name: str) -> str:
-    """A file-name-safe form of an experiment name: ``"fig2-2a sigma=0"`` -> ``"fig2-2a_sigma0"``."""
-    text = re.sub(r"[^A-Za-z0-9._-]+", "_", name.replace("=", "")).strip("_")
-    return text or "run"
-
-
-def write_csv(path: Path, rows: Sequence[dict]) -> Path:
-    """Write ``rows`` (dicts with the same keys) as CSV, atomically."""
-    text = io.StringIO()
-    writer = csv.DictWriter(text, fieldnames=list(rows[0]), lineterminator="\n")
-    writer.writeheader()
-    writer.writerows(rows)
-    return write_text_atomic(path, text.getvalue())
-
-
-def print_table(title: str, rows: Sequence[tuple[str, str]]) -> None:
-    width = max(len(key) for key, _ in rows)
-    print(title)
-    print("\n".join(f"  {key:<{width}}  {value}" for key, value in rows))
 
 
 def _recorders(stack: ExitStack, out: Path, stem: str, dt: float, movie: bool, gsd: bool) -> list:

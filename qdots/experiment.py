@@ -18,6 +18,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from labrig.validate import InputError
+
 from .collisions import Restitution
 from .forces import Force, ThermalKicks, VanDerWaals, force_from_dict
 from .protocols import GAP, MASS_MODELS, check_count, check_real, deposit, deposit_around_center, ring_radius
@@ -52,7 +54,7 @@ class Board:
         for name in ("width", "height"):
             _set(self, name, check_real(f"board.{name}", getattr(self, name), 0.0, low_open=True))
         if not isinstance(self.closed, bool):
-            raise ValueError(f"board.closed must be true or false, got {self.closed!r}")
+            raise InputError(f"board.closed must be true or false, got {self.closed!r}")
 
 
 @dataclass(frozen=True)
@@ -96,9 +98,9 @@ class Deposition:
 
     def __post_init__(self) -> None:
         if self.protocol not in PROTOCOLS:
-            raise ValueError(f"deposition.protocol must be one of {PROTOCOLS}, got {self.protocol!r}")
+            raise InputError(f"deposition.protocol must be one of {PROTOCOLS}, got {self.protocol!r}")
         if self.mass_model not in MASS_MODELS:
-            raise ValueError(f"deposition.mass_model must be one of {MASS_MODELS}, got {self.mass_model!r}")
+            raise InputError(f"deposition.mass_model must be one of {MASS_MODELS}, got {self.mass_model!r}")
         _set(self, "n_dots", check_count("deposition.n_dots", self.n_dots, 0))
         _set(self, "max_tries", check_count("deposition.max_tries", self.max_tries, 1))
         _set(self, "mean_diameter", check_real("deposition.mean_diameter", self.mean_diameter, 0.0, low_open=True))
@@ -118,11 +120,11 @@ def _canonical_force(k: int, spec) -> dict:
     if isinstance(spec, Force):
         return spec.to_dict()
     if not isinstance(spec, dict):
-        raise ValueError(f"forces[{k}] must be a table (dict) with a 'type' key, got {spec!r}")
+        raise InputError(f"forces[{k}] must be a table (dict) with a 'type' key, got {spec!r}")
     try:
         return force_from_dict(dict(spec)).to_dict()
     except (TypeError, ValueError) as exc:
-        raise ValueError(f"forces[{k}]: {exc}") from None
+        raise InputError(f"forces[{k}]: {exc}") from None
 
 
 @dataclass(frozen=True)
@@ -164,17 +166,17 @@ class Experiment:
 
     def __post_init__(self) -> None:
         if not (isinstance(self.name, str) and self.name.strip()):
-            raise ValueError(f"name must be a non-empty string, got {self.name!r}")
+            raise InputError(f"name must be a non-empty string, got {self.name!r}")
         _set(self, "seed", check_count("seed", self.seed, 0))
         for key, cls in (("board", Board), ("deposition", Deposition), ("restitution", Restitution),
                          ("engine", EngineSettings)):
             if not isinstance(getattr(self, key), cls):
-                raise ValueError(f"{key} must be a {cls.__module__}.{cls.__name__}, "
+                raise InputError(f"{key} must be a {cls.__module__}.{cls.__name__}, "
                                  f"got {type(getattr(self, key)).__name__}")
         if isinstance(self.engine.spatial_hash, list):  # EngineSettings(**to_dict()) gives a list
             _set(self, "engine", dataclasses.replace(self.engine, spatial_hash=tuple(self.engine.spatial_hash)))
         if isinstance(self.forces, (dict, str, Force)) or not hasattr(self.forces, "__iter__"):
-            raise ValueError(f"forces must be a sequence of force tables, got {self.forces!r}")
+            raise InputError(f"forces must be a sequence of force tables, got {self.forces!r}")
         _set(self, "forces", tuple(_canonical_force(k, f) for k, f in enumerate(self.forces)))
         _set(self, "grating", check_real("grating", 0.0 if self.grating is None else self.grating, 0.0))
         self._check_geometry()
@@ -187,20 +189,20 @@ class Experiment:
     def _check_geometry(self) -> None:
         b, dep = self.board, self.deposition
         if dep.mean_diameter > min(b.width, b.height):
-            raise ValueError(f"deposition.mean_diameter ({dep.mean_diameter:g} px) must fit in the "
+            raise InputError(f"deposition.mean_diameter ({dep.mean_diameter:g} px) must fit in the "
                              f"{b.width:g} x {b.height:g} px board")
         if self.grating:
             if not dep.mean_diameter + 2 * GAP < self.grating < b.height:
-                raise ValueError(f"grating must be 0 (none) or in (deposition.mean_diameter = "
+                raise InputError(f"grating must be 0 (none) or in (deposition.mean_diameter = "
                                  f"{dep.mean_diameter:g}, board.height = {b.height:g}) px, got {self.grating!r}")
             if dep.protocol == "center":
-                raise ValueError("deposition.protocol 'center' cannot be combined with a grating (use 'random')")
+                raise InputError("deposition.protocol 'center' cannot be combined with a grating (use 'random')")
         if dep.protocol == "center" and dep.n_dots:
             cx, cy = self.center()
             room = min(cx, cy, b.width - cx, b.height - cy)
             reach = ring_radius(dep.n_dots - 1, dep.mean_diameter, dep.sigma) + dep.mean_diameter / 2
             if reach > room:
-                raise ValueError(f"deposition.n_dots = {dep.n_dots} needs a deposition ring reaching "
+                raise InputError(f"deposition.n_dots = {dep.n_dots} needs a deposition ring reaching "
                                  f"{reach:.1f} px from the centre ({cx:g}, {cy:g}), but the board leaves {room:.1f} px")
 
     def center(self) -> tuple[float, float]:

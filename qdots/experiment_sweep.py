@@ -34,10 +34,12 @@ import os
 from dataclasses import dataclass
 from pathlib import Path
 
+from labrig.sweeps import SweepResult, load_sweep_file
+from labrig.sweeps.files import SweepFile, run_loaded
+from labrig.validate import InputError
+
 from .experiment import Experiment, run_experiment
 from .scenefile import TABLES, TOP, experiment_from_dict
-from .sweeps import SweepResult, load_sweep_file
-from .sweeps.files import SweepFile, run_loaded
 
 
 def experiment_to_dict(exp: Experiment) -> dict:
@@ -78,9 +80,9 @@ class ExperimentRunner:
         from .analysis import RULES
 
         if self.quick is not None and not (isinstance(self.quick, (int, float)) and 0 < self.quick <= 1):
-            raise ValueError(f"quick must be in (0, 1], got {self.quick!r}")
+            raise InputError(f"quick must be in (0, 1], got {self.quick!r}")
         if self.rule not in RULES:
-            raise ValueError(f"rule must be one of {RULES}, got {self.rule!r}")
+            raise InputError(f"rule must be one of {RULES}, got {self.rule!r}")
 
     def canonical(self, params: dict) -> dict:
         """The full parameters of the experiment ``params`` describes (ValueError naming a bad key)."""
@@ -100,7 +102,7 @@ class ExperimentRunner:
 
 
 def load_sweep(path: str | os.PathLike) -> SweepFile:
-    """Read a qdots sweep file (`qdots.sweeps.files`); its seeds go to the experiment's ``seed``."""
+    """Read a qdots sweep file (`labrig.sweeps.files`); its seeds go to the experiment's ``seed``."""
     return load_sweep_file(path, seed_key="seed")
 
 
@@ -108,13 +110,13 @@ def run_sweep_file(path: str | os.PathLike, out: str | os.PathLike | None = None
                    **options) -> SweepResult:
     """Run a qdots sweep file (see the module docstring); ``out`` overrides its ``output.dir``.
 
-    ``options`` go to `qdots.sweeps.run_sweep` (``workers``, ``scheduler``, ``retries``, ``progress``).
+    ``options`` go to `labrig.sweeps.run_sweep` (``workers``, ``scheduler``, ``retries``, ``progress``).
     """
     return run_loaded(load_sweep(path), ExperimentRunner(quick), out, **options)
 
 
 def add_sweep_command(subparsers) -> None:
     """``qdots sweep SWEEP.toml [--out DIR] [--workers N] [--scheduler ADDRESS] [--quick F]``."""
-    from .sweeps.command import add_sweep_command as add
+    from labrig.sweeps.command import add_sweep_command as add
 
     add(subparsers, "qdots", "qdots experiments", load_sweep, ExperimentRunner, "scale every run down by F (fewer dots, shorter times) for a first look")

@@ -48,6 +48,8 @@ import numpy as np
 from scipy import sparse
 from scipy.spatial import cKDTree
 
+from labrig.validate import InputError
+
 from .analysis import _arrays
 from .units import THESIS_TEMPERATURE, PhysicalScale
 
@@ -91,7 +93,7 @@ def dot_energies(radii, nm_per_px: float = PhysicalScale().nm_per_px) -> np.ndar
     """
     r = np.asarray(radii, dtype=float) * float(nm_per_px)
     if not np.all(np.isfinite(r) & (r > 0)):
-        raise ValueError("radii and nm_per_px must be finite and > 0")
+        raise InputError("radii and nm_per_px must be finite and > 0")
     confinement = _CONFINEMENT_EV_NM2 * (1 / CDSE_ELECTRON_MASS + 1 / CDSE_HOLE_MASS) / r**2
     return CDSE_BANDGAP_EV + confinement - 1.786 * _COULOMB_EV_NM / (CDSE_PERMITTIVITY * r)
 
@@ -186,7 +188,7 @@ class ExcitonNetwork:
 def draw_traps(n: int, trap_fraction: float = TRAP_FRACTION, seed=None) -> np.ndarray:
     """Boolean trap mask: each of ``n`` dots is a trap with probability ``trap_fraction`` (as the Java)."""
     if not (isinstance(trap_fraction, (int, float)) and 0 <= trap_fraction <= 1):
-        raise ValueError(f"trap_fraction must be in [0, 1], got {trap_fraction!r}")
+        raise InputError(f"trap_fraction must be in [0, 1], got {trap_fraction!r}")
     return np.random.default_rng(seed).random(n) < trap_fraction
 
 
@@ -194,7 +196,7 @@ def _traps(n: int, trap_fraction: float, traps, rng) -> np.ndarray:
     if traps is not None:
         traps = np.asarray(traps)
         if traps.shape != (n,) or traps.dtype != bool:
-            raise ValueError(f"traps must be a boolean array of shape ({n},), got {traps.dtype} {traps.shape}")
+            raise InputError(f"traps must be a boolean array of shape ({n},), got {traps.dtype} {traps.shape}")
         return traps.copy()
     return draw_traps(n, trap_fraction, rng)
 
@@ -239,18 +241,18 @@ def exciton_network(state, forster_radius: float | None = None, trap_fraction: f
     for name, value in (("forster_radius", forster_radius), ("tau", tau), ("temperature", temperature),
                         ("tolerance", tolerance)):
         if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-            raise ValueError(f"{name} must be > 0, got {value!r}")
+            raise InputError(f"{name} must be > 0, got {value!r}")
     if not (isinstance(efficiency, (int, float)) and 0 < efficiency <= 1):
-        raise ValueError(f"efficiency must be in (0, 1], got {efficiency!r}")
+        raise InputError(f"efficiency must be in (0, 1], got {efficiency!r}")
     is_trap = _traps(n, trap_fraction, traps, seed)
     if isinstance(energies, str):
         if energies != "size":
-            raise ValueError(f"energies must be None, 'size' or an array of eV, got {energies!r}")
+            raise InputError(f"energies must be None, 'size' or an array of eV, got {energies!r}")
         energies = dot_energies(radii)
     elif energies is not None:
         energies = np.asarray(energies, dtype=float)
         if energies.shape != (n,) or not np.all(np.isfinite(energies)):
-            raise ValueError(f"energies must be {n} finite values, eV, got shape {energies.shape}")
+            raise InputError(f"energies must be {n} finite values, eV, got shape {energies.shape}")
     k_r = 1.0 / tau
     k_nr = (1.0 / efficiency - 1.0) / tau
     if n < 2:
@@ -259,12 +261,12 @@ def exciton_network(state, forster_radius: float | None = None, trap_fraction: f
     tree = cKDTree(positions)
     spacing = float(tree.query(positions, k=2)[0][:, 1].min())
     if spacing <= 0:
-        raise ValueError("two dots share a centre: their Förster rate is infinite")
+        raise InputError("two dots share a centre: their Förster rate is infinite")
     extent = float(np.sqrt((np.ptp(positions, axis=0) ** 2).sum()))
     if cutoff is None:
         cutoff = cutoff_for(forster_radius, spacing, tolerance, efficiency)
     elif not (isinstance(cutoff, (int, float)) and cutoff > spacing):
-        raise ValueError(f"cutoff must exceed the smallest centre distance {spacing:.4g} px, got {cutoff!r}")
+        raise InputError(f"cutoff must exceed the smallest centre distance {spacing:.4g} px, got {cutoff!r}")
     bound = 0.0 if cutoff > extent else truncation_bound(forster_radius, cutoff, spacing, efficiency)
     pairs = tree.query_pairs(min(cutoff, extent * (1 + 1e-12) + 1e-9), output_type="ndarray")
     i, j = pairs[:, 0], pairs[:, 1]

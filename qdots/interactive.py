@@ -17,46 +17,20 @@ handled between frames. A frame is synchronous, so keep ``frame_steps`` small
 enough that one frame takes well under a second. Outside a running event loop
 (a script), call `LiveBoard.step` or use `qdots.live.LiveRun` directly.
 
-Needs the ``widgets`` extra: ``pip install "qdots[widgets]"`` (ipywidgets, ipympl).
+Needs the ``widgets`` extra: ``pip install "nanodisorder[widgets]"`` (ipywidgets, ipympl).
 """
 
 from __future__ import annotations
 
 import asyncio
 import html
-import warnings
 
-from matplotlib.figure import Figure
+from labrig.validate import InputError
+from labrig.widgets import require_widgets, widget_figure
 
 from .live import GRAVITY_MODES, LiveRun
 from .presets import GRATING_WIDTH
 from .render import BoardArtists
-
-
-def require_widgets(what: str = "qdots.interactive"):
-    """Import ipywidgets and ipympl, or raise an ImportError that names the ``widgets`` extra."""
-    try:
-        import ipympl.backend_nbagg  # noqa: F401
-        import ipywidgets
-    except ImportError as exc:
-        raise ImportError(f"{what} needs the 'widgets' extra (ipywidgets, ipympl): "
-                          f"pip install \"qdots[widgets]\" ({exc})") from exc
-    return ipywidgets
-
-
-def widget_figure(figsize: tuple[float, float]) -> Figure:
-    """A matplotlib Figure whose ``canvas`` is an ipympl widget (no pyplot state involved)."""
-    require_widgets()
-    from ipympl.backend_nbagg import Canvas, FigureManager
-
-    figure = Figure(figsize=figsize)
-    canvas = Canvas(figure)
-    with warnings.catch_warnings():  # ipympl's own Toolbar call trips a traitlets DeprecationWarning
-        warnings.simplefilter("ignore", DeprecationWarning)
-        FigureManager(canvas, 0)
-    canvas.header_visible = False
-    canvas.toolbar_position = "bottom"
-    return figure
 
 
 def _error(text: str) -> str:
@@ -104,12 +78,12 @@ class LiveBoard:
     """
 
     def __init__(self, live: LiveRun | None = None, *, frame_pause: float = 0.02, size: float = 5.5, **kwargs):
-        w = require_widgets()
+        w = require_widgets("qdots.interactive")
         self.live = LiveRun(**kwargs) if live is None else live
         if not isinstance(self.live, LiveRun):
             raise TypeError(f"live must be a qdots.live.LiveRun, got {type(self.live).__name__}")
         if not frame_pause >= 0:
-            raise ValueError(f"frame_pause must be >= 0 s, got {frame_pause!r}")
+            raise InputError(f"frame_pause must be >= 0 s, got {frame_pause!r}")
         self.frame_pause = float(frame_pause)
         self._task: asyncio.Task | None = None
         self._restoring = False

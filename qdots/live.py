@@ -29,8 +29,9 @@ from pathlib import Path
 
 import numpy as np
 
+from labrig.validate import InputError, real
+
 from . import checkpoint
-from ._checks import nonnegative, positive
 from .analysis import packing_summary
 from .forces import CenterGravity, Drag, Gravity, ThermalKicks, VanDerWaals
 from .forces.fields import THESIS_GRAVITY
@@ -81,13 +82,13 @@ class Knobs:
     gravity_magnitude: float = THESIS_GRAVITY
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "dt", positive("dt", self.dt))
+        object.__setattr__(self, "dt", real("dt", self.dt, 0.0, low_open=True))
         for name in ("elasticity", "vdw_r0", "thermal", "drag", "gravity_magnitude"):
-            object.__setattr__(self, name, nonnegative(name, getattr(self, name)))
+            object.__setattr__(self, name, real(name, getattr(self, name), 0.0))
         if self.elasticity > 1:
-            raise ValueError(f"elasticity must be in [0, 1], got {self.elasticity!r}")
+            raise InputError(f"elasticity must be in [0, 1], got {self.elasticity!r}")
         if self.gravity not in GRAVITY_MODES:
-            raise ValueError(f"gravity must be one of {GRAVITY_MODES}, got {self.gravity!r}")
+            raise InputError(f"gravity must be one of {GRAVITY_MODES}, got {self.gravity!r}")
 
     def forces(self, box: tuple[float, float]) -> list:
         """Fresh force objects for a board of size ``box`` (px); a knob at 0 adds no force."""
@@ -143,7 +144,7 @@ class LiveRun:
         if not isinstance(scene, Scene):
             raise TypeError(f"scene must be a qdots.Scene, got {type(scene).__name__}")
         if "dt" in engine:
-            raise ValueError("set the time step with knobs=Knobs(dt=...), not dt=")
+            raise InputError("set the time step with knobs=Knobs(dt=...), not dt=")
         self.knobs = Knobs(elasticity=scene.restitution.mean) if knobs is None else knobs
         if not isinstance(self.knobs, Knobs):
             raise TypeError(f"knobs must be a qdots.live.Knobs, got {type(self.knobs).__name__}")
@@ -171,7 +172,7 @@ class LiveRun:
         names = [f.name for f in dataclasses.fields(Knobs)]
         unknown = sorted(set(changes) - set(names))
         if unknown:
-            raise ValueError(f"unknown knob {unknown[0]!r} (knobs: {', '.join(names)})")
+            raise InputError(f"unknown knob {unknown[0]!r} (knobs: {', '.join(names)})")
         knobs = dataclasses.replace(self.knobs, **changes)
         if knobs != self.knobs:
             board = self.sim.board()
@@ -204,7 +205,7 @@ class LiveRun:
             k, m = np.unravel_index(np.argmin(gap), gap.shape)
             if gap[k, m] < 0:
                 x0, y0, x1, y1 = added[m]
-                raise ValueError(f"wall ({x0:g}, {y0:g}) - ({x1:g}, {y1:g}) px crosses dot {k} at "
+                raise InputError(f"wall ({x0:g}, {y0:g}) - ({x1:g}, {y1:g}) px crosses dot {k} at "
                                  f"({board.positions[k, 0]:.1f}, {board.positions[k, 1]:.1f}) px")
         self._rebuild(new)
 
@@ -216,7 +217,7 @@ class LiveRun:
         """Add horizontal grating lines ``pitch`` px apart (`qdots.grating_segments`)."""
         lines = grating_segments(self.sim.scene.box, pitch, offset)
         if not len(lines):
-            raise ValueError(f"no grating line fits: pitch {pitch:g} px + offset {offset:g} px >= board height "
+            raise InputError(f"no grating line fits: pitch {pitch:g} px + offset {offset:g} px >= board height "
                              f"{self.sim.scene.box[1]:g} px")
         self.add_segments(lines)
 
@@ -325,7 +326,7 @@ class LiveRun:
         Default ``every``: `frame_steps`. Stop with `stop_recording`.
         """
         if self._movie is not None:
-            raise ValueError(f"already recording to {self._movie.path}; stop that first")
+            raise InputError(f"already recording to {self._movie.path}; stop that first")
         from .render import MovieWriter
 
         self._movie = MovieWriter(path, every=self.frame_steps if every is None else every, fps=fps,

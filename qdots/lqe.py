@@ -32,6 +32,8 @@ from scipy import sparse
 from scipy.sparse.linalg import LinearOperator, cg, spsolve
 from tqdm.auto import tqdm
 
+from labrig.validate import InputError
+
 from .forster import KB_EV, TRAP_FRACTION, ExcitonNetwork, draw_traps, exciton_network
 from .lqe_thesis import step_probabilities, thesis_walks
 
@@ -77,13 +79,13 @@ def _thesis_dt(network: ExcitonNetwork, dt) -> float:
     if dt is None:
         return THESIS_DT_FRACTION / network.radiative_rate
     if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
-        raise ValueError(f"dt must be > 0 ns, got {dt!r}")
+        raise InputError(f"dt must be > 0 ns, got {dt!r}")
     return float(dt)
 
 
 def _check_network(network) -> ExcitonNetwork:
     if not isinstance(network, ExcitonNetwork):
-        raise ValueError(f"network must be a qdots.forster.ExcitonNetwork (see exciton_network), "
+        raise InputError(f"network must be a qdots.forster.ExcitonNetwork (see exciton_network), "
                          f"got {type(network).__name__}")
     return network
 
@@ -142,10 +144,10 @@ def lqe_exact(network: ExcitonNetwork, scheme: str = "continuous", dt: float | N
     """
     network = _check_network(network)
     if scheme not in SCHEMES:
-        raise ValueError(f"scheme must be one of {SCHEMES}, got {scheme!r}")
+        raise InputError(f"scheme must be one of {SCHEMES}, got {scheme!r}")
     n = network.n_dots
     if n == 0:
-        raise ValueError("the board has no dots")
+        raise InputError("the board has no dots")
     if scheme == "continuous":
         scale = np.ones(n) if network.energies is None else \
             np.exp(-(network.energies - network.energies.mean()) / (2 * KB_EV * network.temperature))
@@ -235,11 +237,11 @@ def lqe_monte_carlo(network: ExcitonNetwork, n_excitons: int = 100_000, method: 
     """
     network = _check_network(network)
     if method not in METHODS:
-        raise ValueError(f"method must be one of {METHODS}, got {method!r}")
+        raise InputError(f"method must be one of {METHODS}, got {method!r}")
     if not (isinstance(n_excitons, (int, np.integer)) and not isinstance(n_excitons, bool) and n_excitons >= 1):
-        raise ValueError(f"n_excitons must be an integer >= 1, got {n_excitons!r}")
+        raise InputError(f"n_excitons must be an integer >= 1, got {n_excitons!r}")
     if network.n_dots == 0:
-        raise ValueError("the board has no dots")
+        raise InputError("the board has no dots")
     rng = np.random.default_rng(seed)
     starts = rng.integers(network.n_dots, size=int(n_excitons))
     if method == "gillespie":
@@ -292,9 +294,9 @@ def film_lqe(state, draws: int = 8, seed=0, **network_options) -> TrapAverage:
     from its own child of ``numpy.random.SeedSequence(seed)``.
     """
     if not (isinstance(draws, (int, np.integer)) and draws >= 1):
-        raise ValueError(f"draws must be an integer >= 1, got {draws!r}")
+        raise InputError(f"draws must be an integer >= 1, got {draws!r}")
     if "traps" in network_options:
-        raise ValueError("film_lqe draws its own traps: pass trap_fraction, not traps")
+        raise InputError("film_lqe draws its own traps: pass trap_fraction, not traps")
     children = np.random.SeedSequence(seed).spawn(int(draws))
     base = exciton_network(state, seed=children[0], **network_options)
     fraction = network_options.get("trap_fraction", TRAP_FRACTION)

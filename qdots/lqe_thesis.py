@@ -29,6 +29,8 @@ import numpy as np
 from scipy import sparse
 from tqdm.auto import tqdm
 
+from labrig.validate import InputError
+
 from .forster import ExcitonNetwork
 
 #: Step of the trapezoidal rule in log-time, and the span of the log-time grid.
@@ -82,7 +84,7 @@ def step_probabilities(network: ExcitonNetwork, dt: float, block: int = 1_000_00
         Probability that one step ends the exciton without / with light.
     """
     if not (isinstance(dt, (int, float)) and dt > 0):
-        raise ValueError(f"dt must be > 0 ns, got {dt!r}")
+        raise InputError(f"dt must be > 0 ns, got {dt!r}")
     weights, _, _ = _event_table(network, dt)
     n, width = weights.shape
     if n == 0:

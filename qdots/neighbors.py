@@ -12,6 +12,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
+from labrig.validate import InputError
+
 
 class VerletPairs:
     """Pairs of dots within a cutoff distance, with a Verlet skin.
@@ -26,7 +28,7 @@ class VerletPairs:
 
     def __init__(self, skin: float = 3.0):
         if not (np.isfinite(skin) and skin >= 0):
-            raise ValueError(f"skin must be >= 0 px, got {skin!r}")
+            raise InputError(f"skin must be >= 0 px, got {skin!r}")
         self.skin = float(skin)
         self.rebuilds = 0
         self._anchor_x = np.zeros(0)

@@ -22,6 +22,8 @@ import numbers
 import numpy as np
 from scipy.spatial import cKDTree
 
+from labrig.validate import InputError
+
 #: Candidates drawn per batch. Part of the random stream: changing it changes the placements.
 BATCH = 256
 
@@ -31,30 +33,30 @@ def _check_rng(rng: object) -> np.random.Generator:
         return np.random.default_rng(rng)
     if isinstance(rng, numbers.Integral) and not isinstance(rng, bool):
         if rng < 0:
-            raise ValueError(f"rng seed must be >= 0, got {rng!r}")
+            raise InputError(f"rng seed must be >= 0, got {rng!r}")
         return np.random.default_rng(int(rng))
-    raise ValueError(f"rng must be a numpy Generator, an int seed or None, got {type(rng).__name__}")
+    raise InputError(f"rng must be a numpy Generator, an int seed or None, got {type(rng).__name__}")
 
 
 def _check_args(n, box, mean_diameter, sigma, max_tries, margin) -> tuple[float, float]:
     if not isinstance(n, numbers.Integral) or isinstance(n, bool) or n < 0:
-        raise ValueError(f"n must be an integer >= 0, got {n!r}")
+        raise InputError(f"n must be an integer >= 0, got {n!r}")
     try:
         w, h = (float(v) for v in box)
     except (TypeError, ValueError):
-        raise ValueError(f"box must be (width, height) in px, got {box!r}") from None
+        raise InputError(f"box must be (width, height) in px, got {box!r}") from None
     if not (math.isfinite(w) and math.isfinite(h) and w > 0 and h > 0):
-        raise ValueError(f"box must be two finite sizes > 0 px, got {box!r}")
+        raise InputError(f"box must be two finite sizes > 0 px, got {box!r}")
     if not (isinstance(mean_diameter, numbers.Real) and math.isfinite(mean_diameter) and mean_diameter > 0):
-        raise ValueError(f"mean_diameter must be > 0 px, got {mean_diameter!r}")
+        raise InputError(f"mean_diameter must be > 0 px, got {mean_diameter!r}")
     if not (isinstance(sigma, numbers.Real) and 0.0 <= sigma < 1.0):
-        raise ValueError(f"sigma must be in [0, 1) (a fraction of the mean diameter), got {sigma!r}")
+        raise InputError(f"sigma must be in [0, 1) (a fraction of the mean diameter), got {sigma!r}")
     if not isinstance(max_tries, numbers.Integral) or isinstance(max_tries, bool) or max_tries < 1:
-        raise ValueError(f"max_tries must be an integer >= 1, got {max_tries!r}")
+        raise InputError(f"max_tries must be an integer >= 1, got {max_tries!r}")
     if not (isinstance(margin, numbers.Real) and math.isfinite(margin) and margin >= 0):
-        raise ValueError(f"margin must be >= 0 px, got {margin!r}")
+        raise InputError(f"margin must be >= 0 px, got {margin!r}")
     if n > 0 and mean_diameter + 2.0 * margin > min(w, h):
-        raise ValueError(
+        raise InputError(
             f"mean_diameter {mean_diameter:g} px (+ 2 x margin {margin:g} px) does not fit in the "
             f"box {w:g} x {h:g} px"
         )
@@ -228,7 +230,7 @@ def _too_full(n, placed, box, mean_diameter, sigma, max_tries, placed_radii) -> 
     area = w * h
     fraction = float(np.sum(np.pi * placed_radii**2)) / area
     wanted = n * np.pi * (mean_diameter / 2.0) ** 2 * (1.0 + sigma**2) / area
-    raise ValueError(
+    raise InputError(
         f"board too full: placed {placed} of {n} dots (mean diameter {mean_diameter:g} px, "
         f"sigma {sigma:g}) in a {w:g} x {h:g} px box before {max_tries} consecutive tries failed; "
         f"area fraction reached {fraction:.3f} of {wanted:.3f} requested (random sequential "

@@ -23,6 +23,8 @@ from __future__ import annotations
 
 import math
 
+from labrig.validate import InputError
+
 from .experiment import Board, Deposition, Experiment, default_forces
 from .forces import CenterGravity, Drag
 
@@ -96,7 +98,7 @@ def get_preset(name: str, quick: bool | float = False) -> list[Experiment]:
         On an unknown name (the message lists the known ones) or a bad ``quick``.
     """
     if name not in PRESETS:
-        raise ValueError(f"unknown preset {name!r} (known: {', '.join(PRESETS)})")
+        raise InputError(f"unknown preset {name!r} (known: {', '.join(PRESETS)})")
     if quick is False:
         return list(PRESETS[name])
     factor = QUICK_FACTOR if quick is True else quick

@@ -21,6 +21,8 @@ from typing import Sequence
 
 import numpy as np
 
+from labrig.validate import InputError
+
 from .placement import draw_candidates
 from .scene import segment_distances
 
@@ -49,7 +51,7 @@ def as_generator(rng, sim=None) -> np.random.Generator:
         return np.random.default_rng(rng)
     if isinstance(rng, numbers.Integral) and not isinstance(rng, bool) and rng >= 0:
         return np.random.default_rng(int(rng))
-    raise ValueError(f"rng must be a numpy Generator, a SeedSequence, an int seed >= 0 or None, got {rng!r}")
+    raise InputError(f"rng must be a numpy Generator, a SeedSequence, an int seed >= 0 or None, got {rng!r}")
 
 
 def check_real(name: str, value, low: float, high: float = math.inf, *, low_open=False, high_open=True):
@@ -57,14 +59,14 @@ def check_real(name: str, value, low: float, high: float = math.inf, *, low_open
     ok = isinstance(value, numbers.Real) and not isinstance(value, bool) and math.isfinite(value)
     if not (ok and (value > low if low_open else value >= low) and (value < high if high_open else value <= high)):
         interval = f"{'(' if low_open else '['}{low:g}, {high:g}{')' if high_open else ']'}"
-        raise ValueError(f"{name} must be a number in {interval}, got {value!r}")
+        raise InputError(f"{name} must be a number in {interval}, got {value!r}")
     return float(value)
 
 
 def check_count(name: str, value, low: int) -> int:
     """``value`` as an int; ValueError naming ``name`` unless an integer >= ``low``."""
     if not (isinstance(value, numbers.Integral) and not isinstance(value, bool) and value >= low):
-        raise ValueError(f"{name} must be an integer >= {low}, got {value!r}")
+        raise InputError(f"{name} must be an integer >= {low}, got {value!r}")
     return int(value)
 
 
@@ -116,7 +118,7 @@ def dot_masses(diameters, mean_diameter: float, model: str = "equal", heavy_mass
     d = np.asarray(diameters, dtype=float)
     mean_diameter = check_real("mean_diameter", mean_diameter, 0.0, low_open=True)
     if d.ndim != 1 or not (np.isfinite(d).all() and (d > 0).all()):
-        raise ValueError("diameters must be a 1-D array of finite values > 0 px")
+        raise InputError("diameters must be a 1-D array of finite values > 0 px")
     if model == "equal":
         return np.ones(len(d))
     if model in ("area", "volume"):
@@ -124,9 +126,9 @@ def dot_masses(diameters, mean_diameter: float, model: str = "equal", heavy_mass
     if model == "bimodal":
         heavy_mass = check_real("heavy_mass", heavy_mass, 0.0, low_open=True)
         if rng is None:
-            raise ValueError("mass model 'bimodal' needs an rng")
+            raise InputError("mass model 'bimodal' needs an rng")
         return np.where(rng.random(len(d)) < 0.5, heavy_mass, 1.0)
-    raise ValueError(f"mass model must be one of {MASS_MODELS}, got {model!r}")
+    raise InputError(f"mass model must be one of {MASS_MODELS}, got {model!r}")
 
 
 def ring_radius(i: int, mean_diameter: float, sigma: float) -> float:
@@ -157,7 +159,7 @@ def _sequential(sim, n, mean_diameter, mass_model, heavy_mass, interval, max_tri
     n, max_tries = check_count("n_dots", n, 0), check_count("max_tries", max_tries, 1)
     interval = check_real("interval", interval, 0.0)
     if mass_model not in MASS_MODELS:
-        raise ValueError(f"mass_model must be one of {MASS_MODELS}, got {mass_model!r}")
+        raise InputError(f"mass_model must be one of {MASS_MODELS}, got {mass_model!r}")
     bar = None
     if progress:
         from tqdm.auto import tqdm
@@ -173,7 +175,7 @@ def _sequential(sim, n, mean_diameter, mass_model, heavy_mass, interval, max_tri
                 hit, tries = (good[0] if good.size else None), tries + len(r)
             if hit is None:
                 fraction = float(np.sum(np.pi * board.radii**2)) / area
-                raise ValueError(f"board too full: placed {i} of {n} dots; {max_tries} consecutive candidates "
+                raise InputError(f"board too full: placed {i} of {n} dots; {max_tries} consecutive candidates "
                                  f"for the next one overlapped a dot or wall or did not fit {where}; the "
                                  f"dots cover an area fraction {fraction:.3f} of it")
             diameters[i] = 2.0 * r[hit]
@@ -195,9 +197,9 @@ def _check_region(region, box) -> tuple[float, float, float, float]:
     try:
         x0, y0, x1, y1 = (float(v) for v in region)
     except (TypeError, ValueError):
-        raise ValueError(f"region must be (x0, y0, x1, y1) in px, got {region!r}") from None
+        raise InputError(f"region must be (x0, y0, x1, y1) in px, got {region!r}") from None
     if not (0 <= x0 < x1 <= w and 0 <= y0 < y1 <= h):
-        raise ValueError(f"region must satisfy 0 <= x0 < x1 <= {w:g} and 0 <= y0 < y1 <= {h:g} "
+        raise InputError(f"region must satisfy 0 <= x0 < x1 <= {w:g} and 0 <= y0 < y1 <= {h:g} "
                          f"(the box), got {region!r}")
     return x0, y0, x1, y1
 
@@ -256,7 +258,7 @@ def deposit(sim, n_dots: int, mean_diameter: float = 15.0, sigma: float = 0.0, r
     sigma = check_real("sigma", sigma, 0.0, 1.0)
     x0, y0, x1, y1 = _check_region(region, sim.scene.box)
     if mean_diameter + 2 * GAP > min(x1 - x0, y1 - y0):
-        raise ValueError(f"mean_diameter {mean_diameter:g} px does not fit in region ({x0:g}, {y0:g}, "
+        raise InputError(f"mean_diameter {mean_diameter:g} px does not fit in region ({x0:g}, {y0:g}, "
                          f"{x1:g}, {y1:g}) px")
     gen = as_generator(rng, sim)
 
@@ -304,11 +306,11 @@ def deposit_around_center(sim, n_dots: int, center, mean_diameter: float = 15.0,
     try:
         cx, cy = (float(v) for v in center)
     except (TypeError, ValueError):
-        raise ValueError(f"center must be (x, y) in px, got {center!r}") from None
+        raise InputError(f"center must be (x, y) in px, got {center!r}") from None
     w, h = sim.scene.box
     room, reach = min(cx, cy, w - cx, h - cy), ring_radius(max(n - 1, 0), mean_diameter, sigma)
     if n and reach + mean_diameter / 2 > room:
-        raise ValueError(f"n_dots = {n} needs a ring of radius {reach:.1f} px (+ a dot radius) around center "
+        raise InputError(f"n_dots = {n} needs a ring of radius {reach:.1f} px (+ a dot radius) around center "
                          f"({cx:g}, {cy:g}) px, but the {w:g} x {h:g} px box leaves {room:.1f} px")
     gen = as_generator(rng, sim)
 

@@ -19,7 +19,9 @@ from matplotlib.collections import EllipseCollection, LineCollection
 from matplotlib.figure import Figure
 from matplotlib.patches import Rectangle
 
-from .atomic import StreamedFile, atomic_path
+from labrig.files import atomic_path
+from labrig.movies import FigureMovie
+from labrig.validate import InputError
 
 
 def size_colours(radii, mean: float | None = None, sigma: float | None = None) -> np.ndarray:
@@ -51,10 +53,10 @@ def size_colours(radii, mean: float | None = None, sigma: float | None = None) -
     if mean is None:
         mean = float(d.mean()) if d.size else 1.0
     if not (math.isfinite(mean) and mean > 0):
-        raise ValueError(f"mean must be a diameter > 0 px, got {mean!r}")
+        raise InputError(f"mean must be a diameter > 0 px, got {mean!r}")
     s = (float(d.std()) if d.size else 0.0) if sigma is None else float(sigma) * mean
     if not (math.isfinite(s) and s >= 0):
-        raise ValueError(f"sigma must be >= 0, got {sigma!r}")
+        raise InputError(f"sigma must be >= 0, got {sigma!r}")
     colours = np.zeros((d.size, 3))
     if s <= 1e-12 * mean:  # equal sizes (up to round-off in the std)
         colours[:, 1] = 1.0
@@ -146,7 +148,7 @@ def save_png(state, path, dpi: int = 100) -> Path:
         The path written.
     """
     if not (isinstance(dpi, numbers.Real) and dpi > 0):
-        raise ValueError(f"dpi must be > 0, got {dpi!r}")
+        raise InputError(f"dpi must be > 0, got {dpi!r}")
     fig = Figure(figsize=(6, 6))
     FigureCanvasAgg(fig)
     ax = fig.add_subplot()
@@ -157,64 +159,6 @@ def save_png(state, path, dpi: int = 100) -> Path:
     with atomic_path(path) as tmp:
         fig.savefig(tmp, format="png", dpi=dpi)
     return path
-
-
-class FigureMovie(StreamedFile):
-    """An MP4 built frame by frame from one reused matplotlib figure (written atomically).
-
-    Subclasses draw on `figure` and call `add_frame`. Frames go straight to
-    ffmpeg (libx264), so memory does not grow with the number of frames; the
-    movie is streamed to a temporary file beside ``path`` and renamed onto it
-    by `close`; if an exception leaves the ``with`` block the temporary file
-    is removed and ``path`` is left untouched.
-
-    Parameters
-    ----------
-    path : str or Path
-        Output file (``.mp4``).
-    fps : float
-        Frames per second (> 0).
-    size_px : int
-        Width and height of a frame, pixels (even, >= 16).
-    """
-
-    def __init__(self, path, fps: float, size_px: int):
-        if not (isinstance(fps, numbers.Real) and math.isfinite(fps) and fps > 0):
-            raise ValueError(f"fps must be > 0, got {fps!r}")
-        if not (isinstance(size_px, numbers.Integral) and size_px >= 16 and size_px % 2 == 0):
-            raise ValueError(f"size_px must be an even integer >= 16 (libx264 needs even sizes), got {size_px!r}")
-        import imageio.v2 as imageio
-
-        self.fps = fps
-        self.size_px = int(size_px)
-        self.frames = 0
-        super().__init__(path)
-        try:
-            self._writer = imageio.get_writer(self._tmp, format="FFMPEG", fps=fps, codec="libx264",
-                                              macro_block_size=1)
-        except BaseException:
-            self._tmp.unlink(missing_ok=True)
-            raise
-        dpi = 100
-        self.figure = Figure(figsize=(self.size_px / dpi, self.size_px / dpi), dpi=dpi)
-        self._canvas = FigureCanvasAgg(self.figure)
-
-    def add_frame(self) -> None:
-        """Render `figure` and append it as one frame."""
-        if self.closed:
-            raise ValueError(f"{type(self).__name__} for {self.path} is closed")
-        self._canvas.draw()
-        frame = np.asarray(self._canvas.buffer_rgba())[:, :, :3]
-        if frame.shape[:2] != (self.size_px, self.size_px):  # would make ffmpeg fail obscurely
-            raise RuntimeError(f"rendered frame is {frame.shape[:2]}, expected {self.size_px} px square")
-        self._writer.append_data(np.ascontiguousarray(frame))
-        self.frames += 1
-
-    def _close_stream(self) -> None:
-        self._writer.close()
-
-    def _is_empty(self) -> bool:
-        return self.frames == 0
 
 
 class MovieWriter(FigureMovie):
@@ -248,7 +192,7 @@ class MovieWriter(FigureMovie):
 
     def __init__(self, path, every: int = 50, fps: float = 25, size_px: int = 600):
         if not (isinstance(every, numbers.Integral) and every >= 1):
-            raise ValueError(f"every must be an integer >= 1 step, got {every!r}")
+            raise InputError(f"every must be an integer >= 1 step, got {every!r}")
         self.every = int(every)
         self.wall_seconds = 0.0
         super().__init__(path, fps, size_px)
@@ -259,7 +203,7 @@ class MovieWriter(FigureMovie):
     def write(self, state) -> None:
         """Render ``state`` and append it as one frame."""
         if self.closed:
-            raise ValueError(f"MovieWriter for {self.path} is closed")
+            raise InputError(f"MovieWriter for {self.path} is closed")
         start = time.perf_counter()
         self._board.draw(state)
         self.add_frame()

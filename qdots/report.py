@@ -11,8 +11,9 @@ from matplotlib import colormaps
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
+from labrig.files import atomic_path
+
 from .analysis import fill_within_radius, packing_summary
-from .atomic import atomic_path
 from .forster import TRAP_FRACTION
 from .lqe import TrapAverage, film_lqe
 from .structure import Hexatic, RadialDistribution, clusters, hexatic_order, radial_distribution, voronoi_coordination

@@ -14,6 +14,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial import cKDTree
 
+from labrig.validate import InputError
+
 from .collisions import Restitution
 
 
@@ -22,16 +24,16 @@ def _as_float_array(name: str, value: object, shape: tuple[int | None, ...]) -> 
     try:
         arr = np.array(value, dtype=np.float64)
     except (TypeError, ValueError) as exc:
-        raise ValueError(f"{name} must be numeric: {exc}") from None
+        raise InputError(f"{name} must be numeric: {exc}") from None
     if arr.size == 0 and len(shape) == 2:
         arr = arr.reshape(0, shape[1])
     if arr.ndim != len(shape) or any(want is not None and got != want for got, want in zip(arr.shape, shape)):
         want = "(" + ", ".join("N" if s is None else str(s) for s in shape) + ")"
-        raise ValueError(f"{name} must have shape {want}, got {arr.shape}")
+        raise InputError(f"{name} must have shape {want}, got {arr.shape}")
     bad = ~np.isfinite(arr)
     if bad.any():
         index = tuple(int(i) for i in np.argwhere(bad)[0])
-        raise ValueError(f"{name}[{index[0]}] is not finite ({float(arr[index])!r})")
+        raise InputError(f"{name}[{index[0]}] is not finite ({float(arr[index])!r})")
     arr.setflags(write=False)
     return arr
 
@@ -40,7 +42,7 @@ def _first_nonpositive(name: str, arr: np.ndarray) -> None:
     bad = np.flatnonzero(arr <= 0)
     if bad.size:
         i = int(bad[0])
-        raise ValueError(f"{name}[{i}] = {float(arr[i])!r} must be > 0")
+        raise InputError(f"{name}[{i}] = {float(arr[i])!r} must be > 0")
 
 
 @dataclass(frozen=True, eq=False)
@@ -92,7 +94,7 @@ class Scene:
 
     def __post_init__(self) -> None:
         if not (np.isfinite(self.overlap_tolerance) and 0.0 <= self.overlap_tolerance < 1.0):
-            raise ValueError(f"overlap_tolerance must be in [0, 1), got {self.overlap_tolerance!r}")
+            raise InputError(f"overlap_tolerance must be in [0, 1), got {self.overlap_tolerance!r}")
         box = _as_float_array("box", self.box, (2,))
         _first_nonpositive("box", box)
         positions = _as_float_array("positions", self.positions, (None, 2))
@@ -110,9 +112,9 @@ class Scene:
         lengths = np.hypot(segments[:, 2] - segments[:, 0], segments[:, 3] - segments[:, 1])
         short = np.flatnonzero(lengths == 0)
         if short.size:
-            raise ValueError(f"segments[{int(short[0])}] has zero length")
+            raise InputError(f"segments[{int(short[0])}] has zero length")
         if not isinstance(self.restitution, Restitution):
-            raise ValueError(f"restitution must be a qdots.Restitution, got {type(self.restitution).__name__}")
+            raise InputError(f"restitution must be a qdots.Restitution, got {type(self.restitution).__name__}")
         object.__setattr__(self, "box", (float(box[0]), float(box[1])))
         for name, value in (("positions", positions), ("radii", radii), ("masses", masses),
                             ("velocities", velocities), ("segments", segments)):
@@ -132,7 +134,7 @@ class Scene:
         if outside.size:
             i = int(outside[0])
             x, y = self.positions[i]
-            raise ValueError(
+            raise InputError(
                 f"positions[{i}] = ({x:g}, {y:g}) with radius {self.radii[i]:g} lies outside "
                 f"the box [0, {self.box[0]:g}] x [0, {self.box[1]:g}]"
             )
@@ -152,7 +154,7 @@ class Scene:
             k = bad[np.argmin((distance[bad] - contact[bad]) / contact[bad])]
             a, b = sorted((int(i[k]), int(j[k])))
             overlap = 2.0 * (contact[k] - distance[k]) / contact[k]
-            raise ValueError(
+            raise InputError(
                 f"dots {a} and {b} overlap: centre distance {distance[k]:.6g} px < "
                 f"radii[{a}] + radii[{b}] = {contact[k]:.6g} px (relative overlap {overlap:.3g}, "
                 f"overlap_tolerance {self.overlap_tolerance:g})"
@@ -203,6 +205,6 @@ def grating_segments(box: tuple[float, float], pitch: float, offset: float = 0.0
     """
     width, height = box
     if not pitch > 0:
-        raise ValueError(f"grating pitch must be > 0 px, got {pitch!r}")
+        raise InputError(f"grating pitch must be > 0 px, got {pitch!r}")
     ys = np.arange(offset + pitch, height, pitch)
     return np.column_stack([np.zeros_like(ys), ys, np.full_like(ys, width), ys])

@@ -15,11 +15,13 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from .atomic import write_text_atomic
+from labrig.files import write_text_atomic
+from labrig.tomlfile import check_keys, from_source, parse_toml, read_toml, toml_line
+from labrig.validate import InputError, typed
+
 from .collisions import Restitution
 from .experiment import Board, Deposition, Experiment
 from .simulation import EngineSettings
-from .tomlfile import check_keys, from_source, parse_toml, read_toml, toml_line, typed
 
 #: Top-level scalars: key -> (kind, comment).
 TOP = {
@@ -102,7 +104,7 @@ def save_experiment(exp: Experiment, path: str | os.PathLike) -> Path:
 def _table(name: str, data) -> object:
     cls, schema = TABLES[name]
     if not isinstance(data, dict):
-        raise ValueError(f"{name} must be a table ([{name}]), got {data!r}")
+        raise InputError(f"{name} must be a table ([{name}]), got {data!r}")
     check_keys(name, data, schema)
     values = {key: typed(f"{name}.{key}", value, schema[key][0]) for key, value in data.items()}
     try:
@@ -110,8 +112,8 @@ def _table(name: str, data) -> object:
     except ValueError as exc:
         msg = str(exc)
         if msg.lower().startswith(f"{name}."):
-            raise ValueError(name + msg[len(name):]) from None
-        raise ValueError(f"{name}.{msg}") from None
+            raise InputError(name + msg[len(name):]) from None
+        raise InputError(f"{name}.{msg}") from None
 
 
 def experiment_from_dict(data: dict) -> Experiment:
@@ -123,14 +125,14 @@ def experiment_from_dict(data: dict) -> Experiment:
         Naming the full key of an unknown key, a wrong type or an out-of-range value.
     """
     if not isinstance(data, dict):
-        raise ValueError(f"a scene must be a table, got {type(data).__name__}")
+        raise InputError(f"a scene must be a table, got {type(data).__name__}")
     check_keys("", data, [*TOP, *TABLES, "forces"])
     kwargs = {key: typed(key, data[key], kind) for key, (kind, _) in TOP.items() if key in data}
     kwargs.update({name: _table(name, data[name]) for name in TABLES if name in data})
     if "forces" in data:
         forces = data["forces"]
         if not isinstance(forces, list) or not all(isinstance(f, dict) for f in forces):
-            raise ValueError(f"forces must be an array of tables ([[forces]]), got {forces!r}")
+            raise InputError(f"forces must be an array of tables ([[forces]]), got {forces!r}")
         kwargs["forces"] = tuple(forces)
     return Experiment(**kwargs)
 

@@ -12,13 +12,14 @@ import numpy as np
 import pymunk
 from scipy.spatial import cKDTree
 
+from labrig.validate import InputError
+
 from .bulk import BodyArrays
 from .collisions import DOT, WALL, CollisionCounter, install_handlers
 from .forces.base import Force, StepContext
 from .scene import Scene, segment_distances
 from .settings import OVERLAP_CORRECTION, EngineSettings  # noqa: F401 (public here too)
 from .state import State
-
 
 #: Relative overlap accepted when a board is read back from a running simulation:
 #: soft contacts overlap by < 1 % of a radius at the defaults; 10 % guards against nonsense.
@@ -210,14 +211,14 @@ class Simulation:
             gap = segment_distances(fresh.positions, self.scene.segments) - fresh.radii[:, None]
             k, m = np.unravel_index(np.argmin(gap), gap.shape)
             if gap[k, m] < 0:
-                raise ValueError(f"new dot {k} crosses wall segments[{m}]")
+                raise InputError(f"new dot {k} crosses wall segments[{m}]")
         if now.n_dots:
             tree = cKDTree(now.positions)
             reach = fresh.radii + float(now.radii.max())
             for k, (point, r) in enumerate(zip(fresh.positions, fresh.radii)):
                 for j in tree.query_ball_point(point, reach[k]):
                     if np.linalg.norm(point - now.positions[j]) < r + now.radii[j]:
-                        raise ValueError(f"new dot {k} overlaps dot {j} already on the board")
+                        raise InputError(f"new dot {k} overlaps dot {j} already on the board")
         self._add_bodies(fresh.positions, fresh.velocities, fresh.radii, fresh.masses)
 
     def board(self) -> Scene:
@@ -337,11 +338,11 @@ class Simulation:
             radii in one sub-step (contacts can then be missed).
         """
         if not (math.isfinite(seconds) and seconds >= 0):
-            raise ValueError(f"seconds must be >= 0, got {seconds!r}")
+            raise InputError(f"seconds must be >= 0, got {seconds!r}")
         n_steps = int(round(seconds / self.dt))
         for writer in writers:
             if not (isinstance(writer.every, (int, np.integer)) and writer.every >= 1):
-                raise ValueError(f"writer.every must be an integer >= 1 step, got {writer.every!r}")
+                raise InputError(f"writer.every must be an integer >= 1 step, got {writer.every!r}")
         bar = None
         if progress:
             from tqdm.auto import tqdm
@@ -400,7 +401,7 @@ class Simulation:
         """Overwrite every dot's velocity (px/s) from an (N, 2) array."""
         v = np.asarray(velocities, dtype=float)
         if v.shape != (self.n_dots, 2) or not np.isfinite(v).all():
-            raise ValueError(f"velocities must be a finite ({self.n_dots}, 2) array, got shape {v.shape}")
+            raise InputError(f"velocities must be a finite ({self.n_dots}, 2) array, got shape {v.shape}")
         self._io.write_velocities(v)
 
     def __repr__(self) -> str:

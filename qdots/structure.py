@@ -16,6 +16,8 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import Delaunay, cKDTree
 
+from labrig.validate import InputError
+
 from .analysis import _arrays, _pairs, neighbour_edges
 
 
@@ -134,13 +136,13 @@ def radial_distribution(state, r_max: float | None = None, bins: int = 100) -> R
     else:
         width = height = 0.0
     if not (width > 0 and height > 0):
-        raise ValueError("radial_distribution needs a window of positive area (state.box or spread-out dots)")
+        raise InputError("radial_distribution needs a window of positive area (state.box or spread-out dots)")
     if r_max is None:
         r_max = min(10.0 * float(radii.mean()) if len(radii) else width, width, height)
     if not (isinstance(r_max, (int, float)) and 0 < r_max <= min(width, height)):
-        raise ValueError(f"r_max must be in (0, {min(width, height):g}] px (the window's smaller side), got {r_max!r}")
+        raise InputError(f"r_max must be in (0, {min(width, height):g}] px (the window's smaller side), got {r_max!r}")
     if not (isinstance(bins, (int, np.integer)) and bins >= 1):
-        raise ValueError(f"bins must be an integer >= 1, got {bins!r}")
+        raise InputError(f"bins must be an integer >= 1, got {bins!r}")
     edges = np.linspace(0.0, float(r_max), int(bins) + 1)
     _, _, d = _pairs(positions, float(r_max))
     counts = np.histogram(d, bins=edges)[0]
@@ -215,7 +217,7 @@ def voronoi_coordination(state, min_edge: float = 1e-6) -> np.ndarray:
     if nearest[:, 1].min() <= 0:
         k = int(np.argmin(nearest[:, 1]))
         other = int(partner[k, 1] if partner[k, 0] == k else partner[k, 0])
-        raise ValueError(f"Voronoi coordination: dots {min(k, other)} and {max(k, other)} share a centre")
+        raise InputError(f"Voronoi coordination: dots {min(k, other)} and {max(k, other)} share a centre")
     tri = Delaunay(positions)
     corners = tri.simplices
     centres = _circumcentres(*(positions[corners[:, k]] for k in range(3)))

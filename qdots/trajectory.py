@@ -1,6 +1,6 @@
 """Trajectories in GSD (HOOMD-blue's format), readable by OVITO, freud and gsd.
 
-Optional: needs the ``gsd`` package (``pip install "qdots[gsd]"``).
+Optional: needs the ``gsd`` package (``pip install "nanodisorder[gsd]"``).
 
 Conventions of the file, which follow HOOMD so other tools read it as is:
 
@@ -19,7 +19,9 @@ import os
 
 import numpy as np
 
-from .atomic import StreamedFile
+from labrig.files import StreamedFile
+from labrig.validate import InputError
+
 from .state import State
 
 
@@ -45,9 +47,9 @@ class GSDWriter(StreamedFile):
         try:
             import gsd.hoomd
         except ImportError:  # pragma: no cover - depends on the environment
-            raise ImportError("GSD output needs the gsd package: pip install 'qdots[gsd]'") from None
+            raise ImportError("GSD output needs the gsd package: pip install 'nanodisorder[gsd]'") from None
         if not (isinstance(every, int) and every >= 1):
-            raise ValueError(f"every must be an integer >= 1 step, got {every!r}")
+            raise InputError(f"every must be an integer >= 1 step, got {every!r}")
         super().__init__(path)
         self.every = every
         self.dt = dt

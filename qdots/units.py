@@ -23,6 +23,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from labrig.validate import InputError
+
 #: Boltzmann's constant as the thesis's Java code writes it, in g m^2 s^-2 K^-1.
 THESIS_KB = 1.38e-20
 #: Temperature of the thesis's thermal kicks, K.
@@ -77,7 +79,7 @@ class PhysicalScale:
         for name in ("nm_per_px", "mean_mass_kg", "seconds_per_time_unit"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
-                raise ValueError(f"PhysicalScale.{name} must be a positive finite number, got {value!r}")
+                raise InputError(f"PhysicalScale.{name} must be a positive finite number, got {value!r}")
 
     @property
     def energy_unit_joule(self) -> float:

@@ -84,7 +84,7 @@ def test_save_scenes_only(tmp_path):
         (["run", "missing.toml"], "missing.toml"),
         (["resume", "missing.npz", "--seconds", "1"], "no such state file"),
         (["resume", "x.npz"], "--seconds"),
-        (["resume", "x.npz", "--seconds", "-1"], "must be in"),
+        (["resume", "x.npz", "--seconds", "-1"], "must be > 0"),
         (["render", "missing.npz"], "no such state file"),
         (["preset", "fig9-9"], "invalid choice"),
         (["run", "x.toml", "--quick", "2"], "must be in"),

@@ -209,7 +209,7 @@ def test_live_run_rejects_bad_input():
 
 def test_missing_extra_is_named(monkeypatch):
     monkeypatch.setitem(sys.modules, "ipywidgets", None)
-    with pytest.raises(ImportError, match=r"'widgets' extra .*qdots\[widgets\]"):
+    with pytest.raises(ImportError, match=r"'widgets' extra .*nanodisorder\[widgets\]"):
         require_widgets()
 
 

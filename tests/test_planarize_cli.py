@@ -78,13 +78,13 @@ def test_import_runs_a_height_map(tmp_path, capsys):
     (["scene", "mountain"], "invalid choice: 'mountain'"),
     (["run", "absent.toml"], "scene file 'absent.toml' does not exist"),
     (["run", "{bad}.toml"], r"bad.toml: unknown key 'run.stpe'"),
-    (["scene", "hill", "--quick", "2"], r"argument --quick: must be in \(0, 1\], got 2"),
+    (["scene", "hill", "--quick", "2"], r"argument --quick: must be in \(0, 1\], got 2.0"),
     (["import", "{csv}"], "the following arguments are required: --thickness"),
     (["import", "{csv}", "--thickness", "1"], "does not state the unit"),
     (["import", "{csv}", "--thickness", "1", "--unit", "nm"], "does not state its grid spacing"),
     (["import", "{csv}", "--thickness", "1", "--unit", "parsec", "--spacing", "1"], "unit must be one of nm"),
     (["import", "{csv}", "--thickness", "1", "--unit", "nm", "--spacing", "1", "2", "3"], "--spacing takes DX or DX DY"),
-    (["import", "{csv}", "--thickness", "-1", "--unit", "nm", "--spacing", "1"], r"must be in \[0, inf\)"),
+    (["import", "{csv}", "--thickness", "-1", "--unit", "nm", "--spacing", "1"], r"must be >= 0"),
     ([], "the following arguments are required: COMMAND"),
 ])
 def test_bad_input_is_one_line_and_exit_code_2(tmp_path, capsys, argv, match):

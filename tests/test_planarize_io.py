@@ -96,7 +96,7 @@ def test_gwy_without_units_needs_them_from_the_user(tmp_path):
 def test_missing_gwyfile_names_the_extra(tmp_path, monkeypatch):
     path = write_gwy(tmp_path / "scan.gwy", egg_crate())
     monkeypatch.setitem(sys.modules, "gwyfile", None)  # import gwyfile now raises ImportError
-    with pytest.raises(ValueError, match=r"gwyfile package: pip install \"qdots\[afm\]\""):
+    with pytest.raises(ValueError, match=r"gwyfile package: pip install \"nanodisorder\[afm\]\""):
         load_heights(path)
 
 

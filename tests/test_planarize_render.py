@@ -82,8 +82,8 @@ def test_bad_arguments(run, tmp_path):
         render.save_movie(run, tmp_path / "m.mp4", which="both")
     with pytest.raises(ValueError, match="half_range must be > 0"):
         render.draw_surface(run.oxide, Figure().add_subplot(projection="3d"), half_range=0)
-    with pytest.raises(ValueError, match="size_px must be an even"):
-        render.SurfaceMovie(tmp_path / "m.mp4", 1.0, size_px=15)
+    with pytest.raises(ValueError, match="size_px must be even"):
+        render.SurfaceMovie(tmp_path / "m.mp4", 1.0, size_px=17)
     empty = planarize.Anodization(run.parameters, run.history, [], run.initial, run.metal, run.oxide)
     with pytest.raises(ValueError, match="no snapshots"):
         render.save_movie(empty, tmp_path / "m.mp4")

@@ -8,7 +8,7 @@ import planarize
 from planarize.results import load_run
 from planarize.scenefile import SCENES, scene_from_dict
 from planarize.sweep import AnodizeRunner, load_sweep, scene_to_dict
-from qdots.sweeps import Sweep, run_sweep
+from labrig.sweeps import Sweep, run_sweep
 
 #: The thesis hill on its unrefined 5 x 5 grid, coarse steps: milliseconds per run.
 TINY = {"surface": {"kind": "hill", "refine": 1}, "run": {"thickness": 0.3, "step": 0.05, "record": [0.1, 0.2, 0.3]}}

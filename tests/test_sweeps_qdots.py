@@ -12,7 +12,7 @@ from qdots.cli import main
 from qdots.experiment import Board, Deposition, Experiment, run_experiment
 from qdots.experiment_sweep import ExperimentRunner, experiment_to_dict
 from qdots.scenefile import experiment_from_dict, save_experiment
-from qdots.sweeps import Sweep, read_table, run_sweep
+from labrig.sweeps import Sweep, read_table, run_sweep
 
 #: A few dots and about 1 s of simulated time per run.
 TINY = Experiment(name="tiny", board=Board(120.0, 120.0),

@@ -3,9 +3,9 @@
 import pytest
 
 from qdots.experiment_sweep import ExperimentRunner, load_sweep
-from qdots.sweeps import Sweep, run_id
-from qdots.sweeps.files import sweep_from_dict
-from qdots.sweeps.spec import get_path, range_values, set_path
+from labrig.sweeps import Sweep, run_id
+from labrig.sweeps.files import sweep_from_dict
+from labrig.sweeps.spec import get_path, range_values, set_path
 
 
 def test_product_order_points_axes_then_seeds():

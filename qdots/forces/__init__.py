@@ -5,6 +5,8 @@ All act as velocity changes applied once per time step (see `Force`).
 
 import inspect
 
+from labrig.validate import InputError
+
 from .base import Force, StepContext
 from .fields import CenterGravity, Drag, Gravity
 from .thermal import Langevin, ThermalKicks
@@ -23,16 +25,16 @@ def force_from_dict(spec: dict) -> Force:
         On an unknown ``type`` or a parameter the force does not take.
     """
     if not isinstance(spec, dict) or "type" not in spec:
-        raise ValueError(f"a force must be a table with a 'type' key, got {spec!r}")
+        raise InputError(f"a force must be a table with a 'type' key, got {spec!r}")
     params = dict(spec)
     name = params.pop("type")
     if name not in FORCE_TYPES:
-        raise ValueError(f"unknown force type {name!r} (known: {', '.join(sorted(FORCE_TYPES))})")
+        raise InputError(f"unknown force type {name!r} (known: {', '.join(sorted(FORCE_TYPES))})")
     cls = FORCE_TYPES[name]
     allowed = [n for n in inspect.signature(cls.__init__).parameters if n != "self"]
     unknown = sorted(set(params) - set(allowed))
     if unknown:
-        raise ValueError(f"{name} has no parameter {unknown[0]!r} (allowed: {', '.join(allowed)})")
+        raise InputError(f"{name} has no parameter {unknown[0]!r} (allowed: {', '.join(allowed)})")
     return cls(**params)
 
 

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._checks import nonnegative
+from labrig.validate import InputError, real
+
 from .base import Force, StepContext
 
 #: Gravity of the thesis's deposition code: ``setGravity(25)`` times 30 px per length unit, px/s^2.
@@ -25,7 +26,7 @@ class Gravity(Force):
     def __init__(self, acceleration: tuple[float, float] = (0.0, -THESIS_GRAVITY)):
         g = np.asarray(acceleration, dtype=float)
         if g.shape != (2,) or not np.isfinite(g).all():
-            raise ValueError(f"Gravity.acceleration must be two finite numbers (px/s^2), got {acceleration!r}")
+            raise InputError(f"Gravity.acceleration must be two finite numbers (px/s^2), got {acceleration!r}")
         self.acceleration = (float(g[0]), float(g[1]))
 
     def kick(self, ctx: StepContext) -> None:
@@ -46,9 +47,9 @@ class CenterGravity(Force):
     def __init__(self, center: tuple[float, float], magnitude: float = THESIS_GRAVITY):
         c = np.asarray(center, dtype=float)
         if c.shape != (2,) or not np.isfinite(c).all():
-            raise ValueError(f"CenterGravity.center must be two finite numbers (px), got {center!r}")
+            raise InputError(f"CenterGravity.center must be two finite numbers (px), got {center!r}")
         self.center = (float(c[0]), float(c[1]))
-        self.magnitude = nonnegative("CenterGravity.magnitude", magnitude)
+        self.magnitude = real("CenterGravity.magnitude", magnitude, 0.0)
 
     def kick(self, ctx: StepContext) -> None:
         dx = self.center[0] - ctx.x
@@ -73,8 +74,8 @@ class Drag(Force):
     """
 
     def __init__(self, linear: float = 0.025, quadratic: float = 0.025 / 30.0):
-        self.linear = nonnegative("Drag.linear", linear)
-        self.quadratic = nonnegative("Drag.quadratic", quadratic)
+        self.linear = real("Drag.linear", linear, 0.0)
+        self.quadratic = real("Drag.quadratic", quadratic, 0.0)
 
     def kick(self, ctx: StepContext) -> None:
         v = ctx.velocity

@@ -6,7 +6,8 @@ import math
 
 import numpy as np
 
-from .._checks import nonnegative, positive
+from labrig.validate import real
+
 from ..units import THESIS_KICK_INTERVAL, thesis_kick_speed
 from .base import Force, StepContext
 
@@ -33,8 +34,8 @@ class ThermalKicks(Force):
     """
 
     def __init__(self, interval: float = THESIS_KICK_INTERVAL, scale: float = 1.0):
-        self.interval = positive("ThermalKicks.interval", interval)
-        self.scale = nonnegative("ThermalKicks.scale", scale)
+        self.interval = real("ThermalKicks.interval", interval, 0.0, low_open=True)
+        self.scale = real("ThermalKicks.scale", scale, 0.0)
         self._speed = np.zeros(0)
 
     def bind(self, radii: np.ndarray, masses: np.ndarray) -> None:
@@ -77,8 +78,8 @@ class Langevin(Force):
     def __init__(self, gamma: float = 1.0, kT: float | None = None):
         if kT is None:
             kT = float(thesis_kick_speed(1.0)) ** 2 / 2.0
-        self.gamma = nonnegative("Langevin.gamma", gamma)
-        self.kT = nonnegative("Langevin.kT", kT)
+        self.gamma = real("Langevin.gamma", gamma, 0.0)
+        self.kT = real("Langevin.kT", kT, 0.0)
         self._sigma_unit = np.zeros(0)
 
     def bind(self, radii: np.ndarray, masses: np.ndarray) -> None:

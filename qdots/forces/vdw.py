@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._checks import nonnegative, positive
+from labrig.validate import InputError, real
+
 from ..neighbors import VerletPairs
 from .base import Force, StepContext
 
@@ -96,18 +97,18 @@ class VanDerWaals(Force):
         skin: float = 3.0,
     ):
         if model not in MODELS:
-            raise ValueError(f"VanDerWaals.model must be one of {MODELS}, got {model!r}")
+            raise InputError(f"VanDerWaals.model must be one of {MODELS}, got {model!r}")
         if contact not in ("hold", "zero"):
-            raise ValueError(f"VanDerWaals.contact must be 'hold' or 'zero', got {contact!r}")
+            raise InputError(f"VanDerWaals.contact must be 'hold' or 'zero', got {contact!r}")
         # Derived defaults stay "unset" in params(), so a saved scene whose r0 is
         # edited recomputes them instead of freezing the old values.
         self._unset = {name for name, value in (("strength", strength), ("max_gap", max_gap)) if value is None}
-        r0 = positive("VanDerWaals.r0", r0)
-        max_gap = positive("VanDerWaals.max_gap", 2.0 * r0 if max_gap is None else max_gap)
-        min_gap = positive("VanDerWaals.min_gap", min_gap)
-        sticking_speed = positive("VanDerWaals.sticking_speed", sticking_speed)
+        r0 = real("VanDerWaals.r0", r0, 0.0, low_open=True)
+        max_gap = real("VanDerWaals.max_gap", 2.0 * r0 if max_gap is None else max_gap, 0.0, low_open=True)
+        min_gap = real("VanDerWaals.min_gap", min_gap, 0.0, low_open=True)
+        sticking_speed = real("VanDerWaals.sticking_speed", sticking_speed, 0.0, low_open=True)
         if max_gap <= min_gap:
-            raise ValueError(f"VanDerWaals.max_gap ({max_gap}) must exceed min_gap ({min_gap})")
+            raise InputError(f"VanDerWaals.max_gap ({max_gap}) must exceed min_gap ({min_gap})")
         self.model = model
         self.r0 = float(r0)
         self.min_gap = float(min_gap)
@@ -119,7 +120,7 @@ class VanDerWaals(Force):
             # Match the thesis proxy's acceleration a/2 for mean dots (r = 7.5 px) at a 1 px gap.
             proxy = 0.5 * (self.r0 / (1.0 - self.offset)) ** 7
             strength = proxy / float(hamaker_force(np.array(1.0), np.array(7.5), np.array(7.5), 1.0))
-        self.strength = nonnegative("VanDerWaals.strength", strength)
+        self.strength = real("VanDerWaals.strength", strength, 0.0)
         self._pairs = VerletPairs(skin)
         self.skin = self._pairs.skin
         self.bind(np.zeros(0), np.zeros(0))

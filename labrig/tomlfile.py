@@ -1,8 +1,8 @@
-"""TOML files for scenes and sweeps: read, parse, write and check, with errors that name the key.
+"""TOML files for scenes and sweeps: read, parse, write and check keys, with errors that name the key.
 
-Shared by `qdots.scenefile`, `planarize.scenefile` and `qdots.sweeps.files`:
-read errors start with the file's path, checking errors name the full dotted
-key and the allowed values, and values are written so they read back exactly.
+Read errors start with the file's path, key errors name the full dotted key and the allowed keys
+(the values themselves are checked by `labrig.validate`), and values are written so that they read
+back exactly.
 """
 
 from __future__ import annotations
@@ -17,7 +17,12 @@ try:
 except ModuleNotFoundError:  # Python 3.10
     import tomli as tomllib
 
-__all__ = ["read_toml", "parse_toml", "from_source", "toml_value", "toml_line", "typed", "check_keys", "tomllib"]
+from .validate import InputError
+
+#: Largest parameter file read, bytes.
+MAX_BYTES = 16 * 2**20
+
+__all__ = ["read_toml", "parse_toml", "from_source", "toml_value", "toml_line", "check_keys", "tomllib"]
 
 
 def parse_toml(text: str, source: str = "<string>") -> dict:
@@ -25,15 +30,15 @@ def parse_toml(text: str, source: str = "<string>") -> dict:
     try:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
-        raise ValueError(f"{source}: invalid TOML: {exc}") from None
+        raise InputError(f"{source}: invalid TOML: {exc}") from None
 
 
 def from_source(build, data: dict, source: str, *args):
-    """``build(data, *args)``, with a ValueError's message prefixed by ``source`` (a path or "<string>")."""
+    """``build(data, *args)``, with an `InputError`'s message prefixed by ``source`` (a path or "<string>")."""
     try:
         return build(data, *args)
-    except ValueError as exc:
-        raise ValueError(f"{source}: {exc}") from None
+    except InputError as exc:
+        raise InputError(f"{source}: {exc}") from None
 
 
 def read_toml(path: str | os.PathLike, what: str) -> dict:
@@ -42,17 +47,23 @@ def read_toml(path: str | os.PathLike, what: str) -> dict:
     Raises
     ------
     FileNotFoundError
-        If ``path`` is not a file.
-    ValueError
-        If it cannot be read or decoded (UTF-8) or is not valid TOML; the message starts with the path.
+        If ``path`` does not exist.
+    InputError
+        If it is not a regular file, is larger than `MAX_BYTES`, cannot be read or decoded (UTF-8)
+        or is not valid TOML; the message starts with the path.
     """
     path = Path(path)
-    if not path.is_file():
+    if not path.exists():
         raise FileNotFoundError(f"{what} {str(path)!r} does not exist")
+    if not path.is_file():
+        raise InputError(f"{what} {str(path)!r} is not a regular file (a directory or a pipe?)")
+    if path.stat().st_size > MAX_BYTES:
+        raise InputError(f"{path}: the {what} is {path.stat().st_size:,} bytes, more than the {MAX_BYTES:,} "
+                         "a parameter file may have")
     try:
         text = path.read_bytes().decode("utf-8")
     except (OSError, UnicodeDecodeError) as exc:
-        raise ValueError(f"{path}: cannot read the {what}: {exc}") from None
+        raise InputError(f"{path}: cannot read the {what}: {exc}") from None
     return parse_toml(text, str(path))
 
 
@@ -77,32 +88,10 @@ def toml_line(key: str, value, comment: str | None) -> str:
     return f"{text:<32}  # {comment}" if comment else text
 
 
-def typed(key: str, value, kind: str):
-    """``value`` checked against ``kind``; ValueError naming the full ``key`` otherwise.
-
-    Kinds: "float", "int", "str", "bool", "pair" (``[number, integer]``); a
-    trailing "?" marks a key that may be unset.
-    """
-    plain = kind.rstrip("?")
-    if plain == "float" and isinstance(value, (int, float)) and not isinstance(value, bool):
-        return float(value)
-    if plain == "int" and isinstance(value, int) and not isinstance(value, bool):
-        return value
-    if plain in ("str", "bool") and isinstance(value, {"str": str, "bool": bool}[plain]):
-        return value
-    if plain == "pair" and isinstance(value, list) and len(value) == 2 \
-            and all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in value) \
-            and isinstance(value[1], int):
-        return (float(value[0]), value[1])
-    want = {"float": "a number", "int": "an integer", "str": "a string", "bool": "true or false",
-            "pair": "a list [number, integer]"}[plain]
-    raise ValueError(f"{key} must be {want}, got {value!r}")
-
-
 def check_keys(where: str, keys, allowed) -> None:
     """ValueError naming the first key of ``keys`` not in ``allowed`` (``where``: the table, "" at top level)."""
     extra = [k for k in keys if k not in allowed]
     if extra:
         full = f"{where}.{extra[0]}" if where else extra[0]
-        raise ValueError(f"unknown key {full!r} (allowed{' in [' + where + ']' if where else ''}: "
+        raise InputError(f"unknown key {full!r} (allowed{' in [' + where + ']' if where else ''}: "
                          f"{', '.join(allowed)})")

@@ -1,16 +1,16 @@
 """Parameter sweeps that scale from a laptop to a cluster; no physics, usable by any package.
 
->>> from qdots.sweeps import Sweep, run_sweep, plot_sweep
+>>> from labrig.sweeps import Sweep, run_sweep, plot_sweep
 >>> def run_one(params):                            # module level, so worker processes can import it
 ...     return {"y": params["x"] ** 2 + params["seed"]}
 >>> sweep = Sweep(base={"x": 0.0, "seed": 0}, axes={"x": {"start": 0, "stop": 1, "num": 5}}, seeds=3)
 >>> result = run_sweep(sweep, run_one, "out")       # doctest: +SKIP
 >>> plot_sweep(result.rows, "y", x="x")             # doctest: +SKIP
 
-* `Sweep` (`qdots.sweeps.spec`): base parameters, axes (lists or ranges over
+* `Sweep` (`labrig.sweeps.spec`): base parameters, axes (lists or ranges over
   dotted keys), explicit points, seeds; expanded into runs identified by a
-  hash of their full parameters. Sweep files (TOML): `qdots.sweeps.files`.
-* `run_sweep` (`qdots.sweeps.execute`): local process pool (default: all
+  hash of their full parameters. Sweep files (TOML): `labrig.sweeps.files`.
+* `run_sweep` (`labrig.sweeps.execute`): local process pool (default: all
   cores) or a Dask cluster (``scheduler=``); one record file per run,
   resumable, failed runs recorded with their error; one progress bar.
 * `read_table`, `summarize`, `plot_sweep`, `save_sweep_plot`: the gathered

@@ -24,6 +24,8 @@ import math
 from dataclasses import dataclass, field
 from typing import Callable, Mapping
 
+from ..validate import InputError
+
 #: Keys of a range axis: ``{start, stop, num}`` (evenly spaced, both ends) or ``{start, stop, step}``.
 RANGE_KEYS = ("start", "stop", "num", "step")
 #: Largest number of values one range may expand to (a typo guard).
@@ -60,7 +62,7 @@ def canonical_json(params) -> str:
     try:
         return json.dumps(params, sort_keys=True, separators=(",", ":"), ensure_ascii=False, allow_nan=False)
     except (TypeError, ValueError) as exc:
-        raise ValueError(f"parameters must be JSON data (tables, lists, strings, finite numbers, "
+        raise InputError(f"parameters must be JSON data (tables, lists, strings, finite numbers, "
                          f"booleans): {exc}") from None
 
 
@@ -71,7 +73,7 @@ def run_id(kind: str, params) -> str:
 
 def _parts(key: str) -> list[str]:
     if not isinstance(key, str) or not key or any(not part for part in key.split(".")):
-        raise ValueError(f"a parameter key must be a dotted name such as 'deposition.sigma', got {key!r}")
+        raise InputError(f"a parameter key must be a dotted name such as 'deposition.sigma', got {key!r}")
     return key.split(".")
 
 
@@ -99,11 +101,11 @@ def set_path(tree: dict, key: str, value) -> None:
         where = ".".join(parts[:depth]) or "the parameters"
         if isinstance(node, list):
             if not (part.isdigit() and int(part) < len(node)):
-                raise ValueError(f"cannot set {key!r}: {where} is a list of {len(node)}, "
+                raise InputError(f"cannot set {key!r}: {where} is a list of {len(node)}, "
                                  f"{part!r} is not an index in it")
             part = int(part)
         elif not isinstance(node, dict):
-            raise ValueError(f"cannot set {key!r}: {where} is {node!r}, not a table")
+            raise InputError(f"cannot set {key!r}: {where} is {node!r}, not a table")
         if last:
             node[part] = copy.deepcopy(value)
         else:
@@ -114,7 +116,7 @@ def set_path(tree: dict, key: str, value) -> None:
 
 def _number(where: str, value) -> float | int:
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise ValueError(f"{where} must be a finite number, got {value!r}")
+        raise InputError(f"{where} must be a finite number, got {value!r}")
     return value
 
 
@@ -131,27 +133,27 @@ def range_values(key: str, spec: Mapping) -> tuple:
     where = f"axes.{key}"
     extra = [k for k in spec if k not in RANGE_KEYS]
     if extra:
-        raise ValueError(f"unknown key {extra[0]!r} in the range {where} (allowed: {', '.join(RANGE_KEYS)})")
+        raise InputError(f"unknown key {extra[0]!r} in the range {where} (allowed: {', '.join(RANGE_KEYS)})")
     missing = [k for k in ("start", "stop") if k not in spec]
     if missing:
-        raise ValueError(f"the range {where} needs {' and '.join(missing)}")
+        raise InputError(f"the range {where} needs {' and '.join(missing)}")
     if ("num" in spec) == ("step" in spec):
-        raise ValueError(f"the range {where} needs exactly one of num (count) or step")
+        raise InputError(f"the range {where} needs exactly one of num (count) or step")
     start, stop = _number(f"{where}.start", spec["start"]), _number(f"{where}.stop", spec["stop"])
     if "num" in spec:
         num = spec["num"]
         if isinstance(num, bool) or not isinstance(num, int) or not 1 <= num <= MAX_RANGE:
-            raise ValueError(f"{where}.num must be an integer in [1, {MAX_RANGE}], got {num!r}")
+            raise InputError(f"{where}.num must be an integer in [1, {MAX_RANGE}], got {num!r}")
         values = [start + (stop - start) * k / (num - 1) for k in range(num)] if num > 1 else [start]
         whole = all(isinstance(v, int) for v in (start, stop)) and all(float(v).is_integer() for v in values)
     else:
         step = _number(f"{where}.step", spec["step"])
         if step == 0 or (stop - start) / step < 0:
-            raise ValueError(f"{where}.step must be nonzero and lead from start ({start!r}) to stop ({stop!r}), "
+            raise InputError(f"{where}.step must be nonzero and lead from start ({start!r}) to stop ({stop!r}), "
                              f"got {step!r}")
         count = math.floor((stop - start) / step + 1e-9) + 1
         if count > MAX_RANGE:
-            raise ValueError(f"the range {where} has {count} values, more than {MAX_RANGE}")
+            raise InputError(f"the range {where} has {count} values, more than {MAX_RANGE}")
         values = [start + k * step for k in range(count)]
         whole = isinstance(start, int) and isinstance(step, int)
     return tuple(int(round(v)) if whole else _round(float(v)) for v in values)
@@ -163,13 +165,13 @@ def axis_values(key: str, spec) -> tuple:
     if isinstance(spec, Mapping):
         return range_values(key, spec)
     if not isinstance(spec, (list, tuple)) or not spec:
-        raise ValueError(f"axes.{key} must be a non-empty list of values or a range table "
+        raise InputError(f"axes.{key} must be a non-empty list of values or a range table "
                          f"{{start, stop, num | step}}, got {spec!r}")
     values = tuple(spec)
     texts = [canonical_json(v) for v in values]
     if len(set(texts)) < len(texts):
         twice = next(v for v, t in zip(values, texts) if texts.count(t) > 1)
-        raise ValueError(f"axes.{key} lists {twice!r} twice")
+        raise InputError(f"axes.{key} lists {twice!r} twice")
     return values
 
 
@@ -178,22 +180,22 @@ def _seeds(seeds) -> int | tuple | None:
         return None
     if isinstance(seeds, int) and not isinstance(seeds, bool):
         if seeds < 1:
-            raise ValueError(f"seeds must be a count >= 1 or a list of integers >= 0, got {seeds!r}")
+            raise InputError(f"seeds must be a count >= 1 or a list of integers >= 0, got {seeds!r}")
         return seeds
     if isinstance(seeds, (list, tuple)) and seeds and all(
             isinstance(s, int) and not isinstance(s, bool) and s >= 0 for s in seeds):
         if len(set(seeds)) < len(seeds):
-            raise ValueError(f"seeds lists a seed twice: {list(seeds)!r}")
+            raise InputError(f"seeds lists a seed twice: {list(seeds)!r}")
         return tuple(seeds)
-    raise ValueError(f"seeds must be a count >= 1 or a non-empty list of integers >= 0, got {seeds!r}")
+    raise InputError(f"seeds must be a count >= 1 or a non-empty list of integers >= 0, got {seeds!r}")
 
 
 def _point(k: int, point) -> dict:
     if not isinstance(point, Mapping):
-        raise ValueError(f"points[{k}] must be a table of parameter values, got {point!r}")
+        raise InputError(f"points[{k}] must be a table of parameter values, got {point!r}")
     point = dict(point)
     if "label" in point and not (isinstance(point["label"], str) and point["label"].strip()):
-        raise ValueError(f"points[{k}].label must be a non-empty string, got {point['label']!r}")
+        raise InputError(f"points[{k}].label must be a non-empty string, got {point['label']!r}")
     for key in point:
         if key != "label":
             _parts(key)
@@ -242,22 +244,22 @@ class Sweep:
 
     def __post_init__(self) -> None:
         if not isinstance(self.base, Mapping):
-            raise ValueError(f"base must be a table of parameters, got {self.base!r}")
+            raise InputError(f"base must be a table of parameters, got {self.base!r}")
         if not isinstance(self.axes, Mapping):
-            raise ValueError(f"axes must be a table of key -> values, got {self.axes!r}")
+            raise InputError(f"axes must be a table of key -> values, got {self.axes!r}")
         object.__setattr__(self, "base", copy.deepcopy(dict(self.base)))
         object.__setattr__(self, "axes", {key: axis_values(key, spec) for key, spec in self.axes.items()})
         points = self.points
         if isinstance(points, Mapping) or not isinstance(points, (list, tuple)) or not points:
-            raise ValueError(f"points must be a non-empty list of tables, got {points!r}")
+            raise InputError(f"points must be a non-empty list of tables, got {points!r}")
         object.__setattr__(self, "points", tuple(_point(k, p) for k, p in enumerate(points)))
         labels = [p.get("label") for p in self.points]
         if any(labels) and (not all(labels) or len(set(labels)) < len(labels)):
-            raise ValueError(f"points must all have a label, each different, or none: got {labels!r}")
+            raise InputError(f"points must all have a label, each different, or none: got {labels!r}")
         object.__setattr__(self, "seeds", _seeds(self.seeds))
         _parts(self.seed_key)
         if self.seeds is not None and (self.seed_key in self.axes or any(self.seed_key in p for p in self.points)):
-            raise ValueError(f"{self.seed_key!r} is set by seeds; do not also sweep it as an axis or point key")
+            raise InputError(f"{self.seed_key!r} is set by seeds; do not also sweep it as an axis or point key")
 
     @property
     def swept(self) -> list[str]:
@@ -296,14 +298,14 @@ class Sweep:
             try:
                 return canonical(params)
             except ValueError as exc:
-                raise ValueError(f"{where}: {exc}") from None
+                raise InputError(f"{where}: {exc}") from None
 
         base = check("base", copy.deepcopy(self.base))
         seeds = self.seeds
         if isinstance(seeds, int):
             first = get_path(base, self.seed_key, 0)
             if isinstance(first, bool) or not isinstance(first, int):
-                raise ValueError(f"seeds = {seeds} counts from the base's {self.seed_key!r}, "
+                raise InputError(f"seeds = {seeds} counts from the base's {self.seed_key!r}, "
                                  f"which must be an integer, got {first!r}")
             seeds = tuple(range(first, first + seeds))
         for k, point in enumerate(self.points):  # each point, then each axis, so an error names it
@@ -324,7 +326,7 @@ class Sweep:
             columns = {**label, **{key: get_path(params, key, None) for key in self.swept if key != "label"}}
             run = Run(run_id(kind, params), index, params, columns)
             if run.id in seen:
-                raise ValueError(f"{where} has the same parameters as run {seen[run.id]}: "
+                raise InputError(f"{where} has the same parameters as run {seen[run.id]}: "
                                  f"every run of a sweep must differ")
             seen[run.id] = index
             runs.append(run)

@@ -1,24 +1,62 @@
-"""Atomic file writes: a result appears whole under its name, or not at all.
+"""Files that appear whole or not at all: atomic writes, streamed writers, CSV tables, safe names.
 
-Everything qdots saves goes through `atomic_path`: the data is written to a
-temporary file in the same directory and renamed onto the target, so a crash
-or a bad input mid-write never corrupts or loses what was saved before.
+Everything the packages save goes through `atomic_path`: the data is written to a temporary file
+in the same directory and renamed onto the target, so a crash or a bad input mid-write never
+corrupts or loses what was saved before. A process killed mid-write leaves its temporary file
+(``.NAME-xxxxxxxx.tmp.SUFFIX``) behind; `remove_stale_temporaries` clears old ones.
 """
 
 from __future__ import annotations
 
 import contextlib
+import csv
+import io
 import os
+import re
 import secrets
+import time
 from pathlib import Path
-from typing import Iterator
+from typing import Iterator, Sequence
+
+#: Temporary files older than this (s) are left over from a killed process (`remove_stale_temporaries`).
+STALE_AFTER = 3600.0
 
 
 def temporary_beside(path: Path) -> Path:
     """Create an empty, uniquely named file next to ``path`` with the same suffix."""
+    path = Path(path)
+    if not path.name or path.name in (".", ".."):
+        raise IsADirectoryError(f"{str(path)!r} names a directory, not a file")
+    if not path.parent.is_dir():
+        raise FileNotFoundError(f"cannot write {str(path)!r}: the directory {str(path.parent)!r} does not exist")
     tmp = path.with_name(f".{path.stem}-{secrets.token_hex(4)}.tmp{path.suffix}")
     os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
     return tmp
+
+
+_TEMPORARY = re.compile(r"^\..+-[0-9a-f]{8}\.tmp(\..*)?$")
+
+
+def remove_stale_temporaries(directory: str | os.PathLike, older_than: float = STALE_AFTER) -> list[Path]:
+    """Delete the temporary files of `atomic_path` in ``directory`` older than ``older_than`` s.
+
+    A process that is killed mid-write leaves its temporary file behind; a newer one may belong to
+    a writer still running, so it is kept. Returns the files removed.
+    """
+    removed = []
+    now = time.time()
+    try:
+        entries = list(os.scandir(directory))
+    except OSError:
+        return removed
+    for entry in entries:
+        if not _TEMPORARY.match(entry.name):
+            continue
+        with contextlib.suppress(OSError):
+            if entry.is_file(follow_symlinks=False) and now - entry.stat().st_mtime > older_than:
+                os.unlink(entry.path)
+                removed.append(Path(entry.path))
+    return removed
 
 
 @contextlib.contextmanager
@@ -104,3 +142,18 @@ class StreamedFile:
             self.close()
         else:
             self.abort()
+
+
+def write_csv(path: str | os.PathLike, rows: Sequence[dict]) -> Path:
+    """Write ``rows`` (dicts with the same keys) as CSV, atomically; returns the path."""
+    text = io.StringIO()
+    writer = csv.DictWriter(text, fieldnames=list(rows[0]), lineterminator="\n")
+    writer.writeheader()
+    writer.writerows(rows)
+    return write_text_atomic(path, text.getvalue())
+
+
+def slug(name: str) -> str:
+    """A file-name-safe form of a run's name: ``"fig2-2a sigma=0"`` -> ``"fig2-2a_sigma0"``."""
+    text = re.sub(r"[^A-Za-z0-9._-]+", "_", name.replace("=", "")).strip("_.")
+    return text or "run"

@@ -9,8 +9,8 @@ import os
 from pathlib import Path
 from typing import Sequence
 
-from ..atomic import atomic_path
-from ..commands import write_csv
+from ..files import atomic_path, write_csv
+from ..validate import InputError
 
 
 def flatten(params, prefix: str = "") -> dict:
@@ -111,18 +111,18 @@ def read_table(path: str | os.PathLike) -> list[dict]:
         try:
             import pyarrow.parquet as pq
         except ImportError:
-            raise ValueError("reading Parquet needs pyarrow (pip install 'qdots[sweep]'); read the .csv") from None
+            raise InputError("reading Parquet needs pyarrow (pip install 'nanodisorder[sweep]'); read the .csv") from None
         try:
             return pq.read_table(path).to_pylist()
         except Exception as exc:  # pyarrow raises its own error types
-            raise ValueError(f"{path}: not a readable Parquet table ({exc})") from None
+            raise InputError(f"{path}: not a readable Parquet table ({exc})") from None
     try:
         with open(path, newline="", encoding="utf-8") as stream:
             rows = [{key: _parse(value) for key, value in row.items()} for row in csv.DictReader(stream)]
     except (OSError, UnicodeDecodeError, csv.Error) as exc:
-        raise ValueError(f"{path}: not a readable CSV table ({exc})") from None
+        raise InputError(f"{path}: not a readable CSV table ({exc})") from None
     if not rows:
-        raise ValueError(f"{path}: the table has no rows")
+        raise InputError(f"{path}: the table has no rows")
     return rows
 
 

@@ -8,9 +8,9 @@ import sys
 from pathlib import Path
 from typing import Callable
 
-from ..cliutil import fraction, int_at_least
-from ..commands import print_table, slug
-from .execute import run_sweep
+from ..cli import fraction, int_in, print_table
+from ..files import slug
+from .execute import MAX_RETRIES, MAX_WORKERS, run_sweep
 from .files import SweepFile
 from .plot import save_sweep_plot, summarize, summary_lines
 
@@ -27,11 +27,11 @@ def add_sweep_parser(subparsers, package: str, what: str) -> argparse.ArgumentPa
     p.add_argument("sweep", type=Path, metavar="SWEEP.toml", help="sweep file")
     p.add_argument("--out", type=Path, default=None, metavar="DIR",
                    help="output directory (default: the file's output.dir, else its name beside it)")
-    p.add_argument("--workers", type=int_at_least(1), default=None, metavar="N",
+    p.add_argument("--workers", type=int_in(1, MAX_WORKERS), default=None, metavar="N",
                    help="local worker processes (default: all cores; 1 runs in this process)")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                   help="run on this Dask scheduler (e.g. tcp://10.0.0.5:8786; needs qdots[sweep])")
-    p.add_argument("--retries", type=int_at_least(0), default=1, metavar="K",
+                   help="run on this Dask scheduler (e.g. tcp://10.0.0.5:8786; needs nanodisorder[sweep])")
+    p.add_argument("--retries", type=int_in(0, MAX_RETRIES), default=1, metavar="K",
                    help="extra attempts for a run that fails (default 1)")
     return p
 

@@ -32,6 +32,7 @@ from pathlib import Path
 from typing import Callable
 
 from ..tomlfile import read_toml
+from ..validate import InputError
 from .spec import RANGE_KEYS, Sweep
 
 #: Top-level keys of a sweep file.
@@ -79,35 +80,35 @@ def sweep_from_dict(data: dict, *, base_dir: str | os.PathLike = ".", seed_key: 
     """
     base_dir = Path(base_dir)
     if not isinstance(data, dict):
-        raise ValueError(f"a sweep must be a table, got {type(data).__name__}")
+        raise InputError(f"a sweep must be a table, got {type(data).__name__}")
     extra = [k for k in data if k not in FILE_KEYS]
     if extra:
-        raise ValueError(f"unknown key {extra[0]!r} (allowed: {', '.join(FILE_KEYS)})")
+        raise InputError(f"unknown key {extra[0]!r} (allowed: {', '.join(FILE_KEYS)})")
     if "base" not in data:
-        raise ValueError('missing key "base": a parameter file (base = "scene.toml") or a [base] table')
+        raise InputError('missing key "base": a parameter file (base = "scene.toml") or a [base] table')
     base = data["base"]
     if isinstance(base, str):
         base = read_base(base, base_dir)
     elif not isinstance(base, dict):
-        raise ValueError(f"base must be a file name or a table, got {base!r}")
+        raise InputError(f"base must be a file name or a table, got {base!r}")
     axes = data.get("axes", {})
     if not isinstance(axes, dict):
-        raise ValueError(f"axes must be a table ([axes]), got {axes!r}")
+        raise InputError(f"axes must be a table ([axes]), got {axes!r}")
     points = data.get("points", [{}])
     if not isinstance(points, list) or not all(isinstance(p, dict) for p in points):
-        raise ValueError(f"points must be an array of tables ([[points]]), got {points!r}")
+        raise InputError(f"points must be an array of tables ([[points]]), got {points!r}")
     output = data.get("output", {})
     if not isinstance(output, dict):
-        raise ValueError(f"output must be a table ([output]), got {output!r}")
+        raise InputError(f"output must be a table ([output]), got {output!r}")
     extra = [k for k in output if k not in OUTPUT_KEYS]
     if extra:
-        raise ValueError(f"unknown key 'output.{extra[0]}' (allowed in [output]: {', '.join(OUTPUT_KEYS)})")
+        raise InputError(f"unknown key 'output.{extra[0]}' (allowed in [output]: {', '.join(OUTPUT_KEYS)})")
     out = output.get("dir", default_out)
     if not (isinstance(out, str) and out.strip()):
-        raise ValueError(f"output.dir must be a directory name, got {out!r}")
+        raise InputError(f"output.dir must be a directory name, got {out!r}")
     state = output.get("state", False)
     if not isinstance(state, bool):
-        raise ValueError(f"output.state must be true or false, got {state!r}")
+        raise InputError(f"output.state must be true or false, got {state!r}")
     sweep = Sweep(base=base, axes=_dotted(axes, keep=_is_range), points=[_dotted(p) for p in points],
                   seeds=data.get("seeds"), seed_key=seed_key)
     return SweepFile(sweep, base_dir / out, state)
@@ -126,12 +127,12 @@ def load_sweep_file(path: str | os.PathLike, *, seed_key: str = "seed",
         parsed = sweep_from_dict(data, base_dir=path.parent, seed_key=seed_key, default_out=path.stem,
                                  read_base=read_base)
     except ValueError as exc:
-        raise ValueError(f"{path}: {exc}") from None
+        raise InputError(f"{path}: {exc}") from None
     return SweepFile(parsed.sweep, parsed.out, parsed.state, str(path))
 
 
 def run_loaded(sweep_file: SweepFile, runner, out=None, **options):
-    """Run a parsed sweep file with ``runner`` (`qdots.sweeps.run_sweep` options); ``out`` overrides its output."""
+    """Run a parsed sweep file with ``runner`` (`labrig.sweeps.run_sweep` options); ``out`` overrides its output."""
     from .execute import run_sweep
 
     return run_sweep(sweep_file.sweep, runner, sweep_file.out if out is None else out, state=sweep_file.state,

@@ -35,13 +35,20 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
-from ..atomic import write_text_atomic
+from ..files import write_text_atomic
+from ..validate import InputError, count
 from .spec import Run, Sweep
 from .table import table_rows, write_table
 
 #: Format tag and version of the per-run record files.
-RECORD_FORMAT = "qdots-sweep-run"
+RECORD_FORMAT = "labrig-sweep-run"
+#: Record formats read as this one (sweeps written before the rig had its own name).
+RECORD_FORMATS = (RECORD_FORMAT, "qdots-sweep-run")
 RECORD_VERSION = 1
+#: Most local worker processes.
+MAX_WORKERS = 256
+#: Most extra attempts of a failing run.
+MAX_RETRIES = 100
 #: Columns a run's row may not use (the sweep's own columns).
 RESERVED = ("run", "status", "label", "wall_s", "attempts", "error", "state_file")
 
@@ -106,7 +113,7 @@ def _check_row(row) -> dict:
         raise TypeError(f"run_one must return a dict (one table row), got {type(row).__name__}")
     clash = [k for k in row if k in RESERVED]
     if clash:
-        raise ValueError(f"row key {clash[0]!r} is reserved for the sweep table ({', '.join(RESERVED)})")
+        raise InputError(f"row key {clash[0]!r} is reserved for the sweep table ({', '.join(RESERVED)})")
     return {str(key): _plain(key, value) for key, value in row.items()}
 
 
@@ -186,8 +193,8 @@ class _Dask:
         try:
             import distributed
         except ImportError:
-            raise ValueError("running on a Dask cluster needs dask.distributed: "
-                             "pip install 'qdots[sweep]'") from None
+            raise InputError("running on a Dask cluster needs dask.distributed: "
+                             "pip install 'nanodisorder[sweep]'") from None
         self._wait = distributed.wait
         self.own = not isinstance(scheduler, distributed.Client)
         self.client = distributed.Client(scheduler) if self.own else scheduler
@@ -212,12 +219,11 @@ class _Dask:
 def _backend(workers, scheduler):
     if scheduler is not None:
         if workers is not None:
-            raise ValueError("give workers or scheduler, not both (a cluster has its own workers)")
+            raise InputError("give workers or scheduler, not both (a cluster has its own workers)")
         return _Dask(scheduler)
     if workers is None:
         workers = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
-    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
-        raise ValueError(f"workers must be an integer >= 1, got {workers!r}")
+    workers = count("workers", workers, 1, MAX_WORKERS)
     return _Serial() if workers == 1 else _Local(workers)
 
 
@@ -231,7 +237,7 @@ def read_record(out: Path, run: Run) -> dict | None:
         record = json.loads(record_path(out, run).read_text(encoding="utf-8"))
     except (OSError, ValueError):
         return None
-    ok = isinstance(record, dict) and record.get("format") == RECORD_FORMAT and record.get("id") == run.id
+    ok = isinstance(record, dict) and record.get("format") in RECORD_FORMATS and record.get("id") == run.id
     return record if ok else None
 
 
@@ -295,15 +301,14 @@ def run_sweep(sweep: Sweep, run_one, out: str | os.PathLike, *, workers: int | N
         executor, the number of workers and the order in which runs finish.
     """
     runner = as_runner(run_one)
-    if isinstance(retries, bool) or not isinstance(retries, int) or retries < 0:
-        raise ValueError(f"retries must be an integer >= 0, got {retries!r}")
+    retries = count("retries", retries, 0, MAX_RETRIES)
     runs = sweep.runs(runner.canonical, runner.kind)
     out = Path(out)
     (out / "runs").mkdir(parents=True, exist_ok=True)
     suffix = getattr(runner, "state_suffix", ".npz") if state else None
     if state:
         (out / "states").mkdir(exist_ok=True)
-    _write_json(out / "sweep.json", {"format": "qdots-sweep", "version": 1, "kind": runner.kind,
+    _write_json(out / "sweep.json", {"format": "labrig-sweep", "version": 1, "kind": runner.kind,
                                      "swept": sweep.swept, "seed_key": sweep.seed_key,
                                      "runs": [run.id for run in runs]})
     records = {run.id: _finished(out, run, suffix) for run in runs}
@@ -314,7 +319,7 @@ def run_sweep(sweep: Sweep, run_one, out: str | os.PathLike, *, workers: int | N
         try:
             pickle.dumps(runner)
         except Exception as exc:
-            raise ValueError(f"run_one must be picklable to run in worker processes (define it at module "
+            raise InputError(f"run_one must be picklable to run in worker processes (define it at module "
                              f"level), or use workers=1: {exc}") from None
     bar = _progress(len(runs), skipped, progress)
     try:

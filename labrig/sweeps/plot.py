@@ -15,7 +15,8 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from ..atomic import atomic_path
+from ..files import atomic_path
+from ..validate import InputError
 from .table import _parse, is_number, read_table
 
 
@@ -78,10 +79,10 @@ def summarize(table, metric: str, x: str, group: str | None = None, where: Mappi
     where = dict(where or {})
     for name in [metric, x, *([group] if group else []), *where]:
         if rows and name not in rows[0]:
-            raise ValueError(f"no column {name!r} in the table (columns: {', '.join(rows[0])})")
+            raise InputError(f"no column {name!r} in the table (columns: {', '.join(rows[0])})")
     rows = [r for r in rows if r.get("status", "ok") == "ok" and all(_matches(r[k], v) for k, v in where.items())]
     if not rows:
-        raise ValueError(f"no finished run matches {where!r}" if where else "the table has no finished run")
+        raise InputError(f"no finished run matches {where!r}" if where else "the table has no finished run")
     others = [c for c in swept if c not in (x, group, *where) and c in rows[0]]
     cells: dict = {}
     for row in rows:
@@ -93,7 +94,7 @@ def summarize(table, metric: str, x: str, group: str | None = None, where: Mappi
             for column in others:
                 seen = {json.dumps(r[column], default=str) for r in cell}
                 if len(seen) > 1:
-                    raise ValueError(f"{column!r} varies among the runs at {x} = {xv!r}"
+                    raise InputError(f"{column!r} varies among the runs at {x} = {xv!r}"
                                      f"{f', {group} = {g!r}' if group else ''} ({', '.join(sorted(seen))}): "
                                      f"choose it as the group or fix it with where")
             values = np.array([r[metric] for r in cell if is_number(r[metric])], dtype=float)

@@ -1,0 +1,16 @@
+"""labrig: the physics-free rig that `qdots` and `planarize` stand on.
+
+One module per job, no physics, no knowledge of either package:
+
+* `labrig.validate` -- checks of values people give, errors that name the key and the range
+  (`InputError`);
+* `labrig.files` -- atomic writes, streamed writers, CSV tables, safe file names;
+* `labrig.tomlfile` -- TOML parameter files: read, write exactly, check keys;
+* `labrig.cli` -- the command-line contract (one-line errors, exit status 2) and argument types;
+* `labrig.sweeps` -- parameter sweeps on local cores or a Dask cluster, resumable, one table;
+* `labrig.movies` -- MP4 movies drawn with matplotlib, playable in browsers and slide decks;
+* `labrig.widgets` -- ipympl canvases for notebook widgets.
+"""
+
+#: The version of the distribution (qdots, planarize and labrig are released together).
+__version__ = "0.2.0"

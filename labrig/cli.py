@@ -1,0 +1,85 @@
+"""What command lines built on labrig share: argument types, the error contract, printed tables.
+
+Bad input never prints a usage dump or a traceback: `run_main` turns it (an argparse error, a
+`labrig.validate.InputError`, a missing or unreadable file) into one line ``PROG: error: ...`` on
+stderr and exit status 2 (130 when interrupted). Any other exception is a bug and keeps its
+traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from typing import Callable, Sequence
+
+from .validate import InputError, count, real
+
+
+class UsageError(Exception):
+    """A command-line argument was rejected by argparse."""
+
+
+class Parser(argparse.ArgumentParser):
+    """An ArgumentParser that raises `UsageError` instead of printing usage and exiting."""
+
+    def error(self, message: str):
+        raise UsageError(f"{message} (see '{self.prog} --help')")
+
+
+def _argument(check) -> Callable[[str], object]:
+    """An argparse type from a `labrig.validate` check: the check's message, without a key (argparse names
+    the option)."""
+    def parse(text: str):
+        try:
+            return check(text)
+        except InputError as exc:
+            raise argparse.ArgumentTypeError(str(exc).strip()) from None
+    return parse
+
+
+def _number(text: str, kind: type):
+    try:
+        return kind(text)
+    except ValueError:
+        raise InputError(f"must be {'an integer' if kind is int else 'a number'}, got {text!r}") from None
+
+
+def int_in(low: int, high: int | None = None) -> Callable[[str], int]:
+    """Argument type: an integer in ``[low, high]`` (no upper bound when ``high`` is None)."""
+    return _argument(lambda text: count("", _number(text, int), low, high))
+
+
+def float_in(low: float, high: float, low_open: bool = False, high_open: bool = True) -> Callable[[str], float]:
+    """Argument type: a finite number in the interval from ``low`` to ``high`` (open or closed ends)."""
+    return _argument(lambda text: real("", _number(text, float), low, high, low_open=low_open,
+                                       high_open=high_open))
+
+
+#: ``--quick F``: a fraction in (0, 1].
+fraction = float_in(0.0, 1.0, low_open=True, high_open=False)
+
+
+def run_main(parser: argparse.ArgumentParser, argv: Sequence[str] | None) -> int:
+    """Parse ``argv`` and run the chosen command's ``func``; returns the exit status.
+
+    0 on success (or the command's own status), 2 on bad input (a one-line
+    ``PROG: error: ...`` on stderr), 130 when interrupted. Other exceptions propagate.
+    """
+    try:
+        args = parser.parse_args(argv)
+        return int(args.func(args))
+    except SystemExit as exc:  # --help and --version
+        return exc.code if isinstance(exc.code, int) else 0
+    except (UsageError, InputError, OSError) as exc:
+        print(f"{parser.prog}: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"{parser.prog}: interrupted", file=sys.stderr)
+        return 130
+
+
+def print_table(title: str, rows: Sequence[tuple[str, str]]) -> None:
+    """Print ``title`` and aligned ``key  value`` lines."""
+    width = max(len(key) for key, _ in rows)
+    print(title)
+    print("\n".join(f"  {key:<{width}}  {value}" for key, value in rows))
