@@ -26,7 +26,7 @@ from types import SimpleNamespace
 import numpy as np
 
 from qdots.analysis import fill_within_radius, neighbour_counts, packing_summary
-from qdots.structure import clusters, hexatic_order, radial_distribution, voronoi_coordination
+from qdots.analysis.structure import clusters, hexatic_order, radial_distribution, voronoi_coordination
 
 from .report import Headline, Table, print_results
 

@@ -26,8 +26,8 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from qdots.forster import TAU_NS, exciton_network
-from qdots.lqe import lqe_exact, lqe_monte_carlo
+from qdots.analysis.forster import TAU_NS, exciton_network
+from qdots.analysis.lqe import lqe_exact, lqe_monte_carlo
 
 from .report import Headline, Table, print_results
 
@@ -63,7 +63,7 @@ def exact_row(n: int) -> dict:
 
 
 def reference_cutoff(film, tolerance: float) -> float:
-    from qdots.forster import cutoff_for
+    from qdots.analysis.forster import cutoff_for
 
     return cutoff_for(DIAMETER, DIAMETER, tolerance)
 

@@ -25,7 +25,7 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure as MplFigure
 
-from planarize import anodize, scenes
+from planarize import anodize, surfaces
 from planarize.metrics import history_difference
 
 from . import pareto
@@ -36,8 +36,8 @@ K_EXP = 2.3
 
 def surface(case: str, refine: int):
     if case == "hill":
-        return scenes.hill(refine=refine)
-    return scenes.random_roughness(size=200.0, seed=1, refine=refine)
+        return surfaces.hill(refine=refine)
+    return surfaces.random_roughness(size=200.0, seed=1, refine=refine)
 
 
 #: case -> (thickness nm, default step nm, default refinement, converged (refine, step))

@@ -37,9 +37,9 @@ import time
 import numpy as np
 from scipy.ndimage import gaussian_filter
 
-from planarize import Surface, anodize, scenes
+from planarize import Surface, anodize, surfaces
 from planarize.metrics import history_difference
-from planarize.reference import ReferenceEngine
+from planarize.engines.reference import ReferenceEngine
 
 
 def reference_time(surface: Surface, thickness: float, step: float, updates: int, budget: float) -> tuple[float, bool]:
@@ -75,7 +75,7 @@ def tie_broken_errors(surface: Surface, copies: int = 5) -> list[float]:
 
 
 def hill_case(budget: float, copies: int = 5) -> dict:
-    surface = scenes.hill()
+    surface = surfaces.hill()
     ref = anodize(surface, 1.0, step=0.01, tolerance=0.0, record=200)
     run = anodize(surface, 1.0, step=0.01, record=200)
     ref_wall, exact = reference_time(surface, 1.0, 0.01, int(ref.history["point_updates"][-1]), budget)
@@ -97,20 +97,20 @@ def random65_case(budget: float) -> dict:
 
 
 def ta_case(quick: bool) -> dict:
-    patch = scenes.random_roughness(size=100, seed=1)
+    patch = surfaces.random_roughness(size=100, seed=1)
     depth = 20.0 if quick else 40.0
     patch_ref = anodize(patch, depth, step=0.5, tolerance=0.0, record=100)
     patch_run = anodize(patch, depth, step=0.5, record=100)
     error = history_difference(patch_run, patch_ref, np.linspace(depth / 8, depth, 8))
     thickness = 10.0 if quick else 200.0
-    run = anodize(scenes.random_roughness(seed=1), thickness, step=0.5, record=40)
+    run = anodize(surfaces.random_roughness(seed=1), thickness, step=0.5, record=40)
     return _row(f"Ta 101x101 to {thickness:g} nm", run, error, 30.0 if not quick else None)
 
 
 def _periodic_child(n: int, thickness: float, budget: float, options: dict, queue) -> None:
     surface = random_surface(n)
     start = time.perf_counter()
-    from planarize.fast import FastEngine
+    from planarize.engines.fast import FastEngine
 
     engine = FastEngine(surface, step=0.5, **options)
     setup = _work(engine, time.perf_counter() - start)
@@ -235,7 +235,7 @@ def _row(case, run, error, goal, reference_s=None, reference_measured=True) -> d
 
 def scaling(sizes, thickness: float = 3.0) -> list[tuple[int, float]]:
     """(grid side, seconds per nm of oxide between 1 nm and ``thickness``) on periodic random surfaces."""
-    from planarize.fast import FastEngine
+    from planarize.engines.fast import FastEngine
 
     out = []
     for n in sizes:

@@ -34,7 +34,7 @@ import numpy as np
 import planarize
 from labrig.files import write_csv
 from planarize.metrics import history_row
-from planarize.reference import ReferenceEngine
+from planarize.engines.reference import ReferenceEngine
 
 from .report import Headline, Table
 
@@ -70,7 +70,7 @@ def rms_difference(rows: list[dict], history: dict) -> float:
 
 
 def measure(side: int, budget: float) -> dict:
-    metal = planarize.scenes.hill(points=SIZES[side], refine=4)
+    metal = planarize.surfaces.hill(points=SIZES[side], refine=4)
     ref = reference(metal, budget)
     fast = planarize.anodize(metal, THICKNESS, step=STEP, k_exp=K_EXP, engine="fast", record=RECORD)
     exact_ties = planarize.anodize(metal, THICKNESS, step=STEP, k_exp=K_EXP, engine="fast", tolerance=0.0,

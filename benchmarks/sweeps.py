@@ -29,7 +29,7 @@ import time
 from dataclasses import dataclass
 
 from labrig.sweeps import Sweep, run_sweep
-from qdots.experiment_sweep import ExperimentRunner, experiment_to_dict
+from qdots.cli.sweep import ExperimentRunner, experiment_to_dict
 from qdots.presets import PRESETS
 
 #: Columns that measure the machine, not the run: left out of the table comparison.

@@ -1,16 +1,26 @@
 """planarize: anodization planarization of metal surfaces on height grids (thesis chapter 3).
 
 >>> import planarize
->>> metal = planarize.scenes.hill()                        # 17 x 17 points, 0.25 nm apart
+>>> metal = planarize.surfaces.hill()                        # 17 x 17 points, 0.25 nm apart
 >>> run = planarize.anodize(metal, thickness=1.0)          # doctest: +SKIP
 >>> run.history["oxide_rms_nm"][-1]                        # doctest: +SKIP
 """
 
-from . import scenes
+from labrig import __version__  # noqa: F401 (one version for the distribution)
+from labrig.deprecation import alias_modules, renamed_attributes
+
+from . import surfaces
 from .anodize import Anodization, Snapshot, anodize, engines
 from .metrics import rms, z_range
 from .surface import Surface
 
-from labrig import __version__  # noqa: E402,F401 (one version for the distribution)
+__all__ = ["Surface", "anodize", "Anodization", "Snapshot", "engines", "rms", "z_range", "surfaces"]
 
-__all__ = ["Surface", "anodize", "Anodization", "Snapshot", "engines", "rms", "z_range", "scenes"]
+# modules that moved in 0.2 (their old names warn, and go in the next release)
+alias_modules({f"planarize.{old}": new for old, new in {
+    "scenes": "planarize.surfaces", "engine": "planarize.engines.base", "reference": "planarize.engines.reference",
+    "fast": "planarize.engines.fast", "features": "planarize.engines.features",
+    "compiled": "planarize.engines.kernels", "gwy": "planarize.io.gwy", "results": "planarize.io.results",
+    "scenefile": "planarize.io.scenefile", "commands": "planarize.cli.commands",
+    "sweep": "planarize.cli.sweep"}.items()})
+__getattr__ = renamed_attributes(__name__, {"scenes": "surfaces"})

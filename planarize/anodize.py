@@ -1,7 +1,7 @@
 """`anodize`: grow an oxide on a metal surface to a target thickness and record how it planarizes.
 
->>> from planarize import anodize, scenes
->>> run = anodize(scenes.hill(), thickness=1.0, step=0.01, k_exp=2.3)   # doctest: +SKIP
+>>> from planarize import anodize, surfaces
+>>> run = anodize(surfaces.hill(), thickness=1.0, step=0.01, k_exp=2.3)   # doctest: +SKIP
 >>> run.history["oxide_rms_nm"]                                         # doctest: +SKIP
 """
 
@@ -15,18 +15,18 @@ import numpy as np
 
 from labrig.validate import InputError
 
-from .engine import Engine
+from .engines.base import Engine
 from .metrics import history_row
 from .surface import Surface
 
 
 def engines() -> dict[str, type[Engine]]:
     """The available engines by name."""
-    from .reference import MatlabEngine, ReferenceEngine
+    from .engines.reference import MatlabEngine, ReferenceEngine
 
     found = {"reference": ReferenceEngine, "matlab": MatlabEngine}
     try:
-        from .fast import FastEngine
+        from .engines.fast import FastEngine
     except ImportError:  # pragma: no cover - the fast engine is part of the package
         return found
     return {**found, "fast": FastEngine}
@@ -117,14 +117,14 @@ def anodize(metal: Surface, thickness: float, *, step: float = 0.01, k_exp: floa
         Oxide volume per metal volume (>= 1; Ta 2.3, Al ~1.3).
     engine : {"fast", "reference", "matlab"}
         ``"reference"``: the thesis's sequential algorithm
-        (`planarize.reference`); ``"fast"``: the batched engine
-        (`planarize.fast`; compiled when numba is installed); ``"matlab"``: the reference with the Matlab
+        (`planarize.engines.reference`); ``"fast"``: the batched engine
+        (`planarize.engines.fast`; compiled when numba is installed); ``"matlab"``: the reference with the Matlab
         listings' shortcuts, to measure what they cost.
     distance : {"thesis", "exact"}
         Point/segment distances as in the thesis, or exact distances to the
-        triangulated surfaces (`planarize.features`).
+        triangulated surfaces (`planarize.engines.features`).
     volume : {"exact", "thesis"}
-        Volume accounting (`planarize.engine`).
+        Volume accounting (`planarize.engines.base`).
     record : int or sequence of float
         Thicknesses (nm) at which to add a history row, or a count ``n`` for
         ``n + 1`` evenly spaced ones from 0 to ``thickness``. A row is taken

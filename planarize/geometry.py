@@ -101,7 +101,7 @@ def triangle_frame(px, py, pz, ax, ay, az, bx, by, bz, cx, cy, cz):
     w.u, w.v`` and the Gram determinant, as a flat tuple.
 
     Written with arithmetic operators only, so that the same code runs on
-    arrays here and on scalars in `planarize.compiled` (same results bit for bit).
+    arrays here and on scalars in `planarize.engines.kernels` (same results bit for bit).
     """
     ux, uy, uz = bx - ax, by - ay, bz - az
     vx, vy, vz = cx - ax, cy - ay, cz - az

@@ -2,7 +2,7 @@
 
 >>> import planarize
 >>> from planarize.interactive import ThicknessExplorer
->>> run = planarize.anodize(planarize.scenes.hill(), 1.0, snapshots=[0, 0.25, 0.5, 0.75, 1.0])  # doctest: +SKIP
+>>> run = planarize.anodize(planarize.surfaces.hill(), 1.0, snapshots=[0, 0.25, 0.5, 0.75, 1.0])  # doctest: +SKIP
 >>> ThicknessExplorer(run)                                                                      # doctest: +SKIP
 
 A slider over the oxide thicknesses at which the run kept both surfaces

@@ -7,15 +7,25 @@
 >>> state = sim.run(1.0)
 """
 
+from labrig import __version__  # noqa: F401 (one version for the distribution)
+from labrig.deprecation import alias_modules
+
 from ._malloc import ALLOCATOR_TUNED
-from .checkpoint import load, read_state, save
 from .collisions import Restitution
 from .forces import CenterGravity, Drag, Force, Gravity, Langevin, ThermalKicks, VanDerWaals
+from .io.checkpoint import load, read_state, save
 from .scene import Scene, grating_segments
 from .simulation import EngineSettings, Simulation
 from .state import State
 
-from labrig import __version__  # noqa: E402,F401 (one version for the distribution)
+# modules that moved in 0.2 (their old names warn, and go in the next release)
+alias_modules({f"qdots.{old}": new for old, new in {
+    "structure": "qdots.analysis.structure", "forster": "qdots.analysis.forster", "lqe": "qdots.analysis.lqe",
+    "lqe_thesis": "qdots.analysis.lqe_thesis", "report": "qdots.analysis.report",
+    "checkpoint": "qdots.io.checkpoint", "scenefile": "qdots.io.experiment_file",
+    "trajectory": "qdots.io.trajectory", "live": "qdots.interactive.live", "experiment_sweep": "qdots.cli.sweep",
+    "commands": "qdots.cli.commands", "neighbors": "qdots.neighbours", "sweeps": "labrig.sweeps",
+    "atomic": "labrig.files", "tomlfile": "labrig.tomlfile", "cliutil": "labrig.cli"}.items()})
 
 __all__ = [
     "Scene",

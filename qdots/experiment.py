@@ -6,7 +6,7 @@
 
 An experiment is frozen, validated on construction (messages name the key,
 e.g. ``deposition.sigma``, and the allowed range), saved and loaded as TOML by
-`qdots.scenefile`, and reproducible: the same experiment gives a
+`qdots.io.experiment_file`, and reproducible: the same experiment gives a
 bit-identical board.
 """
 

@@ -234,7 +234,7 @@ class Simulation:
         Positions, velocities, time, the generator and the forces carry over;
         Chipmunk's contact cache and spatial index start afresh, exactly as in
         a simulation loaded from a checkpoint of this moment (see
-        `qdots.checkpoint`). A run that re-seats and a run resumed from the
+        `qdots.io.checkpoint`). A run that re-seats and a run resumed from the
         checkpoint therefore continue bit for bit alike.
         """
         self._build(self.board())

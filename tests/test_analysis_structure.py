@@ -8,7 +8,7 @@ import pytest
 
 from qdots.analysis import neighbour_counts, neighbour_edges
 from qdots.placement import random_sequential
-from qdots.structure import clusters, hexatic_order, radial_distribution, voronoi_coordination
+from qdots.analysis.structure import clusters, hexatic_order, radial_distribution, voronoi_coordination
 
 freud = pytest.importorskip("freud")
 

@@ -7,7 +7,7 @@ distances and the volume balance exact to round-off.
 import numpy as np
 import pytest
 
-from planarize import Surface, anodize, scenes
+from planarize import Surface, anodize, surfaces
 
 
 def assert_sane(run):
@@ -56,7 +56,7 @@ def test_tilted_planes_stay_planes(slope):
     (Within about the oxide thickness of an open edge the surfaces bend: the oxide there lacks the
     neighbours beyond the edge, the thesis's finite-sample effect.)
     """
-    plane = scenes.tilted_plane(slope, points=21)
+    plane = surfaces.tilted_plane(slope, points=21)
     run = anodize(plane, 0.5, step=0.01, record=3)
     assert_sane(run)
     x, y = np.meshgrid(plane.x, plane.y, indexing="ij")

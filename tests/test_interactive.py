@@ -17,11 +17,12 @@ import planarize  # noqa: E402
 import qdots  # noqa: E402
 from planarize.interactive import ThicknessExplorer, nearest_snapshot  # noqa: E402
 from qdots.analysis import packing_summary  # noqa: E402
-from qdots.interactive import LiveBoard, require_widgets  # noqa: E402
-from qdots.live import Knobs, LiveRun  # noqa: E402
+from labrig.widgets import require_widgets  # noqa: E402
+from qdots.interactive import LiveBoard  # noqa: E402
+from qdots.interactive.live import Knobs, LiveRun  # noqa: E402
 from qdots.protocols import deposit  # noqa: E402
 from qdots.scene import grating_segments  # noqa: E402
-from qdots.structure import hexatic_order  # noqa: E402
+from qdots.analysis.structure import hexatic_order  # noqa: E402
 
 
 def finish_drops(board):
@@ -215,7 +216,7 @@ def test_missing_extra_is_named(monkeypatch):
 
 @pytest.fixture(scope="module")
 def hill_run():
-    return planarize.anodize(planarize.scenes.hill(), 1.0, step=0.05, record=20,
+    return planarize.anodize(planarize.surfaces.hill(), 1.0, step=0.05, record=20,
                              snapshots=[0.0, 0.25, 0.5, 0.75, 1.0])
 
 

@@ -7,11 +7,11 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from qdots.forster import (
+from qdots.analysis.forster import (
     KB_EV, TAU_NS, cutoff_for, dot_energies, draw_traps, exciton_network, truncation_bound,
 )
-from qdots.lqe import film_lqe, lqe_exact, lqe_monte_carlo
-from qdots.lqe_thesis import _event_table, step_probabilities
+from qdots.analysis.lqe import film_lqe, lqe_exact, lqe_monte_carlo
+from qdots.analysis.lqe_thesis import _event_table, step_probabilities
 from qdots.placement import random_sequential
 
 R = 7.5

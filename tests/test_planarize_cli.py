@@ -9,8 +9,8 @@ import pytest
 
 import planarize
 from planarize.cli import build_parser, main
-from planarize.results import load_run
-from planarize.scenefile import SCENES, load_scene
+from planarize.io.results import load_run
+from planarize.io.scenefile import SCENES, load_scene
 
 FILES = (".toml", ".npz", "_history.csv", "_fig3-8.png", "_fig3-9.png", "_surfaces.png")
 
@@ -56,7 +56,7 @@ def test_scene_save_writes_the_named_scene(tmp_path, capsys):
 
 
 def test_import_runs_a_height_map(tmp_path, capsys):
-    z = planarize.scenes.bump(5.0, base=4.0, refine=1).z  # 5 x 5, one raised point
+    z = planarize.surfaces.bump(5.0, base=4.0, refine=1).z  # 5 x 5, one raised point
     np.savetxt(tmp_path / "afm.csv", z * 1e-9, delimiter=",")
     out = tmp_path / "out"
     code = main(["import", str(tmp_path / "afm.csv"), "--unit", "m", "--spacing", "1e-9", "--thickness", "0.5",

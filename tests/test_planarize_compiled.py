@@ -3,10 +3,10 @@
 import numpy as np
 import pytest
 
-from planarize import Surface, anodize, compiled, scenes
-from planarize.features import FeatureKernel, closest_sets
+from planarize import Surface, anodize, compiled, surfaces
+from planarize.engines.features import FeatureKernel, closest_sets
 from planarize.grid import Grid
-from planarize.pyramid import BallCache, HeightPyramid
+from planarize.engines.pyramid import BallCache, HeightPyramid
 
 pytestmark = pytest.mark.skipif(not compiled.AVAILABLE, reason="numba is not installed")
 
@@ -118,7 +118,7 @@ def test_kept_searches_leave_a_thick_oxide_run_unchanged():
 @pytest.mark.parametrize("interacting", ["wait", "together"])
 @pytest.mark.parametrize("boundary,distance", CASES)
 def test_fast_engine_runs_identically_with_and_without_jit(boundary, distance, interacting):
-    surface = Surface(scenes.hill().z, 0.25, boundary)
+    surface = Surface(surfaces.hill().z, 0.25, boundary)
     kwargs = dict(step=0.02, distance=distance, record=5, interacting=interacting, tolerance=0.02)
     compiled_run = anodize(surface, 0.4, jit=True, **kwargs)
     numpy_run = anodize(surface, 0.4, jit=False, **kwargs)
@@ -131,12 +131,12 @@ def test_fast_engine_runs_identically_with_and_without_jit(boundary, distance, i
 def test_jit_without_numba_is_a_clear_error(monkeypatch):
     monkeypatch.setattr(compiled, "AVAILABLE", False)
     with pytest.raises(ImportError, match="numba"):
-        anodize(scenes.hill(), 0.1, jit=True)
+        anodize(surfaces.hill(), 0.1, jit=True)
 
 
 @pytest.mark.parametrize("boundary,distance", CASES)
 def test_star_reach_matches_the_numpy_reach_bit_for_bit(boundary, distance, rng):
-    from planarize.fast import FastEngine
+    from planarize.engines.fast import FastEngine
 
     surface = Surface(rng.normal(scale=0.4, size=(9, 8)), (0.5, 0.35), boundary)
     kernel = FastEngine(surface, distance=distance).kernel
@@ -149,9 +149,9 @@ def test_star_reach_matches_the_numpy_reach_bit_for_bit(boundary, distance, rng)
 
 @pytest.mark.parametrize("distance", ["thesis", "exact"])
 def test_longest_edge_bounds_hold_between_measurements(distance):
-    from planarize.fast import FastEngine
+    from planarize.engines.fast import FastEngine
 
-    engine = FastEngine(scenes.hill(), step=0.05, distance=distance)
+    engine = FastEngine(surfaces.hill(), step=0.05, distance=distance)
     for _ in range(30):
         engine.advance()
         assert engine._metal_longest >= engine.kernel.max_feature_length(engine.zm)
@@ -164,8 +164,8 @@ def test_threads_do_not_change_results(distance, monkeypatch):
 
     monkeypatch.setattr(fast, "POINTS_PER_THREAD", 4)  # split even the hill's few updated points
     kwargs = dict(step=0.02, distance=distance, record=5)
-    one = anodize(scenes.hill(), 0.4, threads=1, **kwargs)
-    three = anodize(scenes.hill(), 0.4, threads=3, **kwargs)
+    one = anodize(surfaces.hill(), 0.4, threads=1, **kwargs)
+    three = anodize(surfaces.hill(), 0.4, threads=3, **kwargs)
     np.testing.assert_array_equal(one.metal.z, three.metal.z)
     np.testing.assert_array_equal(one.oxide.z, three.oxide.z)
     np.testing.assert_array_equal(one.distances, three.distances)
@@ -174,11 +174,11 @@ def test_threads_do_not_change_results(distance, monkeypatch):
 @pytest.mark.parametrize("threads", [0, -1, 1.5, True, "2"])
 def test_bad_thread_counts_are_refused(threads):
     with pytest.raises(ValueError, match="threads"):
-        anodize(scenes.hill(), 0.1, threads=threads)
+        anodize(surfaces.hill(), 0.1, threads=threads)
 
 
 def _oxide_after_hill_run():
-    return anodize(scenes.hill(), 0.1, step=0.02, threads=2).oxide.z
+    return anodize(surfaces.hill(), 0.1, step=0.02, threads=2).oxide.z
 
 
 @pytest.mark.skipif(not hasattr(__import__("os"), "fork"), reason="needs fork")
@@ -197,7 +197,7 @@ def test_a_forked_process_runs_its_own_threads(monkeypatch):
 @pytest.mark.parametrize("interacting", ["wait", "together"])
 @pytest.mark.parametrize("boundary,distance", CASES)
 def test_compiled_batch_and_bound_match_numpy(boundary, distance, interacting, rng):
-    from planarize.fast import FastEngine
+    from planarize.engines.fast import FastEngine
 
     surface = Surface(rng.normal(scale=0.4, size=(12, 9)), (0.5, 0.35), boundary)
     jit = FastEngine(surface, distance=distance, tolerance=0.05, interacting=interacting)

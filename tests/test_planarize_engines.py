@@ -3,11 +3,11 @@
 import numpy as np
 import pytest
 
-from planarize import Surface, anodize, scenes
-from planarize.fast import FastEngine
-from planarize.features import closest_sets
+from planarize import Surface, anodize, surfaces
+from planarize.engines.fast import FastEngine
+from planarize.engines.features import closest_sets
 from planarize.metrics import history_difference
-from planarize.reference import ReferenceEngine
+from planarize.engines.reference import ReferenceEngine
 
 
 def brute_force(engine):
@@ -33,7 +33,7 @@ def engine_sets(engine):
 def small_surfaces():
     rng = np.random.default_rng(7)
     return {
-        "hill": scenes.hill(points=5, refine=2),
+        "hill": surfaces.hill(points=5, refine=2),
         "periodic": Surface(rng.uniform(0, 0.6, (8, 9)), 0.25, "periodic"),
         "anisotropic": Surface(rng.uniform(0, 0.8, (7, 9)), (0.2, 0.35)),
     }
@@ -113,7 +113,7 @@ def test_fast_engine_at_zero_tolerance_is_the_reference(distance, name):
 @pytest.mark.parametrize("distance", ["thesis", "exact"])
 def test_volume_balance_is_exact_at_every_row(engine, boundary, distance):
     """Oxide gained above the original surface = (k_exp - 1) x metal lost, with the exact volume."""
-    surface = scenes.bump(4.6, points=3, refine=3, boundary=boundary)
+    surface = surfaces.bump(4.6, points=3, refine=3, boundary=boundary)
     run = anodize(surface, 0.3, step=0.02, k_exp=2.3, engine=engine, distance=distance, record=6)
     h = run.history
     assert np.all(np.abs(h["volume_error"][1:]) < 1e-12)
@@ -123,9 +123,9 @@ def test_volume_balance_is_exact_at_every_row(engine, boundary, distance):
 
 
 def test_thesis_volume_rule_is_off_on_open_grids_only():
-    hill = scenes.hill(points=5, refine=2)
+    hill = surfaces.hill(points=5, refine=2)
     open_run = anodize(hill, 0.3, step=0.01, volume="thesis", record=2)
-    periodic = anodize(scenes.bump(4.5, points=5, refine=2, boundary="periodic"), 0.3, step=0.01,
+    periodic = anodize(surfaces.bump(4.5, points=5, refine=2, boundary="periodic"), 0.3, step=0.01,
                        volume="thesis", record=2)
     assert abs(open_run.history["volume_error"][-1]) > 1e-4
     assert abs(periodic.history["volume_error"][-1]) < 1e-12
@@ -167,7 +167,7 @@ def test_hill_and_depression_planarize_by_the_same_amount():
     """Thesis Fig 3-9: the total planarization is the same for the hill and the depression."""
     drop = {}
     for name in ("hill", "depression"):
-        run = anodize(getattr(scenes, name)(), 1.0, step=0.01, record=2)
+        run = anodize(getattr(surfaces, name)(), 1.0, step=0.01, record=2)
         drop[name] = {c: run.history[c][0] - run.history[c][-1] for c in ("metal_rms_nm", "oxide_rms_nm")}
     total = {name: sum(d.values()) for name, d in drop.items()}
     assert total["hill"] == pytest.approx(total["depression"], rel=0.04)
@@ -187,9 +187,9 @@ RANDOM = Surface(4 + np.random.default_rng(5).uniform(-0.25, 0.25, (4, 4)), 1.0)
 # the reference itself moves by 15.6 % (hill), 10.9, 2.1 and 2.6 % when its exact ties are broken by
 # 1e-9 nm of height noise (docs/performance.md).
 @pytest.mark.parametrize("surface, rms_allowed, zrange_allowed", [
-    pytest.param(scenes.hill(), 0.02, 0.07, id="hill"),
-    pytest.param(scenes.depression(), 0.02, 0.07, id="depression"),
-    pytest.param(scenes.tilted_plane(), 0.01, 0.03, id="tilted"),
+    pytest.param(surfaces.hill(), 0.02, 0.07, id="hill"),
+    pytest.param(surfaces.depression(), 0.02, 0.07, id="depression"),
+    pytest.param(surfaces.tilted_plane(), 0.01, 0.03, id="tilted"),
     pytest.param(RANDOM, 0.01, 0.04, id="random", marks=pytest.mark.slow),
 ])
 def test_fast_engine_matches_the_reference(surface, rms_allowed, zrange_allowed):
@@ -203,7 +203,7 @@ def test_fast_engine_matches_the_reference(surface, rms_allowed, zrange_allowed)
 
 
 def test_no_expansion_and_large_expansion_are_sane():
-    hill = scenes.hill(points=5, refine=2)
+    hill = surfaces.hill(points=5, refine=2)
     still = anodize(hill, 0.2, step=0.01, k_exp=1.0, record=2)
     np.testing.assert_array_equal(still.oxide.z, hill.z)  # k_exp = 1: the oxide just replaces the metal
     assert np.all(still.metal.z < hill.z) and still.thickness >= 0.2
@@ -246,21 +246,21 @@ def test_cliffs_and_spikes_stay_finite(kind, distance):
 def test_bad_run_parameters(kwargs, message):
     args = {"thickness": 0.1, **kwargs}
     with pytest.raises(ValueError, match=message):
-        anodize(scenes.hill(points=3, refine=1), **args)
+        anodize(surfaces.hill(points=3, refine=1), **args)
 
 
 def test_oxide_must_fit_the_metal():
-    hill = scenes.hill(points=3, refine=1)
+    hill = surfaces.hill(points=3, refine=1)
     with pytest.raises(ValueError, match="below the metal"):
         anodize(hill, 0.1, oxide=hill.shifted(-0.1))
     with pytest.raises(ValueError, match="grid"):
-        anodize(hill, 0.1, oxide=scenes.hill(points=3, refine=2))
+        anodize(hill, 0.1, oxide=surfaces.hill(points=3, refine=2))
     with pytest.raises(TypeError, match="Surface"):
         anodize(hill.z, 0.1)
 
 
 def test_a_run_continues_from_its_oxide():
-    hill = scenes.hill(points=5, refine=2)
+    hill = surfaces.hill(points=5, refine=2)
     first = anodize(hill, 0.2, step=0.01, record=2)
     second = anodize(first.metal, 0.4, step=0.01, oxide=first.oxide, record=2)
     assert second.thickness >= 0.4

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from planarize.features import FeatureKernel
+from planarize.engines.features import FeatureKernel
 from planarize.geometry import point_point, point_segment, point_triangle
 from planarize.grid import EDGE_DIRECTIONS, QUADRANTS, Grid
 

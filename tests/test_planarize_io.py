@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import planarize
-from planarize.gwy import gwy_channels
+from planarize.io.gwy import gwy_channels
 from planarize.io import level_plane, load_heights, save_heights
 
 gwyfile = pytest.importorskip("gwyfile")

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import planarize
-from planarize.scenefile import (SCENES, PlanarizeScene, RunSettings, SurfaceSpec, get_scene, load_scene,
+from planarize.io.scenefile import (SCENES, PlanarizeScene, RunSettings, SurfaceSpec, get_scene, load_scene,
                                  save_scene, scene_from_toml, scene_to_toml)
 
 ALL = [*SCENES.values(), *(s.quick(0.5) for s in SCENES.values())]
@@ -34,10 +34,10 @@ def test_tricky_values_round_trip_exactly(tmp_path):
 
 
 def test_defaults_come_from_the_scene_functions_and_build_the_thesis_surfaces():
-    assert SurfaceSpec("hill").build() == planarize.scenes.hill()
-    assert SurfaceSpec("depression").build() == planarize.scenes.depression()
-    assert get_scene("ta").build_surface() == planarize.scenes.random_roughness(seed=0)
-    assert get_scene("ta").replace(seed=3).build_surface() == planarize.scenes.random_roughness(seed=3)
+    assert SurfaceSpec("hill").build() == planarize.surfaces.hill()
+    assert SurfaceSpec("depression").build() == planarize.surfaces.depression()
+    assert get_scene("ta").build_surface() == planarize.surfaces.random_roughness(seed=0)
+    assert get_scene("ta").replace(seed=3).build_surface() == planarize.surfaces.random_roughness(seed=3)
     ta = get_scene("ta").run
     assert (ta.thickness, ta.step, ta.snapshots) == (200.0, 0.5, [0.0, 50.0, 100.0, 150.0, 200.0])
     assert scene_from_toml("") == PlanarizeScene()  # every key optional

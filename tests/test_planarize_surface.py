@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from planarize import Surface, scenes
+from planarize import Surface, surfaces
 from planarize.surface import volume_weights
 
 
@@ -96,8 +96,8 @@ def test_cubic_refinement_reproduces_cubics_and_is_smooth():
     fine = cubic.refine(4, "cubic")
     xf = fine.x
     np.testing.assert_allclose(fine.z, np.add.outer(0.1 * xf**3 - xf, 0.05 * xf**2), atol=1e-12)
-    bump = scenes.hill(refine=1).refine(8, "cubic")
-    linear = scenes.hill(refine=1).refine(8, "linear")
+    bump = surfaces.hill(refine=1).refine(8, "cubic")
+    linear = surfaces.hill(refine=1).refine(8, "linear")
     # linear refinement leaves slope jumps (creases) at the old grid lines; cubic does not
     def largest_curvature(s):
         return float(np.abs(np.diff(s.z, 2, axis=0)).max())
@@ -122,28 +122,28 @@ def test_bad_refinement(factor):
 
 
 def test_thesis_scenes():
-    hill, dep = scenes.hill(), scenes.depression()
+    hill, dep = surfaces.hill(), surfaces.depression()
     assert hill.shape == (17, 17) and hill.dx == 0.25
     assert hill.z.max() == 4.5 and hill.z.min() == 4.0
     np.testing.assert_allclose(dep.z, 8.0 - hill.z)
     # the linear refinement makes a pyramid 2 nm wide (8 grid points)
     assert np.count_nonzero(hill.z[8] > 4.0) == 7
-    ta = scenes.random_roughness(seed=3)
+    ta = surfaces.random_roughness(seed=3)
     assert ta.shape == (101, 101) and ta.dx == 5.0
     assert abs(ta.z.mean() - 1000.0) < 5.0 and ta.z.max() - ta.z.min() < 50.0
-    assert scenes.random_roughness(seed=3) == ta and scenes.random_roughness(seed=4) != ta
-    periodic = scenes.random_roughness(size=200, boundary="periodic", seed=1)
+    assert surfaces.random_roughness(seed=3) == ta and surfaces.random_roughness(seed=4) != ta
+    periodic = surfaces.random_roughness(size=200, boundary="periodic", seed=1)
     assert periodic.shape == (40, 40) and periodic.periodic
 
 
 @pytest.mark.parametrize("call, message", [
-    (lambda: scenes.bump(points=4), "odd"),
-    (lambda: scenes.bump(spacing=-1), "spacing"),
-    (lambda: scenes.random_roughness(size=250), "whole number"),
-    (lambda: scenes.random_roughness(scales=[(200, 30), (30, 5)]), "divide"),
-    (lambda: scenes.random_roughness(scales=[]), "at least one"),
-    (lambda: scenes.random_roughness(size=100, boundary="periodic"), "at least two"),
-    (lambda: scenes.tilted_plane(slope=(np.nan, 0)), "finite"),
+    (lambda: surfaces.bump(points=4), "odd"),
+    (lambda: surfaces.bump(spacing=-1), "spacing"),
+    (lambda: surfaces.random_roughness(size=250), "whole number"),
+    (lambda: surfaces.random_roughness(scales=[(200, 30), (30, 5)]), "divide"),
+    (lambda: surfaces.random_roughness(scales=[]), "at least one"),
+    (lambda: surfaces.random_roughness(size=100, boundary="periodic"), "at least two"),
+    (lambda: surfaces.tilted_plane(slope=(np.nan, 0)), "finite"),
 ])
 def test_bad_scene_parameters(call, message):
     with pytest.raises(ValueError, match=message):

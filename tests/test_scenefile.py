@@ -5,7 +5,7 @@ import pytest
 import qdots
 from qdots.experiment import Board, Deposition, Experiment
 from qdots.presets import PRESETS, get_preset
-from qdots.scenefile import experiment_from_toml, experiment_to_toml, load_experiment, save_experiment
+from qdots.io.experiment_file import experiment_from_toml, experiment_to_toml, load_experiment, save_experiment
 from qdots.simulation import EngineSettings
 
 ALL_PRESET_RUNS = [exp for name in PRESETS for exp in (*PRESETS[name], *get_preset(name, quick=True))]
@@ -100,7 +100,7 @@ def test_missing_file(tmp_path):
 def test_failed_save_keeps_the_previous_file(tmp_path, monkeypatch):
     path = save_experiment(Experiment(seed=1), tmp_path / "scene.toml")
     before = path.read_text()
-    monkeypatch.setattr("qdots.scenefile.experiment_to_toml", lambda exp: (_ for _ in ()).throw(RuntimeError()))
+    monkeypatch.setattr("qdots.io.experiment_file.experiment_to_toml", lambda exp: (_ for _ in ()).throw(RuntimeError()))
     with pytest.raises(RuntimeError):
         save_experiment(Experiment(seed=2), path)
     assert path.read_text() == before and sorted(p.name for p in tmp_path.iterdir()) == ["scene.toml"]

@@ -10,8 +10,8 @@ import qdots
 from qdots.analysis import packing_summary
 from qdots.cli import main
 from qdots.experiment import Board, Deposition, Experiment, run_experiment
-from qdots.experiment_sweep import ExperimentRunner, experiment_to_dict
-from qdots.scenefile import experiment_from_dict, save_experiment
+from qdots.cli.sweep import ExperimentRunner, experiment_to_dict
+from qdots.io.experiment_file import experiment_from_dict, save_experiment
 from labrig.sweeps import Sweep, read_table, run_sweep
 
 #: A few dots and about 1 s of simulated time per run.
@@ -128,7 +128,7 @@ def test_command_line_bad_sweep_files(tmp_path, capsys, extra, words):
 
 
 def test_failed_runs_give_exit_status_1(tmp_path, capsys, monkeypatch):
-    import qdots.experiment_sweep as module
+    import qdots.cli.sweep as module
 
     def flaky_run(exp):
         if exp.deposition.sigma > 0:

@@ -2,7 +2,7 @@
 
 import pytest
 
-from qdots.experiment_sweep import ExperimentRunner, load_sweep
+from qdots.cli.sweep import ExperimentRunner, load_sweep
 from labrig.sweeps import Sweep, run_id
 from labrig.sweeps.files import sweep_from_dict
 from labrig.sweeps.spec import get_path, range_values, set_path

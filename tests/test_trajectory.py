@@ -6,7 +6,7 @@ import pytest
 import qdots
 
 gsd_hoomd = pytest.importorskip("gsd.hoomd")
-from qdots.trajectory import GSDWriter  # noqa: E402
+from qdots.io.trajectory import GSDWriter  # noqa: E402
 
 
 def small_run():

@@ -19,7 +19,7 @@
 Reproducible: a run's result depends only on its parameters (its seed is one
 of them), so equal sweeps give equal tables whatever the executor, the
 number of workers and the order in which runs finish. Physics lives in the
-runners: `qdots.experiment_sweep` and `planarize.sweep`.
+runners: `qdots.cli.sweep` and `planarize.cli.sweep`.
 """
 
 from .execute import SweepResult, run_sweep

@@ -6,7 +6,7 @@ import numpy as np
 
 from labrig.validate import InputError, real
 
-from ..neighbors import VerletPairs
+from ..neighbours import VerletPairs
 from .base import Force, StepContext
 
 MODELS = ("thesis", "hamaker")
@@ -81,7 +81,7 @@ class VanDerWaals(Force):
     sticking_speed : float
         Enters the thesis offset ``b`` (px/s, thesis 1).
     skin : float
-        Verlet skin of the pair list, px (see `qdots.neighbors.VerletPairs`).
+        Verlet skin of the pair list, px (see `qdots.neighbours.VerletPairs`).
     """
 
     def __init__(

@@ -1,0 +1,118 @@
+"""What the ``planarize`` subcommands do; `planarize.cli` parses arguments and calls these.
+
+`run_scene` writes, into its output directory, for a scene named ``NAME``:
+``NAME.toml`` (the scene it ran, for provenance), ``NAME.npz`` (the run,
+`planarize.io.results`), ``NAME_history.csv``, ``NAME_fig3-8.png`` (centre
+slice before/after), ``NAME_fig3-9.png`` (RMS and z-range against oxide
+thickness), ``NAME_surfaces.png`` (3-D oxide at the snapshots, Fig 3-11) and
+optionally ``NAME.mp4`` (the oxide growing); every file atomically.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from labrig.cli import print_table
+from labrig.files import slug
+from labrig.validate import InputError
+
+from .. import render
+from ..anodize import Anodization
+from ..io.results import save_history_csv, save_run
+from ..io.scenefile import PlanarizeScene, RunSettings, SurfaceSpec, save_scene
+from ..metrics import z_range
+
+#: Movie frames (oxide thicknesses evenly spaced from 0 to the target, plus the scene's snapshots).
+MOVIE_FRAMES = 40
+#: At most this many snapshots go into the 3-D surfaces figure.
+MAX_SURFACE_PANELS = 9
+
+
+def run_scene(scene: PlanarizeScene, out: Path, *, movie: bool = False, progress: bool = True) -> dict:
+    """Run ``scene`` and write its files into ``out``; returns the summary (also printed as a table)."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    stem = slug(scene.name)
+    save_scene(scene, out / f"{stem}.toml")
+    settings = scene.run
+    shown = settings.snapshots if settings.snapshots is not None else [0.0, settings.thickness]
+    snapshots = shown
+    if movie:
+        snapshots = sorted({*shown, *np.linspace(0.0, settings.thickness, MOVIE_FRAMES + 1).tolist()})
+    run = scene.anodize(progress=progress, snapshots=snapshots)
+    files = [out / f"{stem}.toml", save_run(run, out / f"{stem}.npz"),
+             save_history_csv(run, out / f"{stem}_history.csv"),
+             render.save_figure(render.slice_figure(run, scene.name), out / f"{stem}_fig3-8.png"),
+             render.save_figure(render.history_figure(run, scene.name), out / f"{stem}_fig3-9.png")]
+    panels = _panels(run, shown)
+    files.append(render.save_figure(render.snapshots_figure(panels), out / f"{stem}_surfaces.png"))
+    if movie:
+        files.append(render.save_movie(run, out / f"{stem}.mp4"))
+    summary = summarize(scene, run)
+    print_table(f"{scene.name}: {summary['grid']}, k_exp {summary['k_exp']:g}, step {summary['step_nm']:g} nm, "
+                f"{summary['engine']} engine", [
+        ("oxide thickness", f"{summary['thickness_nm']:.4g} nm (mean {summary['distance_mean_nm']:.4g} "
+                            f"+- {summary['distance_std_nm']:.2g} nm)"),
+        ("metal RMS", f"{summary['metal_rms_initial_nm']:.4g} -> {summary['metal_rms_nm']:.4g} nm"),
+        ("oxide RMS", f"{summary['oxide_rms_initial_nm']:.4g} -> {summary['oxide_rms_nm']:.4g} nm"),
+        ("metal z-range", f"{summary['metal_zrange_initial_nm']:.4g} -> {summary['metal_zrange_nm']:.4g} nm"),
+        ("oxide z-range", f"{summary['oxide_zrange_initial_nm']:.4g} -> {summary['oxide_zrange_nm']:.4g} nm"),
+        ("volume balance error", f"{summary['volume_error']:.2g}"),
+        ("wall time", f"{summary['wall_s']:.2f} s ({summary['point_updates_per_s']:,.0f} point updates/s)"),
+        ("files", ", ".join(str(f) for f in files)),
+    ])
+    return summary
+
+
+def _panels(run: Anodization, targets) -> Anodization:
+    """``run`` with only the snapshots at ``targets`` (at most `MAX_SURFACE_PANELS`, evenly picked)."""
+    wanted = {round(float(t), 9) for t in targets}
+    shots = [s for s in run.snapshots if round(s.target, 9) in wanted]
+    if len(shots) > MAX_SURFACE_PANELS:
+        shots = [shots[k] for k in np.linspace(0, len(shots) - 1, MAX_SURFACE_PANELS).round().astype(int)]
+    return Anodization(run.parameters, run.history, shots, run.initial, run.metal, run.oxide, run.distances)
+
+
+def summarize(scene: PlanarizeScene, run: Anodization) -> dict:
+    """One flat dict describing a finished run (first and last history rows, speed)."""
+    h = run.history
+    nx, ny = run.initial.shape
+    dx, dy = run.initial.spacing
+    wall = run.wall_s
+    updates = int(h["point_updates"][-1])
+    return {
+        "name": scene.name, "grid": f"{nx} x {ny} points at {dx:g} x {dy:g} nm",
+        "engine": run.parameters["engine"], "k_exp": run.parameters["k_exp"], "step_nm": run.parameters["step"],
+        "thickness_nm": run.thickness, "distance_mean_nm": float(h["distance_mean_nm"][-1]),
+        "distance_std_nm": float(h["distance_std_nm"][-1]),
+        **{f"{s}_{m}_initial_nm": float(h[f"{s}_{m}_nm"][0]) for s in ("metal", "oxide") for m in ("rms", "zrange")},
+        **{f"{s}_{m}_nm": float(h[f"{s}_{m}_nm"][-1]) for s in ("metal", "oxide") for m in ("rms", "zrange")},
+        "volume_error": float(h["volume_error"][-1]), "wall_s": wall, "point_updates": updates,
+        "point_updates_per_s": updates / wall if wall > 0 else math.nan,
+    }
+
+
+def import_scene(path: Path, *, thickness: float, step: float | None = None, name: str | None = None,
+                 **options) -> PlanarizeScene:
+    """A ``"file"`` scene for the height map at ``path``.
+
+    ``options`` are `planarize.io.load_heights` arguments (``unit``,
+    ``spacing``, ``level``, ...) and run settings (``k_exp``, ``engine``,
+    ...); None values are left out. The default ``step`` is the imported
+    surface's z-range / 100 (one significant digit), about the thesis's
+    choice for its Ta film (0.5 nm steps for a ~50 nm z-range).
+    """
+    surface_keys = ("unit", "z_unit", "spacing", "level", "channel", "format", "boundary", "max_aspect")
+    params = {"path": str(Path(path).resolve()),
+              **{k: v for k, v in options.items() if k in surface_keys and v is not None}}
+    run = {k: v for k, v in options.items() if k not in surface_keys and v is not None}
+    spec = SurfaceSpec("file", params)
+    if step is None:
+        span = z_range(spec.build())
+        if span <= 0:
+            raise InputError(f"{path}: the surface is flat (z-range 0): pass a step")
+        step = float(f"{span / 100:.0e}")
+    return PlanarizeScene(name or Path(path).stem, surface=spec, run=RunSettings(thickness=thickness, step=step, **run))

@@ -1,0 +1,170 @@
+"""The ``planarize`` command line.
+
+``planarize run SCENE.toml`` runs a scene file, ``planarize scene NAME``
+runs (or saves) a built-in scene and ``planarize import FILE`` runs a
+measured height map. Each subcommand is a ``_add_<name>`` function that
+registers its parser and sets ``func`` to the function that runs it; add a
+command by writing one and listing it in `COMMANDS`. `main` dispatches and
+turns bad input into a one-line error with exit code 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from pathlib import Path
+from typing import Sequence
+
+from labrig.cli import Parser, UsageError, float_in, fraction, run_main
+
+from ..anodize import engines
+from ..io.scenefile import SCENES
+
+_positive = float_in(0.0, math.inf, low_open=True)
+
+
+def _add_outputs(p, out_default: str) -> None:
+    """Options shared by the commands that run: output directory, engine, quick mode, movie."""
+    p.add_argument("--out", type=Path, default=Path(out_default), metavar="DIR",
+                   help=f"output directory, created if missing (default ./{out_default})")
+    p.add_argument("--engine", choices=list(engines()), default=None,
+                   help="override the scene's engine: fast (batched) or reference (the thesis algorithm, slow)")
+    p.add_argument("--quick", type=fraction, default=None, metavar="F",
+                   help="a first look: steps 1/F times larger, refinement F times smaller")
+    p.add_argument("--movie", action="store_true",
+                   help="also write an MP4 of the oxide growing (a frame every 1/40 of the thickness)")
+
+
+def _add_run(subparsers) -> None:
+    p = subparsers.add_parser("run", help="run a TOML scene file",
+                              description="Run a scene file (see `planarize scene NAME --save FILE` for examples) "
+                                          "and write the run (.npz), its history (CSV), Figs 3-8 and 3-9, the "
+                                          "3-D surfaces at the snapshots, the scene file and optionally a movie.")
+    p.add_argument("scene", type=Path, metavar="SCENE.toml", help="scene file")
+    _add_outputs(p, "planarize-run")
+    p.set_defaults(func=_run_file)
+
+
+def _add_scene(subparsers) -> None:
+    p = subparsers.add_parser("scene", help="run or save a built-in scene",
+                              description="The built-in scenes: " + ", ".join(SCENES) + " (hill and depression: "
+                                          "thesis Figs 3-8/3-9; ta: the Ta film of Figs 3-11/3-12).")
+    p.add_argument("name", choices=list(SCENES), metavar="NAME", help=f"one of: {', '.join(SCENES)}")
+    p.add_argument("--save", type=Path, default=None, metavar="FILE.toml",
+                   help="only write the scene file to edit, do not run")
+    _add_outputs(p, "planarize-run")
+    p.set_defaults(func=_run_named)
+
+
+def _add_import(subparsers) -> None:
+    p = subparsers.add_parser("import", help="anodize a measured height map (AFM)",
+                              description="Import a height map (.xyz, .csv/.txt/.asc/.dat matrix, .npy, .gwy) and "
+                                          "anodize it. Units and sizes stated in the file are used; give the "
+                                          "others with --unit and --spacing.")
+    p.add_argument("file", type=Path, metavar="FILE", help="height map")
+    p.add_argument("--thickness", type=float_in(0.0, math.inf), required=True, metavar="NM",
+                   help="oxide thickness to grow, nm")
+    p.add_argument("--unit", default=None, help="lateral (and height) unit if the file does not say: nm, um, m, A")
+    p.add_argument("--z-unit", default=None, help="height unit, if different from --unit")
+    p.add_argument("--spacing", type=_positive, nargs="+", default=None, metavar="D",
+                   help="grid spacing DX [DY] in --unit (.npy and plain matrices)")
+    p.add_argument("--level", action="store_true", help="remove the least-squares plane's tilt")
+    p.add_argument("--channel", default=None, help=".gwy channel number or title (default: first height channel)")
+    p.add_argument("--step", type=_positive, default=None, metavar="NM",
+                   help="metal consumed per oxidation, nm (default: z-range / 100)")
+    p.add_argument("--k-exp", type=float_in(1.0, math.inf), default=2.3, metavar="K",
+                   help="oxide volume per metal volume (default 2.3, Ta)")
+    p.add_argument("--distance", choices=["thesis", "exact"], default="thesis", help="distance kind (default thesis)")
+    p.add_argument("--save", type=Path, default=None, metavar="FILE.toml",
+                   help="only write the scene file for this import, do not run")
+    _add_outputs(p, "planarize-import")
+    p.set_defaults(func=_run_import)
+
+
+def _add_sweep(subparsers) -> None:
+    from .sweep import add_sweep_command
+
+    add_sweep_command(subparsers)
+
+
+def _add_sweep_plot(subparsers) -> None:
+    from labrig.sweeps.command import add_plot_parser
+
+    add_plot_parser(subparsers, "planarize")
+
+
+#: The subcommands, in the order `--help` lists them.
+COMMANDS = [_add_run, _add_scene, _add_import, _add_sweep, _add_sweep_plot]
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The ``planarize`` argument parser, one subparser per entry of `COMMANDS`."""
+    from .. import __version__
+
+    parser = Parser(prog="planarize", description="Anodization planarization of rough metal surfaces.")
+    parser.add_argument("--version", action="version", version=f"planarize {__version__}")
+    subparsers = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    for add in COMMANDS:
+        add(subparsers)
+    return parser
+
+
+def _prepare(scene, args):
+    """The scene with the command-line overrides applied."""
+    if args.engine is not None:
+        scene = scene.replace(run={"engine": args.engine})
+    if args.quick is not None:
+        scene = scene.quick(args.quick)
+    return scene
+
+
+def _run_file(args: argparse.Namespace) -> int:
+    from ..io.scenefile import load_scene
+    from .commands import run_scene
+
+    run_scene(_prepare(load_scene(args.scene), args), args.out, movie=args.movie)
+    return 0
+
+
+def _run_named(args: argparse.Namespace) -> int:
+    from ..io.scenefile import get_scene, save_scene
+    from .commands import run_scene
+
+    scene = _prepare(get_scene(args.name), args)
+    if args.save is not None:
+        print(save_scene(scene, args.save))
+        return 0
+    run_scene(scene, args.out, movie=args.movie)
+    return 0
+
+
+def _run_import(args: argparse.Namespace) -> int:
+    from ..io.scenefile import save_scene
+    from .commands import import_scene, run_scene
+
+    if args.spacing is not None and len(args.spacing) > 2:
+        raise UsageError(f"--spacing takes DX or DX DY, got {len(args.spacing)} values")
+    spacing = None if args.spacing is None else (args.spacing[0] if len(args.spacing) == 1 else args.spacing)
+    channel = int(args.channel) if args.channel is not None and args.channel.isdigit() else args.channel
+    scene = import_scene(args.file, thickness=args.thickness, step=args.step, unit=args.unit, z_unit=args.z_unit,
+                         spacing=spacing, level=args.level or None, channel=channel, k_exp=args.k_exp,
+                         distance=args.distance)
+    scene = _prepare(scene, args)
+    if args.save is not None:
+        print(save_scene(scene, args.save))
+        return 0
+    run_scene(scene, args.out, movie=args.movie)
+    return 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the ``planarize`` command line; returns the exit status.
+
+    0 on success, 2 on bad input (a one-line ``planarize: error: ...`` on stderr).
+    """
+    return run_main(build_parser(), argv)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,172 @@
+"""What the two planarization engines share: state, the oxidation step (Eq 3.9), accounting.
+
+An engine holds the metal and oxide heights on one grid, and for every metal
+point ``m`` its distance ``D[m]`` to the oxide and its oxide point set (the
+oxide points that grow when ``m`` is oxidized; `planarize.engines.features`). One
+`advance` oxidizes a *batch* of metal points, those whose distance is within
+a tolerance of the smallest:
+
+* for each batch point ``m`` and each oxide point ``o`` of its set,
+  ``F = 1 / (len(set of m) * number of metal points whose set holds o)`` (Eq 3.9);
+* the metal point goes down by ``step * sum(F)``;
+* each oxide point goes up by ``(k_exp - 1) * step * F``, scaled by the ratio of
+  the areas the two points carry so that the oxide volume gained above the
+  original surface is exactly ``(k_exp - 1)`` times the metal volume lost (the
+  thesis uses equal weights, which is exact only on periodic grids: its
+  accounting is available as ``volume="thesis"``).
+
+The thesis's Matlab oxidizes one point per iteration; its ties (equal
+distances, e.g. every point at the start or the mirror images on a symmetric
+surface) go in storage order. Here exact ties (to round-off) are oxidized
+together, which keeps flat films exactly flat and mirror/transpose symmetry
+exact, and a batch tolerance above round-off is the fast engine's
+speed/accuracy knob.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from labrig.validate import InputError
+
+from ..grid import Grid
+from ..surface import Surface, volume_weights
+from .features import FeatureKernel
+
+#: Volume accounting: exact for the piecewise-linear surface, or the thesis's equal weights.
+VOLUME_RULES = ("exact", "thesis")
+#: What the fast engine does with interacting candidates of a batch: one after the other, or together.
+INTERACTING = ("wait", "together")
+
+
+def check_parameters(k_exp: float, step: float) -> tuple[float, float]:
+    """``k_exp`` (>= 1) and ``step`` (> 0, nm) as floats, or a ValueError naming the bad one."""
+    try:
+        k_exp, step = float(k_exp), float(step)
+    except (TypeError, ValueError):
+        raise InputError(f"k_exp and step must be numbers, got {k_exp!r} and {step!r}") from None
+    if not (math.isfinite(k_exp) and k_exp >= 1.0):
+        raise InputError(f"k_exp (oxide volume per metal volume) must be >= 1, got {k_exp!r}")
+    if not (math.isfinite(step) and step > 0):
+        raise InputError(f"step must be > 0 nm, got {step!r}")
+    return k_exp, step
+
+
+class Engine:
+    """Base of the engines: the two surfaces, distances, sets and the Eq 3.9 step.
+
+    Parameters
+    ----------
+    metal : Surface
+        The metal surface at the start.
+    oxide : Surface, optional
+        The oxide surface at the start, on the same grid, nowhere below the
+        metal. Default: a copy of the metal (no oxide yet).
+    k_exp : float
+        Oxide volume per metal volume consumed (>= 1; Ta2O5 2.3, Al2O3 ~1.3).
+    step : float
+        Metal height consumed per oxidation of one point, nm (> 0).
+    distance : {"thesis", "exact"}
+        Feature pairs compared (`planarize.engines.features`).
+    volume : {"exact", "thesis"}
+        Volume accounting (see module docstring).
+    """
+
+    name = "base"
+
+    def __init__(self, metal: Surface, oxide: Surface | None = None, *, k_exp: float = 2.3, step: float = 0.01,
+                 distance: str = "thesis", volume: str = "exact"):
+        if not isinstance(metal, Surface):
+            raise TypeError(f"metal must be a planarize.Surface, got {type(metal).__name__}")
+        if volume not in VOLUME_RULES:
+            raise InputError(f"volume must be one of {VOLUME_RULES}, got {volume!r}")
+        self.k_exp, self.step = check_parameters(k_exp, step)
+        if oxide is None:
+            oxide = metal
+        elif (oxide.shape, oxide.spacing, oxide.boundary) != (metal.shape, metal.spacing, metal.boundary):
+            raise InputError(f"oxide must be on the metal's grid: {oxide!r} vs {metal!r}")
+        elif np.any(oxide.z < metal.z):
+            raise InputError("oxide must lie nowhere below the metal")
+        self.surface = metal
+        self.grid = Grid(metal.shape, metal.spacing, metal.periodic)
+        self.kernel = FeatureKernel(self.grid, distance)
+        self.distance = distance
+        self.volume_rule = volume
+        self.zm = metal.z.ravel().astype(float)
+        self.zo = oxide.z.ravel().astype(float)
+        self.zm0 = self.zm.copy()
+        self.zo0 = self.zo.copy()
+        self.area = volume_weights(metal.shape, metal.dx, metal.dy, metal.boundary).ravel()
+        scale = max(1.0, float(np.abs(self.zo).max()), float(np.abs(self.zm).max()))
+        #: distances closer than this (nm) are ties: round-off, not geometry
+        self.tie = max(1e-9 * self.step, 64 * np.finfo(float).eps * scale)
+        self.D = np.zeros(self.grid.n)
+        self.iterations = 0
+        self.point_updates = 0
+
+    # -- state -----------------------------------------------------------------------------
+
+    @property
+    def thickness(self) -> float:
+        """Smallest metal-oxide distance, nm: the oxide thickness reached (thesis ``smallestdist``)."""
+        return float(self.D.min())
+
+    def metal(self) -> Surface:
+        return self.surface.with_heights(self.zm.reshape(self.grid.nx, self.grid.ny))
+
+    def oxide(self) -> Surface:
+        return self.surface.with_heights(self.zo.reshape(self.grid.nx, self.grid.ny))
+
+    def distances(self) -> np.ndarray:
+        """Every metal point's distance to the oxide, nm, shape (nx, ny)."""
+        return self.D.reshape(self.grid.nx, self.grid.ny).copy()
+
+    def metal_lost(self) -> float:
+        """Metal volume consumed since the start, nm^3."""
+        return float(np.sum(self.area * (self.zm0 - self.zm)))
+
+    def oxide_gained(self) -> float:
+        """Oxide volume added above the starting oxide surface, nm^3."""
+        return float(np.sum(self.area * (self.zo - self.zo0)))
+
+    def max_feature_length(self) -> float:
+        """Longest feature edge on either surface, nm (the reach candidate searches add)."""
+        return max(self.kernel.max_feature_length(self.zm), self.kernel.max_feature_length(self.zo))
+
+    # -- one oxidation ---------------------------------------------------------------------
+
+    def oxidize(self, batch_owner: np.ndarray, batch_oxide: np.ndarray, set_size: np.ndarray,
+                sharers: np.ndarray, step: float) -> tuple[np.ndarray, np.ndarray, float]:
+        """Apply Eq 3.9 to a batch; return the oxide and metal points that moved, and the largest move (nm).
+
+        Parameters
+        ----------
+        batch_owner, batch_oxide : ndarray of int, shape (K,)
+            The (metal point, oxide point) pairs of the batch's sets.
+        set_size : ndarray, shape (K,)
+            Size of the owner's set, for each pair.
+        sharers : ndarray, shape (K,)
+            Number of metal points whose set holds the pair's oxide point.
+        step : float
+            Metal height consumed by a full share, nm.
+        """
+        share = 1.0 / (set_size * sharers)
+        metal_dz = np.bincount(batch_owner, weights=share, minlength=self.grid.n)
+        rise = (self.k_exp - 1.0) * step * share
+        if self.volume_rule == "exact":
+            rise = rise * self.area[batch_owner] / self.area[batch_oxide]
+        oxide_dz = np.bincount(batch_oxide, weights=rise, minlength=self.grid.n)
+        metal_moved = np.flatnonzero(metal_dz)
+        oxide_moved = np.flatnonzero(oxide_dz)
+        self.zm[metal_moved] -= step * metal_dz[metal_moved]
+        self.zo[oxide_moved] += oxide_dz[oxide_moved]
+        self.iterations += 1
+        self.point_updates += len(metal_moved)
+        largest = max(step * float(metal_dz.max(initial=0.0)), float(oxide_dz.max(initial=0.0)))
+        return oxide_moved, metal_moved, largest
+
+    def advance(self) -> None:
+        """Oxidize one batch (the points at the smallest distance) and bring distances up to date."""
+        raise NotImplementedError

@@ -1,0 +1,389 @@
+"""Measured height maps (AFM) in and out: plain-text XYZ, text matrices, ``.npy`` and Gwyddion ``.gwy``.
+
+`load_heights` returns a `planarize.Surface` in nm; `save_heights` writes one.
+
+Formats (chosen by suffix, or ``format=``):
+
+``"xyz"`` (``.xyz``)
+    Three columns ``x y z`` (whitespace, comma or semicolon separated), one
+    row per grid point of a regular grid, in any order. The spacing is read
+    from the coordinates.
+``"matrix"`` (``.csv``, ``.txt``, ``.asc``, ``.dat``)
+    A grid of heights. Without a header, row ``i`` is ``x_i`` (the layout of
+    `Surface.z`, as ``np.savetxt(surface.z)`` writes it) and ``spacing`` must
+    be given. With a Gwyddion text-export header (``# Width: 4.0 µm``,
+    ``# Height: ...``, ``# Value units: m``) the rows are image rows (``y``)
+    and the size and units come from the header.
+``"npy"`` (``.npy``)
+    A 2-D array laid out like `Surface.z`; ``spacing`` and ``unit`` must be given.
+``"gwy"`` (``.gwy``)
+    A Gwyddion file, read with the ``gwyfile`` package (``pip install
+    "nanodisorder[afm]"``; `planarize.io.gwy`). One channel is imported: by number or
+    title, by default the first whose values are lengths. Pixel size and
+    units come from the file.
+
+Units: whatever the file states is used; ``unit`` (lateral, and heights
+unless ``z_unit`` is given) supplies what it does not, and must agree with
+what it does. Lengths: ``"nm"``, ``"um"`` (also ``"µm"``), ``"mm"``,
+``"m"``, ``"pm"``, ``"A"`` (ångström, also ``"Å"``). In Gwyddion metadata
+``"A"`` is the ampere (a current channel), not a length.
+
+Rectangular pixels (``dx != dy``) are supported: the engines use both
+spacings, and results are then as accurate as the coarser spacing allows
+(measured: a Gaussian hill on 0.5 x 0.125 nm pixels planarizes between the
+0.25 and 0.5 nm square grids). Pixels more elongated than ``max_aspect``
+(default 8: e.g. a 512 x 32 line scan of a square area) are refused.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from pathlib import Path
+
+import numpy as np
+
+from labrig.files import atomic_path
+from labrig.validate import InputError
+
+from ..surface import Surface, check_heights
+
+#: Length units, nm per unit. "A" is the ångström here (the user's word); see `FILE_UNITS`.
+LENGTH_UNITS = {"nm": 1.0, "um": 1e3, "µm": 1e3, "μm": 1e3, "mm": 1e6, "m": 1e9, "pm": 1e-3, "A": 0.1, "Å": 0.1}
+#: Length units as Gwyddion writes them (SI: "A" is the ampere, so it is not here).
+FILE_UNITS = {k: v for k, v in LENGTH_UNITS.items() if k != "A"}
+#: Formats by file suffix.
+SUFFIXES = {".xyz": "xyz", ".csv": "matrix", ".txt": "matrix", ".asc": "matrix", ".dat": "matrix",
+            ".npy": "npy", ".gwy": "gwy"}
+FORMATS = ("xyz", "matrix", "npy", "gwy")
+#: Most elongated pixel (longer / shorter side) accepted by default.
+MAX_PIXEL_ASPECT = 8.0
+
+
+# -- units and checks --------------------------------------------------------------------------
+
+def unit_scale(unit: str, name: str = "unit") -> float:
+    """nm per ``unit`` (a key of `LENGTH_UNITS`), or a ValueError naming the allowed units."""
+    if unit not in LENGTH_UNITS:
+        raise InputError(f"{name} must be a length unit, one of {', '.join(LENGTH_UNITS)}; got {unit!r}")
+    return LENGTH_UNITS[unit]
+
+
+def _file_unit(unit, what: str) -> str:
+    """A length unit stated in a file (SI spelling), or a ValueError saying what it is instead."""
+    unit = "" if unit is None else str(unit).strip()
+    if unit not in FILE_UNITS:
+        raise InputError(f"{what} are in {unit or 'no unit'!r}, not a length "
+                         f"(supported: {', '.join(FILE_UNITS)})")
+    return unit
+
+
+def _agree(stated: str | None, given: str | None, name: str, what: str) -> float:
+    """nm per unit: the file's if it states one, else the user's; the two must agree."""
+    if given is not None:
+        scale = unit_scale(given, name)
+        if stated is not None and not math.isclose(scale, FILE_UNITS[stated], rel_tol=1e-12):
+            raise InputError(f"{name}={given!r} contradicts the file, whose {what} are in {stated!r}; "
+                             f"leave {name} out")
+        return scale
+    if stated is None:
+        raise InputError(f"the file does not state the unit of its {what}: pass {name} "
+                         f"({', '.join(LENGTH_UNITS)})")
+    return FILE_UNITS[stated]
+
+
+def _pair(spacing, name: str = "spacing") -> tuple[float, float]:
+    pair = (spacing, spacing) if np.ndim(spacing) == 0 else tuple(spacing)
+    try:
+        dx, dy = (float(v) for v in pair)
+    except (TypeError, ValueError):
+        raise InputError(f"{name} must be a number or a pair (dx, dy), got {spacing!r}") from None
+    if not all(math.isfinite(v) and v > 0 for v in (dx, dy)):
+        raise InputError(f"{name} must be finite and > 0, got {spacing!r}")
+    return dx, dy
+
+
+def check_aspect(dx: float, dy: float, max_aspect: float = MAX_PIXEL_ASPECT) -> None:
+    """ValueError unless the pixel ``dx`` x ``dy`` is at most ``max_aspect`` times longer than wide."""
+    aspect = max(dx, dy) / min(dx, dy)
+    if aspect > max_aspect * (1 + 1e-9):
+        raise InputError(f"pixels are {dx:.6g} x {dy:.6g} nm (aspect {aspect:.3g}); rectangular pixels up to "
+                         f"aspect {max_aspect:g} are supported (accuracy follows the coarser spacing): resample "
+                         f"the scan, or pass a larger max_aspect")
+
+
+def level_plane(surface: Surface) -> Surface:
+    """``surface`` with its least-squares plane's tilt removed; the mean height is kept.
+
+    Fits ``z = a + b x + c y`` to every grid point (equal weights) and
+    subtracts ``b (x - mean x) + c (y - mean y)``.
+    """
+    x, y = np.meshgrid(surface.x, surface.y, indexing="ij")
+    x, y = x - x.mean(), y - y.mean()
+    design = np.column_stack([np.ones(x.size), x.ravel(), y.ravel()])
+    (_, b, c), *_ = np.linalg.lstsq(design, surface.z.ravel(), rcond=None)
+    return surface.with_heights(surface.z - b * x - c * y)
+
+
+# -- reading -----------------------------------------------------------------------------------
+
+def load_heights(path, *, unit: str | None = None, z_unit: str | None = None, spacing=None,
+                 level: bool = False, channel: int | str | None = None, format: str | None = None,
+                 boundary: str = "open", max_aspect: float = MAX_PIXEL_ASPECT) -> Surface:
+    """Read a measured height map as a `Surface` in nm.
+
+    Parameters
+    ----------
+    path : str or Path
+        The file; its format follows the suffix (see the module docstring).
+    unit : str, optional
+        Unit of the lateral coordinates and ``spacing`` (and of the heights
+        unless ``z_unit`` is given), for files that do not state it.
+    z_unit : str, optional
+        Unit of the heights, if different from ``unit``.
+    spacing : float or (float, float), optional
+        Grid spacing ``dx`` (between rows of a plain matrix) and ``dy``, in
+        ``unit``; required for ``.npy`` and header-less matrices, not used otherwise.
+    level : bool
+        Remove the least-squares plane's tilt (`level_plane`).
+    channel : int or str, optional
+        ``.gwy`` only: channel number or title (default: the first height channel).
+    format : {"xyz", "matrix", "npy", "gwy"}, optional
+        Overrides the suffix.
+    boundary : {"open", "periodic"}
+        Boundary of the returned surface.
+    max_aspect : float
+        Largest accepted pixel aspect ratio (see the module docstring).
+
+    Raises
+    ------
+    FileNotFoundError
+        If ``path`` does not exist.
+    ValueError
+        Naming the file and the problem: unreadable or unparsable file, a
+        non-2-D or too small grid, NaN/inf heights, an irregular XYZ grid,
+        missing units or spacing, a channel that is not a height or does not
+        exist (listing the available ones), too elongated pixels.
+    """
+    path = Path(path)
+    if format is None:
+        format = SUFFIXES.get(path.suffix.lower())
+        if format is None:
+            raise InputError(f"{path}: unknown height-map suffix {path.suffix!r}; use one of "
+                             f"{', '.join(SUFFIXES)} or pass format= ({', '.join(FORMATS)})")
+    elif format not in FORMATS:
+        raise InputError(f"format must be one of {FORMATS}, got {format!r}")
+    if not path.is_file():
+        raise FileNotFoundError(f"height map {str(path)!r} does not exist")
+    try:
+        if format == "gwy":
+            from .gwy import read_gwy as reader
+        else:
+            reader = {"xyz": _read_xyz, "matrix": _read_matrix, "npy": _read_npy}[format]
+        z, (dx, dy), xy_scale, z_scale = reader(path, unit, z_unit, spacing, channel)
+        z = check_heights(z, "heights") * z_scale
+        dx, dy = dx * xy_scale, dy * xy_scale
+        check_aspect(dx, dy, max_aspect)
+        surface = Surface(z, (dx, dy), boundary)
+    except ValueError as exc:
+        raise InputError(f"{path}: {exc}") from None
+    return level_plane(surface) if level else surface
+
+
+def _scales(stated_xy, stated_z, unit, z_unit) -> tuple[float, float]:
+    """nm per unit of the lateral coordinates and of the heights: the file's, else the user's."""
+    xy = _agree(stated_xy, unit, "unit", "lateral coordinates")
+    if z_unit is not None:
+        return xy, _agree(stated_z, z_unit, "z_unit", "heights")
+    return xy, _agree(stated_z, None if stated_z else unit, "unit", "heights")
+
+
+def _given_spacing(spacing, stated: bool):
+    if spacing is not None and stated:
+        raise InputError("the file states its grid spacing: leave spacing out")
+    if spacing is None and not stated:
+        raise InputError("the file does not state its grid spacing: pass spacing (in unit)")
+    return None if spacing is None else _pair(spacing)
+
+
+def _text_table(path: Path) -> tuple[dict, np.ndarray]:
+    """Header (``# key: value`` lines, keys lower-case) and the numeric table of a text file."""
+    try:
+        text = path.read_bytes().decode("utf-8-sig")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"cannot read the file as UTF-8 text: {exc}") from None
+    header, rows, lengths = {}, [], []
+    delimiter, first = None, True
+    for number, line in enumerate(text.splitlines(), start=1):
+        line = line.strip()
+        if not line:
+            continue
+        if line.startswith("#"):
+            key, sep, value = line[1:].partition(":")
+            if sep:
+                header[key.strip().lower()] = value.strip()
+            continue
+        if delimiter is None:
+            delimiter = "," if "," in line else (";" if ";" in line else None)
+        fields = line.split(delimiter)
+        try:
+            values = [float(f) for f in fields]
+        except ValueError:
+            if first and not any(_is_number(f) for f in fields):
+                first = False
+                continue  # a first line of column names
+            bad = next(f for f in fields if not _is_number(f))
+            raise InputError(f"line {number}: cannot read {bad.strip()!r} as a number") from None
+        first = False
+        rows.append(values)
+        lengths.append(len(values))
+    if not rows:
+        raise InputError("no numbers in the file")
+    if min(lengths) != max(lengths):
+        odd = next(k for k, n in enumerate(lengths) if n != lengths[0])
+        raise InputError(f"wrong shape: rows have different numbers of values ({lengths[0]} in the first "
+                         f"data row, {lengths[odd]} in data row {odd + 1})")
+    return header, np.array(rows, dtype=float)
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
+_QUANTITY = re.compile(r"^\s*([-+0-9.eE]+)\s*(\S*)\s*$")
+
+
+def _quantity(header: dict, key: str) -> tuple[float, str] | None:
+    """``(value, unit)`` of a header entry like ``Width: 4.000 µm``, or None if absent."""
+    if key not in header:
+        return None
+    match = _QUANTITY.match(header[key])
+    if not match or not _is_number(match.group(1)):
+        raise InputError(f"header {key!r}: cannot read {header[key]!r} as a number and a unit")
+    return float(match.group(1)), _file_unit(match.group(2), f"header {key!r} values")
+
+
+def _read_xyz(path, unit, z_unit, spacing, channel):
+    if channel is not None:
+        raise InputError("channel applies to .gwy files only")
+    header, table = _text_table(path)
+    if table.shape[1] != 3:
+        raise InputError(f"wrong shape: an XYZ file has 3 columns (x y z), this one has {table.shape[1]}")
+    stated_xy = _file_unit(header["xy units"], "header 'XY units'") if "xy units" in header else None
+    stated_z = _file_unit(header["value units"], "header 'Value units'") if "value units" in header else None
+    xy_scale, z_scale = _scales(stated_xy, stated_z, unit, z_unit)
+    _given_spacing(spacing, stated=True)
+    x, y, z = table.T
+    if not (np.isfinite(x).all() and np.isfinite(y).all()):
+        raise InputError("x and y coordinates must be finite")
+    i, x0, dx = _axis(x, "x")
+    j, y0, dy = _axis(y, "y")
+    nx, ny = int(i.max()) + 1, int(j.max()) + 1
+    counts = np.bincount(i * ny + j, minlength=nx * ny)
+    if (counts != 1).any():
+        k = int(np.flatnonzero(counts != 1)[0])
+        missing, repeated = int((counts == 0).sum()), int((counts > 1).sum())
+        raise InputError(f"irregular grid: the x and y values span {nx} x {ny} points, but {missing} grid point(s) "
+                         f"are missing and {repeated} repeated (the first at x = {x0 + k // ny * dx:.6g}, "
+                         f"y = {y0 + k % ny * dy:.6g}); resample onto a regular grid first")
+    heights = np.empty(nx * ny)
+    heights[i * ny + j] = z
+    return heights.reshape(nx, ny), (dx, dy), xy_scale, z_scale
+
+
+def _axis(values: np.ndarray, name: str) -> tuple[np.ndarray, float, float]:
+    """Grid index of each coordinate, the first coordinate and the spacing; ValueError if not evenly spaced."""
+    ordered = np.sort(values)
+    span = float(ordered[-1] - ordered[0])
+    if span <= 0:
+        raise InputError(f"every point has the same {name}: not a 2-D grid")
+    # coordinates of one grid line differ by rounding only; lines are >= span / 4096 apart
+    tol = 1e-4 * span
+    starts = np.concatenate([[0], np.flatnonzero(np.diff(ordered) > tol) + 1])
+    levels = np.add.reduceat(ordered, starts) / np.diff(np.append(starts, len(ordered)))
+    step = (levels[-1] - levels[0]) / (len(levels) - 1)
+    gaps = np.diff(levels)
+    if np.abs(gaps - step).max() > 1e-3 * step:
+        raise InputError(f"irregular grid: {name} values are not evenly spaced (steps from {gaps.min():.6g} "
+                         f"to {gaps.max():.6g}); resample onto a regular grid first")
+    index = np.rint((values - levels[0]) / step).astype(int)
+    if np.abs(values - levels[0] - index * step).max() > 1e-3 * step:
+        raise InputError(f"irregular grid: some {name} values lie between grid lines")
+    return index, float(levels[0]), float(step)
+
+
+def _read_matrix(path, unit, z_unit, spacing, channel):
+    if channel is not None:
+        raise InputError("channel applies to .gwy files only")
+    header, z = _text_table(path)
+    width, height = _quantity(header, "width"), _quantity(header, "height")
+    stated_z = _file_unit(header["value units"], "header 'Value units'") if "value units" in header else None
+    if (width is None) != (height is None):
+        raise InputError("the header states only one of Width and Height")
+    if width is None:  # plain matrix: rows are x, as in Surface.z
+        xy_scale, z_scale = _scales(None, stated_z, unit, z_unit)
+        return z, _given_spacing(spacing, stated=False), xy_scale, z_scale
+    # Gwyddion text export: rows are image rows (y); Width spans the columns
+    _given_spacing(spacing, stated=True)
+    if width[1] != height[1]:
+        raise InputError("the header states Width and Height in different units")
+    xy_scale, z_scale = _scales(width[1], stated_z, unit, z_unit)
+    ny, nx = z.shape
+    return z.T, (width[0] / nx, height[0] / ny), xy_scale, z_scale
+
+
+def _read_npy(path, unit, z_unit, spacing, channel):
+    if channel is not None:
+        raise InputError("channel applies to .gwy files only")
+    try:
+        z = np.load(path, allow_pickle=False)
+    except (OSError, ValueError, EOFError) as exc:
+        raise InputError(f"cannot read the file as a .npy array: {exc}") from None
+    if not (np.issubdtype(z.dtype, np.number) and not np.iscomplexobj(z)):
+        raise InputError(f"heights must be real numbers, the array holds {z.dtype}")
+    xy_scale, z_scale = _scales(None, None, unit, z_unit)
+    return z, _given_spacing(spacing, stated=False), xy_scale, z_scale
+
+
+# -- writing -----------------------------------------------------------------------------------
+
+def save_heights(surface: Surface, path, *, format: str | None = None, title: str = "Height") -> Path:
+    """Write ``surface`` to ``path`` (format by suffix, as `load_heights` reads it), atomically.
+
+    ``.xyz`` and matrix files get a header with their units (nm) and size, so
+    `load_heights` needs no ``unit`` or ``spacing`` for them; ``.npy`` holds
+    the heights only (nm); ``.gwy`` holds one channel ``title`` in metres
+    (SI, as Gwyddion expects) with its physical size. Matrices are written in
+    Gwyddion's layout (rows are ``y``).
+    """
+    if not isinstance(surface, Surface):
+        raise TypeError(f"surface must be a planarize.Surface, got {type(surface).__name__}")
+    path = Path(path)
+    format = format or SUFFIXES.get(path.suffix.lower())
+    if format not in FORMATS:
+        raise InputError(f"cannot tell the format of {str(path)!r}: use a suffix of {', '.join(SUFFIXES)} "
+                         f"or pass format= ({', '.join(FORMATS)})")
+    (nx, ny), (dx, dy) = surface.shape, surface.spacing
+    with atomic_path(path) as tmp:
+        if format == "npy":
+            with open(tmp, "wb") as stream:
+                np.save(stream, np.asarray(surface.z))
+        elif format == "gwy":
+            from .gwy import write_gwy
+
+            write_gwy(surface, tmp, title)
+        else:
+            if format == "xyz":
+                x, y = np.meshgrid(surface.x, surface.y, indexing="ij")
+                table, delimiter = np.column_stack([x.ravel(), y.ravel(), surface.z.ravel()]), " "
+                header = ["XY units: nm", "Value units: nm"]
+            else:
+                table, delimiter = surface.z.T, "," if path.suffix.lower() == ".csv" else "\t"
+                header = [f"Channel: {title}", f"Width: {nx * dx!r} nm", f"Height: {ny * dy!r} nm", "Value units: nm"]
+            lines = [f"# {h}" for h in header] + [delimiter.join(repr(float(v)) for v in row) for row in table]
+            tmp.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    return path

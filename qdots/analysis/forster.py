@@ -1,0 +1,285 @@
+"""Förster exciton hopping on a board: rates, traps, dot energies (thesis Eq 2.3).
+
+An exciton on dot ``i`` hops to dot ``j`` at the rate (thesis Eq 2.3)::
+
+    W_ij = (1 / tau) (R_F / R_ij)^6 P(E_i, E_j),
+    P = exp(-(E_j - E_i) / kT) if E_j > E_i else 1,
+
+with ``R_ij`` the centre distance, ``R_F`` the Förster radius, ``tau`` the
+radiative lifetime (26 ns) and ``kT`` at 297 K (the thesis's temperature,
+25.6 meV). A radiative dot emits at rate ``1/tau`` and, when its intrinsic
+efficiency ``eta`` is below 1, also decays without light at
+``(1/eta - 1)/tau``; a trap (a fraction of the dots, 1/3 in the thesis)
+quenches an exciton at once. The thesis sets all energies equal (then
+``P = 1``); `dot_energies` gives size-dependent ones.
+
+Units: distances px (the thesis's R_F = 15 = one mean diameter), times ns,
+rates 1/ns, energies eV.
+
+Pair cutoff and its error
+-------------------------
+Only pairs closer than a cutoff ``R_c`` get a rate. Dropping the others changes
+the LQE by at most (`truncation_bound`)::
+
+    |LQE - LQE_cut| <= eta tau max_i sum_{R_ij > R_c} W_ij <= eta R_F^6 / (2 h^2 (R_c - h)^4),
+
+where ``h`` is half the smallest centre distance on the board. First
+inequality: run both chains on the same random clocks; they differ only if a
+dropped hop fires before the exciton dies, and the expected number of such
+firings is the dropped rate times the expected lifetime, at most ``eta tau``
+(the Boltzmann factor is at most 1). Second: discs of radius ``h`` around the
+dots do not overlap, and ``|y|^-6`` is subharmonic in the plane, so each
+dot's ``R^-6`` is at most its mean over its disc; the discs beyond ``R_c``
+lie outside radius ``R_c - h``, where ``|y|^-6`` integrates to
+``pi / (2 (R_c - h)^4)``. With the default tolerance 1e-3 and the thesis's
+``R_F = 2 h`` this gives ``R_c = 7.2`` diameters (about 170 partners per dot
+in a close-packed film). The bound is rigorous but loose: the far hops that
+it counts mostly land on dots of similar yield (tests measure the true
+change, ~20x smaller).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import sparse
+from scipy.spatial import cKDTree
+
+from labrig.validate import InputError
+
+from ..units import THESIS_TEMPERATURE, PhysicalScale
+from .packing import _arrays
+
+#: Radiative lifetime of a dot, ns (thesis: ``radLife = 26.0``).
+TAU_NS = 26.0
+#: Boltzmann's constant, eV/K.
+KB_EV = 8.617333262e-5
+#: Default fraction of trap dots (thesis section 2.3.2).
+TRAP_FRACTION = 1.0 / 3.0
+#: Default bound on the LQE error from the pair cutoff (absolute).
+CUTOFF_TOLERANCE = 1e-3
+
+#: CdSe constants of the effective-mass (Brus) model of `dot_energies`: bulk gap (eV, 300 K),
+#: electron and hole effective masses (units of the free electron mass), relative permittivity.
+CDSE_BANDGAP_EV = 1.74
+CDSE_ELECTRON_MASS = 0.13
+CDSE_HOLE_MASS = 0.45
+CDSE_PERMITTIVITY = 10.6
+#: hbar^2 pi^2 / (2 m_e), eV nm^2, and e^2 / (4 pi eps_0), eV nm.
+_CONFINEMENT_EV_NM2 = 0.376030
+_COULOMB_EV_NM = 1.439965
+
+
+def dot_energies(radii, nm_per_px: float = PhysicalScale().nm_per_px) -> np.ndarray:
+    """Lowest exciton energy of CdSe dots from their radii (effective-mass model), eV.
+
+    ``E(r) = E_g + (hbar^2 pi^2 / 2 r^2)(1/m_e + 1/m_h) - 1.786 e^2 / (4 pi eps0 eps r)``
+    (L. E. Brus, J. Chem. Phys. 80, 4403 (1984)), with the CdSe values
+    ``E_g = 1.74 eV``, ``m_e = 0.13``, ``m_h = 0.45``, ``eps = 10.6`` as
+    commonly quoted for this model. It overestimates the confinement of small
+    dots by ~0.1-0.2 eV but gives the right slope: a 5 nm dot is at 2.24 eV
+    and dE/dr = -0.43 eV/nm there, so a 5 % spread of sizes spreads the
+    energies by ~2 kT at 297 K. Equal radii give equal energies (the thesis).
+
+    Parameters
+    ----------
+    radii : array_like
+        Radii, px (> 0).
+    nm_per_px : float
+        Pixel size, nm (default `qdots.units.PhysicalScale`: a 15 px dot is 5 nm).
+    """
+    r = np.asarray(radii, dtype=float) * float(nm_per_px)
+    if not np.all(np.isfinite(r) & (r > 0)):
+        raise InputError("radii and nm_per_px must be finite and > 0")
+    confinement = _CONFINEMENT_EV_NM2 * (1 / CDSE_ELECTRON_MASS + 1 / CDSE_HOLE_MASS) / r**2
+    return CDSE_BANDGAP_EV + confinement - 1.786 * _COULOMB_EV_NM / (CDSE_PERMITTIVITY * r)
+
+
+def truncation_bound(forster_radius: float, cutoff: float, spacing: float, efficiency: float = 1.0) -> float:
+    """Bound on the LQE error from dropping hops longer than ``cutoff`` (see the module docstring).
+
+    Parameters
+    ----------
+    forster_radius, cutoff : float
+        ``R_F`` and ``R_c``, px.
+    spacing : float
+        Smallest centre distance on the board, px (``2 h``).
+    efficiency : float
+        Intrinsic efficiency ``eta`` of a radiative dot (the lifetime is ``eta tau``).
+
+    Returns
+    -------
+    float
+        ``eta R_F^6 / (2 h^2 (R_c - h)^4)`` (inf if ``cutoff <= h``).
+    """
+    h = 0.5 * spacing
+    if cutoff <= h:
+        return math.inf
+    return efficiency * forster_radius**6 / (2.0 * h * h * (cutoff - h) ** 4)
+
+
+def cutoff_for(forster_radius: float, spacing: float, tolerance: float, efficiency: float = 1.0) -> float:
+    """Smallest cutoff, px, whose `truncation_bound` is at most ``tolerance``."""
+    h = 0.5 * spacing
+    return h + (efficiency * forster_radius**6 / (2.0 * h * h * tolerance)) ** 0.25
+
+
+@dataclass(frozen=True, eq=False)
+class ExcitonNetwork:
+    """The exciton's world on one board: hop rates within the cutoff, traps, decay rates.
+
+    Build it with `exciton_network`; `qdots.analysis.lqe.lqe_exact` and
+    `qdots.analysis.lqe.lqe_monte_carlo` take it, so exact and Monte Carlo answers
+    are for the same traps and the same pairs.
+
+    Attributes
+    ----------
+    rates : scipy.sparse.csr_matrix, shape (N, N)
+        Hop rate ``W_ij`` from dot i to dot j, 1/ns (pairs within ``cutoff``).
+    traps : ndarray of bool, shape (N,)
+    radiative_rate, nonradiative_rate : float
+        Decay rates of a radiative dot, 1/ns.
+    forster_radius, cutoff : float
+        px.
+    truncation_bound : float
+        Bound on the LQE error from the cutoff (0 if no pair was dropped).
+    energies : ndarray, shape (N,), or None
+        Dot energies, eV; None when all are equal.
+    temperature : float
+        K.
+    """
+
+    rates: sparse.csr_matrix
+    traps: np.ndarray
+    radiative_rate: float
+    nonradiative_rate: float
+    forster_radius: float
+    cutoff: float
+    truncation_bound: float
+    energies: np.ndarray | None
+    temperature: float
+
+    @property
+    def n_dots(self) -> int:
+        return len(self.traps)
+
+    @property
+    def efficiency(self) -> float:
+        """Intrinsic efficiency of a radiative dot."""
+        return self.radiative_rate / (self.radiative_rate + self.nonradiative_rate)
+
+    @property
+    def solution_lqe(self) -> float:
+        """The LQE without transfer (dilute solution): efficiency times the radiative fraction."""
+        return self.efficiency * float(np.mean(~self.traps)) if self.n_dots else math.nan
+
+    def with_traps(self, traps) -> "ExcitonNetwork":
+        """The same board and rates with other traps (boolean array, shape (N,))."""
+        return dataclasses.replace(self, traps=_traps(self.n_dots, 0.0, traps, None))
+
+    def total_rates(self) -> np.ndarray:
+        """Total decay-or-hop rate of each dot, 1/ns."""
+        return self.radiative_rate + self.nonradiative_rate + np.asarray(self.rates.sum(axis=1)).ravel()
+
+
+def draw_traps(n: int, trap_fraction: float = TRAP_FRACTION, seed=None) -> np.ndarray:
+    """Boolean trap mask: each of ``n`` dots is a trap with probability ``trap_fraction`` (as the Java)."""
+    if not (isinstance(trap_fraction, (int, float)) and 0 <= trap_fraction <= 1):
+        raise InputError(f"trap_fraction must be in [0, 1], got {trap_fraction!r}")
+    return np.random.default_rng(seed).random(n) < trap_fraction
+
+
+def _traps(n: int, trap_fraction: float, traps, rng) -> np.ndarray:
+    if traps is not None:
+        traps = np.asarray(traps)
+        if traps.shape != (n,) or traps.dtype != bool:
+            raise InputError(f"traps must be a boolean array of shape ({n},), got {traps.dtype} {traps.shape}")
+        return traps.copy()
+    return draw_traps(n, trap_fraction, rng)
+
+
+def exciton_network(state, forster_radius: float | None = None, trap_fraction: float = TRAP_FRACTION, *,
+                    traps=None, seed=None, efficiency: float = 1.0, tau: float = TAU_NS, energies=None,
+                    temperature: float = THESIS_TEMPERATURE, cutoff: float | None = None,
+                    tolerance: float = CUTOFF_TOLERANCE) -> ExcitonNetwork:
+    """Hop rates, traps and decay rates of a board.
+
+    Parameters
+    ----------
+    state : State
+        The board (``positions``, ``radii`` in px).
+    forster_radius : float, optional
+        ``R_F``, px (> 0). Default: the mean diameter (the thesis).
+    trap_fraction : float
+        Each dot is a trap with this probability, drawn from ``seed`` (thesis 1/3).
+    traps : array of bool, optional
+        Explicit traps (overrides ``trap_fraction``).
+    seed : int, Generator or SeedSequence, optional
+        Randomness of the trap draw.
+    efficiency : float
+        Intrinsic quantum efficiency of a radiative dot, (0, 1] (thesis 1).
+    tau : float
+        Radiative lifetime, ns (> 0; thesis 26).
+    energies : None, "size" or array_like
+        None (default, the thesis): all equal. ``"size"``: `dot_energies` of
+        the radii. An array: energies in eV, shape (N,).
+    temperature : float
+        K (> 0; thesis 297).
+    cutoff : float, optional
+        Pair cutoff, px. Default: the smallest whose `truncation_bound` is at
+        most ``tolerance``.
+    tolerance : float
+        Bound on the LQE error from the cutoff when ``cutoff`` is not given.
+    """
+    positions, radii = _arrays(state)
+    n = len(radii)
+    if forster_radius is None:
+        forster_radius = 2.0 * float(radii.mean()) if n else 1.0
+    for name, value in (("forster_radius", forster_radius), ("tau", tau), ("temperature", temperature),
+                        ("tolerance", tolerance)):
+        if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+            raise InputError(f"{name} must be > 0, got {value!r}")
+    if not (isinstance(efficiency, (int, float)) and 0 < efficiency <= 1):
+        raise InputError(f"efficiency must be in (0, 1], got {efficiency!r}")
+    is_trap = _traps(n, trap_fraction, traps, seed)
+    if isinstance(energies, str):
+        if energies != "size":
+            raise InputError(f"energies must be None, 'size' or an array of eV, got {energies!r}")
+        energies = dot_energies(radii)
+    elif energies is not None:
+        energies = np.asarray(energies, dtype=float)
+        if energies.shape != (n,) or not np.all(np.isfinite(energies)):
+            raise InputError(f"energies must be {n} finite values, eV, got shape {energies.shape}")
+    k_r = 1.0 / tau
+    k_nr = (1.0 / efficiency - 1.0) / tau
+    if n < 2:
+        return ExcitonNetwork(sparse.csr_matrix((n, n)), is_trap, k_r, k_nr, float(forster_radius),
+                              0.0, 0.0, energies, float(temperature))
+    tree = cKDTree(positions)
+    spacing = float(tree.query(positions, k=2)[0][:, 1].min())
+    if spacing <= 0:
+        raise InputError("two dots share a centre: their Förster rate is infinite")
+    extent = float(np.sqrt((np.ptp(positions, axis=0) ** 2).sum()))
+    if cutoff is None:
+        cutoff = cutoff_for(forster_radius, spacing, tolerance, efficiency)
+    elif not (isinstance(cutoff, (int, float)) and cutoff > spacing):
+        raise InputError(f"cutoff must exceed the smallest centre distance {spacing:.4g} px, got {cutoff!r}")
+    bound = 0.0 if cutoff > extent else truncation_bound(forster_radius, cutoff, spacing, efficiency)
+    pairs = tree.query_pairs(min(cutoff, extent * (1 + 1e-12) + 1e-9), output_type="ndarray")
+    i, j = pairs[:, 0], pairs[:, 1]
+    x, y = positions[:, 0].copy(), positions[:, 1].copy()  # contiguous: faster gathers
+    dx, dy = x[i] - x[j], y[i] - y[j]
+    forward = k_r * forster_radius**6 / (dx * dx + dy * dy) ** 3
+    backward = forward
+    if energies is not None:  # uphill hops slowed by the Boltzmann factor
+        rise = (energies[j] - energies[i]) / (KB_EV * temperature)
+        forward, backward = forward * np.exp(-np.maximum(rise, 0.0)), forward * np.exp(-np.maximum(-rise, 0.0))
+    # two triangles added: far faster than one COO with both directions
+    rates = (sparse.coo_matrix((forward, (i, j)), shape=(n, n)).tocsr()
+             + sparse.coo_matrix((backward, (j, i)), shape=(n, n)).tocsr())
+    rates.sort_indices()
+    return ExcitonNetwork(rates, is_trap, k_r, k_nr, float(forster_radius), float(cutoff), bound,
+                          energies, float(temperature))

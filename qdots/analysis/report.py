@@ -1,0 +1,136 @@
+"""One board, every number: packing, structure and LQE in one table and one figure (``qdots analyze``)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from matplotlib import colormaps
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+
+from labrig.files import atomic_path
+
+from .forster import TRAP_FRACTION
+from .lqe import TrapAverage, film_lqe
+from .packing import fill_within_radius, packing_summary
+from .structure import Hexatic, RadialDistribution, clusters, hexatic_order, radial_distribution, voronoi_coordination
+
+
+@dataclass(frozen=True)
+class BoardReport:
+    """Everything `board_report` measured; ``summary`` is the flat table (JSON-ready)."""
+
+    summary: dict
+    hexatic: Hexatic
+    rdf: RadialDistribution | None
+    lqe: TrapAverage | None
+
+
+def board_report(state, rule: str = "text", forster_radius: float | None = None,
+                 trap_fraction: float = TRAP_FRACTION, draws: int = 8, seed=0, lqe: bool = True) -> BoardReport:
+    """Packing figures, hexatic order, clusters, Voronoi coordination, g(r) and the film LQE of a board.
+
+    Parameters
+    ----------
+    state : State
+    rule : {"text", "code"}
+        Neighbour rule (`qdots.analysis.neighbour_edges`).
+    forster_radius : float, optional
+        px; default the mean diameter (the thesis).
+    trap_fraction : float
+        Fraction of trap dots (thesis 1/3).
+    draws : int
+        Trap draws the LQE is averaged over (`qdots.analysis.lqe.film_lqe`).
+    seed : int
+        Seed of the trap draws.
+    lqe : bool
+        Compute the LQE (the costliest part on large boards).
+    """
+    summary = packing_summary(state, rule=rule)
+    hexatic = hexatic_order(state, rule=rule)
+    _, sizes = clusters(state, rule=rule)
+    coordination = voronoi_coordination(state)
+    bounded = coordination >= 0
+    n = summary["n_dots"]
+    summary.update(
+        psi6_global=hexatic.global_order,
+        psi6_local=hexatic.local_order,
+        clusters=int(len(sizes)),
+        largest_cluster_fraction=float(sizes[0] / n) if n else math.nan,
+        voronoi_coordination=float(coordination[bounded].mean()) if bounded.any() else math.nan,
+    )
+    rdf = None
+    box = getattr(state, "box", None)
+    if n >= 2 and box is not None:
+        rdf = radial_distribution(state, bins=80)
+    average = None
+    if lqe and n:
+        average = film_lqe(state, draws=draws, seed=seed, forster_radius=forster_radius, trap_fraction=trap_fraction)
+        summary.update(
+            lqe=average.mean, lqe_standard_error=average.standard_error, lqe_error_bound=average.error_bound,
+            solution_lqe=average.solution_lqe,
+            forster_radius_px=2 * float(np.mean(state.radii)) if forster_radius is None else float(forster_radius),
+            trap_fraction=float(trap_fraction), trap_draws=int(draws), lqe_cutoff_px=average.cutoff,
+        )
+    return BoardReport(summary, hexatic, rdf, average)
+
+
+def table_rows(summary: dict) -> list[tuple[str, str]]:
+    """The summary as (label, text) rows for `qdots.cli.commands.print_table`."""
+    s = summary
+    rows = [
+        ("dots", f"{s['n_dots']}"),
+        ("interior fraction (>= 5 neighbours)", f"{s['interior_fraction']:.3f}"),
+        ("mean neighbours (interior / all)", f"{s['mean_neighbours_interior']:.2f} / {s['mean_neighbours']:.2f}"),
+        ("RMS excess separation (interior)", f"{s['rms_excess_separation']:.3f} px"),
+        ("mean spacing (interior)", f"{s['mean_spacing']:.3f} px"),
+        ("size-separation correlation", f"{s['size_separation_correlation']:.3f}"),
+        ("psi6 global / local", f"{s['psi6_global']:.3f} / {s['psi6_local']:.3f}"),
+        ("clusters (largest)", f"{s['clusters']} ({100 * s['largest_cluster_fraction']:.1f} % of dots)"),
+        ("Voronoi coordination", f"{s['voronoi_coordination']:.2f}"),
+        ("max overlap", f"{100 * s['max_overlap']:.3f} % of radius"),
+    ]
+    if "lqe" in s:
+        rows += [
+            ("film LQE (exact)", f"{s['lqe']:.4f} +- {s['lqe_standard_error']:.4f} over {s['trap_draws']} trap "
+                                 f"draws (cutoff error <= {s['lqe_error_bound']:.1e})"),
+            ("solution LQE", f"{s['solution_lqe']:.4f} (R_F {s['forster_radius_px']:g} px, "
+                             f"traps {s['trap_fraction']:.3g}, cutoff {s['lqe_cutoff_px']:.1f} px)"),
+        ]
+    return rows
+
+
+def save_report_png(state, report: BoardReport, path, dpi: int = 100) -> Path:
+    """Four panels: |psi6| per dot, g(r), fill within radius, exciton yield per dot; written atomically."""
+    from ..render import draw_state
+
+    fig = Figure(figsize=(12, 10.5))
+    FigureCanvasAgg(fig)
+    ax = fig.subplots(2, 2)
+    cmap = colormaps["viridis"]
+    draw_state(state, ax=ax[0, 0], colours=cmap(np.abs(report.hexatic.psi)), show_time=False)
+    ax[0, 0].set_title(f"|psi6| per dot (global {report.summary['psi6_global']:.2f})")
+    if report.rdf is not None:
+        ax[0, 1].plot(report.rdf.r, report.rdf.g)
+        ax[0, 1].axhline(1.0, color="0.6", linewidth=0.8)
+    ax[0, 1].set(xlabel="r (px)", ylabel="g(r)", title="radial distribution (edge-corrected)")
+    box = getattr(state, "box", (1.0, 1.0))
+    curve = fill_within_radius(state, np.linspace(0.05, 0.5, 30) * min(box))
+    ax[1, 0].plot(curve.radius, curve.fill, marker=".")
+    ax[1, 0].set(xlabel="radius around the board centre (px)", ylabel="covered fraction", ylim=(0, 1),
+                 title="fill within radius")
+    if report.lqe is not None:
+        colours = cmap(report.lqe.first.yields)
+        colours[report.lqe.first_traps] = (0, 0, 0, 1)
+        draw_state(state, ax=ax[1, 1], colours=colours, show_time=False)
+        ax[1, 1].set_title(f"emission probability per dot (traps black), LQE {report.lqe.mean:.3f}")
+    else:
+        ax[1, 1].set_axis_off()
+    fig.tight_layout()
+    path = Path(path)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format="png", dpi=dpi)
+    return path

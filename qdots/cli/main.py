@@ -1,0 +1,279 @@
+"""The ``qdots`` command line.
+
+``qdots demo`` runs a small deposition-like board (dots placed at random,
+then van der Waals attraction and thermal kicks) and writes a picture, a
+movie and a one-row CSV summary. Each subcommand is a ``_add_<name>``
+function that registers its parser and sets ``func`` to the function that
+runs it; `main` dispatches and turns bad input into a one-line error.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import time
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+
+from labrig.cli import Parser, float_in, fraction, int_in, run_main
+from labrig.validate import MAX_SEED
+
+#: Demo board, px, and mean dot diameter, px (the thesis's diameter on a quarter of its board).
+DEMO_BOX = (300.0, 300.0)
+DEMO_DIAMETER = 15.0
+#: Simulated time between movie frames, s.
+DEMO_FRAME_INTERVAL = 0.2
+#: Most dots the demo board takes (a 300 x 300 px board holds about 460 close-packed 15 px dots).
+DEMO_MAX_DOTS = 460
+#: Most trap draws `qdots analyze` averages.
+MAX_DRAWS = 10_000
+
+
+def _add_demo(subparsers) -> None:
+    p = subparsers.add_parser(
+        "demo", help="run a small demo board and write demo.png, demo.mp4, summary.csv",
+        description="Place dots at random on a 300 x 300 px board (mean diameter 15 px), let them "
+                    "attract (van der Waals) and jiggle (thermal kicks), and write the final "
+                    "picture, a movie and a summary.",
+    )
+    p.add_argument("--out", type=Path, default=Path("qdots-demo"), metavar="DIR",
+                   help="output directory, created if missing (default ./qdots-demo)")
+    p.add_argument("--seed", type=int_in(0, MAX_SEED), default=1, help="random seed (default 1)")
+    p.add_argument("--dots", type=int_in(1, DEMO_MAX_DOTS), default=150, metavar="N",
+                   help="number of dots (default 150)")
+    p.add_argument("--seconds", type=float_in(0.0, math.inf, low_open=True), default=20.0, metavar="T",
+                   help="simulated time, s (default 20)")
+    p.add_argument("--sigma", type=float_in(0.0, 1.0), default=0.05, metavar="F",
+                   help="diameter spread as a fraction of the mean (default 0.05)")
+    p.add_argument("--no-movie", action="store_true", help="skip demo.mp4 (faster)")
+    p.set_defaults(func=_run_demo)
+
+
+def _add_outputs(p, out_default: str | None) -> None:
+    if out_default is not None:
+        p.add_argument("--out", type=Path, default=Path(out_default), metavar="DIR",
+                       help=f"output directory, created if missing (default ./{out_default})")
+    p.add_argument("--movie", action="store_true", help="also write an MP4 (one frame per 0.5 s simulated)")
+    p.add_argument("--gsd", action="store_true", help="also write a GSD trajectory (needs the gsd package)")
+
+
+def _add_run(subparsers) -> None:
+    p = subparsers.add_parser("run", help="run the experiment described by a TOML scene file",
+                              description="Run a scene file (see `qdots preset NAME --save-scenes DIR` "
+                                          "for examples): deposit, settle, then write the final state "
+                                          "(.npz, resumable), a picture, a summary row and optionally a movie.")
+    p.add_argument("scene", type=Path, metavar="SCENE.toml", help="scene file")
+    _add_outputs(p, "qdots-run")
+    p.add_argument("--seed", type=int_in(0, MAX_SEED), default=None, help="override the file's seed")
+    p.add_argument("--quick", type=fraction, default=None,
+                   metavar="F", help="scale the run down by F (fewer dots, shorter times) for a first look")
+    p.set_defaults(func=_run_scene)
+
+
+def _add_preset(subparsers) -> None:
+    from ..presets import PRESETS
+
+    p = subparsers.add_parser("preset", help="run one of the thesis's experiments",
+                              description="Run the experiments that reproduce a thesis figure: "
+                                          + ", ".join(PRESETS) + ".")
+    p.add_argument("name", choices=list(PRESETS), metavar="NAME", help=f"one of: {', '.join(PRESETS)}")
+    _add_outputs(p, "qdots-preset")
+    p.add_argument("--quick", type=fraction, default=None,
+                   metavar="F", help="scale the runs down by F (e.g. 0.1) for a first look")
+    p.add_argument("--save-scenes", type=Path, default=None, metavar="DIR",
+                   help="only write the preset's scene files (TOML) into DIR, do not run")
+    p.set_defaults(func=_run_preset)
+
+
+def _add_resume(subparsers) -> None:
+    p = subparsers.add_parser("resume", help="continue a saved run",
+                              description="Load a state file written by run/preset/resume and continue it; "
+                                          "the continuation is bit-identical to never having stopped.")
+    p.add_argument("state", type=Path, metavar="STATE.npz", help="state file")
+    p.add_argument("--seconds", type=float_in(0.0, math.inf, low_open=True), required=True, metavar="T",
+                   help="simulated time to add, s")
+    _add_outputs(p, None)
+    p.add_argument("--out", type=Path, default=None, metavar="DIR",
+                   help="write the new state here (default: replace STATE in place, atomically)")
+    p.set_defaults(func=_run_resume)
+
+
+def _add_render(subparsers) -> None:
+    p = subparsers.add_parser("render", help="draw a saved state as PNG",
+                              description="Draw a state file: dots coloured by size, walls, time stamp.")
+    p.add_argument("state", type=Path, metavar="STATE.npz", help="state file")
+    p.add_argument("--out", type=Path, default=None, metavar="FILE.png", help="default: STATE with .png")
+    p.set_defaults(func=_run_render)
+
+
+def _add_analyze(subparsers) -> None:
+    p = subparsers.add_parser("analyze", help="packing table and LQE of a saved state",
+                              description="Measure a state file: interior dots, neighbours, spacing, psi6, "
+                                          "clusters, Voronoi coordination, and the film's luminescence quantum "
+                                          "efficiency (exact, averaged over random trap draws).")
+    p.add_argument("state", type=Path, metavar="STATE.npz", help="state file")
+    p.add_argument("--json", action="store_true", help="print one JSON object instead of the table")
+    p.add_argument("--plot", nargs="?", type=Path, const=True, default=None, metavar="FILE.png",
+                   help="also write the figure (default: STATE with _analysis.png)")
+    p.add_argument("--rule", choices=["text", "code"], default="text",
+                   help="neighbours: surface gap < one mean radius (text, default) or d <= r_i + 2 r_j (code)")
+    p.add_argument("--forster-radius", type=float_in(0.0, math.inf, low_open=True), default=None, metavar="PX",
+                   help="Förster radius, px (default: the mean diameter)")
+    p.add_argument("--traps", type=float_in(0.0, 1.0, high_open=False), default=1 / 3, metavar="F",
+                   help="fraction of trap dots (default 1/3)")
+    p.add_argument("--draws", type=int_in(1, MAX_DRAWS), default=8, help="trap draws to average (default 8)")
+    p.add_argument("--seed", type=int_in(0, MAX_SEED), default=0, help="seed of the trap draws (default 0)")
+    p.set_defaults(func=_run_analyze)
+
+
+def _add_sweep(subparsers) -> None:
+    from .sweep import add_sweep_command
+
+    add_sweep_command(subparsers)
+
+
+def _add_sweep_plot(subparsers) -> None:
+    from labrig.sweeps.command import add_plot_parser
+
+    add_plot_parser(subparsers, "qdots")
+
+
+def _run_analyze(args: argparse.Namespace) -> int:
+    from .commands import analyze
+
+    plot = args.state.with_name(f"{args.state.stem}_analysis.png") if args.plot is True else args.plot
+    analyze(args.state, rule=args.rule, forster_radius=args.forster_radius, trap_fraction=args.traps,
+            draws=args.draws, seed=args.seed, as_json=args.json, plot=plot)
+    return 0
+
+
+def _run_scene(args: argparse.Namespace) -> int:
+    from ..io.experiment_file import load_experiment
+    from .commands import run_experiments
+
+    exp = load_experiment(args.scene)
+    if args.seed is not None:
+        exp = exp.replace(seed=args.seed)
+    if args.quick is not None:
+        exp = exp.quick(args.quick)
+    run_experiments([exp], args.out, movie=args.movie, gsd=args.gsd)
+    return 0
+
+
+def _run_preset(args: argparse.Namespace) -> int:
+    from labrig.files import slug
+
+    from ..io.experiment_file import save_experiment
+    from ..presets import get_preset
+    from .commands import run_experiments
+
+    experiments = get_preset(args.name, quick=False if args.quick is None else args.quick)
+    if args.save_scenes is not None:
+        args.save_scenes.mkdir(parents=True, exist_ok=True)
+        for exp in experiments:
+            path = args.save_scenes / f"{slug(exp.name)}.toml"
+            save_experiment(exp, path)
+            print(path)
+        return 0
+    run_experiments(experiments, args.out, movie=args.movie, gsd=args.gsd)
+    return 0
+
+
+def _run_resume(args: argparse.Namespace) -> int:
+    from .commands import resume
+
+    resume(args.state, args.seconds, args.out, movie=args.movie, gsd=args.gsd)
+    return 0
+
+
+def _run_render(args: argparse.Namespace) -> int:
+    from .commands import render
+
+    render(args.state, args.out)
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The ``qdots`` argument parser, one subparser per command."""
+    parser = Parser(prog="qdots", description="Quantum-dot monolayer packing simulator (pymunk).")
+    from .. import __version__
+
+    parser.add_argument("--version", action="version", version=f"qdots {__version__}")
+    subparsers = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    for add in (_add_demo, _add_run, _add_preset, _add_resume, _add_render, _add_analyze, _add_sweep,
+                _add_sweep_plot):
+        add(subparsers)
+    return parser
+
+
+def _run_demo(args: argparse.Namespace) -> int:
+    import qdots
+    from labrig.cli import print_table
+    from labrig.files import write_csv
+
+    from ..analysis.packing import packing_summary
+    from ..placement import random_sequential
+    from ..render import MovieWriter, save_png
+
+    out: Path = args.out
+    # Independent streams for placement and dynamics, both from the one seed.
+    place_seed, sim_seed = np.random.SeedSequence(args.seed).spawn(2)
+    positions, radii = random_sequential(args.dots, DEMO_BOX, DEMO_DIAMETER, args.sigma,
+                                         rng=np.random.default_rng(place_seed))
+    scene = qdots.Scene(box=DEMO_BOX, positions=positions, radii=radii)
+    out.mkdir(parents=True, exist_ok=True)
+    sim = qdots.Simulation(scene, [qdots.VanDerWaals(), qdots.ThermalKicks()], seed=sim_seed)
+    files = []
+    movie = None
+    start = time.perf_counter()
+    if args.no_movie:
+        state = sim.run(args.seconds, progress=True)
+    else:
+        every = max(1, round(DEMO_FRAME_INTERVAL / sim.dt))
+        with MovieWriter(out / "demo.mp4", every=every) as movie:
+            state = sim.run(args.seconds, progress=True, writers=[movie])
+        files.append(out / "demo.mp4")
+    wall = time.perf_counter() - start
+    movie_wall = movie.wall_seconds if movie is not None else 0.0
+    files.insert(0, save_png(state, out / "demo.png"))
+    summary = packing_summary(state)
+    steps_per_s = sim.steps_taken / max(wall - movie_wall, 1e-9)
+    row = {
+        "seed": args.seed, "dots": args.dots, "sigma": args.sigma, "box_px": f"{DEMO_BOX[0]:g}x{DEMO_BOX[1]:g}",
+        "mean_diameter_px": DEMO_DIAMETER, "simulated_s": state.time, "dt_s": sim.dt,
+        "steps": sim.steps_taken, "wall_s": round(wall, 3), "movie_wall_s": round(movie_wall, 3),
+        "steps_per_s": round(steps_per_s, 1), "interior_fraction": summary["interior_fraction"],
+        "mean_neighbours_interior": summary["mean_neighbours_interior"],
+        "max_overlap": summary["max_overlap"], "kinetic_energy": summary["kinetic_energy"],
+    }
+    write_csv(out / "summary.csv", [row])
+    files.append(out / "summary.csv")
+    movie_note = f" (movie {movie_wall:.1f} s, {movie.frames} frames)" if movie is not None else ""
+    print_table(f"qdots demo: {args.dots} dots on a {DEMO_BOX[0]:g} x {DEMO_BOX[1]:g} px board, "
+                f"sigma {args.sigma:g}, seed {args.seed}", [
+        ("dots", f"{summary['n_dots']}"),
+        ("simulated time", f"{state.time:.2f} s ({sim.steps_taken} steps of {sim.dt:g} s)"),
+        ("wall time", f"{wall:.1f} s{movie_note}"),
+        ("steps/s", f"{steps_per_s:,.0f} (simulation only)"),
+        ("interior fraction", f"{summary['interior_fraction']:.3f}"),
+        ("mean neighbours (interior)", f"{summary['mean_neighbours_interior']:.2f}"),
+        ("max overlap", f"{100 * summary['max_overlap']:.3f} % of radius"),
+        ("kinetic energy", f"{summary['kinetic_energy']:.4g} mass px^2/s^2"),
+        ("files", ", ".join(str(f) for f in files)),
+    ])
+    return 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the ``qdots`` command line; returns the exit status.
+
+    0 on success, 2 on bad input (a one-line ``qdots: error: ...`` on stderr).
+    """
+    return run_main(build_parser(), argv)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,341 @@
+"""A board whose parameters change while it runs: the model behind `qdots.interactive`.
+
+`LiveRun` holds a `Simulation` and the knobs a person turns while watching it
+(`Knobs`: time step, elasticity, van der Waals, thermal kicks, drag, gravity).
+Everything goes through the public `Scene` / `Simulation` / forces API:
+
+* The forces and engine settings of a `Simulation` are fixed when it is
+  built, so turning a knob rebuilds it from the current board
+  (``sim.board()``, a `Scene`) with fresh forces, carrying over the time
+  (``start_time``) and the random stream (``rng`` state), as
+  `qdots.io.checkpoint.load` does. Velocities and positions are kept exactly.
+* Walls and gratings are added the same way, after checking that no dot
+  sits across them.
+* Dots are dropped by the thesis's deposition protocol
+  (`qdots.protocols.deposit`) one at a time, ``interval`` seconds of board
+  time apart, between frames: the same film as one ``deposit`` call with the
+  same generator, while the board stays on screen.
+
+It needs no widget library and runs in scripts and tests as well.
+"""
+
+from __future__ import annotations
+
+import collections
+import dataclasses
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from labrig.validate import InputError, real
+
+from ..analysis.packing import packing_summary
+from ..analysis.structure import hexatic_order
+from ..forces import CenterGravity, Drag, Gravity, ThermalKicks, VanDerWaals
+from ..forces.fields import THESIS_GRAVITY
+from ..io import checkpoint
+from ..protocols import check_count, deposit
+from ..scene import Scene, grating_segments, segment_distances
+from ..simulation import Simulation
+from ..state import State
+
+#: Gravity modes: off, uniform toward y = 0 (`Gravity`), toward the board centre (`CenterGravity`).
+GRAVITY_MODES = ("none", "uniform", "centre")
+#: The board of a `LiveRun` given no scene: empty, closed, px.
+DEFAULT_BOX = (400.0, 400.0)
+
+
+@dataclass(frozen=True)
+class Knobs:
+    """The parameters a person turns while a board runs.
+
+    Parameters
+    ----------
+    dt : float
+        Time step, s (> 0).
+    elasticity : float
+        Mean dot-dot restitution, in [0, 1] (`qdots.Restitution.mean`; thesis 0.8).
+    vdw_r0 : float
+        Strength of the van der Waals proxy, px: ``R0`` of `qdots.VanDerWaals`
+        (the thesis's ``setVanDerWaalCoeff``; 15). 0 switches it off.
+    thermal : float
+        Thermal kick magnitude as a multiple of the thesis's (`qdots.ThermalKicks`
+        ``scale``, >= 0). 0 switches the kicks off.
+    drag : float
+        Substrate friction ``f``, 1/s (>= 0): `qdots.Drag` ``(f, f / 30)``, the
+        thesis's ``setFriction(f, f)`` at 30 px per length unit. 0 = none.
+    gravity : {"none", "uniform", "centre"}
+        No gravity, `qdots.Gravity` toward y = 0, or `qdots.CenterGravity`
+        toward the centre of the board.
+    gravity_magnitude : float
+        Acceleration, px/s^2 (>= 0; thesis 750).
+    """
+
+    dt: float = 1e-3
+    elasticity: float = 0.8
+    vdw_r0: float = 15.0
+    thermal: float = 1.0
+    drag: float = 0.0
+    gravity: str = "none"
+    gravity_magnitude: float = THESIS_GRAVITY
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "dt", real("dt", self.dt, 0.0, low_open=True))
+        for name in ("elasticity", "vdw_r0", "thermal", "drag", "gravity_magnitude"):
+            object.__setattr__(self, name, real(name, getattr(self, name), 0.0))
+        if self.elasticity > 1:
+            raise InputError(f"elasticity must be in [0, 1], got {self.elasticity!r}")
+        if self.gravity not in GRAVITY_MODES:
+            raise InputError(f"gravity must be one of {GRAVITY_MODES}, got {self.gravity!r}")
+
+    def forces(self, box: tuple[float, float]) -> list:
+        """Fresh force objects for a board of size ``box`` (px); a knob at 0 adds no force."""
+        forces = []
+        if self.vdw_r0 > 0:
+            forces.append(VanDerWaals(r0=self.vdw_r0))
+        if self.thermal > 0:
+            forces.append(ThermalKicks(scale=self.thermal))
+        if self.drag > 0:
+            forces.append(Drag(self.drag, self.drag / 30.0))
+        if self.gravity == "uniform" and self.gravity_magnitude > 0:
+            forces.append(Gravity((0.0, -self.gravity_magnitude)))
+        elif self.gravity == "centre" and self.gravity_magnitude > 0:
+            forces.append(CenterGravity((box[0] / 2.0, box[1] / 2.0), self.gravity_magnitude))
+        return forces
+
+
+@dataclass
+class _Drop:
+    """Dots still to deposit with one set of protocol parameters."""
+
+    count: int
+    mean_diameter: float
+    sigma: float
+    interval: float
+    mass_model: str
+
+
+class LiveRun:
+    """A running board with knobs, walls, deposition, readouts, checkpoints and a movie.
+
+    Parameters
+    ----------
+    scene : Scene, optional
+        The starting board; default an empty closed `DEFAULT_BOX`. To go on
+        from a saved run: ``LiveRun(qdots.load(path).board())``.
+    knobs : Knobs, optional
+        Starting parameters. Default `Knobs` with the scene's elasticity.
+        Given knobs override the scene's restitution mean.
+    seed : int or SeedSequence, optional
+        Root seed: one child seeds the simulation, one the deposition.
+    frame_steps : int
+        Time steps per `advance` (>= 1).
+    **engine
+        Other `Simulation` settings (``substeps``, ``iterations``, ...), kept
+        across rebuilds. The time step is the ``dt`` knob.
+    """
+
+    def __init__(self, scene: Scene | None = None, knobs: Knobs | None = None, *, seed=None,
+                 frame_steps: int = 50, **engine):
+        if scene is None:
+            scene = Scene(box=DEFAULT_BOX, positions=np.zeros((0, 2)), radii=np.zeros(0))
+        if not isinstance(scene, Scene):
+            raise TypeError(f"scene must be a qdots.Scene, got {type(scene).__name__}")
+        if "dt" in engine:
+            raise InputError("set the time step with knobs=Knobs(dt=...), not dt=")
+        self.knobs = Knobs(elasticity=scene.restitution.mean) if knobs is None else knobs
+        if not isinstance(self.knobs, Knobs):
+            raise TypeError(f"knobs must be a qdots.interactive.live.Knobs, got {type(self.knobs).__name__}")
+        self.frame_steps = check_count("frame_steps", frame_steps, 1)
+        sim_seed, drop_seed = np.random.SeedSequence(seed).spawn(2)
+        scene = scene.replace(restitution=dataclasses.replace(scene.restitution, mean=self.knobs.elasticity))
+        self.sim = Simulation(scene, self.knobs.forces(scene.box), seed=sim_seed, dt=self.knobs.dt, **engine)
+        self._drop_rng = np.random.default_rng(drop_seed)
+        self._drops: collections.deque[_Drop] = collections.deque()
+        self._next_drop = -np.inf
+        self._movie = None
+        #: Simulated seconds per wall-clock second over the last `advance` (0 before the first).
+        self.speed = 0.0
+
+    # -- knobs and walls: rebuild the simulation from the current board --------------------------
+
+    def set(self, **changes) -> None:
+        """Turn knobs (names of `Knobs` fields); the simulation is rebuilt with them.
+
+        Raises
+        ------
+        ValueError
+            On an unknown knob or a bad value (nothing is changed then).
+        """
+        names = [f.name for f in dataclasses.fields(Knobs)]
+        unknown = sorted(set(changes) - set(names))
+        if unknown:
+            raise InputError(f"unknown knob {unknown[0]!r} (knobs: {', '.join(names)})")
+        knobs = dataclasses.replace(self.knobs, **changes)
+        if knobs != self.knobs:
+            board = self.sim.board()
+            self._rebuild(board.replace(restitution=dataclasses.replace(board.restitution, mean=knobs.elasticity)),
+                          knobs)
+
+    def _rebuild(self, board: Scene, knobs: Knobs | None = None) -> None:
+        knobs = self.knobs if knobs is None else knobs
+        old = self.sim
+        engine = {f.name: getattr(old.settings, f.name) for f in dataclasses.fields(old.settings)}
+        engine["dt"] = knobs.dt
+        sim = Simulation(board, knobs.forces(board.box), seed=0, **engine)
+        sim.rng.bit_generator.state = old.rng.bit_generator.state
+        sim.start_time = old.time
+        self.sim, self.knobs = sim, knobs
+
+    def add_segments(self, segments) -> None:
+        """Add static walls ``(x0, y0, x1, y1)`` (px), shape (M, 4).
+
+        Raises
+        ------
+        ValueError
+            On a bad segment (as `Scene`) or one that crosses a dot on the board.
+        """
+        board = self.sim.board()
+        new = board.replace(segments=np.vstack([board.segments, np.asarray(segments, dtype=float).reshape(-1, 4)]))
+        added = new.segments[len(board.segments):]
+        if board.n_dots and len(added):
+            gap = segment_distances(board.positions, added) - board.radii[:, None]
+            k, m = np.unravel_index(np.argmin(gap), gap.shape)
+            if gap[k, m] < 0:
+                x0, y0, x1, y1 = added[m]
+                raise InputError(f"wall ({x0:g}, {y0:g}) - ({x1:g}, {y1:g}) px crosses dot {k} at "
+                                 f"({board.positions[k, 0]:.1f}, {board.positions[k, 1]:.1f}) px")
+        self._rebuild(new)
+
+    def add_wall(self, x0: float, y0: float, x1: float, y1: float) -> None:
+        """Add one straight wall from ``(x0, y0)`` to ``(x1, y1)``, px."""
+        self.add_segments([[x0, y0, x1, y1]])
+
+    def add_grating(self, pitch: float, offset: float = 0.0) -> None:
+        """Add horizontal grating lines ``pitch`` px apart (`qdots.grating_segments`)."""
+        lines = grating_segments(self.sim.scene.box, pitch, offset)
+        if not len(lines):
+            raise InputError(f"no grating line fits: pitch {pitch:g} px + offset {offset:g} px >= board height "
+                             f"{self.sim.scene.box[1]:g} px")
+        self.add_segments(lines)
+
+    def clear_walls(self) -> None:
+        """Remove every wall and grating line (the box edges stay)."""
+        self._rebuild(self.sim.board().replace(segments=None))
+
+    # -- running ---------------------------------------------------------------------------------
+
+    def drop(self, n_dots: int, mean_diameter: float = 15.0, sigma: float = 0.0, interval: float = 1.0,
+             mass_model: str = "equal") -> None:
+        """Queue ``n_dots`` dots for deposition by `qdots.protocols.deposit`, ``interval`` s apart.
+
+        They are placed during the next `advance` calls, as the board time
+        reaches each one's turn (the first at once). Arguments as `deposit`.
+        """
+        n_dots = check_count("n_dots", n_dots, 0)
+        # validate now, not at the first frame: a dry run places nothing
+        deposit(self.sim, 0, mean_diameter, sigma, interval=interval, mass_model=mass_model, rng=self._drop_rng)
+        if n_dots:
+            self._drops.append(_Drop(n_dots, float(mean_diameter), float(sigma), float(interval), mass_model))
+
+    @property
+    def pending(self) -> int:
+        """Dots queued by `drop` and not yet placed."""
+        return sum(d.count for d in self._drops)
+
+    def cancel_drops(self) -> None:
+        """Forget every queued dot."""
+        self._drops.clear()
+
+    def _place_due(self) -> None:
+        """Place queued dots whose turn has come (several at once if their interval is 0)."""
+        while self._drops and self.sim.time >= self._next_drop - 0.5 * self.sim.dt:
+            batch = self._drops[0]
+            try:
+                deposit(self.sim, 1, batch.mean_diameter, batch.sigma, mass_model=batch.mass_model,
+                        interval=0.0, rng=self._drop_rng)
+            except ValueError:
+                self._drops.clear()  # the board is full: drop the rest of the queue
+                raise
+            batch.count -= 1
+            self._next_drop = self.sim.time + batch.interval
+            if not batch.count:
+                self._drops.popleft()
+
+    def advance(self, steps: int | None = None) -> State:
+        """Run ``steps`` time steps (default `frame_steps`), placing queued dots on their turn.
+
+        The movie being recorded (see `record`) gets its frames on its schedule.
+
+        Returns
+        -------
+        State
+            The board at the end.
+        """
+        remaining = self.frame_steps if steps is None else check_count("steps", steps, 0)
+        writers = [self._movie] if self._movie is not None else []
+        start_wall, start_time = time.perf_counter(), self.sim.time
+        self._place_due()
+        while remaining:
+            n = remaining
+            if self._drops:
+                n = min(n, max(1, round((self._next_drop - self.sim.time) / self.sim.dt)))
+            self.sim.run(n * self.sim.dt, writers=writers)
+            remaining -= n
+            self._place_due()
+        wall = time.perf_counter() - start_wall
+        self.speed = (self.sim.time - start_time) / wall if wall > 0 else 0.0
+        return self.sim.state()
+
+    # -- readouts and files ----------------------------------------------------------------------
+
+    def readout(self) -> dict:
+        """What the board looks like now.
+
+        Returns
+        -------
+        dict
+            ``time_s``, ``n_dots``, ``interior_fraction`` and ``mean_neighbours``
+            (`qdots.analysis.packing_summary`), ``psi6_global`` and
+            ``psi6_local`` (`qdots.analysis.structure.hexatic_order`), ``max_overlap``,
+            ``pending`` (queued dots) and ``speed`` (x real time). Measures
+            of an empty board are nan.
+        """
+        state = self.sim.state()
+        summary = packing_summary(state)
+        hexatic = hexatic_order(state)
+        return {"time_s": state.time, "n_dots": state.n_dots, "interior_fraction": summary["interior_fraction"],
+                "mean_neighbours": summary["mean_neighbours"], "psi6_global": hexatic.global_order,
+                "psi6_local": hexatic.local_order, "max_overlap": summary["max_overlap"],
+                "pending": self.pending, "speed": self.speed}
+
+    def save(self, path) -> Path:
+        """Write a checkpoint (`qdots.save`); ``qdots.load(path)`` resumes it."""
+        return checkpoint.save(self.sim, path)
+
+    @property
+    def recording(self) -> bool:
+        """True while a movie is being recorded."""
+        return self._movie is not None
+
+    def record(self, path, every: int | None = None, fps: float = 25, size_px: int = 600) -> None:
+        """Start recording an MP4 movie (`qdots.render.MovieWriter`), a frame every ``every`` steps.
+
+        Default ``every``: `frame_steps`. Stop with `stop_recording`.
+        """
+        if self._movie is not None:
+            raise InputError(f"already recording to {self._movie.path}; stop that first")
+        from ..render import MovieWriter
+
+        self._movie = MovieWriter(path, every=self.frame_steps if every is None else every, fps=fps,
+                                  size_px=size_px)
+
+    def stop_recording(self) -> Path | None:
+        """Finish the movie; returns its path (None if nothing was recording)."""
+        movie, self._movie = self._movie, None
+        return None if movie is None else movie.close()
+
+    def __repr__(self) -> str:
+        return f"LiveRun({self.sim!r}, knobs={self.knobs}, pending={self.pending})"
