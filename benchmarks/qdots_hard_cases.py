@@ -6,7 +6,7 @@ when every sample is finite, no dot left the box or crossed a wall segment (its 
 grating line is unchanged), no dot is swallowed by another (centre distance below the larger
 radius minus the smaller), and overlap stays within the documented tolerances:
 
-* *settled* (the last 40 % of the samples): below `qdots.simulation.ENGINE_OVERLAP_TOLERANCE`
+* *settled* (the last 40 % of the samples): below `qdots.simulation.OVERLAP_WARNING`
   (10 % of the pair's mean radius), the overlap beyond which the engine itself refuses a board
   (`Simulation.board`, checkpoints);
 * *transient* (any sample): below 10 % plus ``impact_speed * dt / substeps / r``. Chipmunk has no
@@ -36,7 +36,7 @@ from scipy.spatial import cKDTree
 
 import qdots
 from qdots.scene import grating_segments, segment_distances
-from qdots.simulation import ENGINE_OVERLAP_TOLERANCE
+from qdots.simulation import OVERLAP_WARNING
 from qdots.units import thesis_kick_speed
 
 from .report import Headline, Note, Table, cli
@@ -236,8 +236,8 @@ def check(case: HardCase) -> dict:
             "finite": finite, "lost": lost, "crossed": crossed,
             "warned": any("per sub-step" in str(w.message) for w in caught),
             "overlap": max(pair + wall, default=math.inf), "settled": max(pair[settled] + wall[settled], default=math.inf),
-            "transient_tolerance": ENGINE_OVERLAP_TOLERANCE + case.impact_speed * step / float(scene.radii.min()),
-            "settled_tolerance": ENGINE_OVERLAP_TOLERANCE}
+            "transient_tolerance": OVERLAP_WARNING + case.impact_speed * step / float(scene.radii.min()),
+            "settled_tolerance": OVERLAP_WARNING}
 
 
 def passed(result: dict) -> bool:

@@ -11,12 +11,18 @@ from __future__ import annotations
 import contextlib
 import csv
 import io
+import json
 import os
 import re
 import secrets
 import time
+import zipfile
 from pathlib import Path
 from typing import Iterator, Sequence
+
+import numpy as np
+
+from .validate import InputError
 
 #: Temporary files older than this (s) are left over from a killed process (`remove_stale_temporaries`).
 STALE_AFTER = 3600.0
@@ -157,3 +163,146 @@ def slug(name: str) -> str:
     """A file-name-safe form of a run's name: ``"fig2-2a sigma=0"`` -> ``"fig2-2a_sigma0"``."""
     text = re.sub(r"[^A-Za-z0-9._-]+", "_", name.replace("=", "")).strip("_.")
     return text or "run"
+
+
+#: Largest archive `read_archive` loads, bytes uncompressed.
+MAX_ARCHIVE_BYTES = 16 * 2**30
+
+
+def write_archive(path: str | os.PathLike, metadata: dict, arrays: dict) -> Path:
+    """Write ``arrays`` and ``metadata`` (as one JSON string) to an ``.npz`` archive at ``path``, atomically."""
+    with atomic_path(path) as tmp:
+        with open(tmp, "wb") as stream:  # a file object stops np.savez appending ".npz"
+            np.savez(stream, metadata=np.array(json.dumps(metadata)), **arrays)
+    return Path(path)
+
+
+def read_archive(path: str | os.PathLike, kind: str, version: int, names: Sequence[str],
+                 what: str | None = None) -> tuple[dict, dict]:
+    """The metadata and arrays of an archive `write_archive` wrote, checked to be of ``kind`` and ``version``.
+
+    Parameters
+    ----------
+    path : path
+        The ``.npz`` file.
+    kind : str
+        Its ``metadata["format"]`` (e.g. ``"qdots-state"``), also how messages name it.
+    version : int
+        The format version this reader reads.
+    names : sequence of str
+        Arrays it must hold (others are read too).
+    what : str, optional
+        How messages name the file (default ``kind``), e.g. ``"qdots state"``.
+
+    Raises
+    ------
+    FileNotFoundError
+        If ``path`` does not exist.
+    labrig.validate.InputError
+        If it is not a regular file, not a readable ``.npz`` archive (truncated, corrupted, a ``.npy``
+        array under another name), larger than `MAX_ARCHIVE_BYTES`, has no JSON object of metadata,
+        is of another format or version, or lacks an array; the message starts with the path.
+    """
+    path = Path(path)
+    what = what or kind
+    if not path.exists():
+        raise FileNotFoundError(f"no such {what} file: {path}")
+    if not path.is_file():
+        raise InputError(f"{path} is not a regular file (a directory or a pipe?)")
+    try:
+        with zipfile.ZipFile(path) as archive:
+            size = sum(info.file_size for info in archive.infolist())
+        if size > MAX_ARCHIVE_BYTES:
+            raise InputError(f"it holds {size:,} bytes, more than the {MAX_ARCHIVE_BYTES:,} read")
+        with np.load(path, allow_pickle=False) as data:
+            missing = [name for name in ("metadata", *names) if name not in data.files]
+            if missing:
+                raise InputError(f"no {', '.join(missing)} in it")
+            arrays = {name: data[name] for name in data.files}
+        metadata = json.loads(str(arrays.pop("metadata")))
+    except InputError as exc:
+        raise InputError(f"{path} is not a readable {what} file: {exc}") from None
+    except (zipfile.BadZipFile, EOFError, OSError, ValueError, KeyError, TypeError) as exc:
+        raise InputError(f"{path} is not a readable {what} file ({type(exc).__name__}: {exc})") from None
+    if not isinstance(metadata, dict):
+        raise InputError(f"{path} is not a {what} file: its metadata is {type(metadata).__name__}, not an object")
+    if metadata.get("format") != kind:
+        raise InputError(f"{path} is not a {what} file (format {metadata.get('format')!r})")
+    if metadata.get("version") != version:
+        raise InputError(f"{path} has {what} format version {metadata.get('version')!r}; this reads version {version}")
+    return metadata, arrays
+
+
+class OutputSet:
+    """The files of one result, replacing the earlier set together or not at all.
+
+    Each file is written to a staged name beside its target (`stage`), and streamed writers
+    (movies, trajectories) are adopted as they are (`adopt`). `commit` closes the streams, then
+    renames every staged file onto its target, in the order staged, the ones staged with
+    ``last=True`` at the end (a scene file, whose presence says that the set is whole). If the
+    ``with`` block raises, every staged file is removed and every stream aborted: the files of the
+    earlier result stay as they were, never mixed with parts of a failed one. Opening a set also
+    clears temporary files that killed processes left in the directory (`remove_stale_temporaries`).
+
+    Examples
+    --------
+    >>> with OutputSet(out) as files:                                    # doctest: +SKIP
+    ...     save_png(state, files.stage("run.png"))
+    ...     save_scene(scene, files.stage("run.toml", last=True))
+    """
+
+    def __init__(self, directory: str | os.PathLike):
+        self.directory = Path(directory)
+        self.directory.mkdir(parents=True, exist_ok=True)
+        remove_stale_temporaries(self.directory)
+        self._staged: list[tuple[Path, Path, bool]] = []
+        self._streams: list[StreamedFile] = []
+        self.written: list[Path] = []
+
+    def target(self, name: str) -> Path:
+        """Where ``name`` goes in the set's directory."""
+        return self.directory / name
+
+    def stage(self, name: str, last: bool = False) -> Path:
+        """A temporary path to write the file ``name`` to; it is renamed onto its target by `commit`."""
+        target = self.target(name)
+        if target.is_dir():
+            raise IsADirectoryError(f"cannot write {str(target)!r}: it is a directory")
+        tmp = temporary_beside(target)
+        self._staged.append((tmp, target, last))
+        return tmp
+
+    def adopt(self, stream: "StreamedFile") -> "StreamedFile":
+        """Make ``stream`` part of the set: closed (renamed into place) by `commit`, aborted by `abort`."""
+        self._streams.append(stream)
+        return stream
+
+    def commit(self) -> list[Path]:
+        """Put every file of the set in place; returns their paths (in the order they were put)."""
+        for stream in self._streams:
+            path = stream.close()
+            if path is not None:
+                self.written.append(path)
+        self._streams = []
+        for tmp, target, _ in sorted(self._staged, key=lambda item: item[2]):  # stable: staged order, last ones last
+            os.replace(tmp, target)
+            self.written.append(target)
+        self._staged = []
+        return self.written
+
+    def abort(self) -> None:
+        """Drop every staged file and stream; the earlier files stay as they were."""
+        for stream in self._streams:
+            stream.abort()
+        for tmp, _, _ in self._staged:
+            tmp.unlink(missing_ok=True)
+        self._streams, self._staged = [], []
+
+    def __enter__(self) -> "OutputSet":
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        if exc_type is None:
+            self.commit()
+        else:
+            self.abort()

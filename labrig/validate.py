@@ -27,7 +27,7 @@ import numbers
 
 import numpy as np
 
-__all__ = ["InputError", "interval", "is_real", "real", "count", "seed", "choice", "flag", "text", "reals",
+__all__ = ["InputError", "number", "interval", "is_real", "real", "count", "seed", "generator", "choice", "flag", "text", "reals",
            "array", "typed", "within_memory", "MAX_SEED"]
 
 #: Largest seed accepted (numpy's generators take any integer >= 0; this keeps seeds within 64 bits).
@@ -38,14 +38,19 @@ class InputError(ValueError):
     """Bad input from a person or a file: reported in one line, never as a traceback."""
 
 
+def number(value: float) -> str:
+    """A bound as it reads in a message: ``0.25``, ``1000``, ``1e6``, ``1e-7``."""
+    return f"{value:g}".replace("e+0", "e").replace("e+", "e").replace("e-0", "e-")
+
+
 def interval(low: float = -math.inf, high: float = math.inf, low_open: bool = False,
              high_open: bool = False) -> str:
     """How an allowed range reads in a message: ``"> 0"``, ``">= 1"``, ``"<= 5"`` or ``"in [0, 1)"``."""
     if math.isinf(high):
-        return f"{'>' if low_open else '>='} {low:g}" if math.isfinite(low) else "finite"
+        return f"{'>' if low_open else '>='} {number(low)}" if math.isfinite(low) else "finite"
     if math.isinf(low):
-        return f"{'<' if high_open else '<='} {high:g}"
-    return f"in {'(' if low_open else '['}{low:g}, {high:g}{')' if high_open else ']'}"
+        return f"{'<' if high_open else '<='} {number(high)}"
+    return f"in {'(' if low_open else '['}{number(low)}, {number(high)}{')' if high_open else ']'}"
 
 
 def is_real(value) -> bool:
@@ -95,6 +100,18 @@ def count(name: str, value, low: int = 0, high: int | None = None) -> int:
 def seed(name: str, value) -> int:
     """A random seed: an integer in ``[0, MAX_SEED]``."""
     return count(name, value, 0, MAX_SEED)
+
+
+def generator(name: str, rng) -> np.random.Generator:
+    """A numpy random Generator from what people pass: a Generator (used as is), a SeedSequence, an
+    integer seed in [0, `MAX_SEED`] or None (fresh entropy)."""
+    if isinstance(rng, np.random.Generator):
+        return rng
+    if rng is None or isinstance(rng, np.random.SeedSequence):
+        return np.random.default_rng(rng)
+    if isinstance(rng, numbers.Integral) and not isinstance(rng, (bool, np.bool_)):
+        return np.random.default_rng(seed(name, rng))
+    raise InputError(f"{name} must be a numpy Generator, a SeedSequence, an integer seed >= 0 or None, got {rng!r}")
 
 
 def choice(name: str, value, allowed):
@@ -162,8 +179,8 @@ def array(name: str, value, shape: tuple[int | None, ...], *, limit: float = mat
     bad = ~np.isfinite(arr) | (np.abs(arr) > limit)
     if bad.any():
         index = tuple(int(i) for i in np.argwhere(bad)[0])
-        where = "[" + ", ".join(map(str, index)) + "]" if index else ""
-        why = "is not finite" if not np.isfinite(arr[index]) else f"exceeds {limit:g} in magnitude"
+        where = f"[{index[0]}]" if index else ""  # the row: a dot, a point, a segment
+        why = "is not finite" if not np.isfinite(arr[index]) else f"exceeds {number(limit)} in magnitude"
         raise InputError(f"{name}{where} {why} ({float(arr[index])!r})")
     arr.setflags(write=False)
     return arr

@@ -17,14 +17,15 @@ would keep the drawn value but cost ~1.5 us per contact per step.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 import pymunk
 
-from labrig.validate import InputError
+from labrig.validate import real
 
+#: Largest sticking speed, px/s.
+MAX_STICKING_SPEED = 1e6
 #: pymunk collision types of the two kinds of shape.
 DOT = 1
 WALL = 2
@@ -55,11 +56,9 @@ class Restitution:
 
     def __post_init__(self) -> None:
         for name in ("mean", "wall"):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and 0.0 <= value <= 1.0):
-                raise InputError(f"Restitution.{name} must be in [0, 1], got {value!r}")
-        if not (math.isfinite(self.sticking_speed) and self.sticking_speed >= 0.0):
-            raise InputError(f"Restitution.sticking_speed must be >= 0 px/s, got {self.sticking_speed!r}")
+            object.__setattr__(self, name, real(f"Restitution.{name}", getattr(self, name), 0.0, 1.0))
+        object.__setattr__(self, "sticking_speed", real("Restitution.sticking_speed", self.sticking_speed, 0.0,
+                                                        MAX_STICKING_SPEED, unit="px/s"))
 
     @property
     def std(self) -> float:

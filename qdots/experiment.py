@@ -18,16 +18,19 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from labrig.validate import InputError
+from labrig.validate import InputError, choice, count, flag, real, seed, text
 
 from .collisions import Restitution
 from .forces import Force, ThermalKicks, VanDerWaals, force_from_dict
-from .protocols import GAP, MASS_MODELS, check_count, check_real, deposit, deposit_around_center, ring_radius
-from .scene import Scene
-from .simulation import EngineSettings, Simulation
+from .placement import MAX_TRIES
+from .protocols import GAP, MASS_MODELS, MAX_INTERVAL, deposit, deposit_around_center, ring_radius
+from .scene import MAX_DOTS, MAX_LENGTH, MAX_MASS, Scene
+from .simulation import MAX_STEPS, EngineSettings, Simulation
 
 #: Deposition protocols: dots at random in the board (or grating channel), or on a ring around a centre.
 PROTOCOLS = ("random", "center")
+#: Longest settling time, s (the thesis settles for 100 s).
+MAX_SETTLE = 1e5
 
 
 def _set(obj, name: str, value) -> None:
@@ -52,9 +55,8 @@ class Board:
 
     def __post_init__(self) -> None:
         for name in ("width", "height"):
-            _set(self, name, check_real(f"board.{name}", getattr(self, name), 0.0, low_open=True))
-        if not isinstance(self.closed, bool):
-            raise InputError(f"board.closed must be true or false, got {self.closed!r}")
+            _set(self, name, real(f"board.{name}", getattr(self, name), 0.0, MAX_LENGTH, low_open=True, unit="px"))
+        flag("board.closed", self.closed)
 
 
 @dataclass(frozen=True)
@@ -97,17 +99,16 @@ class Deposition:
     max_tries: int = 10_000
 
     def __post_init__(self) -> None:
-        if self.protocol not in PROTOCOLS:
-            raise InputError(f"deposition.protocol must be one of {PROTOCOLS}, got {self.protocol!r}")
-        if self.mass_model not in MASS_MODELS:
-            raise InputError(f"deposition.mass_model must be one of {MASS_MODELS}, got {self.mass_model!r}")
-        _set(self, "n_dots", check_count("deposition.n_dots", self.n_dots, 0))
-        _set(self, "max_tries", check_count("deposition.max_tries", self.max_tries, 1))
-        _set(self, "mean_diameter", check_real("deposition.mean_diameter", self.mean_diameter, 0.0, low_open=True))
-        _set(self, "sigma", check_real("deposition.sigma", self.sigma, 0.0, 1.0))
-        _set(self, "heavy_mass", check_real("deposition.heavy_mass", self.heavy_mass, 0.0, low_open=True))
-        for name in ("interval", "settle"):
-            _set(self, name, check_real(f"deposition.{name}", getattr(self, name), 0.0))
+        choice("deposition.protocol", self.protocol, PROTOCOLS)
+        choice("deposition.mass_model", self.mass_model, MASS_MODELS)
+        _set(self, "n_dots", count("deposition.n_dots", self.n_dots, 0, MAX_DOTS))
+        _set(self, "max_tries", count("deposition.max_tries", self.max_tries, 1, MAX_TRIES))
+        _set(self, "mean_diameter", real("deposition.mean_diameter", self.mean_diameter, 0.0, MAX_LENGTH,
+                                         low_open=True, unit="px"))
+        _set(self, "sigma", real("deposition.sigma", self.sigma, 0.0, 1.0, high_open=True))
+        _set(self, "heavy_mass", real("deposition.heavy_mass", self.heavy_mass, 0.0, MAX_MASS, low_open=True))
+        _set(self, "interval", real("deposition.interval", self.interval, 0.0, MAX_INTERVAL, unit="s"))
+        _set(self, "settle", real("deposition.settle", self.settle, 0.0, MAX_SETTLE, unit="s"))
 
 
 def default_forces() -> tuple[dict, ...]:
@@ -165,20 +166,18 @@ class Experiment:
     engine: EngineSettings = field(default_factory=EngineSettings)
 
     def __post_init__(self) -> None:
-        if not (isinstance(self.name, str) and self.name.strip()):
-            raise InputError(f"name must be a non-empty string, got {self.name!r}")
-        _set(self, "seed", check_count("seed", self.seed, 0))
+        text("name", self.name)
+        _set(self, "seed", seed("seed", self.seed))
         for key, cls in (("board", Board), ("deposition", Deposition), ("restitution", Restitution),
                          ("engine", EngineSettings)):
             if not isinstance(getattr(self, key), cls):
                 raise InputError(f"{key} must be a {cls.__module__}.{cls.__name__}, "
                                  f"got {type(getattr(self, key)).__name__}")
-        if isinstance(self.engine.spatial_hash, list):  # EngineSettings(**to_dict()) gives a list
-            _set(self, "engine", dataclasses.replace(self.engine, spatial_hash=tuple(self.engine.spatial_hash)))
         if isinstance(self.forces, (dict, str, Force)) or not hasattr(self.forces, "__iter__"):
             raise InputError(f"forces must be a sequence of force tables, got {self.forces!r}")
         _set(self, "forces", tuple(_canonical_force(k, f) for k, f in enumerate(self.forces)))
-        _set(self, "grating", check_real("grating", 0.0 if self.grating is None else self.grating, 0.0))
+        _set(self, "grating", real("grating", 0.0 if self.grating is None else self.grating, 0.0, MAX_LENGTH,
+                                   unit="px"))
         self._check_geometry()
 
     def __hash__(self) -> int:
@@ -188,6 +187,11 @@ class Experiment:
 
     def _check_geometry(self) -> None:
         b, dep = self.board, self.deposition
+        steps = (dep.n_dots * dep.interval + dep.settle) / self.engine.dt
+        if steps > MAX_STEPS:
+            raise InputError(f"deposition.n_dots x deposition.interval + deposition.settle = "
+                             f"{dep.n_dots * dep.interval + dep.settle:g} s at engine.dt = {self.engine.dt:g} s is "
+                             f"{steps:,.0f} steps, more than the {MAX_STEPS:,} a run may take")
         if dep.mean_diameter > min(b.width, b.height):
             raise InputError(f"deposition.mean_diameter ({dep.mean_diameter:g} px) must fit in the "
                              f"{b.width:g} x {b.height:g} px board")
@@ -248,7 +252,7 @@ class Experiment:
         factor : float
             In (0, 1]; 1 returns an equal experiment (renamed).
         """
-        factor = check_real("factor", factor, 0.0, 1.0, low_open=True, high_open=False)
+        factor = real("factor", factor, 0.0, 1.0, low_open=True)
         dep, b = self.deposition, self.board
         n = max(1, round(dep.n_dots * factor)) if dep.n_dots else 0
         dep = dataclasses.replace(dep, n_dots=n, interval=dep.interval * factor, settle=dep.settle * factor)
@@ -266,6 +270,29 @@ class Experiment:
                             board=dataclasses.replace(b, width=b.width * sx, height=b.height * sy))
 
 
+def build_simulation(exp: Experiment) -> Simulation:
+    """The empty board of ``exp`` as a `Simulation` (forces, engine settings and seed in place), before any dot."""
+    if not isinstance(exp, Experiment):
+        raise InputError(f"exp must be a qdots.experiment.Experiment, got {type(exp).__name__}")
+    sim_seed, _ = np.random.SeedSequence(exp.seed).spawn(2)
+    return Simulation(exp.scene(), exp.build_forces(), seed=sim_seed, engine=exp.engine)
+
+
+def populate(sim: Simulation, exp: Experiment, progress: bool = False) -> Simulation:
+    """Deposit the dots of ``exp`` on ``sim`` (from `build_simulation`) and let them settle; returns ``sim``."""
+    _, deposit_seed = np.random.SeedSequence(exp.seed).spawn(2)
+    dep = exp.deposition
+    common = dict(mean_diameter=dep.mean_diameter, sigma=dep.sigma, mass_model=dep.mass_model,
+                  heavy_mass=dep.heavy_mass, interval=dep.interval, max_tries=dep.max_tries,
+                  rng=np.random.default_rng(deposit_seed), progress=progress)
+    if dep.protocol == "center":
+        deposit_around_center(sim, dep.n_dots, exp.center(), **common)
+    else:
+        deposit(sim, dep.n_dots, region=exp.region(), **common)
+    sim.run(dep.settle, progress=progress)
+    return sim
+
+
 def run_experiment(exp: Experiment, progress: bool = False, writers=()) -> Simulation:
     """Build the empty board, deposit the dots, let them settle; return the simulation.
 
@@ -275,8 +302,8 @@ def run_experiment(exp: Experiment, progress: bool = False, writers=()) -> Simul
     progress : bool
         Progress bars for the deposition (dots) and the settling (steps).
     writers : sequence of Writer
-        Recorders (movie, trajectory) given to every ``Simulation.run`` call
-        (one per dot, then the settling); they see one continuous schedule.
+        Recorders (movie, trajectory) attached to the simulation (`Simulation.attach`, each with its
+        own ``every``) before the first dot: they see the deposition and the settling as one run.
 
     Returns
     -------
@@ -284,18 +311,7 @@ def run_experiment(exp: Experiment, progress: bool = False, writers=()) -> Simul
         At time ``n_dots * interval + settle`` s (to whole steps). Equal
         experiments give bit-identical boards.
     """
-    if not isinstance(exp, Experiment):
-        raise TypeError(f"exp must be a qdots.experiment.Experiment, got {type(exp).__name__}")
-    sim_seed, deposit_seed = np.random.SeedSequence(exp.seed).spawn(2)
-    engine = {f.name: getattr(exp.engine, f.name) for f in dataclasses.fields(exp.engine)}
-    sim = Simulation(exp.scene(), exp.build_forces(), seed=sim_seed, **engine)
-    dep = exp.deposition
-    common = dict(mean_diameter=dep.mean_diameter, sigma=dep.sigma, mass_model=dep.mass_model,
-                  heavy_mass=dep.heavy_mass, interval=dep.interval, max_tries=dep.max_tries,
-                  rng=np.random.default_rng(deposit_seed), progress=progress, writers=writers)
-    if dep.protocol == "center":
-        deposit_around_center(sim, dep.n_dots, exp.center(), **common)
-    else:
-        deposit(sim, dep.n_dots, region=exp.region(), **common)
-    sim.run(dep.settle, progress=progress, writers=writers)
-    return sim
+    sim = build_simulation(exp)
+    for writer in writers:
+        sim.attach(writer)
+    return populate(sim, exp, progress)

@@ -12,7 +12,10 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
-from labrig.validate import InputError
+from labrig.validate import real
+
+#: Largest Verlet skin, px.
+MAX_SKIN = 1000.0
 
 
 class VerletPairs:
@@ -27,9 +30,7 @@ class VerletPairs:
     """
 
     def __init__(self, skin: float = 3.0):
-        if not (np.isfinite(skin) and skin >= 0):
-            raise InputError(f"skin must be >= 0 px, got {skin!r}")
-        self.skin = float(skin)
+        self.skin = real("skin", skin, 0.0, MAX_SKIN, unit="px")
         self.rebuilds = 0
         self._anchor_x = np.zeros(0)
         self._anchor_y = np.zeros(0)

@@ -16,45 +16,28 @@ for any other ``n >= k`` with the same seed.
 
 from __future__ import annotations
 
-import math
-import numbers
-
 import numpy as np
 from scipy.spatial import cKDTree
 
-from labrig.validate import InputError
+from labrig.validate import InputError, count, generator, real, reals
+
+from .scene import MAX_DOTS, MAX_LENGTH
 
 #: Candidates drawn per batch. Part of the random stream: changing it changes the placements.
 BATCH = 256
-
-
-def _check_rng(rng: object) -> np.random.Generator:
-    if rng is None or isinstance(rng, (np.random.Generator, np.random.SeedSequence)):
-        return np.random.default_rng(rng)
-    if isinstance(rng, numbers.Integral) and not isinstance(rng, bool):
-        if rng < 0:
-            raise InputError(f"rng seed must be >= 0, got {rng!r}")
-        return np.random.default_rng(int(rng))
-    raise InputError(f"rng must be a numpy Generator, an int seed or None, got {type(rng).__name__}")
+#: Most consecutive rejected candidates for one dot.
+MAX_TRIES = 10_000_000
 
 
 def _check_args(n, box, mean_diameter, sigma, max_tries, margin) -> tuple[float, float]:
-    if not isinstance(n, numbers.Integral) or isinstance(n, bool) or n < 0:
-        raise InputError(f"n must be an integer >= 0, got {n!r}")
-    try:
-        w, h = (float(v) for v in box)
-    except (TypeError, ValueError):
-        raise InputError(f"box must be (width, height) in px, got {box!r}") from None
-    if not (math.isfinite(w) and math.isfinite(h) and w > 0 and h > 0):
-        raise InputError(f"box must be two finite sizes > 0 px, got {box!r}")
-    if not (isinstance(mean_diameter, numbers.Real) and math.isfinite(mean_diameter) and mean_diameter > 0):
-        raise InputError(f"mean_diameter must be > 0 px, got {mean_diameter!r}")
-    if not (isinstance(sigma, numbers.Real) and 0.0 <= sigma < 1.0):
-        raise InputError(f"sigma must be in [0, 1) (a fraction of the mean diameter), got {sigma!r}")
-    if not isinstance(max_tries, numbers.Integral) or isinstance(max_tries, bool) or max_tries < 1:
-        raise InputError(f"max_tries must be an integer >= 1, got {max_tries!r}")
-    if not (isinstance(margin, numbers.Real) and math.isfinite(margin) and margin >= 0):
-        raise InputError(f"margin must be >= 0 px, got {margin!r}")
+    count("n", n, 0, MAX_DOTS)
+    w, h = reals("box", box, 2, 0.0, MAX_LENGTH, unit="px")
+    if not (w > 0 and h > 0):
+        raise InputError(f"box must be two sizes > 0 px, got {box!r}")
+    real("mean_diameter", mean_diameter, 0.0, MAX_LENGTH, low_open=True, unit="px")
+    real("sigma", sigma, 0.0, 1.0, high_open=True)
+    count("max_tries", max_tries, 1, MAX_TRIES)
+    real("margin", margin, 0.0, MAX_LENGTH, unit="px")
     if n > 0 and mean_diameter + 2.0 * margin > min(w, h):
         raise InputError(
             f"mean_diameter {mean_diameter:g} px (+ 2 x margin {margin:g} px) does not fit in the "
@@ -194,7 +177,7 @@ def random_sequential(
     `qdots.CenterGravity`) after placement.
     """
     w, h = _check_args(n, box, mean_diameter, sigma, max_tries, margin)
-    gen = _check_rng(rng)
+    gen = generator("rng", rng)
     n = int(n)
     positions = np.empty((n, 2))
     radii = np.empty(n)

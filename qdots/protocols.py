@@ -16,15 +16,15 @@ batch size part of the random stream.
 from __future__ import annotations
 
 import math
-import numbers
 from typing import Sequence
 
 import numpy as np
 
-from labrig.validate import InputError
+from labrig.deprecation import warn as warn_renamed
+from labrig.validate import InputError, count, generator, real
 
-from .placement import draw_candidates
-from .scene import segment_distances
+from .placement import MAX_TRIES, draw_candidates
+from .scene import MAX_DOTS, MAX_LENGTH, MAX_MASS, segment_distances
 
 #: Mass models (see `dot_masses`).
 MASS_MODELS = ("equal", "area", "volume", "bimodal")
@@ -34,40 +34,18 @@ HEX_PACKING = math.pi * math.sqrt(3.0) / 6.0
 GAP = 1e-6
 #: Candidates drawn per batch. Part of the random stream: changing it changes the films.
 BATCH = 32
+#: Longest time between two dots, s (the thesis: 1 s, centre runs 0.5 s).
+MAX_INTERVAL = 1e4
+
 
 
 def as_generator(rng, sim=None) -> np.random.Generator:
-    """``rng`` as a numpy Generator.
-
-    ``None`` gives a child of ``sim.rng`` (spawning does not advance the
-    simulation's own stream); an int >= 0 or a SeedSequence seeds a new one.
-    """
-    if isinstance(rng, np.random.Generator):
-        return rng
+    """``rng`` as a numpy Generator; ``None`` gives a child of ``sim.rng`` (spawning does not advance the
+    simulation's own stream). Otherwise as `labrig.validate.generator`."""
     if rng is None and sim is not None:
         seed_seq = getattr(sim.rng.bit_generator, "seed_seq", None) or sim.rng.bit_generator._seed_seq
         return np.random.default_rng(seed_seq.spawn(1)[0])  # Generator.spawn needs numpy >= 1.25
-    if rng is None or isinstance(rng, np.random.SeedSequence):
-        return np.random.default_rng(rng)
-    if isinstance(rng, numbers.Integral) and not isinstance(rng, bool) and rng >= 0:
-        return np.random.default_rng(int(rng))
-    raise InputError(f"rng must be a numpy Generator, a SeedSequence, an int seed >= 0 or None, got {rng!r}")
-
-
-def check_real(name: str, value, low: float, high: float = math.inf, *, low_open=False, high_open=True):
-    """``value`` as a float; ValueError naming ``name`` and the allowed interval otherwise."""
-    ok = isinstance(value, numbers.Real) and not isinstance(value, bool) and math.isfinite(value)
-    if not (ok and (value > low if low_open else value >= low) and (value < high if high_open else value <= high)):
-        interval = f"{'(' if low_open else '['}{low:g}, {high:g}{')' if high_open else ']'}"
-        raise InputError(f"{name} must be a number in {interval}, got {value!r}")
-    return float(value)
-
-
-def check_count(name: str, value, low: int) -> int:
-    """``value`` as an int; ValueError naming ``name`` unless an integer >= ``low``."""
-    if not (isinstance(value, numbers.Integral) and not isinstance(value, bool) and value >= low):
-        raise InputError(f"{name} must be an integer >= {low}, got {value!r}")
-    return int(value)
+    return generator("rng", rng)
 
 
 def draw_diameters(n: int, mean_diameter: float, sigma: float, rng: np.random.Generator) -> np.ndarray:
@@ -76,8 +54,8 @@ def draw_diameters(n: int, mean_diameter: float, sigma: float, rng: np.random.Ge
     ``sigma`` is a fraction of the mean, in [0, 1). With ``sigma == 0`` no
     random number is used (the Java skips ``nextGaussian`` too).
     """
-    n, sigma = check_count("n", n, 0), check_real("sigma", sigma, 0.0, 1.0)
-    mean_diameter = check_real("mean_diameter", mean_diameter, 0.0, low_open=True)
+    n, sigma = count("n", n, 0, MAX_DOTS), real("sigma", sigma, 0.0, 1.0, high_open=True)
+    mean_diameter = real("mean_diameter", mean_diameter, 0.0, MAX_LENGTH, low_open=True, unit="px")
     if sigma == 0.0:
         return np.full(n, mean_diameter)
     d = mean_diameter * (1.0 + sigma * rng.standard_normal(n))
@@ -116,7 +94,7 @@ def dot_masses(diameters, mean_diameter: float, model: str = "equal", heavy_mass
     ndarray, shape (N,)
     """
     d = np.asarray(diameters, dtype=float)
-    mean_diameter = check_real("mean_diameter", mean_diameter, 0.0, low_open=True)
+    mean_diameter = real("mean_diameter", mean_diameter, 0.0, MAX_LENGTH, low_open=True, unit="px")
     if d.ndim != 1 or not (np.isfinite(d).all() and (d > 0).all()):
         raise InputError("diameters must be a 1-D array of finite values > 0 px")
     if model == "equal":
@@ -124,7 +102,7 @@ def dot_masses(diameters, mean_diameter: float, model: str = "equal", heavy_mass
     if model in ("area", "volume"):
         return (d / mean_diameter) ** (2 if model == "area" else 3)
     if model == "bimodal":
-        heavy_mass = check_real("heavy_mass", heavy_mass, 0.0, low_open=True)
+        heavy_mass = real("heavy_mass", heavy_mass, 0.0, MAX_MASS, low_open=True)
         if rng is None:
             raise InputError("mass model 'bimodal' needs an rng")
         return np.where(rng.random(len(d)) < 0.5, heavy_mass, 1.0)
@@ -154,10 +132,10 @@ def _clear(pos: np.ndarray, r: np.ndarray, board, segments: np.ndarray) -> np.nd
 
 
 def _sequential(sim, n, mean_diameter, mass_model, heavy_mass, interval, max_tries, rng, progress,
-                writers, draw, where, area) -> np.ndarray:
+                draw, where, area) -> np.ndarray:
     """Place, add, advance, ``n`` times; ``draw(i, m)`` gives ``m`` candidates for dot ``i``."""
-    n, max_tries = check_count("n_dots", n, 0), check_count("max_tries", max_tries, 1)
-    interval = check_real("interval", interval, 0.0)
+    n, max_tries = count("n_dots", n, 0, MAX_DOTS), count("max_tries", max_tries, 1, MAX_TRIES)
+    interval = real("interval", interval, 0.0, MAX_INTERVAL, unit="s")
     if mass_model not in MASS_MODELS:
         raise InputError(f"mass_model must be one of {MASS_MODELS}, got {mass_model!r}")
     bar = None
@@ -181,13 +159,20 @@ def _sequential(sim, n, mean_diameter, mass_model, heavy_mass, interval, max_tri
             diameters[i] = 2.0 * r[hit]
             mass = dot_masses(diameters[i : i + 1], mean_diameter, mass_model, heavy_mass, rng)
             sim.add_dots(pos[hit][None, :], r[hit : hit + 1], masses=mass)
-            sim.run(interval, writers=writers)
+            sim.run(interval)
             if bar is not None:
                 bar.update(1)
     finally:
         if bar is not None:
             bar.close()
     return diameters
+
+
+def _attach_deprecated(sim, writers) -> None:
+    for writer in writers:
+        if writer not in sim.writers:
+            warn_renamed("deposit(..., writers=...)", "Simulation.attach(writer)", stacklevel=4)
+            sim.attach(writer)
 
 
 def _check_region(region, box) -> tuple[float, float, float, float]:
@@ -239,8 +224,8 @@ def deposit(sim, n_dots: int, mean_diameter: float = 15.0, sigma: float = 0.0, r
     progress : bool
         Show a progress bar over the dots.
     writers : sequence of Writer
-        Passed to every ``sim.run`` call; the engine keeps one schedule
-        across calls, so they record the deposition as one continuous run.
+        Deprecated: attach writers to ``sim`` (`qdots.Simulation.attach`); they then record the
+        deposition as one continuous run.
 
     Returns
     -------
@@ -249,13 +234,14 @@ def deposit(sim, n_dots: int, mean_diameter: float = 15.0, sigma: float = 0.0, r
 
     Raises
     ------
-    ValueError
+    labrig.validate.InputError
         On a bad argument (named, with its allowed range), or when
         ``max_tries`` candidates in a row fail: the board is too full (the
         message gives the dots placed, the region and its area fraction).
     """
-    mean_diameter = check_real("mean_diameter", mean_diameter, 0.0, low_open=True)
-    sigma = check_real("sigma", sigma, 0.0, 1.0)
+    mean_diameter = real("mean_diameter", mean_diameter, 0.0, MAX_LENGTH, low_open=True, unit="px")
+    sigma = real("sigma", sigma, 0.0, 1.0, high_open=True)
+    _attach_deprecated(sim, writers)
     x0, y0, x1, y1 = _check_region(region, sim.scene.box)
     if mean_diameter + 2 * GAP > min(x1 - x0, y1 - y0):
         raise InputError(f"mean_diameter {mean_diameter:g} px does not fit in region ({x0:g}, {y0:g}, "
@@ -266,7 +252,7 @@ def deposit(sim, n_dots: int, mean_diameter: float = 15.0, sigma: float = 0.0, r
         return draw_candidates(gen, m, (x0, y0, x1, y1), mean_diameter, sigma, margin=GAP)
 
     return _sequential(sim, n_dots, mean_diameter, mass_model, heavy_mass, interval, max_tries, gen, progress,
-                       writers, draw, f"in region ({x0:g}, {y0:g}, {x1:g}, {y1:g}) px", (x1 - x0) * (y1 - y0))
+                       draw, f"in region ({x0:g}, {y0:g}, {x1:g}, {y1:g}) px", (x1 - x0) * (y1 - y0))
 
 
 def deposit_around_center(sim, n_dots: int, center, mean_diameter: float = 15.0, sigma: float = 0.0,
@@ -301,8 +287,9 @@ def deposit_around_center(sim, n_dots: int, center, mean_diameter: float = 15.0,
         On a bad argument, when the last ring leaves the box, or when the
         board is too full (as `deposit`).
     """
-    mean_diameter = check_real("mean_diameter", mean_diameter, 0.0, low_open=True)
-    sigma, n = check_real("sigma", sigma, 0.0, 1.0), check_count("n_dots", n_dots, 0)
+    mean_diameter = real("mean_diameter", mean_diameter, 0.0, MAX_LENGTH, low_open=True, unit="px")
+    sigma, n = real("sigma", sigma, 0.0, 1.0, high_open=True), count("n_dots", n_dots, 0, MAX_DOTS)
+    _attach_deprecated(sim, writers)
     try:
         cx, cy = (float(v) for v in center)
     except (TypeError, ValueError):
@@ -322,4 +309,4 @@ def deposit_around_center(sim, n_dots: int, center, mean_diameter: float = 15.0,
         return pos, r, inside
 
     return _sequential(sim, n, mean_diameter, mass_model, heavy_mass, interval, max_tries, gen, progress,
-                       writers, draw, f"on the ring around ({cx:g}, {cy:g}) px inside the box", w * h)
+                       draw, f"on the ring around ({cx:g}, {cy:g}) px inside the box", w * h)

@@ -187,7 +187,8 @@ class MovieWriter(FigureMovie):
     Examples
     --------
     >>> with MovieWriter("run.mp4", every=200) as movie:     # doctest: +SKIP
-    ...     sim.run(20.0, writers=[movie])
+    ...     sim.attach(movie)
+    ...     sim.run(20.0)
     """
 
     def __init__(self, path, every: int = 50, fps: float = 25, size_px: int = 600):

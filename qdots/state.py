@@ -23,6 +23,8 @@ class State:
         Board width and height, px.
     walls : ndarray, shape (M, 4)
         Every static segment ``(x0, y0, x1, y1)``, box edges included.
+    closed : bool
+        Whether the box edges are walls (else dots may leave the board).
     """
 
     time: float
@@ -32,6 +34,7 @@ class State:
     masses: np.ndarray
     box: tuple[float, float]
     walls: np.ndarray
+    closed: bool = True
 
     @property
     def n_dots(self) -> int:

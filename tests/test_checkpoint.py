@@ -6,8 +6,9 @@ import zipfile
 import numpy as np
 import pytest
 
+import labrig.files
 import qdots
-from qdots import checkpoint
+from qdots.io import checkpoint
 
 
 def busy_simulation(seed=7, n=80):
@@ -83,7 +84,7 @@ def test_crash_mid_write_keeps_the_old_file(tmp_path, monkeypatch):
         stream.write(b"PK\x03\x04 partial")
         raise OSError("disk full")
 
-    monkeypatch.setattr(checkpoint.np, "savez", crash)
+    monkeypatch.setattr(labrig.files.np, "savez", crash)
     with pytest.raises(OSError, match="disk full"):
         qdots.save(sim, path)
     assert path.read_bytes() == before
@@ -120,9 +121,9 @@ def test_other_files_are_clear_errors(tmp_path):
         qdots.load(text)
     other = tmp_path / "other.npz"
     np.savez(other, positions=np.zeros((1, 2)))
-    with pytest.raises(ValueError, match="missing metadata"):
+    with pytest.raises(ValueError, match="no metadata"):
         qdots.load(other)
-    with pytest.raises(FileNotFoundError, match="no such state file"):
+    with pytest.raises(FileNotFoundError, match="no such qdots state file"):
         qdots.load(tmp_path / "absent.npz")
 
 
@@ -143,7 +144,7 @@ def test_invalid_saved_board_is_reported(tmp_path, saved):
     arrays["radii"] = -arrays["radii"]
     bad = tmp_path / "bad.npz"
     np.savez(bad, **arrays)
-    with pytest.raises(ValueError, match=r"saved board is invalid \(radii\[0\]"):
+    with pytest.raises(ValueError, match=r"the saved board is invalid: radii\[0\]"):
         qdots.load(bad)
 
 

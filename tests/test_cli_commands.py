@@ -82,10 +82,10 @@ def test_save_scenes_only(tmp_path):
     "argv, message",
     [
         (["run", "missing.toml"], "missing.toml"),
-        (["resume", "missing.npz", "--seconds", "1"], "no such state file"),
+        (["resume", "missing.npz", "--seconds", "1"], "no such qdots state file"),
         (["resume", "x.npz"], "--seconds"),
         (["resume", "x.npz", "--seconds", "-1"], "must be > 0"),
-        (["render", "missing.npz"], "no such state file"),
+        (["render", "missing.npz"], "no such qdots state file"),
         (["preset", "fig9-9"], "invalid choice"),
         (["run", "x.toml", "--quick", "2"], "must be in"),
     ],

@@ -296,14 +296,14 @@ def test_no_forces_means_no_bulk_traffic():
     [
         (lambda: qdots.VanDerWaals("lennard-jones"), "model must be one of"),
         (lambda: qdots.VanDerWaals(contact="sticky"), "contact must be"),
-        (lambda: qdots.VanDerWaals(r0=-1), "r0 must be > 0"),
+        (lambda: qdots.VanDerWaals(r0=-1), r"r0 must be in \(0, 1000\] px"),
         (lambda: qdots.VanDerWaals(max_gap=0.05), "max_gap"),
-        (lambda: qdots.VanDerWaals(skin=-1), "skin must be >= 0"),
-        (lambda: qdots.ThermalKicks(interval=0), "interval must be > 0"),
-        (lambda: qdots.Langevin(gamma=-1), "gamma must be >= 0"),
-        (lambda: qdots.Drag(-0.1), "linear must be >= 0"),
+        (lambda: qdots.VanDerWaals(skin=-1), r"skin must be in \[0, 1000\] px"),
+        (lambda: qdots.ThermalKicks(interval=0), r"interval must be in \(0, "),
+        (lambda: qdots.Langevin(gamma=-1), r"gamma must be in \[0, "),
+        (lambda: qdots.Drag(-0.1), r"linear must be in \[0, "),
         (lambda: qdots.Gravity((0, np.nan)), "Gravity.acceleration"),
-        (lambda: qdots.CenterGravity((1, 2), -5), "magnitude must be >= 0"),
+        (lambda: qdots.CenterGravity((1, 2), -5), r"magnitude must be in \[0, "),
     ],
 )
 def test_force_validation(make, message):
@@ -314,16 +314,16 @@ def test_force_validation(make, message):
 @pytest.mark.parametrize(
     "kwargs, message",
     [
-        (dict(dt=0), "dt must be > 0"),
-        (dict(substeps=0), "substeps must be an integer >= 1"),
-        (dict(iterations=2.5), "iterations must be an integer >= 1"),
-        (dict(collision_slop=-1), "collision_slop must be >= 0"),
+        (dict(dt=0), r"dt must be (a number )?in \[1e-7, 0.1\] s"),
+        (dict(substeps=0), r"substeps must be an integer in \[1, 1,000\]"),
+        (dict(iterations=2.5), r"iterations must be an integer in \[1, 1,000\]"),
+        (dict(collision_slop=-1), r"collision_slop must be in \[0, 100\] px"),
         (dict(collision_bias=1.5), r"collision_bias must be in \[0, 1\)"),
-        (dict(threads=3), "threads must be 1 or 2"),
-        (dict(threads=True), "threads must be 1 or 2"),
-        (dict(dt=True), "dt must be > 0"),
-        (dict(spatial_hash=(10.0, 2.5)), "spatial_hash must be"),
-        (dict(spatial_hash="big"), "spatial_hash must be"),
+        (dict(threads=3), "threads must be one of 1, 2"),
+        (dict(threads=True), "threads must be one of 1, 2"),
+        (dict(dt=True), r"dt must be (a number )?in \[1e-7, 0.1\] s"),
+        (dict(spatial_hash=(10.0, 2.5)), "spatial_hash"),
+        (dict(spatial_hash="big"), "spatial_hash"),
     ],
 )
 def test_simulation_validation(kwargs, message):
@@ -342,29 +342,61 @@ def test_run_rejects_negative_time_and_bad_writer():
         def write(self, state):
             pass
 
-    with pytest.raises(ValueError, match="writer.every"):
-        sim.run(0.01, writers=[Bad()])
+    with pytest.raises(ValueError, match="every must be an integer >= 1"):
+        sim.attach(Bad())
+    with pytest.raises(ValueError, match="write"):
+        sim.attach(object(), every=3)
+    with pytest.raises(ValueError, match="every .* or seconds"):
+        sim.attach(Bad(), every=3, seconds=0.1)
 
 
-def test_writers_see_the_schedule():
-    class Times:
-        every = 7
+class Times:
+    every = 7
 
-        def __init__(self):
-            self.times = []
+    def __init__(self):
+        self.times = []
 
-        def write(self, state):
-            self.times.append(state.time)
+    def write(self, state):
+        self.times.append(state.time)
 
+
+def test_attached_writers_see_one_schedule_over_successive_runs():
     writer = Times()
     sim = qdots.Simulation(lone_dot(), seed=0)
-    sim.run(0.0, writers=[Times()])  # a writer that is gone does not shadow a new one with its id
-    sim.run(0.03, writers=[writer])
+    assert sim.attach(writer) is writer and sim.writers == (writer,)
+    with pytest.raises(ValueError, match="attached already"):
+        sim.attach(writer)
+    sim.run(0.03)
     np.testing.assert_allclose(writer.times, [0.0, 0.007, 0.014, 0.021, 0.028])
-    sim.run(0.004, writers=[writer])  # successive runs keep the schedule: 0.035 at step 35 is next
-    sim.run(0.001, writers=[writer])
-    sim.run(0.01, writers=[writer])
+    sim.run(0.004)  # successive runs keep the schedule: 0.035 at step 35 is next
+    sim.run(0.001)
+    sim.run(0.01)
     np.testing.assert_allclose(writer.times, [0.0, 0.007, 0.014, 0.021, 0.028, 0.035, 0.042])
+    sim.detach(writer)
+    sim.run(0.01)
+    assert len(writer.times) == 7
+    with pytest.raises(ValueError, match="not attached"):
+        sim.detach(writer)
+
+
+def test_writer_in_seconds_keeps_its_interval_when_dt_changes():
+    writer = Times()
+    sim = qdots.Simulation(lone_dot(), seed=0, dt=1e-3)
+    sim.attach(writer, seconds=0.01)
+    sim.run(0.02)
+    sim.settings = sim.settings.replace(dt=2e-3)  # the time so far is kept
+    assert sim.time == pytest.approx(0.02)
+    sim.run(0.02)
+    np.testing.assert_allclose(writer.times, [0.0, 0.01, 0.02, 0.03, 0.04])
+
+
+def test_writers_given_to_run_are_attached_with_a_deprecation_warning():
+    writer = Times()
+    sim = qdots.Simulation(lone_dot(), seed=0)
+    with pytest.warns(DeprecationWarning, match="Simulation.attach"):
+        sim.run(0.01, writers=[writer])
+    sim.run(0.01, writers=[writer])  # already attached: no second attachment, no step twice
+    np.testing.assert_allclose(writer.times, [0.0, 0.007, 0.014])
 
 
 def test_substeps_and_spatial_hash_give_the_same_free_flight():

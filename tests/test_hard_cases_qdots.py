@@ -2,7 +2,7 @@
 
 Each case asserts: every sampled state is finite; no dot is lost (left the box, or swallowed by
 another); no dot crossed a grating line; the settled overlap (dots and walls) is below
-`qdots.simulation.ENGINE_OVERLAP_TOLERANCE` (10 % of a radius, what the engine itself accepts
+`qdots.simulation.OVERLAP_WARNING` (10 % of a radius, what the engine itself accepts
 when it reads a board back), and every sampled overlap is below 10 % plus the discrete-contact
 bound ``impact_speed * dt / substeps / r`` (Chipmunk sees a contact only once the discs overlap).
 `benchmarks.qdots_hard_cases` states each case's impact-speed bound and why.

@@ -110,7 +110,8 @@ def test_movie_writer_frames(tmp_path):
     sim = small_sim()
     path = tmp_path / "run.mp4"
     with MovieWriter(path, every=20, fps=10, size_px=128) as movie:
-        sim.run(0.2, writers=[movie])  # 200 steps: frames at steps 0, 20, ..., 200
+        sim.attach(movie)
+        sim.run(0.2)  # 200 steps: frames at steps 0, 20, ..., 200
         assert not path.exists()  # renamed into place only on close
     assert movie.frames == 11 and movie.closed
     assert sorted(p.name for p in tmp_path.iterdir()) == ["run.mp4"]
@@ -128,7 +129,8 @@ def test_movie_writer_cleans_up_on_error(tmp_path):
     sim = small_sim()
     with pytest.raises(RuntimeError, match="boom"):
         with MovieWriter(tmp_path / "run.mp4", every=10, size_px=64) as movie:
-            sim.run(0.05, writers=[movie])
+            sim.attach(movie)
+            sim.run(0.05)
             raise RuntimeError("boom")
     assert list(tmp_path.iterdir()) == []
     with pytest.raises(ValueError, match="closed"):

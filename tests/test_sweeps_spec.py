@@ -93,7 +93,7 @@ def test_runs_name_the_bad_key_and_duplicates():
     runner = ExperimentRunner()
     with pytest.raises(ValueError, match=r"axes.deposition.sigmaa: unknown key 'deposition.sigmaa'"):
         Sweep(base={}, axes={"deposition.sigmaa": [0.1]}).runs(runner.canonical, runner.kind)
-    with pytest.raises(ValueError, match=r"points\[1\]: deposition.sigma must be a number in"):
+    with pytest.raises(ValueError, match=r"points\[1\]: deposition.sigma must be in"):
         Sweep(base={}, points=[{}, {"deposition.sigma": 2.0}]).runs(runner.canonical, runner.kind)
     with pytest.raises(ValueError, match=r"^base: unknown key 'colour'"):
         Sweep(base={"colour": 1}).runs(runner.canonical, runner.kind)

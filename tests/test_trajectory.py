@@ -19,7 +19,8 @@ def test_frames_round_trip(tmp_path):
     sim = small_run()
     path = tmp_path / "traj.gsd"
     with GSDWriter(path, every=10, dt=sim.dt) as writer:
-        final = sim.run(0.05, writers=[writer])
+        sim.attach(writer)
+        final = sim.run(0.05)
     assert writer.frames == 6
     with gsd_hoomd.open(path, "r") as traj:
         assert len(traj) == 6
@@ -38,7 +39,8 @@ def test_interrupted_run_leaves_no_file(tmp_path):
     path = tmp_path / "traj.gsd"
     with pytest.raises(RuntimeError):
         with GSDWriter(path, every=5) as writer:
-            sim.run(0.02, writers=[writer])
+            sim.attach(writer)
+            sim.run(0.02)
             raise RuntimeError("user interrupt")
     assert list(tmp_path.iterdir()) == []
 

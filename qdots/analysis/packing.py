@@ -79,6 +79,16 @@ def overlaps(state) -> tuple[float, tuple[int, int]]:
     return float(relative[k]), (int(i[k]), int(j[k]))
 
 
+def escaped(state) -> int:
+    """Number of dots whose centre lies outside the box ``[0, width] x [0, height]`` (dots that left
+    an open board; 0 on a closed one, where soft contacts let a dot sink into a wall by a fraction of
+    its radius at most)."""
+    positions, _ = _arrays(state)
+    w, h = (float(v) for v in state.box)
+    x, y = positions[:, 0], positions[:, 1]
+    return int(np.count_nonzero((x < 0) | (x > w) | (y < 0) | (y > h)))
+
+
 def neighbour_edges(state, rule: str = "text", mean_radius: float | None = None
                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Every (dot, neighbour) relation of the board, as directed edges.
@@ -352,6 +362,7 @@ def packing_summary(state, rule: str = "text") -> dict[str, float]:
         neighbours, px (see `separation`); ``size_separation_correlation``:
         of neighbouring pairs (see `size_separation_correlation`);
         ``max_overlap``: worst relative overlap (see `overlaps`);
+        ``escaped_dots``: dots outside the box (see `escaped`; 0 without a box);
         ``kinetic_energy``: total, mean mass * px^2 / s^2 (nan if ``state``
         has no ``kinetic_energy()`` method).
     """
@@ -371,5 +382,6 @@ def packing_summary(state, rule: str = "text") -> dict[str, float]:
         "mean_spacing": spacing.mean_gap,
         "size_separation_correlation": size_separation_correlation(state, rule=rule, edges=edges),
         "max_overlap": overlaps(state)[0],
+        "escaped_dots": escaped(state) if hasattr(state, "box") else 0,
         "kinetic_energy": float(kinetic()) if callable(kinetic) else math.nan,
     }

@@ -1,52 +1,63 @@
-"""What the ``qdots`` subcommands do; `qdots.cli` parses arguments and calls these.
+"""What the ``qdots`` subcommands do; `qdots.cli.main` parses arguments and calls these.
 
 Every command that runs dots writes, per experiment, into its output directory:
 ``<slug>.npz`` (final checkpoint, resumable), ``<slug>.png``, optionally
-``<slug>.mp4`` and ``<slug>.gsd``, the scene file ``<slug>.toml`` for
-provenance, and one ``summary.csv`` row; all files atomically.
+``<slug>.mp4`` and ``<slug>.gsd``, the experiment file ``<slug>.toml`` for
+provenance, and one ``summary.csv`` row. A run's files are one `labrig.files.OutputSet`:
+written when the run has finished, all together (the experiment file last), so a run that
+fails or is killed leaves the earlier files of the same name as they were. The experiment file
+a run was started from is never written over (its provenance copy is then ``<slug>.ran.toml``).
+A board the engine produced is always saved; its worst overlap and the dots that left an open
+board are measured, printed as a warning when large, and recorded in the summary.
 """
 
 from __future__ import annotations
 
 import csv
+import sys
 import time
-from contextlib import ExitStack
 from pathlib import Path
 from typing import Sequence
 
 from labrig.cli import print_table
-from labrig.files import slug, write_csv
+from labrig.files import OutputSet, slug, write_csv
 
 from ..analysis.packing import packing_summary
 from ..io import checkpoint
-from ..simulation import Simulation
+from ..simulation import OVERLAP_WARNING, Simulation
 
 #: Simulated time between movie frames, s.
 FRAME_INTERVAL = 0.5
 
 
-def _recorders(stack: ExitStack, out: Path, stem: str, dt: float, movie: bool, gsd: bool) -> list:
-    every = max(1, round(FRAME_INTERVAL / dt))
-    writers = []
+def _recorders(files: OutputSet, sim: Simulation, stem: str, movie: bool, gsd: bool) -> None:
+    """Attach the requested movie and trajectory writers to ``sim``, as streams of the output set."""
+    every = max(1, round(FRAME_INTERVAL / sim.dt))
     if movie:
         from ..render import MovieWriter
 
-        writers.append(stack.enter_context(MovieWriter(out / f"{stem}.mp4", every=every)))
+        sim.attach(files.adopt(MovieWriter(files.target(f"{stem}.mp4"), every=every)))
     if gsd:
         from ..io.trajectory import GSDWriter
 
-        writers.append(stack.enter_context(GSDWriter(out / f"{stem}.gsd", every=every, dt=dt)))
-    return writers
+        sim.attach(files.adopt(GSDWriter(files.target(f"{stem}.gsd"), every=every, dt=sim.dt)))
 
 
-def finish(sim: Simulation, out: Path, stem: str, wall: float, extra: dict) -> dict:
-    """Save checkpoint and picture of a finished run; return its summary row."""
+def finish(sim: Simulation, files: OutputSet, stem: str, wall: float, extra: dict) -> dict:
+    """Stage the checkpoint and picture of a finished run; return its summary row (and warn when the
+    board overlaps a lot or dots left it)."""
     from ..render import save_png
 
     state = sim.state()
-    save_png(state, out / f"{stem}.png")
+    save_png(state, files.stage(f"{stem}.png"))
     summary = packing_summary(state)
-    checkpoint.save(sim, out / f"{stem}.npz")
+    checkpoint.save(sim, files.stage(f"{stem}.npz"))
+    if summary["max_overlap"] > OVERLAP_WARNING:
+        print(f"warning: {stem}: dots overlap by up to {100 * summary['max_overlap']:.1f} % of a radius (more than "
+              f"{100 * OVERLAP_WARNING:g} %): the time step is too large for these speeds", file=sys.stderr)
+    if summary["escaped_dots"]:
+        print(f"warning: {stem}: {summary['escaped_dots']} of {summary['n_dots']} dots have left the open board",
+              file=sys.stderr)
     return {
         **extra,
         "dots": summary["n_dots"],
@@ -57,6 +68,7 @@ def finish(sim: Simulation, out: Path, stem: str, wall: float, extra: dict) -> d
         "interior_fraction": summary["interior_fraction"],
         "mean_neighbours_interior": summary["mean_neighbours_interior"],
         "max_overlap": summary["max_overlap"],
+        "escaped_dots": summary["escaped_dots"],
         "kinetic_energy": summary["kinetic_energy"],
         "state_file": f"{stem}.npz",
     }
@@ -67,12 +79,18 @@ def merge_summary(path: Path, rows: Sequence[dict]) -> Path:
 
     Earlier rows of other runs are kept (a resume never loses a preset's
     table), a replaced row keeps the fields the new one does not set, and the
-    columns are the union, in order of first appearance.
+    columns are the union, in order of first appearance. An unreadable earlier
+    table is set aside as ``summary.csv.unreadable`` (with a warning), not lost.
     """
     old = []
     if path.exists():
-        with open(path, newline="") as stream:
-            old = list(csv.DictReader(stream))
+        try:
+            with open(path, newline="", encoding="utf-8") as stream:
+                old = [row for row in csv.DictReader(stream) if None not in row and None not in row.values()]
+        except (OSError, UnicodeDecodeError, csv.Error) as exc:
+            kept = path.with_name(path.name + ".unreadable")
+            path.replace(kept)
+            print(f"warning: {path} could not be read ({exc}); kept as {kept}, starting a new table", file=sys.stderr)
     previous = {row.get("state_file"): row for row in old}
     fresh = {row["state_file"] for row in rows}
     # a resumed run keeps the parameters its earlier row recorded
@@ -86,7 +104,7 @@ def report(rows: Sequence[dict], out: Path) -> None:
     merge_summary(out / "summary.csv", rows)
     for row in rows:
         print_table(f"{row.get('name', row['state_file'])}:", [
-            ("dots", str(row["dots"])),
+            ("dots", str(row["dots"]) + (f" ({row['escaped_dots']} left the board)" if row["escaped_dots"] else "")),
             ("simulated time", f"{row['time_s']:.2f} s ({row['steps']} steps)"),
             ("wall time", f"{row['wall_s']:.1f} s ({row['x_real_time']:.1f}x real time)"),
             ("interior fraction", f"{row['interior_fraction']:.3f}"),
@@ -96,38 +114,52 @@ def report(rows: Sequence[dict], out: Path) -> None:
     print(f"wrote {out / 'summary.csv'} and the .npz/.png files beside it")
 
 
-def run_experiments(experiments: Sequence, out: Path, *, movie: bool, gsd: bool, progress: bool = True) -> list[dict]:
-    """Run each experiment, writing its files into ``out``; returns the summary rows."""
-    from ..experiment import run_experiment
+def _provenance_name(stem: str, out: Path, source: Path | None) -> str:
+    """``stem.toml``, or ``stem.ran.toml`` when that is the experiment file the run was started from."""
+    target = out / f"{stem}.toml"
+    if source is not None and target.exists() and Path(source).exists() and target.samefile(source):
+        return f"{stem}.ran.toml"
+    return f"{stem}.toml"
+
+
+def run_experiments(experiments: Sequence, out: Path, *, movie: bool, gsd: bool, progress: bool = True,
+                    source: Path | None = None) -> list[dict]:
+    """Run each experiment, writing its files into ``out``; returns the summary rows.
+
+    ``source`` is the experiment file they were read from: it is never written over.
+    """
+    from ..experiment import build_simulation, populate
     from ..io.experiment_file import save_experiment
 
-    out.mkdir(parents=True, exist_ok=True)
     rows = []
     for exp in experiments:
         stem = slug(exp.name)
-        save_experiment(exp, out / f"{stem}.toml")
         start = time.perf_counter()
-        with ExitStack() as stack:
-            writers = _recorders(stack, out, stem, exp.engine.dt, movie, gsd)
-            sim = run_experiment(exp, progress=progress, writers=writers)
-        rows.append(finish(sim, out, stem, time.perf_counter() - start,
-                           {"name": exp.name, "seed": exp.seed, "sigma": exp.deposition.sigma,
-                            "mass_model": exp.deposition.mass_model, "grating_px": exp.grating}))
+        with OutputSet(out) as files:
+            sim = build_simulation(exp)
+            _recorders(files, sim, stem, movie, gsd)
+            populate(sim, exp, progress=progress)
+            rows.append(finish(sim, files, stem, time.perf_counter() - start,
+                               {"name": exp.name, "seed": exp.seed, "sigma": exp.deposition.sigma,
+                                "mass_model": exp.deposition.mass_model, "grating_px": exp.grating}))
+            save_experiment(exp, files.stage(_provenance_name(stem, out, source), last=True))
     report(rows, out)
     return rows
 
 
 def resume(state_path: Path, seconds: float, out: Path | None, *, movie: bool, gsd: bool) -> dict:
-    """Continue a saved run for ``seconds``; the new checkpoint replaces the old one unless ``out`` is given."""
+    """Continue a saved run for ``seconds``; the new checkpoint replaces the old one unless ``out`` is given.
+
+    The old checkpoint is replaced only once the continuation has finished and its files are written.
+    """
     sim = checkpoint.load(state_path)
     out = state_path.parent if out is None else out
-    out.mkdir(parents=True, exist_ok=True)
     stem = state_path.stem
     start = time.perf_counter()
-    with ExitStack() as stack:
-        writers = _recorders(stack, out, stem, sim.dt, movie, gsd)
-        sim.run(seconds, progress=True, writers=writers)
-    row = finish(sim, out, stem, time.perf_counter() - start, {"resumed_from": str(state_path)})
+    with OutputSet(out) as files:
+        _recorders(files, sim, stem, movie, gsd)
+        sim.run(seconds, progress=True)
+        row = finish(sim, files, stem, time.perf_counter() - start, {"resumed_from": str(state_path)})
     report([row], out)
     return row
 
@@ -160,8 +192,8 @@ def analyze(state_path: Path, *, rule: str = "text", forster_radius: float | Non
     summary = {"state_file": str(state_path), "rule": rule, **report.summary}
     if plot is not None:
         summary["figure"] = str(save_report_png(state, report, plot))
-    if as_json:  # strict JSON: nan -> null
-        print(json.dumps({k: None if isinstance(v, float) and math.isnan(v) else v for k, v in summary.items()},
+    if as_json:  # strict JSON: nan and inf -> null
+        print(json.dumps({k: None if isinstance(v, float) and not math.isfinite(v) else v for k, v in summary.items()},
                          indent=2))
     else:
         print_table(f"{state_path} (t = {state.time:.2f} s, neighbour rule {rule!r}):", table_rows(summary))

@@ -159,7 +159,7 @@ def _run_scene(args: argparse.Namespace) -> int:
         exp = exp.replace(seed=args.seed)
     if args.quick is not None:
         exp = exp.quick(args.quick)
-    run_experiments([exp], args.out, movie=args.movie, gsd=args.gsd)
+    run_experiments([exp], args.out, movie=args.movie, gsd=args.gsd, source=args.scene)
     return 0
 
 
@@ -212,7 +212,7 @@ def build_parser() -> argparse.ArgumentParser:
 def _run_demo(args: argparse.Namespace) -> int:
     import qdots
     from labrig.cli import print_table
-    from labrig.files import write_csv
+    from labrig.files import OutputSet, write_csv
 
     from ..analysis.packing import packing_summary
     from ..placement import random_sequential
@@ -224,33 +224,28 @@ def _run_demo(args: argparse.Namespace) -> int:
     positions, radii = random_sequential(args.dots, DEMO_BOX, DEMO_DIAMETER, args.sigma,
                                          rng=np.random.default_rng(place_seed))
     scene = qdots.Scene(box=DEMO_BOX, positions=positions, radii=radii)
-    out.mkdir(parents=True, exist_ok=True)
     sim = qdots.Simulation(scene, [qdots.VanDerWaals(), qdots.ThermalKicks()], seed=sim_seed)
-    files = []
     movie = None
     start = time.perf_counter()
-    if args.no_movie:
+    with OutputSet(out) as files:
+        if not args.no_movie:
+            movie = sim.attach(files.adopt(MovieWriter(files.target("demo.mp4"),
+                                                       every=max(1, round(DEMO_FRAME_INTERVAL / sim.dt)))))
         state = sim.run(args.seconds, progress=True)
-    else:
-        every = max(1, round(DEMO_FRAME_INTERVAL / sim.dt))
-        with MovieWriter(out / "demo.mp4", every=every) as movie:
-            state = sim.run(args.seconds, progress=True, writers=[movie])
-        files.append(out / "demo.mp4")
-    wall = time.perf_counter() - start
-    movie_wall = movie.wall_seconds if movie is not None else 0.0
-    files.insert(0, save_png(state, out / "demo.png"))
-    summary = packing_summary(state)
-    steps_per_s = sim.steps_taken / max(wall - movie_wall, 1e-9)
-    row = {
-        "seed": args.seed, "dots": args.dots, "sigma": args.sigma, "box_px": f"{DEMO_BOX[0]:g}x{DEMO_BOX[1]:g}",
-        "mean_diameter_px": DEMO_DIAMETER, "simulated_s": state.time, "dt_s": sim.dt,
-        "steps": sim.steps_taken, "wall_s": round(wall, 3), "movie_wall_s": round(movie_wall, 3),
-        "steps_per_s": round(steps_per_s, 1), "interior_fraction": summary["interior_fraction"],
-        "mean_neighbours_interior": summary["mean_neighbours_interior"],
-        "max_overlap": summary["max_overlap"], "kinetic_energy": summary["kinetic_energy"],
-    }
-    write_csv(out / "summary.csv", [row])
-    files.append(out / "summary.csv")
+        wall = time.perf_counter() - start
+        movie_wall = movie.wall_seconds if movie is not None else 0.0
+        save_png(state, files.stage("demo.png"))
+        summary = packing_summary(state)
+        steps_per_s = sim.steps_taken / max(wall - movie_wall, 1e-9)
+        row = {
+            "seed": args.seed, "dots": args.dots, "sigma": args.sigma, "box_px": f"{DEMO_BOX[0]:g}x{DEMO_BOX[1]:g}",
+            "mean_diameter_px": DEMO_DIAMETER, "simulated_s": state.time, "dt_s": sim.dt,
+            "steps": sim.steps_taken, "wall_s": round(wall, 3), "movie_wall_s": round(movie_wall, 3),
+            "steps_per_s": round(steps_per_s, 1), "interior_fraction": summary["interior_fraction"],
+            "mean_neighbours_interior": summary["mean_neighbours_interior"],
+            "max_overlap": summary["max_overlap"], "kinetic_energy": summary["kinetic_energy"],
+        }
+        write_csv(files.stage("summary.csv"), [row])
     movie_note = f" (movie {movie_wall:.1f} s, {movie.frames} frames)" if movie is not None else ""
     print_table(f"qdots demo: {args.dots} dots on a {DEMO_BOX[0]:g} x {DEMO_BOX[1]:g} px board, "
                 f"sigma {args.sigma:g}, seed {args.seed}", [
@@ -262,7 +257,7 @@ def _run_demo(args: argparse.Namespace) -> int:
         ("mean neighbours (interior)", f"{summary['mean_neighbours_interior']:.2f}"),
         ("max overlap", f"{100 * summary['max_overlap']:.3f} % of radius"),
         ("kinetic energy", f"{summary['kinetic_energy']:.4g} mass px^2/s^2"),
-        ("files", ", ".join(str(f) for f in files)),
+        ("files", ", ".join(str(f) for f in files.written)),
     ])
     return 0
 

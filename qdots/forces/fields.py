@@ -4,12 +4,17 @@ from __future__ import annotations
 
 import numpy as np
 
-from labrig.validate import InputError, real
+from labrig.validate import real, reals
 
+from ..scene import MAX_LENGTH
 from .base import Force, StepContext
 
 #: Gravity of the thesis's deposition code: ``setGravity(25)`` times 30 px per length unit, px/s^2.
 THESIS_GRAVITY = 750.0
+#: Largest acceleration, px/s^2 (1e5 thesis gravities).
+MAX_ACCELERATION = 1e8
+#: Largest drag coefficients (1/s and 1/px).
+MAX_DRAG = 1e6
 
 
 class Gravity(Force):
@@ -24,10 +29,8 @@ class Gravity(Force):
     """
 
     def __init__(self, acceleration: tuple[float, float] = (0.0, -THESIS_GRAVITY)):
-        g = np.asarray(acceleration, dtype=float)
-        if g.shape != (2,) or not np.isfinite(g).all():
-            raise InputError(f"Gravity.acceleration must be two finite numbers (px/s^2), got {acceleration!r}")
-        self.acceleration = (float(g[0]), float(g[1]))
+        self.acceleration = reals("Gravity.acceleration", acceleration, 2, -MAX_ACCELERATION, MAX_ACCELERATION,
+                                  unit="px/s^2")
 
     def kick(self, ctx: StepContext) -> None:
         ctx.dv += np.multiply(self.acceleration, ctx.dt)
@@ -45,11 +48,8 @@ class CenterGravity(Force):
     """
 
     def __init__(self, center: tuple[float, float], magnitude: float = THESIS_GRAVITY):
-        c = np.asarray(center, dtype=float)
-        if c.shape != (2,) or not np.isfinite(c).all():
-            raise InputError(f"CenterGravity.center must be two finite numbers (px), got {center!r}")
-        self.center = (float(c[0]), float(c[1]))
-        self.magnitude = real("CenterGravity.magnitude", magnitude, 0.0)
+        self.center = reals("CenterGravity.center", center, 2, -MAX_LENGTH, MAX_LENGTH, unit="px")
+        self.magnitude = real("CenterGravity.magnitude", magnitude, 0.0, MAX_ACCELERATION, unit="px/s^2")
 
     def kick(self, ctx: StepContext) -> None:
         dx = self.center[0] - ctx.x
@@ -74,8 +74,8 @@ class Drag(Force):
     """
 
     def __init__(self, linear: float = 0.025, quadratic: float = 0.025 / 30.0):
-        self.linear = real("Drag.linear", linear, 0.0)
-        self.quadratic = real("Drag.quadratic", quadratic, 0.0)
+        self.linear = real("Drag.linear", linear, 0.0, MAX_DRAG, unit="1/s")
+        self.quadratic = real("Drag.quadratic", quadratic, 0.0, MAX_DRAG, unit="1/px")
 
     def kick(self, ctx: StepContext) -> None:
         v = ctx.velocity

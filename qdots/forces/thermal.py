@@ -11,6 +11,14 @@ from labrig.validate import real
 from ..units import THESIS_KICK_INTERVAL, thesis_kick_speed
 from .base import Force, StepContext
 
+#: Longest interval between kicks, s.
+MAX_INTERVAL = 1e4
+#: Largest multiple of the thesis's kick (a kick of 1e4 thesis kicks is ~2e4 px/s).
+MAX_SCALE = 1e4
+#: Largest Langevin friction rate, 1/s, and thermal energy, mean-dot mass px^2/s^2 (the default is ~1.8).
+MAX_GAMMA = 1e6
+MAX_KT = 1e8
+
 
 class ThermalKicks(Force):
     """The thesis's thermal motion: periodic velocity kicks in random directions.
@@ -34,8 +42,8 @@ class ThermalKicks(Force):
     """
 
     def __init__(self, interval: float = THESIS_KICK_INTERVAL, scale: float = 1.0):
-        self.interval = real("ThermalKicks.interval", interval, 0.0, low_open=True)
-        self.scale = real("ThermalKicks.scale", scale, 0.0)
+        self.interval = real("ThermalKicks.interval", interval, 0.0, MAX_INTERVAL, low_open=True, unit="s")
+        self.scale = real("ThermalKicks.scale", scale, 0.0, MAX_SCALE)
         self._speed = np.zeros(0)
 
     def bind(self, radii: np.ndarray, masses: np.ndarray) -> None:
@@ -78,8 +86,8 @@ class Langevin(Force):
     def __init__(self, gamma: float = 1.0, kT: float | None = None):
         if kT is None:
             kT = float(thesis_kick_speed(1.0)) ** 2 / 2.0
-        self.gamma = real("Langevin.gamma", gamma, 0.0)
-        self.kT = real("Langevin.kT", kT, 0.0)
+        self.gamma = real("Langevin.gamma", gamma, 0.0, MAX_GAMMA, unit="1/s")
+        self.kT = real("Langevin.kT", kT, 0.0, MAX_KT)
         self._sigma_unit = np.zeros(0)
 
     def bind(self, radii: np.ndarray, masses: np.ndarray) -> None:

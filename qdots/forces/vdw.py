@@ -4,12 +4,18 @@ from __future__ import annotations
 
 import numpy as np
 
-from labrig.validate import InputError, real
+from labrig.validate import InputError, choice, real
 
 from ..neighbours import VerletPairs
 from .base import Force, StepContext
 
 MODELS = ("thesis", "hamaker")
+#: What the force does at gaps below ``min_gap``.
+CONTACTS = ("hold", "zero")
+#: Largest range R0 and gap, px (the thesis's R0 is 15 px, one mean diameter).
+MAX_RANGE = 1000.0
+#: Largest Hamaker constant, mean-dot mass px^2/s^2 (the default is about 2e4).
+MAX_STRENGTH = 1e12
 
 
 def thesis_offset(r0: float, min_gap: float, sticking_speed: float) -> float:
@@ -96,17 +102,16 @@ class VanDerWaals(Force):
         sticking_speed: float = 1.0,
         skin: float = 3.0,
     ):
-        if model not in MODELS:
-            raise InputError(f"VanDerWaals.model must be one of {MODELS}, got {model!r}")
-        if contact not in ("hold", "zero"):
-            raise InputError(f"VanDerWaals.contact must be 'hold' or 'zero', got {contact!r}")
+        choice("VanDerWaals.model", model, MODELS)
+        choice("VanDerWaals.contact", contact, CONTACTS)
         # Derived defaults stay "unset" in params(), so a saved scene whose r0 is
         # edited recomputes them instead of freezing the old values.
         self._unset = {name for name, value in (("strength", strength), ("max_gap", max_gap)) if value is None}
-        r0 = real("VanDerWaals.r0", r0, 0.0, low_open=True)
-        max_gap = real("VanDerWaals.max_gap", 2.0 * r0 if max_gap is None else max_gap, 0.0, low_open=True)
-        min_gap = real("VanDerWaals.min_gap", min_gap, 0.0, low_open=True)
-        sticking_speed = real("VanDerWaals.sticking_speed", sticking_speed, 0.0, low_open=True)
+        r0 = real("VanDerWaals.r0", r0, 0.0, MAX_RANGE, low_open=True, unit="px")
+        max_gap = real("VanDerWaals.max_gap", 2.0 * r0 if max_gap is None else max_gap, 0.0, 2 * MAX_RANGE,
+                       low_open=True, unit="px")
+        min_gap = real("VanDerWaals.min_gap", min_gap, 0.0, MAX_RANGE, low_open=True, unit="px")
+        sticking_speed = real("VanDerWaals.sticking_speed", sticking_speed, 0.0, 1e6, low_open=True, unit="px/s")
         if max_gap <= min_gap:
             raise InputError(f"VanDerWaals.max_gap ({max_gap}) must exceed min_gap ({min_gap})")
         self.model = model
@@ -120,7 +125,7 @@ class VanDerWaals(Force):
             # Match the thesis proxy's acceleration a/2 for mean dots (r = 7.5 px) at a 1 px gap.
             proxy = 0.5 * (self.r0 / (1.0 - self.offset)) ** 7
             strength = proxy / float(hamaker_force(np.array(1.0), np.array(7.5), np.array(7.5), 1.0))
-        self.strength = real("VanDerWaals.strength", strength, 0.0)
+        self.strength = real("VanDerWaals.strength", strength, 0.0, MAX_STRENGTH)
         self._pairs = VerletPairs(skin)
         self.skin = self._pairs.skin
         self.bind(np.zeros(0), np.zeros(0))

@@ -4,13 +4,13 @@
 (`Knobs`: time step, elasticity, van der Waals, thermal kicks, drag, gravity).
 Everything goes through the public `Scene` / `Simulation` / forces API:
 
-* The forces and engine settings of a `Simulation` are fixed when it is
-  built, so turning a knob rebuilds it from the current board
-  (``sim.board()``, a `Scene`) with fresh forces, carrying over the time
-  (``start_time``) and the random stream (``rng`` state), as
-  `qdots.io.checkpoint.load` does. Velocities and positions are kept exactly.
-* Walls and gratings are added the same way, after checking that no dot
-  sits across them.
+* Turning a knob sets the running simulation's forces (``sim.forces``), engine settings
+  (``sim.settings``: the time step) or collision rule (``sim.restitution``); the board goes on
+  as it is, exactly as a script that sets the same values at the same step.
+* Walls and gratings are added by rebuilding the simulation from the current board
+  (`Simulation.current_scene`) with the new segments, after checking that no dot sits across
+  them, carrying over the time, the random stream and the forces, as `qdots.io.checkpoint.load`
+  does. Velocities and positions are kept exactly.
 * Dots are dropped by the thesis's deposition protocol
   (`qdots.protocols.deposit`) one at a time, ``interval`` seconds of board
   time apart, between frames: the same film as one ``deposit`` call with the
@@ -29,15 +29,18 @@ from pathlib import Path
 
 import numpy as np
 
-from labrig.validate import InputError, real
+from labrig.validate import InputError, choice, count, real
 
 from ..analysis.packing import packing_summary
 from ..analysis.structure import hexatic_order
 from ..forces import CenterGravity, Drag, Gravity, ThermalKicks, VanDerWaals
-from ..forces.fields import THESIS_GRAVITY
+from ..forces.fields import MAX_ACCELERATION, MAX_DRAG, THESIS_GRAVITY
+from ..forces.thermal import MAX_SCALE
+from ..forces.vdw import MAX_RANGE
 from ..io import checkpoint
-from ..protocols import check_count, deposit
+from ..protocols import deposit
 from ..scene import Scene, grating_segments, segment_distances
+from ..settings import DT_RANGE, EngineSettings
 from ..simulation import Simulation
 from ..state import State
 
@@ -45,6 +48,8 @@ from ..state import State
 GRAVITY_MODES = ("none", "uniform", "centre")
 #: The board of a `LiveRun` given no scene: empty, closed, px.
 DEFAULT_BOX = (400.0, 400.0)
+#: Most time steps per frame.
+MAX_FRAME_STEPS = 100_000
 
 
 @dataclass(frozen=True)
@@ -82,13 +87,12 @@ class Knobs:
     gravity_magnitude: float = THESIS_GRAVITY
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "dt", real("dt", self.dt, 0.0, low_open=True))
-        for name in ("elasticity", "vdw_r0", "thermal", "drag", "gravity_magnitude"):
-            object.__setattr__(self, name, real(name, getattr(self, name), 0.0))
-        if self.elasticity > 1:
-            raise InputError(f"elasticity must be in [0, 1], got {self.elasticity!r}")
-        if self.gravity not in GRAVITY_MODES:
-            raise InputError(f"gravity must be one of {GRAVITY_MODES}, got {self.gravity!r}")
+        for name, high, unit in (("dt", DT_RANGE[1], "s"), ("elasticity", 1.0, ""), ("vdw_r0", MAX_RANGE, "px"),
+                                 ("thermal", MAX_SCALE, ""), ("drag", MAX_DRAG, "1/s"),
+                                 ("gravity_magnitude", MAX_ACCELERATION, "px/s^2")):
+            low = DT_RANGE[0] if name == "dt" else 0.0
+            object.__setattr__(self, name, real(name, getattr(self, name), low, high, unit=unit))
+        choice("gravity", self.gravity, GRAVITY_MODES)
 
     def forces(self, box: tuple[float, float]) -> list:
         """Fresh force objects for a board of size ``box`` (px); a knob at 0 adds no force."""
@@ -131,27 +135,29 @@ class LiveRun:
     seed : int or SeedSequence, optional
         Root seed: one child seeds the simulation, one the deposition.
     frame_steps : int
-        Time steps per `advance` (>= 1).
-    **engine
-        Other `Simulation` settings (``substeps``, ``iterations``, ...), kept
-        across rebuilds. The time step is the ``dt`` knob.
+        Time steps per `advance`, in [1, `MAX_FRAME_STEPS`].
+    engine : qdots.EngineSettings, optional
+        The engine's other settings (``substeps``, ``iterations``, ...); the time step is the
+        ``dt`` knob.
     """
 
     def __init__(self, scene: Scene | None = None, knobs: Knobs | None = None, *, seed=None,
-                 frame_steps: int = 50, **engine):
+                 frame_steps: int = 50, engine: EngineSettings | None = None):
         if scene is None:
             scene = Scene(box=DEFAULT_BOX, positions=np.zeros((0, 2)), radii=np.zeros(0))
         if not isinstance(scene, Scene):
-            raise TypeError(f"scene must be a qdots.Scene, got {type(scene).__name__}")
-        if "dt" in engine:
-            raise InputError("set the time step with knobs=Knobs(dt=...), not dt=")
+            raise InputError(f"scene must be a qdots.Scene, got {type(scene).__name__}")
         self.knobs = Knobs(elasticity=scene.restitution.mean) if knobs is None else knobs
         if not isinstance(self.knobs, Knobs):
-            raise TypeError(f"knobs must be a qdots.interactive.live.Knobs, got {type(self.knobs).__name__}")
-        self.frame_steps = check_count("frame_steps", frame_steps, 1)
+            raise InputError(f"knobs must be a qdots.interactive.Knobs, got {type(self.knobs).__name__}")
+        engine = EngineSettings() if engine is None else engine
+        if not isinstance(engine, EngineSettings):
+            raise InputError(f"engine must be a qdots.EngineSettings, got {type(engine).__name__}")
+        self.frame_steps = count("frame_steps", frame_steps, 1, MAX_FRAME_STEPS)
         sim_seed, drop_seed = np.random.SeedSequence(seed).spawn(2)
         scene = scene.replace(restitution=dataclasses.replace(scene.restitution, mean=self.knobs.elasticity))
-        self.sim = Simulation(scene, self.knobs.forces(scene.box), seed=sim_seed, dt=self.knobs.dt, **engine)
+        self.sim = Simulation(scene, self.knobs.forces(scene.box), seed=sim_seed,
+                              engine=engine.replace(dt=self.knobs.dt))
         self._drop_rng = np.random.default_rng(drop_seed)
         self._drops: collections.deque[_Drop] = collections.deque()
         self._next_drop = -np.inf
@@ -159,14 +165,14 @@ class LiveRun:
         #: Simulated seconds per wall-clock second over the last `advance` (0 before the first).
         self.speed = 0.0
 
-    # -- knobs and walls: rebuild the simulation from the current board --------------------------
+    # -- knobs: set on the running simulation; walls: rebuild it from the current board ---------
 
     def set(self, **changes) -> None:
-        """Turn knobs (names of `Knobs` fields); the simulation is rebuilt with them.
+        """Turn knobs (names of `Knobs` fields) on the running simulation.
 
         Raises
         ------
-        ValueError
+        labrig.validate.InputError
             On an unknown knob or a bad value (nothing is changed then).
         """
         names = [f.name for f in dataclasses.fields(Knobs)]
@@ -174,20 +180,25 @@ class LiveRun:
         if unknown:
             raise InputError(f"unknown knob {unknown[0]!r} (knobs: {', '.join(names)})")
         knobs = dataclasses.replace(self.knobs, **changes)
-        if knobs != self.knobs:
-            board = self.sim.board()
-            self._rebuild(board.replace(restitution=dataclasses.replace(board.restitution, mean=knobs.elasticity)),
-                          knobs)
+        sim, old = self.sim, self.knobs
+        if knobs.dt != old.dt:
+            sim.settings = sim.settings.replace(dt=knobs.dt)
+        if knobs.elasticity != old.elasticity:
+            sim.restitution = dataclasses.replace(sim.restitution, mean=knobs.elasticity)
+        forces = knobs.forces(sim.scene.box)
+        if [f.to_dict() for f in forces] != [f.to_dict() for f in old.forces(sim.scene.box)]:
+            sim.forces = forces
+        self.knobs = knobs
 
-    def _rebuild(self, board: Scene, knobs: Knobs | None = None) -> None:
-        knobs = self.knobs if knobs is None else knobs
+    def _rebuild(self, board: Scene) -> None:
+        """A new simulation of ``board`` that goes on with the old one's time, random stream, forces and writers."""
         old = self.sim
-        engine = {f.name: getattr(old.settings, f.name) for f in dataclasses.fields(old.settings)}
-        engine["dt"] = knobs.dt
-        sim = Simulation(board, knobs.forces(board.box), seed=0, **engine)
+        sim = Simulation(board, self.knobs.forces(board.box), seed=0, engine=old.settings)
         sim.rng.bit_generator.state = old.rng.bit_generator.state
         sim.start_time = old.time
-        self.sim, self.knobs = sim, knobs
+        for writer in old.writers:
+            sim.attach(writer)
+        self.sim = sim
 
     def add_segments(self, segments) -> None:
         """Add static walls ``(x0, y0, x1, y1)`` (px), shape (M, 4).
@@ -197,7 +208,7 @@ class LiveRun:
         ValueError
             On a bad segment (as `Scene`) or one that crosses a dot on the board.
         """
-        board = self.sim.board()
+        board = self.sim.current_scene()
         new = board.replace(segments=np.vstack([board.segments, np.asarray(segments, dtype=float).reshape(-1, 4)]))
         added = new.segments[len(board.segments):]
         if board.n_dots and len(added):
@@ -223,7 +234,7 @@ class LiveRun:
 
     def clear_walls(self) -> None:
         """Remove every wall and grating line (the box edges stay)."""
-        self._rebuild(self.sim.board().replace(segments=None))
+        self._rebuild(self.sim.current_scene().replace(segments=None))
 
     # -- running ---------------------------------------------------------------------------------
 
@@ -234,7 +245,7 @@ class LiveRun:
         They are placed during the next `advance` calls, as the board time
         reaches each one's turn (the first at once). Arguments as `deposit`.
         """
-        n_dots = check_count("n_dots", n_dots, 0)
+        n_dots = count("n_dots", n_dots, 0)
         # validate now, not at the first frame: a dry run places nothing
         deposit(self.sim, 0, mean_diameter, sigma, interval=interval, mass_model=mass_model, rng=self._drop_rng)
         if n_dots:
@@ -244,10 +255,6 @@ class LiveRun:
     def pending(self) -> int:
         """Dots queued by `drop` and not yet placed."""
         return sum(d.count for d in self._drops)
-
-    def cancel_drops(self) -> None:
-        """Forget every queued dot."""
-        self._drops.clear()
 
     def _place_due(self) -> None:
         """Place queued dots whose turn has come (several at once if their interval is 0)."""
@@ -274,15 +281,14 @@ class LiveRun:
         State
             The board at the end.
         """
-        remaining = self.frame_steps if steps is None else check_count("steps", steps, 0)
-        writers = [self._movie] if self._movie is not None else []
+        remaining = self.frame_steps if steps is None else count("steps", steps, 0, MAX_FRAME_STEPS)
         start_wall, start_time = time.perf_counter(), self.sim.time
         self._place_due()
         while remaining:
             n = remaining
             if self._drops:
                 n = min(n, max(1, round((self._next_drop - self.sim.time) / self.sim.dt)))
-            self.sim.run(n * self.sim.dt, writers=writers)
+            self.sim.run(n * self.sim.dt)
             remaining -= n
             self._place_due()
         wall = time.perf_counter() - start_wall
@@ -329,13 +335,16 @@ class LiveRun:
             raise InputError(f"already recording to {self._movie.path}; stop that first")
         from ..render import MovieWriter
 
-        self._movie = MovieWriter(path, every=self.frame_steps if every is None else every, fps=fps,
-                                  size_px=size_px)
+        movie = MovieWriter(path, every=self.frame_steps if every is None else every, fps=fps, size_px=size_px)
+        self._movie = self.sim.attach(movie)
 
     def stop_recording(self) -> Path | None:
         """Finish the movie; returns its path (None if nothing was recording)."""
         movie, self._movie = self._movie, None
-        return None if movie is None else movie.close()
+        if movie is None:
+            return None
+        self.sim.detach(movie)
+        return movie.close()
 
     def __repr__(self) -> str:
         return f"LiveRun({self.sim!r}, knobs={self.knobs}, pending={self.pending})"

@@ -26,44 +26,48 @@ run that never saved differs from them at round-off level from that moment.)
 
 from __future__ import annotations
 
-import json
+import math
 import os
-import zipfile
 from pathlib import Path
 
-import numpy as np
 import pymunk
 
-from labrig.files import atomic_path
-from labrig.validate import InputError
+from labrig.files import read_archive, write_archive
+from labrig.validate import InputError, count, flag, real, reals
 
 from ..collisions import Restitution
 from ..forces import force_from_dict
-from ..scene import Scene
-from ..simulation import ENGINE_OVERLAP_TOLERANCE, Simulation
+from ..scene import MAX_LENGTH, Scene
+from ..settings import EngineSettings
+from ..simulation import Simulation
 from ..state import State
 
 FORMAT = "qdots-state"
 VERSION = 1
 ARRAYS = ("positions", "velocities", "radii", "masses", "segments")
+#: Keys of the saved collision counters.
+COUNTERS = ("dot_dot", "dot_wall", "sticking")
 
 
 def save(sim: Simulation, path: str | os.PathLike) -> Path:
     """Write ``sim``'s board and everything needed to resume it to ``path`` (.npz), atomically.
 
-    The simulation is re-seated afterwards (see the module docstring).
+    The simulation is re-seated afterwards (see the module docstring). Every board a simulation
+    produces is saved and loads back, whatever its overlaps or dots that left an open board.
 
     Returns
     -------
     pathlib.Path
         The path written.
     """
+    from .. import __version__
+
     state = sim.state()
     scene = sim.scene
     metadata = {
         "format": FORMAT,
         "version": VERSION,
-        "qdots": _qdots_version(),
+        "qdots": __version__,
         "pymunk": pymunk.version,
         "time": state.time,
         "start_time": sim.start_time,
@@ -75,64 +79,58 @@ def save(sim: Simulation, path: str | os.PathLike) -> Path:
         "engine": sim.settings.to_dict(),
         "forces": [force.to_dict() for force in sim.forces],
         "rng": sim.rng.bit_generator.state,
-        "collisions": {"dot_dot": sim.collisions.dot_dot, "dot_wall": sim.collisions.dot_wall,
-                       "sticking": sim.collisions.sticking},
+        "collisions": {name: getattr(sim.collisions, name) for name in COUNTERS},
     }
     arrays = {"positions": state.positions, "velocities": state.velocities, "radii": state.radii,
               "masses": state.masses, "segments": scene.segments}
-    path = Path(path)
-    with atomic_path(path) as tmp:
-        with open(tmp, "wb") as stream:  # a file object stops np.savez appending ".npz"
-            np.savez(stream, metadata=np.array(json.dumps(metadata)), **arrays)
+    path = write_archive(path, metadata, arrays)
     sim.reseat()
     return path
 
 
-def _qdots_version() -> str:
-    from .. import __version__
+def _field(metadata: dict, key: str):
+    if key not in metadata:
+        raise InputError(f"metadata has no {key!r}")
+    return metadata[key]
 
-    return __version__
 
-
-def _read(path: str | os.PathLike) -> tuple[dict, dict[str, np.ndarray]]:
-    """Metadata and arrays of a state file, or a ValueError that says what is wrong with it."""
-    path = Path(path)
-    if not path.exists():
-        raise FileNotFoundError(f"no such state file: {path}")
+def _read(path: str | os.PathLike) -> tuple[dict, Scene]:
+    """The checked metadata and the board of a state file, or an InputError that says what is wrong with it."""
+    metadata, arrays = read_archive(path, FORMAT, VERSION, ARRAYS, "qdots state")
     try:
-        with np.load(path, allow_pickle=False) as archive:
-            missing = [name for name in ("metadata", *ARRAYS) if name not in archive.files]
-            if missing:
-                raise InputError(f"missing {', '.join(missing)}")
-            arrays = {name: archive[name] for name in ARRAYS}
-            metadata = json.loads(str(archive["metadata"]))
-    except (zipfile.BadZipFile, EOFError, OSError, ValueError, KeyError, json.JSONDecodeError) as exc:
-        raise InputError(f"{path} is not a readable qdots state file ({type(exc).__name__}: {exc})") from None
-    if not isinstance(metadata, dict) or metadata.get("format") != FORMAT:
-        raise InputError(f"{path} is not a qdots state file (format {metadata.get('format')!r})")
-    if metadata.get("version") != VERSION:
-        raise InputError(f"{path} has state format version {metadata.get('version')!r}; "
-                         f"this qdots reads version {VERSION}")
-    return metadata, arrays
+        time = real("time", _field(metadata, "time"), unit="s")
+        start = real("start_time", _field(metadata, "start_time"), unit="s")
+        steps = count("steps_taken", _field(metadata, "steps_taken"), 0)
+        if not math.isclose(start + steps * EngineSettings.from_dict(_field(metadata, "engine")).dt, time,
+                            rel_tol=1e-9, abs_tol=1e-9):
+            raise InputError(f"time {time!r} s is not start_time + steps_taken * dt")
+        rule = _field(metadata, "restitution")
+        if not isinstance(rule, dict) or sorted(rule) != ["mean", "sticking_speed", "wall"]:
+            raise InputError(f"restitution must be a table of mean, wall and sticking_speed, got {rule!r}")
+        scene = Scene(box=reals("box", _field(metadata, "box"), 2, 0.0, MAX_LENGTH), positions=arrays["positions"],
+                      radii=arrays["radii"], masses=arrays["masses"], velocities=arrays["velocities"],
+                      segments=arrays["segments"], closed=flag("closed", _field(metadata, "closed")),
+                      restitution=Restitution(**rule), from_engine=True)
+    except InputError as exc:
+        raise InputError(f"{path}: the saved board is invalid: {exc}") from None
+    metadata["time"] = time
+    return metadata, scene
 
 
 def read_state(path: str | os.PathLike) -> State:
-    """The board saved in ``path``, as a `State` for analysis and pictures (no engine built)."""
-    metadata, arrays = _read(path)
-    scene = _scene(metadata, arrays, path)
-    return State(time=float(metadata["time"]), positions=scene.positions.copy(),
-                 velocities=scene.velocities.copy(), radii=scene.radii.copy(), masses=scene.masses.copy(),
-                 box=scene.box, walls=scene.wall_segments().copy())
+    """The board saved in ``path``, as a `State` for analysis and pictures (no engine built).
 
-
-def _scene(metadata: dict, arrays: dict[str, np.ndarray], path: str | os.PathLike) -> Scene:
-    try:
-        return Scene(box=tuple(metadata["box"]), positions=arrays["positions"], radii=arrays["radii"],
-                     masses=arrays["masses"], velocities=arrays["velocities"], segments=arrays["segments"],
-                     closed=bool(metadata["closed"]), restitution=Restitution(**metadata["restitution"]),
-                     overlap_tolerance=ENGINE_OVERLAP_TOLERANCE)
-    except (KeyError, TypeError, ValueError) as exc:
-        raise InputError(f"{path}: saved board is invalid ({exc})") from None
+    Raises
+    ------
+    FileNotFoundError
+        If ``path`` does not exist.
+    labrig.validate.InputError
+        If the file is not a readable qdots state file (the message says why).
+    """
+    metadata, scene = _read(path)
+    return State(time=metadata["time"], positions=scene.positions.copy(), velocities=scene.velocities.copy(),
+                 radii=scene.radii.copy(), masses=scene.masses.copy(), box=scene.box,
+                 walls=scene.wall_segments().copy(), closed=scene.closed)
 
 
 def load(path: str | os.PathLike) -> Simulation:
@@ -142,21 +140,29 @@ def load(path: str | os.PathLike) -> Simulation:
     ------
     FileNotFoundError
         If ``path`` does not exist.
-    ValueError
+    labrig.validate.InputError
         If the file is truncated, corrupted, of another format or version,
-        or holds an invalid board.
+        or holds invalid values; the message starts with the path.
     """
-    metadata, arrays = _read(path)
-    scene = _scene(metadata, arrays, path)
+    metadata, scene = _read(path)
     try:
-        engine = dict(metadata["engine"])
-        forces = [force_from_dict(spec) for spec in metadata["forces"]]
-        sim = Simulation(scene, forces, seed=0, **engine)
-        sim.rng.bit_generator.state = metadata["rng"]
-        sim.steps_taken = int(metadata["steps_taken"])
-        sim.start_time = float(metadata["start_time"])
-        for name, count in metadata["collisions"].items():
-            setattr(sim.collisions, name, int(count))
-    except (KeyError, TypeError, ValueError) as exc:
-        raise InputError(f"{path}: saved run is invalid ({type(exc).__name__}: {exc})") from None
+        forces = _field(metadata, "forces")
+        if not isinstance(forces, list):
+            raise InputError(f"forces must be a list of tables, got {forces!r}")
+        sim = Simulation(scene, [force_from_dict(spec) for spec in forces], seed=0,
+                         engine=EngineSettings.from_dict(metadata["engine"]))
+        rng = _field(metadata, "rng")
+        try:
+            sim.rng.bit_generator.state = rng
+        except (TypeError, ValueError, KeyError) as exc:
+            raise InputError(f"rng is not a state of numpy's {type(sim.rng.bit_generator).__name__}: {exc}") from None
+        sim.steps_taken = metadata["steps_taken"]
+        sim.start_time = metadata["start_time"]
+        counters = _field(metadata, "collisions")
+        if not isinstance(counters, dict) or sorted(counters) != sorted(COUNTERS):
+            raise InputError(f"collisions must be a table of {', '.join(COUNTERS)}, got {counters!r}")
+        for name in COUNTERS:
+            setattr(sim.collisions, name, count(f"collisions.{name}", counters[name], 0))
+    except InputError as exc:
+        raise InputError(f"{path}: the saved run is invalid: {exc}") from None
     return sim
