@@ -23,9 +23,14 @@ attempt.
 
 from __future__ import annotations
 
+import contextlib
+import ctypes
 import json
 import os
 import pickle
+import signal
+import sys
+import threading
 import time
 import traceback
 from collections import deque
@@ -151,6 +156,32 @@ class _Serial:
         pass
 
 
+#: How often a worker checks that the process that started it is alive, s.
+PARENT_CHECK_INTERVAL = 1.0
+
+
+def exit_with_parent(parent: int) -> None:
+    """Make this worker process exit when ``parent`` (the sweep's process) dies, even by SIGKILL.
+
+    On Linux the kernel sends the worker SIGKILL when its parent dies (``PR_SET_PDEATHSIG``);
+    everywhere a daemon thread also checks every `PARENT_CHECK_INTERVAL` s that the parent is still
+    its parent. A worker orphaned by a killed sweep would otherwise wait for work forever.
+    """
+    if sys.platform.startswith("linux"):
+        with contextlib.suppress(OSError, AttributeError):
+            libc = ctypes.CDLL(None, use_errno=True)
+            libc.prctl(1, signal.SIGKILL, 0, 0, 0)  # PR_SET_PDEATHSIG
+    if os.getppid() != parent:  # the parent died before the kernel was told
+        os._exit(1)
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(PARENT_CHECK_INTERVAL)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="labrig-parent-watch", daemon=True).start()
+
+
 class _Local:
     """A `ProcessPoolExecutor` with at most ``workers`` runs in flight (so a crash has few suspects)."""
 
@@ -160,7 +191,8 @@ class _Local:
 
     def submit(self, fn, *args) -> Future:
         if self.pool is None:
-            self.pool = ProcessPoolExecutor(max_workers=self.capacity)
+            self.pool = ProcessPoolExecutor(max_workers=self.capacity, initializer=exit_with_parent,
+                                            initargs=(os.getpid(),))
         return self.pool.submit(fn, *args)
 
     def wait(self, futures):
@@ -245,9 +277,19 @@ def _write_json(path: Path, data: dict) -> None:
     write_text_atomic(path, json.dumps(data, indent=1))
 
 
+def _well_formed(record: dict) -> bool:
+    """Whether a finished record holds what the table needs: a row of plain values, its attempts and wall time."""
+    row, wall = record.get("row"), record.get("wall_s")
+    plain = (type(None), bool, int, float, str)
+    return (isinstance(row, dict) and all(isinstance(k, str) and isinstance(v, plain) for k, v in row.items())
+            and isinstance(record.get("attempts"), int) and not isinstance(record.get("attempts"), bool)
+            and (wall is None or (isinstance(wall, (int, float)) and not isinstance(wall, bool))))
+
+
 def _finished(out: Path, run: Run, state_suffix: str | None) -> dict | None:
+    """The record of a run that finished well, or None (to run it again: missing, failed or damaged)."""
     record = read_record(out, run)
-    if record is None or record.get("status") != "ok":
+    if record is None or record.get("status") != "ok" or not _well_formed(record):
         return None
     if state_suffix is not None and not (out / "states" / f"{run.id}{state_suffix}").is_file():
         return None

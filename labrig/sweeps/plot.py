@@ -83,6 +83,8 @@ def summarize(table, metric: str, x: str, group: str | None = None, where: Mappi
     rows = [r for r in rows if r.get("status", "ok") == "ok" and all(_matches(r[k], v) for k, v in where.items())]
     if not rows:
         raise InputError(f"no finished run matches {where!r}" if where else "the table has no finished run")
+    if not any(is_number(r[metric]) for r in rows):
+        raise InputError(f"column {metric!r} holds no numbers to average (e.g. {rows[0][metric]!r})")
     others = [c for c in swept if c not in (x, group, *where) and c in rows[0]]
     cells: dict = {}
     for row in rows:

@@ -24,12 +24,14 @@ import math
 from dataclasses import dataclass, field
 from typing import Callable, Mapping
 
-from ..validate import InputError
+from ..validate import MAX_SEED, InputError, count
 
 #: Keys of a range axis: ``{start, stop, num}`` (evenly spaced, both ends) or ``{start, stop, step}``.
 RANGE_KEYS = ("start", "stop", "num", "step")
 #: Largest number of values one range may expand to (a typo guard).
 MAX_RANGE = 100_000
+#: Most runs in one sweep (points x axes x seeds), checked before any run is expanded.
+MAX_RUNS = 100_000
 #: Significant digits kept by range values (0.1 * 3 is 0.3, not 0.30000000000000004).
 RANGE_DIGITS = 12
 
@@ -179,15 +181,16 @@ def _seeds(seeds) -> int | tuple | None:
     if seeds is None:
         return None
     if isinstance(seeds, int) and not isinstance(seeds, bool):
-        if seeds < 1:
-            raise InputError(f"seeds must be a count >= 1 or a list of integers >= 0, got {seeds!r}")
-        return seeds
+        return count("seeds", seeds, 1, MAX_RUNS)
     if isinstance(seeds, (list, tuple)) and seeds and all(
-            isinstance(s, int) and not isinstance(s, bool) and s >= 0 for s in seeds):
+            isinstance(s, int) and not isinstance(s, bool) and 0 <= s <= MAX_SEED for s in seeds):
+        if len(seeds) > MAX_RUNS:
+            raise InputError(f"seeds lists {len(seeds):,} seeds, more than the {MAX_RUNS:,} runs a sweep may have")
         if len(set(seeds)) < len(seeds):
             raise InputError(f"seeds lists a seed twice: {list(seeds)!r}")
         return tuple(seeds)
-    raise InputError(f"seeds must be a count >= 1 or a non-empty list of integers >= 0, got {seeds!r}")
+    raise InputError(f"seeds must be a count in [1, {MAX_RUNS:,}] or a non-empty list of integers in "
+                     f"[0, {MAX_SEED}], got {seeds!r}")
 
 
 def _point(k: int, point) -> dict:
@@ -257,6 +260,9 @@ class Sweep:
         if any(labels) and (not all(labels) or len(set(labels)) < len(labels)):
             raise InputError(f"points must all have a label, each different, or none: got {labels!r}")
         object.__setattr__(self, "seeds", _seeds(self.seeds))
+        if len(self) > MAX_RUNS:
+            raise InputError(f"the sweep has {len(self):,} runs (points x axes x seeds), more than the {MAX_RUNS:,} "
+                             f"a sweep may have")
         _parts(self.seed_key)
         if self.seeds is not None and (self.seed_key in self.axes or any(self.seed_key in p for p in self.points)):
             raise InputError(f"{self.seed_key!r} is set by seeds; do not also sweep it as an axis or point key")

@@ -13,6 +13,10 @@ from ..files import atomic_path, write_csv
 from ..validate import InputError
 
 
+#: Largest table read, bytes.
+MAX_TABLE_BYTES = 2**30
+
+
 def flatten(params, prefix: str = "") -> dict:
     """Nested parameters as one level of dotted keys; lists of tables are indexed (``forces.0.r0``).
 
@@ -116,9 +120,17 @@ def read_table(path: str | os.PathLike) -> list[dict]:
             return pq.read_table(path).to_pylist()
         except Exception as exc:  # pyarrow raises its own error types
             raise InputError(f"{path}: not a readable Parquet table ({exc})") from None
+    if path.stat().st_size > MAX_TABLE_BYTES:
+        raise InputError(f"{path}: the table has {path.stat().st_size:,} bytes, more than the {MAX_TABLE_BYTES:,} read")
     try:
         with open(path, newline="", encoding="utf-8") as stream:
-            rows = [{key: _parse(value) for key, value in row.items()} for row in csv.DictReader(stream)]
+            reader = csv.DictReader(stream)
+            rows = []
+            for row in reader:
+                if None in row or None in row.values():  # more or fewer cells than the header has columns
+                    raise InputError(f"{path}: line {reader.line_num} has {len(row) - (None in row) + len(row.get(None, []))} "
+                                     f"cells, the header {len(reader.fieldnames)} (a truncated or edited table?)")
+                rows.append({key: _parse(value) for key, value in row.items()})
     except (OSError, UnicodeDecodeError, csv.Error) as exc:
         raise InputError(f"{path}: not a readable CSV table ({exc})") from None
     if not rows:

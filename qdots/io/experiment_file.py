@@ -17,63 +17,82 @@ from pathlib import Path
 
 from labrig.files import write_text_atomic
 from labrig.tomlfile import check_keys, from_source, parse_toml, read_toml, toml_line
-from labrig.validate import InputError, typed
+from labrig.validate import MAX_SEED, InputError, number, typed
 
-from ..collisions import Restitution
-from ..experiment import Board, Deposition, Experiment
-from ..simulation import EngineSettings
+from ..collisions import MAX_STICKING_SPEED, Restitution
+from ..experiment import MAX_SETTLE, Board, Deposition, Experiment
+from ..forces.fields import MAX_ACCELERATION, MAX_DRAG
+from ..forces.thermal import MAX_GAMMA, MAX_KT, MAX_SCALE
+from ..forces.thermal import MAX_INTERVAL as MAX_KICK_INTERVAL
+from ..forces.vdw import MAX_RANGE, MAX_STRENGTH
+from ..neighbours import MAX_SKIN
+from ..placement import MAX_TRIES
+from ..protocols import MAX_INTERVAL
+from ..scene import MAX_DOTS, MAX_LENGTH, MAX_MASS
+from ..settings import DT_RANGE, MAX_HASH_CELLS, MAX_ITERATIONS, MAX_SLOP, MAX_SUBSTEPS, EngineSettings
+from ..simulation import MAX_STEPS
+
+_PX = f"(0, {number(MAX_LENGTH)}]"
 
 #: Top-level scalars: key -> (kind, comment).
 TOP = {
     "name": ("str", "label of the run"),
-    "seed": ("int", "integer >= 0; root of the simulation and deposition random streams"),
+    "seed": ("int", f"integer in [0, {MAX_SEED}]; root of the simulation and deposition random streams"),
     "grating": ("float", "px, a wall at y = grating keeps the dots in 0 < y < grating; "
                          "in (mean_diameter, board.height), 0 = no grating"),
 }
 #: Tables: name -> (class, {key: (kind, comment)}). Kinds ending in "?" may be unset (None).
 TABLES = {
     "board": (Board, {
-        "width": ("float", "px, > 0"),
-        "height": ("float", "px, > 0"),
+        "width": ("float", f"px, in {_PX}"),
+        "height": ("float", f"px, in {_PX}"),
         "closed": ("bool", "the four edges are hard walls"),
     }),
     "deposition": (Deposition, {
         "protocol": ("str", '"random" (uniform in the board or grating channel) | "center" (ring around the centre)'),
-        "n_dots": ("int", "dots deposited, integer >= 0"),
-        "mean_diameter": ("float", "px, > 0"),
+        "n_dots": ("int", f"dots deposited, integer in [0, {MAX_DOTS:,}]"),
+        "mean_diameter": ("float", f"px, in {_PX}"),
         "sigma": ("float", "fraction of mean diameter, [0, 1)"),
         "mass_model": ("str", '"equal" | "area" (d/mean)^2 | "volume" (d/mean)^3 | "bimodal"'),
-        "heavy_mass": ("float", "mass of the heavy half of a bimodal board, mean-dot masses, > 0"),
-        "interval": ("float", "s of simulated time between two dots, >= 0"),
-        "settle": ("float", "s of simulated time after the last dot, >= 0"),
-        "max_tries": ("int", "rejected candidates in a row before the board counts as full, integer >= 1"),
+        "heavy_mass": ("float", f"mass of the heavy half of a bimodal board, mean-dot masses, in (0, {number(MAX_MASS)}]"),
+        "interval": ("float", f"s of simulated time between two dots, in [0, {number(MAX_INTERVAL)}]"),
+        "settle": ("float", f"s of simulated time after the last dot, in [0, {number(MAX_SETTLE)}]; "
+                            f"the whole run at most {MAX_STEPS:,} steps"),
+        "max_tries": ("int", f"rejected candidates in a row before the board counts as full, in [1, {MAX_TRIES:,}]"),
     }),
     "restitution": (Restitution, {
         "mean": ("float", "mean dot-dot coefficient of restitution, [0, 1]"),
         "wall": ("float", "dot-wall coefficient of restitution, [0, 1]"),
-        "sticking_speed": ("float", "px/s, slower dot-dot impacts are perfectly inelastic, >= 0"),
+        "sticking_speed": ("float", f"px/s, slower dot-dot impacts are perfectly inelastic, in [0, "
+                                    f"{number(MAX_STICKING_SPEED)}]"),
     }),
     "engine": (EngineSettings, {
-        "dt": ("float", "s, time step, > 0"),
-        "substeps": ("int", "Chipmunk steps per time step, integer >= 1"),
-        "iterations": ("int", "solver iterations per sub-step, integer >= 1"),
-        "collision_slop": ("float", "px of overlap left uncorrected, >= 0"),
+        "dt": ("float", f"s, time step, in [{number(DT_RANGE[0])}, {number(DT_RANGE[1])}]"),
+        "substeps": ("int", f"Chipmunk steps per time step, in [1, {MAX_SUBSTEPS}]"),
+        "iterations": ("int", f"solver iterations per sub-step, in [1, {MAX_ITERATIONS}]"),
+        "collision_slop": ("float", f"px of overlap left uncorrected, in [0, {number(MAX_SLOP)}]"),
         "collision_bias": ("float?", "overlap fraction left after 1 s, [0, 1); unset: 30 % corrected per sub-step"),
-        "spatial_hash": ("pair?", "[cell size px > 0, count >= 1]; unset: Chipmunk's bounding-box tree"),
+        "spatial_hash": ("pair?", f"[cell size px > 0, count in [1, {MAX_HASH_CELLS:,}]]; unset: Chipmunk's "
+                                  "bounding-box tree"),
         "threads": ("int", "solver threads, 1 or 2"),
     }),
 }
 #: Comments for force parameters: type -> {parameter: comment}.
 FORCE_NOTES = {
-    "VanDerWaals": {"model": '"thesis" (Java proxy) | "hamaker" (Eq 2.2)', "r0": "px, range R0 of the proxy",
-                    "strength": "Hamaker constant, mean-dot mass px^2/s^2", "min_gap": "px, closer counts as contact",
-                    "max_gap": "px, no force beyond", "contact": '"hold" | "zero" (force below min_gap)',
-                    "sticking_speed": "px/s, enters the proxy offset b", "skin": "px, Verlet skin of the pair list"},
-    "ThermalKicks": {"interval": "s between kicks", "scale": "multiple of the thesis kick speed"},
-    "Langevin": {"gamma": "1/s, friction rate", "kT": "mean-dot mass px^2/s^2"},
-    "Drag": {"linear": "f1, 1/s", "quadratic": "f2, 1/px"},
-    "Gravity": {"acceleration": "[ax, ay], px/s^2"},
-    "CenterGravity": {"center": "[x, y], px", "magnitude": "px/s^2, >= 0"},
+    "VanDerWaals": {"model": '"thesis" (Java proxy) | "hamaker" (Eq 2.2)',
+                    "r0": f"px, range R0 of the proxy, in (0, {number(MAX_RANGE)}]",
+                    "strength": f"Hamaker constant, mean-dot mass px^2/s^2, in [0, {number(MAX_STRENGTH)}]",
+                    "min_gap": "px, closer counts as contact", "max_gap": "px, no force beyond",
+                    "contact": '"hold" | "zero" (force below min_gap)',
+                    "sticking_speed": "px/s, enters the proxy offset b",
+                    "skin": f"px, Verlet skin of the pair list, in [0, {number(MAX_SKIN)}]"},
+    "ThermalKicks": {"interval": f"s between kicks, in (0, {number(MAX_KICK_INTERVAL)}]",
+                     "scale": f"multiple of the thesis kick speed, in [0, {number(MAX_SCALE)}]"},
+    "Langevin": {"gamma": f"1/s, friction rate, in [0, {number(MAX_GAMMA)}]",
+                 "kT": f"mean-dot mass px^2/s^2, in [0, {number(MAX_KT)}]"},
+    "Drag": {"linear": f"f1, 1/s, in [0, {number(MAX_DRAG)}]", "quadratic": f"f2, 1/px, in [0, {number(MAX_DRAG)}]"},
+    "Gravity": {"acceleration": f"[ax, ay], px/s^2, each within +-{number(MAX_ACCELERATION)}"},
+    "CenterGravity": {"center": "[x, y], px", "magnitude": f"px/s^2, in [0, {number(MAX_ACCELERATION)}]"},
 }
 
 
