@@ -40,7 +40,7 @@ def test_written_file_has_every_key_with_units():
                  "[restitution]", "[engine]", "[[forces]]", 'type = "VanDerWaals"', "dt = 0.001",
                  "# collision_bias (unset)", "# spatial_hash (unset)"):
         assert line in text, line
-    assert "# px, > 0" in text and "# s of simulated time" in text
+    assert "# px, in (0, 1e6]" in text and "# s of simulated time" in text
 
 
 def test_missing_keys_take_defaults_and_ints_are_accepted_for_floats():
