@@ -25,7 +25,7 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure as MplFigure
 
-from planarize import anodize, surfaces
+from planarize import Fast, Model, anodize, surfaces
 from planarize.metrics import history_difference
 
 from . import pareto
@@ -49,7 +49,7 @@ def run_once(case: str, thickness: float, refine: int, step: float, tolerance: f
              distance: str = "thesis"):
     s = surface(case, refine)
     start = time.perf_counter()
-    run = anodize(s, thickness, step=step, k_exp=K_EXP, distance=distance, tolerance=tolerance, record=200)
+    run = anodize(s, thickness, record=200, model=Model(step=step, k_exp=K_EXP, distance=distance), engine=Fast(tolerance=tolerance))
     return run, time.perf_counter() - start
 
 

@@ -37,21 +37,16 @@ import time
 import numpy as np
 from scipy.ndimage import gaussian_filter
 
-from planarize import Surface, anodize, surfaces
+from planarize import Fast, Model, Surface, anodize, surfaces
 from planarize.metrics import history_difference
-from planarize.engines.reference import ReferenceEngine
 
 
 def reference_time(surface: Surface, thickness: float, step: float, updates: int, budget: float) -> tuple[float, bool]:
     """Wall time of the reference engine to ``thickness`` (measured, or extrapolated after ``budget`` s)."""
-    start = time.perf_counter()
-    engine = ReferenceEngine(surface, step=step)
-    while engine.thickness < thickness and time.perf_counter() - start < budget:
-        engine.advance()
-    wall = time.perf_counter() - start
-    if engine.thickness >= thickness:
-        return wall, True
-    return wall * updates / max(engine.point_updates, 1), False
+    run = anodize(surface, thickness, Model(step=step), "reference", record=1, max_seconds=budget)
+    if run.complete:
+        return run.wall_s, True
+    return run.wall_s * updates / max(int(run.history["point_updates"][-1]), 1), False
 
 
 def random_surface(n: int, seed: int = 0) -> Surface:
@@ -68,16 +63,16 @@ def tie_broken_errors(surface: Surface, copies: int = 5) -> list[float]:
     for seed in range(1, copies + 1):
         z = surface.z + np.random.default_rng(seed).normal(scale=1e-9, size=surface.z.shape)
         copy = Surface(z, surface.spacing, surface.boundary)
-        ref = anodize(copy, 1.0, step=0.01, tolerance=0.0, record=200)
-        run = anodize(copy, 1.0, step=0.01, record=200)
+        ref = anodize(copy, 1.0, record=200, model=Model(step=0.01), engine=Fast(tolerance=0.0))
+        run = anodize(copy, 1.0, record=200, model=Model(step=0.01))
         errors.append(history_difference(run, ref, np.arange(1, 11) * 0.1))
     return errors
 
 
 def hill_case(budget: float, copies: int = 5) -> dict:
     surface = surfaces.hill()
-    ref = anodize(surface, 1.0, step=0.01, tolerance=0.0, record=200)
-    run = anodize(surface, 1.0, step=0.01, record=200)
+    ref = anodize(surface, 1.0, record=200, model=Model(step=0.01), engine=Fast(tolerance=0.0))
+    run = anodize(surface, 1.0, record=200, model=Model(step=0.01))
     ref_wall, exact = reference_time(surface, 1.0, 0.01, int(ref.history["point_updates"][-1]), budget)
     row = _row("hill 17x17 to 1 nm", run, history_difference(run, ref, np.arange(1, 11) * 0.1), 0.5,
                reference_s=ref_wall, reference_measured=exact)
@@ -89,8 +84,8 @@ def hill_case(budget: float, copies: int = 5) -> dict:
 
 def random65_case(budget: float) -> dict:
     surface = Surface(4 + np.random.default_rng(5).uniform(-0.25, 0.25, (17, 17)), 1.0).refine(4)
-    ref = anodize(surface, 1.0, step=0.01, tolerance=0.0, record=200)
-    run = anodize(surface, 1.0, step=0.01, record=200)
+    ref = anodize(surface, 1.0, record=200, model=Model(step=0.01), engine=Fast(tolerance=0.0))
+    run = anodize(surface, 1.0, record=200, model=Model(step=0.01))
     ref_wall, exact = reference_time(surface, 1.0, 0.01, int(ref.history["point_updates"][-1]), budget)
     return _row("random 65x65 to 1 nm", run, history_difference(run, ref, np.arange(1, 11) * 0.1), None,
                 reference_s=ref_wall, reference_measured=exact)
@@ -99,34 +94,34 @@ def random65_case(budget: float) -> dict:
 def ta_case(quick: bool) -> dict:
     patch = surfaces.random_roughness(size=100, seed=1)
     depth = 20.0 if quick else 40.0
-    patch_ref = anodize(patch, depth, step=0.5, tolerance=0.0, record=100)
-    patch_run = anodize(patch, depth, step=0.5, record=100)
+    patch_ref = anodize(patch, depth, record=100, model=Model(step=0.5), engine=Fast(tolerance=0.0))
+    patch_run = anodize(patch, depth, record=100, model=Model(step=0.5))
     error = history_difference(patch_run, patch_ref, np.linspace(depth / 8, depth, 8))
     thickness = 10.0 if quick else 200.0
-    run = anodize(surfaces.random_roughness(seed=1), thickness, step=0.5, record=40)
+    run = anodize(surfaces.random_roughness(seed=1), thickness, record=40, model=Model(step=0.5))
     return _row(f"Ta 101x101 to {thickness:g} nm", run, error, 30.0 if not quick else None)
 
 
 def _periodic_child(n: int, thickness: float, budget: float, options: dict, queue) -> None:
     surface = random_surface(n)
     start = time.perf_counter()
-    from planarize.engines.fast import FastEngine
+    seen = {"setup": None, "reached": [], "crossings": {}}  # crossings: band edge (nm) -> the run's state then
 
-    engine = FastEngine(surface, step=0.5, **options)
-    setup = _work(engine, time.perf_counter() - start)
-    reached = []
-    crossings = {}  # band edge (nm) -> the run's state when first reached
-    while engine.thickness < thickness and time.perf_counter() - start < budget:
-        engine.advance()
+    def observe(engine) -> None:
         now = time.perf_counter() - start
-        reached.append((engine.thickness, now))
+        if seen["setup"] is None:  # the first call: the engine is set up, no sweep yet
+            seen["setup"] = _work(engine, now)
+            return
+        seen["reached"].append((engine.thickness, now))
         for edge in BANDS:
-            if edge not in crossings and engine.thickness >= edge:
-                crossings[edge] = _work(engine, now)
-    queue.put({"setup": setup, "wall_s": time.perf_counter() - start, "thickness": engine.thickness,
-               "volume_error": engine.oxide_gained() / ((engine.k_exp - 1) * engine.metal_lost()) - 1,
-               "sweeps": engine.iterations, "trace": reached[:: max(1, len(reached) // 50)],
-               "crossings": crossings})
+            if edge not in seen["crossings"] and engine.thickness >= edge:
+                seen["crossings"][edge] = _work(engine, now)
+
+    run = anodize(surface, thickness, Model(step=0.5), Fast(**options), record=1, observer=observe, max_seconds=budget)
+    reached = seen["reached"]
+    queue.put({"setup": seen["setup"], "wall_s": time.perf_counter() - start, "thickness": run.thickness,
+               "volume_error": float(run.history["volume_error"][-1]), "sweeps": int(run.history["iterations"][-1]),
+               "trace": reached[:: max(1, len(reached) // 50)], "crossings": seen["crossings"]})
 
 
 def _work(engine, wall: float) -> dict:
@@ -207,8 +202,9 @@ def periodic_knobs(n: int, thickness: float) -> list:
     candidates do, on a periodic random surface (`random_surface`): Table rows."""
     runs = {}
     for step, tolerance, interacting in KNOBS:
-        runs[step, tolerance, interacting] = anodize(random_surface(n), thickness, step=step,
-                                                     tolerance=tolerance * step, interacting=interacting, record=100)
+        runs[step, tolerance, interacting] = anodize(random_surface(n), thickness, Model(step=step),
+                                                     Fast(tolerance=tolerance * step, interacting=interacting),
+                                                     record=100)
     default, finer = runs[KNOBS[0]], runs[KNOBS[-1]]
     at = np.linspace(thickness / 10, thickness, 10)
     rows = []
@@ -235,17 +231,17 @@ def _row(case, run, error, goal, reference_s=None, reference_measured=True) -> d
 
 def scaling(sizes, thickness: float = 3.0) -> list[tuple[int, float]]:
     """(grid side, seconds per nm of oxide between 1 nm and ``thickness``) on periodic random surfaces."""
-    from planarize.engines.fast import FastEngine
-
     out = []
     for n in sizes:
-        engine = FastEngine(random_surface(n), step=0.5)
-        while engine.thickness < 1.0:
-            engine.advance()
-        start, reached = time.perf_counter(), engine.thickness
-        while engine.thickness < thickness:
-            engine.advance()
-        out.append((n, (time.perf_counter() - start) / (engine.thickness - reached)))
+        first = []  # (time, thickness) when 1 nm is first passed
+
+        def observe(engine) -> None:
+            if not first and engine.thickness >= 1.0:
+                first.append((time.perf_counter(), engine.thickness))
+
+        run = anodize(random_surface(n), thickness, Model(step=0.5), record=1, observer=observe)
+        end = time.perf_counter()
+        out.append((n, (end - first[0][0]) / (run.thickness - first[0][1])))
     return out
 
 

@@ -26,15 +26,13 @@ from __future__ import annotations
 
 import argparse
 import platform
-import time
 from pathlib import Path
 
 import numpy as np
 
 import planarize
 from labrig.files import write_csv
-from planarize.metrics import history_row
-from planarize.engines.reference import ReferenceEngine
+from planarize import Model
 
 from .report import Headline, Table
 
@@ -46,18 +44,11 @@ RECORD = np.linspace(0.0, THICKNESS, 11)
 
 def reference(metal: planarize.Surface, budget: float) -> dict:
     """Run the reference engine until the target or the time budget; history rows at `RECORD`."""
-    start = time.perf_counter()
-    engine = ReferenceEngine(metal, k_exp=K_EXP, step=STEP, distance="thesis", volume="exact")
-    rows = []
-    while True:
-        wall = time.perf_counter() - start
-        while len(rows) < len(RECORD) and RECORD[len(rows)] <= engine.thickness:
-            rows.append(history_row(engine, RECORD[len(rows)], wall))
-        if engine.thickness >= THICKNESS or wall > budget:
-            break
-        engine.advance()
-    final = history_row(engine, engine.thickness, time.perf_counter() - start)
-    return {"rows": rows, "final": final, "finished": engine.thickness >= THICKNESS}
+    run = planarize.anodize(metal, THICKNESS, Model(step=STEP, k_exp=K_EXP), "reference", record=RECORD,
+                            max_seconds=budget)
+    rows = run.rows()
+    final = rows[-1]
+    return {"rows": rows if run.complete else rows[:-1], "final": final, "finished": run.complete}
 
 
 def rms_difference(rows: list[dict], history: dict) -> float:
@@ -72,9 +63,9 @@ def rms_difference(rows: list[dict], history: dict) -> float:
 def measure(side: int, budget: float) -> dict:
     metal = planarize.surfaces.hill(points=SIZES[side], refine=4)
     ref = reference(metal, budget)
-    fast = planarize.anodize(metal, THICKNESS, step=STEP, k_exp=K_EXP, engine="fast", record=RECORD)
-    exact_ties = planarize.anodize(metal, THICKNESS, step=STEP, k_exp=K_EXP, engine="fast", tolerance=0.0,
-                                   record=RECORD)
+    model = Model(step=STEP, k_exp=K_EXP)
+    fast = planarize.anodize(metal, THICKNESS, model, record=RECORD)
+    exact_ties = planarize.anodize(metal, THICKNESS, model, planarize.Fast(tolerance=0.0), record=RECORD)
     final = ref["final"]
     rate = final["point_updates"] / final["wall_s"]
     total_updates = int(exact_ties.history["point_updates"][-1])

@@ -215,9 +215,8 @@ def read_archive(path: str | os.PathLike, kind: str, version: int, names: Sequen
         if size > MAX_ARCHIVE_BYTES:
             raise InputError(f"it holds {size:,} bytes, more than the {MAX_ARCHIVE_BYTES:,} read")
         with np.load(path, allow_pickle=False) as data:
-            missing = [name for name in ("metadata", *names) if name not in data.files]
-            if missing:
-                raise InputError(f"no {', '.join(missing)} in it")
+            if "metadata" not in data.files:
+                raise InputError("no metadata in it")
             arrays = {name: data[name] for name in data.files}
         metadata = json.loads(str(arrays.pop("metadata")))
     except InputError as exc:
@@ -230,6 +229,9 @@ def read_archive(path: str | os.PathLike, kind: str, version: int, names: Sequen
         raise InputError(f"{path} is not a {what} file (format {metadata.get('format')!r})")
     if metadata.get("version") != version:
         raise InputError(f"{path} has {what} format version {metadata.get('version')!r}; this reads version {version}")
+    missing = [name for name in names if name not in arrays]
+    if missing:
+        raise InputError(f"{path} is not a readable {what} file: no {', '.join(missing)} in it")
     return metadata, arrays
 
 
@@ -262,6 +264,14 @@ class OutputSet:
     def target(self, name: str) -> Path:
         """Where ``name`` goes in the set's directory."""
         return self.directory / name
+
+    def name_beside(self, name: str, source: str | os.PathLike | None) -> str:
+        """``name``, or ``STEM.ran.SUFFIX`` when ``name`` in this directory is the file ``source`` (the input a
+        run was started from, which a set never writes over)."""
+        target = self.target(name)
+        if source is not None and target.exists() and Path(source).exists() and target.samefile(source):
+            return f"{target.stem}.ran{target.suffix}"
+        return name
 
     def stage(self, name: str, last: bool = False) -> Path:
         """A temporary path to write the file ``name`` to; it is renamed onto its target by `commit`."""

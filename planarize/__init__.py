@@ -2,23 +2,26 @@
 
 >>> import planarize
 >>> metal = planarize.surfaces.hill()                        # 17 x 17 points, 0.25 nm apart
->>> run = planarize.anodize(metal, thickness=1.0)          # doctest: +SKIP
+>>> run = planarize.anodize(metal, thickness=1.0, model=planarize.Model(k_exp=2.3, step=0.01))  # doctest: +SKIP
 >>> run.history["oxide_rms_nm"][-1]                        # doctest: +SKIP
 """
 
 from labrig import __version__  # noqa: F401 (one version for the distribution)
 from labrig.deprecation import alias_modules, renamed_attributes
 
-from . import surfaces
-from .anodize import Anodization, Snapshot, anodize, engines
+from . import engines, surfaces
+from .anodize import Anodization, Snapshot, anodize
+from .engines import Fast, Matlab, Reference
 from .metrics import rms, z_range
+from .model import Model
 from .surface import Surface
 
-__all__ = ["Surface", "anodize", "Anodization", "Snapshot", "engines", "rms", "z_range", "surfaces"]
+__all__ = ["Surface", "Model", "anodize", "Anodization", "Snapshot", "Fast", "Reference", "Matlab", "rms", "z_range",
+           "surfaces", "engines"]
 
 # modules that moved in 0.2 (their old names warn, and go in the next release)
 alias_modules({f"planarize.{old}": new for old, new in {
-    "scenes": "planarize.surfaces", "engine": "planarize.engines.base", "reference": "planarize.engines.reference",
+    "scenes": "planarize.surfaces", "engine": "planarize.engines.base", "bookkeeping": "planarize.engines.sets", "reference": "planarize.engines.reference",
     "fast": "planarize.engines.fast", "features": "planarize.engines.features",
     "compiled": "planarize.engines.kernels", "gwy": "planarize.io.gwy", "results": "planarize.io.results",
     "scenefile": "planarize.io.scenefile", "commands": "planarize.cli.commands",

@@ -1,35 +1,39 @@
 """`anodize`: grow an oxide on a metal surface to a target thickness and record how it planarizes.
 
->>> from planarize import anodize, surfaces
->>> run = anodize(surfaces.hill(), thickness=1.0, step=0.01, k_exp=2.3)   # doctest: +SKIP
+>>> from planarize import Model, anodize, surfaces
+>>> run = anodize(surfaces.hill(), thickness=1.0, model=Model(k_exp=2.3, step=0.01))   # doctest: +SKIP
 >>> run.history["oxide_rms_nm"]                                         # doctest: +SKIP
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
+import os
 import time
 from dataclasses import dataclass, field
+from typing import Callable
 
 import numpy as np
 
-from labrig.validate import InputError
+from labrig.deprecation import warn as warn_renamed
+from labrig.validate import InputError, count, real, reals, within_memory
 
-from .engines.base import Engine
+from .engines import Fast, engine_settings
 from .metrics import history_row
+from .model import Model
 from .surface import Surface
 
-
-def engines() -> dict[str, type[Engine]]:
-    """The available engines by name."""
-    from .engines.reference import MatlabEngine, ReferenceEngine
-
-    found = {"reference": ReferenceEngine, "matlab": MatlabEngine}
-    try:
-        from .engines.fast import FastEngine
-    except ImportError:  # pragma: no cover - the fast engine is part of the package
-        return found
-    return {**found, "fast": FastEngine}
+#: Thickest oxide grown, nm (1 mm).
+MAX_THICKNESS = 1e6
+#: Most history rows or snapshots of a run.
+MAX_RECORD = 100_000
+#: Memory an engine needs per grid point, bytes (measured: the fast engine 0.89 GB at 1025 x 1025;
+#: the reference engine's sets are Python objects, about twice that).
+ENGINE_BYTES_PER_POINT = 2000
+#: The keywords of 0.1's flat signature, by where they went.
+MODEL_KEYWORDS = ("step", "k_exp", "distance", "volume")
+ENGINE_KEYWORDS = ("tolerance", "interacting", "threads", "jit")
 
 
 @dataclass(frozen=True)
@@ -60,6 +64,10 @@ class Anodization:
         The metal at the start.
     metal, oxide : Surface
         The surfaces at the end.
+    distances : ndarray
+        Every metal point's distance to the oxide at the end, nm.
+    complete : bool
+        False when the run stopped at its wall-time budget before the target thickness.
     """
 
     parameters: dict
@@ -69,6 +77,7 @@ class Anodization:
     metal: Surface
     oxide: Surface
     distances: np.ndarray = field(repr=False, default=None)
+    complete: bool = True
 
     @property
     def thickness(self) -> float:
@@ -85,23 +94,67 @@ class Anodization:
         return [{k: self.history[k][i].item() for k in keys} for i in range(len(self.history[keys[0]]))]
 
 
-def _targets(spec, thickness: float, name: str) -> np.ndarray:
+def thickness_targets(spec, thickness: float, name: str, limit: int = MAX_RECORD, empty: bool = False) -> np.ndarray:
+    """The thicknesses of ``record`` or ``snapshots`` (nm, ascending): a count ``n`` for ``n + 1`` evenly spaced
+    ones from 0 to ``thickness``, or a list in [0, ``thickness``] (empty only if ``empty``); at most ``limit``."""
     if isinstance(spec, (int, np.integer)) and not isinstance(spec, bool):
-        if spec < 1:
-            raise InputError(f"{name} must be a count >= 1 or a list of thicknesses, got {spec!r}")
-        return np.linspace(0.0, thickness, int(spec) + 1) if spec > 1 else np.array([0.0, thickness])
+        spec = count(name, spec, 1, limit)
+        return np.linspace(0.0, thickness, spec + 1) if spec > 1 else np.array([0.0, thickness])
+    if empty and isinstance(spec, (list, tuple, np.ndarray)) and not len(spec):
+        return np.zeros(0)
+    if isinstance(spec, (str, bytes, dict)) or not hasattr(spec, "__len__") or not len(spec):
+        raise InputError(f"{name} must be a count in [1, {limit:,}] or a non-empty list of thicknesses (nm), "
+                         f"got {spec!r}")
+    if len(spec) > limit:
+        raise InputError(f"{name} lists {len(spec):,} thicknesses, more than the {limit:,} allowed")
+    values = reals(name, spec, None, 0.0, thickness, unit="nm")
+    return np.unique(values)
+
+
+def _available_memory() -> float:
+    """Bytes of memory this process can expect to get (MemAvailable on Linux; else the physical memory)."""
     try:
-        values = np.unique(np.asarray(spec, dtype=float).ravel())
-    except (TypeError, ValueError):
-        raise InputError(f"{name} must be a count or a list of thicknesses (nm), got {spec!r}") from None
-    if values.size and not (np.isfinite(values).all() and values.min() >= 0 and values.max() <= thickness):
-        raise InputError(f"{name} must lie in [0, thickness = {thickness:g}] nm, got {spec!r}")
-    return values
+        with open("/proc/meminfo") as stream:
+            for line in stream:
+                if line.startswith("MemAvailable:"):
+                    return float(line.split()[1]) * 1024
+    except OSError:
+        pass
+    try:
+        return float(os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
+    except (ValueError, OSError, AttributeError):  # pragma: no cover - no way to tell
+        return math.inf
 
 
-def anodize(metal: Surface, thickness: float, *, step: float = 0.01, k_exp: float = 2.3, engine: str = "fast",
-            distance: str = "thesis", volume: str = "exact", record=50, snapshots=None, oxide: Surface | None = None,
-            progress: bool = False, **engine_options) -> Anodization:
+def _model_and_engine(model, engine, deprecated: dict):
+    """The `Model` and engine settings of a call, with the flat keywords of 0.1 folded in (with a warning)."""
+    model_keys = {k: deprecated.pop(k) for k in MODEL_KEYWORDS if k in deprecated}
+    engine_keys = {k: deprecated.pop(k) for k in ENGINE_KEYWORDS if k in deprecated}
+    if deprecated:
+        raise TypeError(f"anodize() got an unexpected keyword argument {sorted(deprecated)[0]!r}")
+    if model_keys:
+        warn_renamed(f"anodize({', '.join(f'{k}=' for k in model_keys)}...)",
+                     f"anodize(..., model=planarize.Model({', '.join(f'{k}=' for k in model_keys)}...))")
+        if model is not None:
+            raise InputError(f"give model=Model(...) or {', '.join(model_keys)}, not both")
+        model = Model(**model_keys)
+    model = Model() if model is None else model
+    if not isinstance(model, Model):
+        raise InputError(f"model must be a planarize.Model, got {type(model).__name__}")
+    settings = engine_settings(engine)
+    engine_keys.pop("jit", None)  # 0.1's jit=: the engine is always compiled now
+    if engine_keys:
+        warn_renamed(f"anodize({', '.join(f'{k}=' for k in engine_keys)}...)",
+                     f"anodize(..., engine=planarize.engines.Fast({', '.join(f'{k}=' for k in engine_keys)}...))")
+        if not isinstance(settings, Fast):
+            raise InputError(f"{', '.join(engine_keys)} apply to the fast engine only, not {settings.name!r}")
+        settings = dataclasses.replace(settings, **engine_keys)
+    return model, settings
+
+
+def anodize(metal: Surface, thickness: float, model: Model | None = None, engine: str | object = "fast", *,
+            record=50, snapshots=None, oxide: Surface | None = None, progress: bool = False,
+            observer: Callable | None = None, max_seconds: float | None = None, **deprecated) -> Anodization:
     """Oxidize ``metal`` until the oxide is ``thickness`` nm thick everywhere (thesis section 3.3).
 
     Parameters
@@ -109,58 +162,65 @@ def anodize(metal: Surface, thickness: float, *, step: float = 0.01, k_exp: floa
     metal : Surface
         Starting metal surface.
     thickness : float
-        Target oxide thickness, nm (>= 0): the run stops when the smallest
+        Target oxide thickness, nm, in [0, `MAX_THICKNESS`]: the run stops when the smallest
         metal-oxide distance reaches it (the thesis's termination).
-    step : float
-        Metal height consumed per oxidation, nm (> 0; thesis 0.01 for the hill, 0.5 for Ta).
-    k_exp : float
-        Oxide volume per metal volume (>= 1; Ta 2.3, Al ~1.3).
-    engine : {"fast", "reference", "matlab"}
-        ``"reference"``: the thesis's sequential algorithm
-        (`planarize.engines.reference`); ``"fast"``: the batched engine
-        (`planarize.engines.fast`; compiled when numba is installed); ``"matlab"``: the reference with the Matlab
-        listings' shortcuts, to measure what they cost.
-    distance : {"thesis", "exact"}
-        Point/segment distances as in the thesis, or exact distances to the
-        triangulated surfaces (`planarize.engines.features`).
-    volume : {"exact", "thesis"}
-        Volume accounting (`planarize.engines.base`).
+    model : Model, optional
+        The physics: ``k_exp``, ``step``, ``distance``, ``volume`` (`planarize.Model`; default ``Model()``).
+        The step must not exceed the thickness.
+    engine : str or engine settings
+        ``"fast"`` (default; `planarize.engines.Fast` for its settings: batch tolerance, interacting
+        candidates, threads), ``"reference"`` (the thesis's sequential algorithm) or ``"matlab"`` (the
+        reference with the Matlab listings' shortcuts, to measure what they cost).
     record : int or sequence of float
-        Thicknesses (nm) at which to add a history row, or a count ``n`` for
-        ``n + 1`` evenly spaced ones from 0 to ``thickness``. A row is taken
-        as soon as the smallest distance reaches its thickness.
+        Thicknesses (nm) at which to add a history row, or a count ``n`` (at most `MAX_RECORD`) for
+        ``n + 1`` evenly spaced ones from 0 to ``thickness``. A row is taken as soon as the smallest
+        distance reaches its thickness.
     snapshots : sequence of float, optional
-        Thicknesses at which to keep both surfaces (default: the start and the end).
+        Thicknesses at which to keep both surfaces (default: the start and the end; ``[]`` keeps
+        none; at most `MAX_RECORD`, and as many as fit in memory).
     oxide : Surface, optional
         An existing oxide to continue from (default: none yet).
     progress : bool
         Show a progress bar in nm of oxide with an ETA.
-    **engine_options
-        Passed to the engine (e.g. ``tolerance`` for ``"fast"``).
+    observer : callable, optional
+        ``observer(engine)`` once the engine is set up and after every sweep (the engine's
+        ``thickness``, ``D``, ``zm``, ``zo``, ``iterations``, ``point_updates`` are its state): for
+        measurements during a run.
+    max_seconds : float, optional
+        Wall-time budget, s: the run stops after the first sweep past it, with ``complete`` False
+        and a last history row and snapshot at the thickness reached.
+    **deprecated
+        The keywords of 0.1 (``step``, ``k_exp``, ``distance``, ``volume``; ``tolerance``,
+        ``interacting``, ``threads``, ``jit``) still work for one release, with a DeprecationWarning.
 
     Returns
     -------
     Anodization
     """
-    available = engines()
-    if engine not in available:
-        raise InputError(f"engine must be one of {tuple(available)}, got {engine!r}")
-    try:
-        thickness = float(thickness)
-    except (TypeError, ValueError):
-        raise InputError(f"thickness must be a number of nm, got {thickness!r}") from None
-    if not (math.isfinite(thickness) and thickness >= 0):
-        raise InputError(f"thickness must be >= 0 nm, got {thickness!r}")
-    rows_at = _targets(record, thickness, "record")
-    shots_at = _targets([0.0, thickness] if snapshots is None else snapshots, thickness, "snapshots")
-    sim = available[engine](metal, oxide, k_exp=k_exp, step=step, distance=distance, volume=volume,
-                            **engine_options)
-    parameters = {"engine": engine, "thickness": thickness, "step": sim.step, "k_exp": sim.k_exp,
-                  "distance": distance, "volume": volume, "boundary": metal.boundary,
-                  "shape": list(metal.shape), "spacing": list(metal.spacing), **engine_options}
+    model, settings = _model_and_engine(model, engine, deprecated)
+    if not isinstance(metal, Surface):
+        raise InputError(f"metal must be a planarize.Surface, got {type(metal).__name__}")
+    thickness = real("thickness", thickness, 0.0, MAX_THICKNESS, unit="nm")
+    if 0 < thickness < model.step:
+        raise InputError(f"step ({model.step:g} nm) must not exceed thickness ({thickness:g} nm): one oxidation "
+                         "would overshoot the target")
+    if max_seconds is not None:
+        max_seconds = real("max_seconds", max_seconds, 0.0, low_open=True, unit="s")
+    rows_at = thickness_targets(record, thickness, "record", MAX_RECORD)
+    shots_at = thickness_targets([0.0, thickness] if snapshots is None else snapshots, thickness, "snapshots",
+                                 MAX_RECORD, empty=True)
+    n = metal.z.size
+    within_memory("the run", n * (ENGINE_BYTES_PER_POINT + 3 * 8 * len(shots_at)), _available_memory())
+    sim = settings.build(metal, oxide, model)
+    parameters = {"engine": settings.name, "thickness": thickness, "step": model.step, "k_exp": model.k_exp,
+                  "distance": model.distance, "volume": model.volume, "boundary": metal.boundary,
+                  "shape": list(metal.shape), "spacing": list(metal.spacing), **settings.options()}
     history: list[dict] = []
     shots: list[Snapshot] = []
     start = time.perf_counter()
+    # no loop without a bound: a run of n points takes ~thickness / step point updates each (measured
+    # 0.2-1.3x), far fewer sweeps; many times that means the engine stopped making progress
+    max_sweeps = 100 * n * (math.ceil(thickness / model.step) + 1) + 1000
 
     def catch_up(final: bool) -> None:
         reached = sim.thickness
@@ -169,20 +229,39 @@ def anodize(metal: Surface, thickness: float, *, step: float = 0.01, k_exp: floa
         while len(shots) < len(shots_at) and (final or shots_at[len(shots)] <= reached):
             shots.append(Snapshot(float(shots_at[len(shots)]), reached, sim.metal(), sim.oxide(), sim.distances()))
 
+    if observer is not None:
+        observer(sim)
     bar = _progress(thickness) if progress else None
     shown = time.perf_counter()
+    complete = True
     while sim.thickness < thickness:
         catch_up(final=False)
+        if max_seconds is not None and time.perf_counter() - start > max_seconds:
+            complete = False
+            break
+        if sim.iterations >= max_sweeps:
+            raise RuntimeError(f"the {settings.name} engine made no progress: {sim.iterations:,} sweeps reached "
+                               f"{sim.thickness:.6g} of {thickness:g} nm")
         sim.advance()
+        if not np.isfinite(sim.thickness):
+            raise InputError(f"the distances became non-finite at {sim.iterations} sweeps: the surface or the "
+                             f"model (k_exp {model.k_exp:g}, step {model.step:g} nm) is outside the model's range")
+        if observer is not None:
+            observer(sim)
         if bar is not None and time.perf_counter() - shown > 0.2:
             bar.update(min(sim.thickness, thickness) - bar.n)
             shown = time.perf_counter()
-    catch_up(final=True)
+    if complete:
+        catch_up(final=True)
+    else:  # a last row and snapshot where the budget ran out
+        reached = sim.thickness
+        history.append(history_row(sim, reached, time.perf_counter() - start))
+        shots.append(Snapshot(reached, reached, sim.metal(), sim.oxide(), sim.distances()))
     if bar is not None:
-        bar.update(thickness - bar.n)
+        bar.update(min(sim.thickness, thickness) - bar.n)
         bar.close()
     table = {key: np.array([row[key] for row in history]) for key in history[0]}
-    return Anodization(parameters, table, shots, metal, sim.metal(), sim.oxide(), sim.distances())
+    return Anodization(parameters, table, shots, metal, sim.metal(), sim.oxide(), sim.distances(), complete)
 
 
 def _progress(total: float):

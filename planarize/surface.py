@@ -16,12 +16,10 @@ around and every point is interior.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from scipy.interpolate import CubicSpline
 
-from labrig.validate import InputError
+from labrig.validate import InputError, array, choice, count, real, reals
 
 #: Boundary conditions: "open" (a finite sample with edges) or "periodic" (the grid tiles the plane).
 BOUNDARIES = ("open", "periodic")
@@ -29,37 +27,38 @@ BOUNDARIES = ("open", "periodic")
 REFINE_METHODS = ("linear", "cubic")
 
 
+#: Most grid points of a surface (4097 x 4097; a fast engine run needs ~1 kB per point).
+MAX_POINTS = 4097 * 4097
+#: Largest height magnitude, nm (1 m).
+MAX_HEIGHT = 1e9
+#: Grid spacing range, nm (a hundredth of an angstrom to a metre).
+SPACING_RANGE = (1e-3, 1e9)
+
+
 def _spacing(value) -> tuple[float, float]:
-    pair = (value, value) if np.ndim(value) == 0 else tuple(value)
-    if len(pair) != 2:
-        raise InputError(f"spacing must be a number or a pair (dx, dy), got {value!r}")
-    out = []
-    for name, v in zip(("dx", "dy"), pair):
-        try:
-            v = float(v)
-        except (TypeError, ValueError):
-            raise InputError(f"spacing {name} must be a number, got {v!r}") from None
-        if not (math.isfinite(v) and v > 0):
-            raise InputError(f"spacing {name} must be finite and > 0 nm, got {v!r}")
-        out.append(v)
-    return out[0], out[1]
+    pair = (value, value) if np.ndim(value) == 0 else value
+    dx, dy = reals("spacing", pair, 2, unit="nm")
+    for name, v in (("dx", dx), ("dy", dy)):
+        real(f"spacing {name}", v, *SPACING_RANGE, unit="nm")
+    return dx, dy
 
 
 def check_heights(z, name: str = "z") -> np.ndarray:
-    """``z`` as a finite 2-D float array of at least 2 x 2 points, or a ValueError naming the problem."""
-    try:
-        z = np.array(z, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise InputError(f"{name} must be a 2-D array of heights: {exc}") from None
-    if z.ndim != 2:
-        raise InputError(f"{name} must be a 2-D array of heights, got {z.ndim} dimension(s) {z.shape}")
+    """``z`` as a finite 2-D float array of 2 x 2 to `MAX_POINTS` points, heights within `MAX_HEIGHT` nm,
+    or an `InputError` naming the problem."""
+    if isinstance(z, np.ndarray) and z.ndim == 2 and z.size > MAX_POINTS:
+        raise InputError(f"{name} has {z.shape[0]} x {z.shape[1]} points, more than the {MAX_POINTS:,} allowed")
+    raw = np.asarray(z) if isinstance(z, np.ndarray) or not isinstance(z, (list, tuple)) else None
+    if raw is not None and raw.ndim != 2:
+        raise InputError(f"{name} must be a 2-D array of heights, got {raw.ndim} dimension(s) {raw.shape}")
+    if raw is not None and raw.dtype.kind == "f" and not np.isfinite(raw).all():
+        bad = ~np.isfinite(raw)
+        i, j = np.argwhere(bad)[0]
+        raise InputError(f"{name} has {int(bad.sum())} non-finite height(s) (NaN or inf), the first at [{i}, {j}] "
+                         f"= {raw[i, j]}")
+    z = np.array(array(name, z, (None, None), limit=MAX_HEIGHT, max_size=MAX_POINTS))
     if z.shape[0] < 2 or z.shape[1] < 2:
         raise InputError(f"{name} must have at least 2 x 2 points, got {z.shape[0]} x {z.shape[1]}")
-    bad = ~np.isfinite(z)
-    if bad.any():
-        i, j = np.argwhere(bad)[0]
-        raise InputError(f"{name} has {int(bad.sum())} non-finite height(s) (NaN or inf), "
-                         f"the first at [{i}, {j}] = {z[i, j]}")
     return z
 
 
@@ -92,8 +91,7 @@ class Surface:
     __slots__ = ("_z", "dx", "dy", "boundary")
 
     def __init__(self, z, spacing=1.0, boundary: str = "open"):
-        if boundary not in BOUNDARIES:
-            raise InputError(f"boundary must be one of {BOUNDARIES}, got {boundary!r}")
+        choice("boundary", boundary, BOUNDARIES)
         self._z = check_heights(z)
         self._z.flags.writeable = False
         self.dx, self.dy = _spacing(spacing)
@@ -187,8 +185,12 @@ class Surface:
             on an open grid, periodic on a periodic one), smooth to the second
             derivative (thesis weakness 3).
         """
-        if isinstance(factor, bool) or not isinstance(factor, (int, np.integer)) or factor < 1:
-            raise InputError(f"factor must be an integer >= 1, got {factor!r}")
+        factor = count("factor", factor, 1, 4096)
+        nx, ny = self.shape
+        fine = (nx * factor, ny * factor) if self.periodic else ((nx - 1) * factor + 1, (ny - 1) * factor + 1)
+        if fine[0] * fine[1] > MAX_POINTS:
+            raise InputError(f"refining {nx} x {ny} points by {factor} gives {fine[0]} x {fine[1]} points, more than "
+                             f"the {MAX_POINTS:,} a surface may have")
         if method not in REFINE_METHODS:
             raise InputError(f"method must be one of {REFINE_METHODS}, got {method!r}")
         factor = int(factor)

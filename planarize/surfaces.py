@@ -6,29 +6,22 @@ and are reproducible.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
-from labrig.validate import InputError
+from labrig.validate import InputError, count, real, reals
 
-from .surface import BOUNDARIES, Surface
+from .surface import BOUNDARIES, MAX_HEIGHT, Surface
+
+#: Most grid points per side a builder lays out before refinement.
+MAX_SIDE = 4097
 
 
 def _check(name: str, value, low: float = 0.0, low_open: bool = True) -> float:
-    try:
-        value = float(value)
-    except (TypeError, ValueError):
-        raise InputError(f"{name} must be a number, got {value!r}") from None
-    if not math.isfinite(value) or value < low or (low_open and value == low):
-        raise InputError(f"{name} must be {'>' if low_open else '>='} {low:g}, got {value!r}")
-    return value
+    return real(name, value, low, MAX_HEIGHT, low_open=low_open, unit="nm")
 
 
 def _count(name: str, value, low: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
-        raise InputError(f"{name} must be an integer >= {low}, got {value!r}")
-    return int(value)
+    return count(name, value, low, MAX_SIDE)
 
 
 def bump(height: float = 4.5, *, base: float = 4.0, points: int = 5, spacing: float = 1.0, refine: int = 4,
@@ -76,9 +69,7 @@ def tilted_plane(slope: tuple[float, float] = (0.2, 0.0), *, base: float = 4.0, 
 
     Open boundary only: a tilted plane is not periodic.
     """
-    sx, sy = (float(s) for s in slope)
-    if not (math.isfinite(sx) and math.isfinite(sy)):
-        raise InputError(f"slope must be finite, got {slope!r}")
+    sx, sy = reals("slope", slope, 2, -1e6, 1e6)
     points = _count("points", points, 2)
     spacing = _check("spacing", spacing)
     x = np.arange(points) * spacing
@@ -136,6 +127,8 @@ def random_roughness(size: float = 500.0, *, thickness: float = 1000.0, scales=T
         raise InputError(f"a periodic sample must span at least two of the widest grid cells "
                          f"(size >= {2 * spacing:g} nm), got size {size:g} nm")
     n = int(round(cells)) + (0 if boundary == "periodic" else 1)
+    if n > MAX_SIDE:
+        raise InputError(f"size / (widest width / 2) = {n} grid points per side, more than the {MAX_SIDE} allowed")
     surface = Surface(np.full((n, n), _check("thickness", thickness, low_open=False)), spacing, boundary)
     for k, (width, height) in enumerate(scales):
         if k:

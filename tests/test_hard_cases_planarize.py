@@ -7,7 +7,7 @@ distances and the volume balance exact to round-off.
 import numpy as np
 import pytest
 
-from planarize import Surface, anodize, surfaces
+from planarize import Model, Surface, anodize, surfaces
 
 
 def assert_sane(run):
@@ -35,7 +35,7 @@ def hard_surface(kind: str) -> Surface:
 @pytest.mark.parametrize("k_exp", [1.05, 5.0])
 @pytest.mark.parametrize("kind", ["cliff", "spike", "pit", "checkerboard"])
 def test_rough_surfaces_at_extreme_expansion(kind, k_exp):
-    run = anodize(hard_surface(kind), 0.5, step=0.02, k_exp=k_exp, record=4, snapshots=[0.0, 0.25, 0.5])
+    run = anodize(hard_surface(kind), 0.5, record=4, snapshots=[0.0, 0.25, 0.5], model=Model(step=0.02, k_exp=k_exp))
     assert_sane(run)
 
 
@@ -43,7 +43,7 @@ def test_rough_surfaces_at_extreme_expansion(kind, k_exp):
 def test_spike_in_periodic_exact_distances(engine):
     z = np.full((7, 7), 4.0)
     z[0, 0] = 7.0  # on the seam of the periodic grid
-    run = anodize(Surface(z, 0.25, "periodic"), 0.4, step=0.02, engine=engine, distance="exact", record=3)
+    run = anodize(Surface(z, 0.25, "periodic"), 0.4, record=3, model=Model(step=0.02, distance="exact"), engine=engine)
     assert_sane(run)
     # the spike is cut down: its metal height drops much more than the flat film's
     assert 7.0 - run.metal.z[0, 0] > 5 * (4.0 - np.median(run.metal.z))
@@ -57,7 +57,7 @@ def test_tilted_planes_stay_planes(slope):
     neighbours beyond the edge, the thesis's finite-sample effect.)
     """
     plane = surfaces.tilted_plane(slope, points=21)
-    run = anodize(plane, 0.5, step=0.01, record=3)
+    run = anodize(plane, 0.5, record=3, model=Model(step=0.01))
     assert_sane(run)
     x, y = np.meshgrid(plane.x, plane.y, indexing="ij")
     margin = 1.5
@@ -73,5 +73,5 @@ def test_tilted_planes_stay_planes(slope):
 
 def test_very_steep_random_surface_exact():
     rng = np.random.default_rng(11)
-    run = anodize(Surface(rng.uniform(0, 3, (9, 9)), 0.25), 0.5, step=0.05, distance="exact", k_exp=2.3, record=3)
+    run = anodize(Surface(rng.uniform(0, 3, (9, 9)), 0.25), 0.5, record=3, model=Model(step=0.05, k_exp=2.3, distance="exact"))
     assert_sane(run)

@@ -1,14 +1,18 @@
-"""The numba kernels against their numpy originals: same sets and distances bit for bit, same runs."""
+"""The compiled parts of the engines against plain, independent oracles: the kernel's sets, the ball searches,
+the fast engine's set bookkeeping, threads and kept searches."""
 
 import numpy as np
 import pytest
 
-from planarize import Surface, anodize, compiled, surfaces
-from planarize.engines.features import FeatureKernel, closest_sets
-from planarize.grid import Grid
+from planarize import Fast, Model, Surface, anodize, surfaces
+from planarize.engines import fast
+from planarize.engines.fast import FastEngine
+from planarize.engines.features import (METAL_HALF_DIAGONALS, METAL_SEGMENTS, OXIDE_HALF_DIAGONALS, OXIDE_SEGMENTS,
+                                        OXIDE_TRIANGLES, feature_tables)
+from planarize.engines.kernels import closest_sets, max_feature_length, pair_slots, star_reach
 from planarize.engines.pyramid import BallCache, HeightPyramid
-
-pytestmark = pytest.mark.skipif(not compiled.AVAILABLE, reason="numba is not installed")
+from planarize.engines.sets import OxideSets
+from planarize.grid import EDGE_DIRECTIONS, QUADRANTS, Grid
 
 CASES = [(boundary, distance) for boundary in ("open", "periodic") for distance in ("thesis", "exact")]
 
@@ -22,10 +26,35 @@ def rough_pair(grid, rng):
     return zm, zo
 
 
+def slot_points(grid, v, slot):
+    """The oxide points of one slot at anchor v, from the slot layout's meaning (the module docstring)."""
+    if OXIDE_SEGMENTS <= slot < METAL_SEGMENTS:
+        other = grid.edge_neighbours[v, slot - OXIDE_SEGMENTS]
+        return {v} | ({int(other)} if other >= 0 else set())
+    if OXIDE_HALF_DIAGONALS <= slot < METAL_HALF_DIAGONALS:
+        q = slot - OXIDE_HALF_DIAGONALS if slot < OXIDE_TRIANGLES else (slot - OXIDE_TRIANGLES) // 2
+        return {v} | {int(u) for u in grid.quadrant_corners[v, q] if u >= 0}
+    return {v}  # the anchor point, and metal features against it
+
+
+def sets_oracle(grid, slots, m, v, tie):
+    """Each metal point's smallest slot and the union of the oxide points of its slots within tie of it."""
+    out = {}
+    for p in np.unique(m):
+        rows = np.flatnonzero(m == p)
+        best = slots[rows].min()
+        points = set()
+        for r in rows:
+            for s in np.flatnonzero(slots[r] <= best + tie):
+                points |= slot_points(grid, int(v[r]), int(s))
+        out[int(p)] = (best, sorted(points))
+    return out
+
+
 @pytest.mark.parametrize("boundary,distance", CASES)
-def test_closest_sets_match_the_numpy_kernel_bit_for_bit(boundary, distance, rng):
+def test_closest_sets_take_the_smallest_slot_and_its_oxide_points(boundary, distance, rng):
     grid = Grid((9, 8), (0.5, 0.35), boundary == "periodic")
-    kernel = FeatureKernel(grid, distance)
+    tables = feature_tables(grid, distance)
     zm, zo = rough_pair(grid, rng)
     # a few nearby anchors per metal point, so that every kind of feature is sometimes the closest
     m = np.sort(rng.integers(0, grid.n, 3000))
@@ -33,16 +62,33 @@ def test_closest_sets_match_the_numpy_kernel_bit_for_bit(boundary, distance, rng
     keep = v >= 0
     m, v = m[keep], v[keep]
     oxide, metal = rng.random(len(m)) < 0.8, rng.random(len(m)) < 0.8
-    for masks in ((None, None), (oxide, metal), (np.zeros(len(m), bool), metal)):
-        expected = closest_sets(kernel, zm, zo, m, v, 1e-9, *masks)
-        got = compiled.closest_sets(kernel, zm, zo, m, v, 1e-9, *masks)
-        for a, b in zip(expected, got):
-            np.testing.assert_array_equal(a, b)
-    # unsorted input is sorted the same way
+    for masks in ((None, None), (oxide, metal)):
+        points, best, owner, oxide_points = closest_sets(tables, zm, zo, m, v, 1e-9, *masks)
+        expected = sets_oracle(grid, pair_slots(tables, zm, zo, m, v, *masks), m, v, 1e-9)
+        assert points.tolist() == sorted(expected)
+        for k, p in enumerate(points.tolist()):
+            assert best[k] == expected[p][0]
+            assert oxide_points[owner == k].tolist() == expected[p][1]
+    # unsorted input gives the same answer
     order = rng.permutation(len(m))
-    for a, b in zip(closest_sets(kernel, zm, zo, m[order], v[order], 1e-9),
-                    compiled.closest_sets(kernel, zm, zo, m[order], v[order], 1e-9)):
+    for a, b in zip(closest_sets(tables, zm, zo, m, v, 1e-9), closest_sets(tables, zm, zo, m[order], v[order], 1e-9)):
         np.testing.assert_array_equal(a, b)
+
+
+@pytest.mark.parametrize("boundary,distance", CASES)
+def test_star_reach_is_the_farthest_feature_end(boundary, distance, rng):
+    grid = Grid((9, 8), (0.5, 0.35), boundary == "periodic")
+    tables = feature_tables(grid, distance)
+    z = rng.normal(scale=0.8, size=grid.n)
+    for k in rng.permutation(grid.n)[:30]:
+        ends = [((di * grid.dx, dj * grid.dy), z[u]) for (di, dj), u in zip(EDGE_DIRECTIONS, grid.edge_neighbours[k])
+                if u >= 0]
+        if distance == "exact":
+            for (sx, sy), cell in zip(QUADRANTS, grid.quadrant_cell[k]):
+                if cell >= 0:
+                    ends.append(((sx * grid.dx / 2, sy * grid.dy / 2), z[grid.cell_corners[cell]].mean()))
+        expected = max(np.sqrt(x * x + y * y + (h - z[k]) ** 2) for (x, y), h in ends)
+        assert star_reach(tables, z, [k])[0] == pytest.approx(expected, rel=1e-14)
 
 
 def brute_ball(grid, z, points, zq, radius):
@@ -106,111 +152,125 @@ def test_kept_searches_answer_like_fresh_ones_while_distances_grow(periodic, rng
 
 def test_kept_searches_leave_a_thick_oxide_run_unchanged():
     surface = Surface(np.random.default_rng(3).normal(scale=0.1, size=(12, 12)), 0.5, "periodic")
-    kwargs = dict(step=0.05, record=5)
-    compiled_run = anodize(surface, 1.0, jit=True, **kwargs)
-    numpy_run = anodize(surface, 1.0, jit=False, **kwargs)
-    np.testing.assert_array_equal(compiled_run.metal.z, numpy_run.metal.z)
-    np.testing.assert_array_equal(compiled_run.oxide.z, numpy_run.oxide.z)
-    np.testing.assert_array_equal(compiled_run.distances, numpy_run.distances)
-    assert compiled_run.metal.z.max() < compiled_run.oxide.z.min()  # every search was kept for a while
-
-
-@pytest.mark.parametrize("interacting", ["wait", "together"])
-@pytest.mark.parametrize("boundary,distance", CASES)
-def test_fast_engine_runs_identically_with_and_without_jit(boundary, distance, interacting):
-    surface = Surface(surfaces.hill().z, 0.25, boundary)
-    kwargs = dict(step=0.02, distance=distance, record=5, interacting=interacting, tolerance=0.02)
-    compiled_run = anodize(surface, 0.4, jit=True, **kwargs)
-    numpy_run = anodize(surface, 0.4, jit=False, **kwargs)
-    np.testing.assert_array_equal(compiled_run.metal.z, numpy_run.metal.z)
-    np.testing.assert_array_equal(compiled_run.oxide.z, numpy_run.oxide.z)
-    np.testing.assert_array_equal(compiled_run.distances, numpy_run.distances)
-    assert compiled_run.history["iterations"][-1] == numpy_run.history["iterations"][-1]
-
-
-def test_jit_without_numba_is_a_clear_error(monkeypatch):
-    monkeypatch.setattr(compiled, "AVAILABLE", False)
-    with pytest.raises(ImportError, match="numba"):
-        anodize(surfaces.hill(), 0.1, jit=True)
-
-
-@pytest.mark.parametrize("boundary,distance", CASES)
-def test_star_reach_matches_the_numpy_reach_bit_for_bit(boundary, distance, rng):
-    from planarize.engines.fast import FastEngine
-
-    surface = Surface(rng.normal(scale=0.4, size=(9, 8)), (0.5, 0.35), boundary)
-    kernel = FastEngine(surface, distance=distance).kernel
-    z = surface.z.ravel().copy()
-    moved = rng.choice(z.size, 12, replace=False)
-    z[moved] -= rng.uniform(0.0, 2.0, len(moved))  # steep edges at and around the moved points
-    points = rng.permutation(z.size)[:40]
-    np.testing.assert_array_equal(compiled.star_reach(kernel, z, points), kernel.star_reach(z, points))
+    kept = FastEngine(surface, model=Model(step=0.05))
+    fresh = FastEngine(surface, model=Model(step=0.05))
+    fresh._cache = None  # every search from scratch
+    while kept.thickness < 1.0:
+        kept.advance()
+        fresh.advance()
+    np.testing.assert_array_equal(kept.zm, fresh.zm)
+    np.testing.assert_array_equal(kept.zo, fresh.zo)
+    np.testing.assert_array_equal(kept.D, fresh.D)
+    assert kept.zm.max() < kept.zo.min()  # every search was kept for a while
+    assert np.any(kept._cache.count >= 0)
 
 
 @pytest.mark.parametrize("distance", ["thesis", "exact"])
 def test_longest_edge_bounds_hold_between_measurements(distance):
-    from planarize.engines.fast import FastEngine
-
-    engine = FastEngine(surfaces.hill(), step=0.05, distance=distance)
+    engine = FastEngine(surfaces.hill(), model=Model(step=0.05, distance=distance))
     for _ in range(30):
         engine.advance()
-        assert engine._metal_longest >= engine.kernel.max_feature_length(engine.zm)
-        assert engine._oxide_longest >= engine.kernel.max_feature_length(engine.zo)
+        assert engine._metal_longest >= max_feature_length(engine.tables, engine.zm)
+        assert engine._oxide_longest >= max_feature_length(engine.tables, engine.zo)
 
+
+# -- the oxide sets' bookkeeping against plain oracles -----------------------------------------
+
+def batch_oracle(engine):
+    """The batch by its definition, point by point: candidates within the tolerance, each waiting (if asked) for a
+    strictly closer interacting candidate (a neighbour, or a sharer of one of its oxide points)."""
+    d, sets = engine.D, engine.sets
+    members = [set(sets.oxide[sets.start[p]:sets.start[p + 1]].tolist()) for p in range(engine.grid.n)]
+    candidates = np.flatnonzero(d <= d.min() + engine.tolerance)
+    key = {p: (d[p] if engine.interacting == "wait" else 0.0) for p in candidates}
+    taken = np.zeros(engine.grid.n, dtype=bool)
+    for p in candidates:
+        rivals = [key[u] for u in engine.neighbours[p] if u in key]
+        rivals += [key[q] for q in candidates if members[p] & members[q]]
+        taken[p] = not min(rivals, default=np.inf) < key[p] - engine.tie
+    rows = np.flatnonzero(taken[sets.metal])
+    sharers = np.bincount(sets.oxide, minlength=engine.grid.n)
+    return taken, rows, np.diff(sets.start)[sets.metal[rows]], sharers[sets.oxide[rows]]
+
+
+def stale_oracle(engine, in_batch, raised):
+    stale = in_batch.copy()
+    for p in np.flatnonzero(in_batch):
+        stale[engine.neighbours[p][engine.neighbours[p] >= 0]] = True
+    stale[engine.sets.metal[np.isin(engine.sets.oxide, raised)]] = True
+    return stale
+
+
+@pytest.mark.parametrize("interacting", ["wait", "together"])
+@pytest.mark.parametrize("boundary,distance", CASES)
+def test_batch_stale_and_bound_follow_their_definitions(boundary, distance, interacting, rng):
+    surface = Surface(rng.normal(scale=0.4, size=(12, 9)), (0.5, 0.35), boundary)
+    engine = FastEngine(surface, model=Model(distance=distance), settings=Fast(tolerance=0.05, interacting=interacting))
+    for _ in range(5):
+        saved = engine.D.copy()
+        engine.D[:] = np.round(rng.uniform(0.0, 0.2, surface.z.size), 2)  # exact ties and a spread around the tolerance
+        got = engine.sets.batch(engine.D, engine.tolerance, engine.tie, interacting == "wait", engine.neighbours)
+        for a, b in zip(got, batch_oracle(engine)):
+            np.testing.assert_array_equal(a, b)
+        raised = rng.choice(surface.z.size, 7, replace=False)
+        np.testing.assert_array_equal(engine.sets.stale(got[0], raised, engine.neighbours),
+                                      stale_oracle(engine, got[0], raised))
+        points = np.sort(rng.choice(surface.z.size, 30, replace=False))
+        nearest = engine.sets.nearest[points]
+        di, dj = engine.grid.offsets(points, nearest)
+        expected = np.sqrt((di * engine.grid.dx) ** 2 + (dj * engine.grid.dy) ** 2
+                           + (engine.zo[nearest] - engine.zm[points]) ** 2)
+        np.testing.assert_allclose(engine.sets.bound(engine.tables, engine.zm, engine.zo, points), expected, rtol=1e-15)
+        engine.D[:] = saved
+        engine.advance()
+
+
+def test_replacing_sets_keeps_rows_sorted_and_sharers_counted(rng):
+    n = 30
+    sets = OxideSets(n)
+    truth = {p: set() for p in range(n)}
+    for _ in range(20):
+        points = np.sort(rng.choice(n, rng.integers(1, 8), replace=False))
+        new = {int(p): sorted(set(rng.integers(0, n, rng.integers(1, 5)).tolist())) for p in points}
+        owner = np.array([p for p in points for _ in new[int(p)]], dtype=np.intp)
+        oxide = np.array([o for p in points for o in new[int(p)]], dtype=np.intp)
+        sets.replace(points, owner, oxide)
+        truth.update({p: set(v) for p, v in new.items()})
+        assert np.all(np.diff(sets.metal) >= 0)
+        for p in range(n):
+            assert sets.oxide[sets.start[p]:sets.start[p + 1]].tolist() == sorted(truth[p])
+        np.testing.assert_array_equal(sets.sharers, np.bincount(sets.oxide, minlength=n))
+
+
+# -- threads ------------------------------------------------------------------------------------
 
 @pytest.mark.parametrize("distance", ["thesis", "exact"])
 def test_threads_do_not_change_results(distance, monkeypatch):
-    from planarize import fast
-
     monkeypatch.setattr(fast, "POINTS_PER_THREAD", 4)  # split even the hill's few updated points
-    kwargs = dict(step=0.02, distance=distance, record=5)
-    one = anodize(surfaces.hill(), 0.4, threads=1, **kwargs)
-    three = anodize(surfaces.hill(), 0.4, threads=3, **kwargs)
+    model = Model(step=0.02, distance=distance)
+    one = anodize(surfaces.hill(), 0.4, model, Fast(threads=1), record=5)
+    three = anodize(surfaces.hill(), 0.4, model, Fast(threads=3), record=5)
     np.testing.assert_array_equal(one.metal.z, three.metal.z)
     np.testing.assert_array_equal(one.oxide.z, three.oxide.z)
     np.testing.assert_array_equal(one.distances, three.distances)
 
 
-@pytest.mark.parametrize("threads", [0, -1, 1.5, True, "2"])
+@pytest.mark.parametrize("threads", [0, -1, 1.5, True, "2", 10**6])
 def test_bad_thread_counts_are_refused(threads):
     with pytest.raises(ValueError, match="threads"):
-        anodize(surfaces.hill(), 0.1, threads=threads)
+        Fast(threads=threads)
 
 
 def _oxide_after_hill_run():
-    return anodize(surfaces.hill(), 0.1, step=0.02, threads=2).oxide.z
+    return anodize(surfaces.hill(), 0.1, Model(step=0.02), Fast(threads=2)).oxide.z
 
 
 @pytest.mark.skipif(not hasattr(__import__("os"), "fork"), reason="needs fork")
 def test_a_forked_process_runs_its_own_threads(monkeypatch):
     import multiprocessing
 
-    from planarize import fast
-
     monkeypatch.setattr(fast, "POINTS_PER_THREAD", 4)
     here = _oxide_after_hill_run()  # this process now has a thread pool; a forked child must not wait on it
     with multiprocessing.get_context("fork").Pool(1) as pool:
         there = pool.apply_async(_oxide_after_hill_run).get(timeout=60)
     np.testing.assert_array_equal(here, there)
-
-
-@pytest.mark.parametrize("interacting", ["wait", "together"])
-@pytest.mark.parametrize("boundary,distance", CASES)
-def test_compiled_batch_and_bound_match_numpy(boundary, distance, interacting, rng):
-    from planarize.engines.fast import FastEngine
-
-    surface = Surface(rng.normal(scale=0.4, size=(12, 9)), (0.5, 0.35), boundary)
-    jit = FastEngine(surface, distance=distance, tolerance=0.05, interacting=interacting)
-    plain = FastEngine(surface, distance=distance, tolerance=0.05, interacting=interacting, jit=False)
-    for _ in range(5):
-        # distances with exact ties and a spread around the tolerance
-        distance_now = np.round(rng.uniform(0.0, 0.2, surface.z.size), 2)
-        jit.D[:], plain.D[:] = distance_now, distance_now
-        for got, expected in zip(jit._batch(), plain._batch()):
-            np.testing.assert_array_equal(got, expected)
-        raised = rng.choice(surface.z.size, 7, replace=False)
-        np.testing.assert_array_equal(jit._stale(jit._batch()[0], raised), plain._stale(plain._batch()[0], raised))
-        points = np.sort(rng.choice(surface.z.size, 30, replace=False))
-        np.testing.assert_array_equal(jit._bound(points), plain._bound(points))
-        jit.advance()
-        plain.advance()

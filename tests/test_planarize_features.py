@@ -1,9 +1,10 @@
-"""The feature kernel against explicit features built point by point with `planarize.geometry`."""
+"""The compiled kernel's slots against explicit features built point by point with `planarize.geometry`."""
 
 import numpy as np
 import pytest
 
-from planarize.engines.features import FeatureKernel
+from planarize.engines.features import feature_tables
+from planarize.engines.kernels import pair_slots
 from planarize.geometry import point_point, point_segment, point_triangle
 from planarize.grid import EDGE_DIRECTIONS, QUADRANTS, Grid
 
@@ -60,10 +61,10 @@ def test_kernel_slots_are_the_explicit_features(distance, rng):
     grid = Grid((6, 7), (0.3, 0.45), periodic=False)
     zm = rng.uniform(0, 1, grid.n)
     zo = zm + rng.uniform(0, 0.6, grid.n)
-    kernel = FeatureKernel(grid, distance)
+    tables = feature_tables(grid, distance)
     m = rng.integers(0, grid.n, 300)
     v = rng.integers(0, grid.n, 300)
-    got = kernel.distances(zm, zo, m, v)
+    got = pair_slots(tables, zm, zo, m, v)
     for row, (a, b) in enumerate(zip(m, v)):
         want = explicit_slots(grid, zm, zo, a, b, distance)
         finite = np.isfinite(want)
@@ -76,15 +77,14 @@ def test_periodic_kernel_uses_the_nearest_image(rng):
     nx, ny = 6, 5
     zm = rng.uniform(0, 1, (nx, ny))
     zo = zm + rng.uniform(0, 0.5, (nx, ny))
-    periodic = FeatureKernel(Grid((nx, ny), (0.3, 0.3), True), "exact")
+    tables = feature_tables(Grid((nx, ny), (0.3, 0.3), True), "exact")
     # metal point at the last row, anchor at row 0: across the seam, one dx apart
     m = np.array([(nx - 1) * ny + 2])
     v = np.array([0 * ny + 2])
-    got = periodic.distances(zm.ravel(), zo.ravel(), m, v)
+    got = pair_slots(tables, zm.ravel(), zo.ravel(), m, v)
     # the same neighbourhood, rolled so that both sit inside an open grid
     shift = 3
-    rolled = FeatureKernel(Grid((nx, ny), (0.3, 0.3), True), "exact")
-    want = rolled.distances(np.roll(zm, shift, 0).ravel(), np.roll(zo, shift, 0).ravel(),
-                            m - (nx - shift) * ny, v + shift * ny)
+    want = pair_slots(tables, np.roll(zm, shift, 0).ravel(), np.roll(zo, shift, 0).ravel(),
+                      m - (nx - shift) * ny, v + shift * ny)
     np.testing.assert_allclose(got, want, rtol=1e-12)
     assert got[0, 0] == pytest.approx(np.sqrt(0.3**2 + (zo[0, 2] - zm[-1, 2]) ** 2))

@@ -177,7 +177,7 @@ def test_rectangular_pixels_up_to_the_limit(tmp_path):
     ("twice.xyz", "0 0 1\n0 1 1\n1 0 1\n1 1 1\n1 1 2\n", {}, r"irregular grid.*repeated"),
     ("uneven.xyz", "0 0 1\n0 1 1\n1 0 1\n1 1 1\n3 0 1\n3 1 1\n", {}, r"x values are not evenly spaced"),
     ("nanz.xyz", "0 0 1\n0 1 1\n1 0 1\n1 1 nan\n", {}, r"non-finite"),
-    ("nanx.xyz", "0 0 1\n0 1 1\n1 0 1\nnan 1 1\n", {}, r"x and y coordinates must be finite"),
+    ("nanx.xyz", "0 0 1\n0 1 1\n1 0 1\nnan 1 1\n", {}, r"x coordinates\[3\] is not finite"),
 ])
 def test_bad_text_files(tmp_path, name, content, kwargs, match):
     (tmp_path / name).write_text(content)

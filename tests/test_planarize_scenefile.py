@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 import planarize
+from planarize import Fast, Model, Reference
 from planarize.io.scenefile import (SCENES, PlanarizeScene, RunSettings, SurfaceSpec, get_scene, load_scene,
                                  save_scene, scene_from_toml, scene_to_toml)
 
@@ -69,43 +70,45 @@ def test_quick_scales_step_and_refinement():
 def test_scene_runs_with_overrides():
     run = SCENES["hill"].quick(0.25).anodize(thickness=0.3, record=3)
     assert run.parameters["step"] == 0.04 and run.initial.shape == (5, 5) and len(run.history["target_nm"]) == 4
-    assert SCENES["hill"].replace(run={"engine": "reference", "tolerance": 0.1}).run.options()["engine"] == "reference"
-    assert "tolerance" not in SCENES["hill"].replace(run={"engine": "reference", "tolerance": 0.1}).run.options()
-    assert SCENES["hill"].replace(run={"interacting": "together"}).run.options()["interacting"] == "together"
-    assert "interacting" not in SCENES["hill"].replace(run={"engine": "reference"}).run.options()
+    assert SCENES["hill"].replace(run={"engine": "reference"}).run.options()["engine"] == Reference()
+    with pytest.raises(ValueError, match="settings of the fast engine"):  # never silently dropped
+        SCENES["hill"].replace(run={"engine": "reference", "tolerance": 0.1})
+    options = SCENES["hill"].replace(run={"interacting": "together", "tolerance": 0.02}).run.options()
+    assert options["engine"] == Fast(tolerance=0.02, interacting="together")
+    assert options["model"] == Model(step=0.01, k_exp=2.3)
 
 
 @pytest.mark.parametrize("text, match", [
     ("sed = 1", r"unknown key 'sed' \(allowed: name, seed, surface, run\)"),
-    ("seed = -1", r"seed must be an integer >= 0, got -1"),
+    ("seed = -1", r"seed must be an integer in \[0, .*got -1"),
     ("seed = 1.5", r"seed must be an integer, got 1.5"),
     ("name = 3", r"name must be a string"),
     ("surface = 3", r"surface must be a table"),
     ("[surface]\nkind = 'blob'", r"surface.kind must be one of 'hill'"),
     ("[surface]\npoints = 4", r"surface.points must be odd"),
     ("[surface]\npoints = 2.0", r"surface.points must be an integer, got 2.0"),
-    ("[surface]\nrefine = 0", r"surface.refine must be an integer >= 1, got 0"),
-    ("[surface]\nspacing = -1", r"surface.spacing must be > 0"),
+    ("[surface]\nrefine = 0", r"surface.refine must be an integer in \[1, 4,097\], got 0"),
+    ("[surface]\nspacing = -1", r"surface.spacing must be in \(0, "),
     ("[surface]\nmethod = 'quad'", r"surface.method must be one of \('linear', 'cubic'\)"),
     ("[surface]\nslope = [1, 2]", r"unknown key 'surface.slope' \(allowed in \[surface\]: kind, base"),
     ("[surface]\nkind = 'tilted_plane'\nslope = [1]", r"surface.slope must be a list of two numbers"),
     ("[surface]\nkind = 'random_roughness'\nsize = 450", r"surface.size \(450 nm\) must be a whole number"),
-    ("[surface]\nkind = 'random_roughness'\nscales = [1, 2]", r"surface.scales must be a non-empty list of \[width, height\]"),
+    ("[surface]\nkind = 'random_roughness'\nscales = [1, 2]", r"surface.scales must be a non-empty list of \[number, number\] pairs"),
     ("[surface]\nkind = 'file'", r"surface.path is required"),
     ("[surface]\nkind = 'file'\npath = 'x.npy'\nunit = 'furlong'", r"surface.unit must be one of nm"),
-    ("[surface]\nkind = 'file'\npath = 'x.npy'\nchannel = 1.5", r"surface.channel must be a channel number or title"),
+    ("[surface]\nkind = 'file'\npath = 'x.npy'\nchannel = 1.5", r"surface.channel must be an integer or a string"),
     ("[surface]\nkind = 'file'\npath = 'x.npy'\nmax_aspect = 0.5", r"surface.max_aspect must be >= 1"),
-    ("[run]\nstep = -1", r"run.step must be > 0 nm, got -1.0"),
+    ("[run]\nstep = -1", r"run.step must be in \(0, 1000\] nm, got -1.0"),
     ("[run]\nthickness = 'thick'", r"run.thickness must be a number"),
-    ("[run]\nk_exp = 0.5", r"run.k_exp must be >= 1, got 0.5"),
+    ("[run]\nk_exp = 0.5", r"run.k_exp must be in \[1, 5\], got 0.5"),
     ("[run]\nengine = 'gpu'", r"run.engine must be one of"),
     ("[run]\ndistance = 'far'", r"run.distance must be one of 'thesis', 'exact'"),
     ("[run]\nvolume = 'mean'", r"run.volume must be one of 'exact', 'thesis'"),
-    ("[run]\ntolerance = -1", r"run.tolerance must be >= 0 nm"),
+    ("[run]\ntolerance = -1", r"run.tolerance must be in \[0, "),
     ("[run]\ninteracting = 'first'", r"run.interacting must be one of 'wait', 'together'"),
-    ("[run]\nrecord = 0", r"run.record must be a count >= 1"),
-    ("[run]\nrecord = 'all'", r"run.record must be an integer count or a list"),
-    ("[run]\nsnapshots = [0, 5]", r"run.snapshots must lie in \[0, thickness = 1.0\] nm"),
+    ("[run]\nrecord = 0", r"run.record must be an integer in \[1, 100,000\]"),
+    ("[run]\nrecord = 'all'", r"run.record must be an integer or a list of numbers"),
+    ("[run]\nsnapshots = [0, 5]", r"run.snapshots must hold numbers in \[0, 1\] nm"),
     ("[run]\nstpe = 1", r"unknown key 'run.stpe'"),
     ("[run\n", r"invalid TOML"),
 ])

@@ -50,7 +50,7 @@ def test_bad_parameters_name_the_key():
     runner = AnodizeRunner()
     with pytest.raises(ValueError, match=r"axes.run.k_exps: unknown key 'run.k_exps'"):
         Sweep(base=TINY, axes={"run.k_exps": [2.0]}).runs(runner.canonical)
-    with pytest.raises(ValueError, match=r"run 1 \(run.k_exp=0.5\): run.k_exp must be >= 1"):
+    with pytest.raises(ValueError, match=r"run 1 \(run.k_exp=0.5\): run.k_exp must be in \[1, 5\]"):
         Sweep(base=TINY, axes={"run.k_exp": [2.0, 0.5]}).runs(runner.canonical)
     with pytest.raises(ValueError, match="surface.kind must be one of"):
         Sweep(base={"surface": {"kind": "hil"}}).runs(runner.canonical)

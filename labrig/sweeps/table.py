@@ -12,7 +12,6 @@ from typing import Sequence
 from ..files import atomic_path, write_csv
 from ..validate import InputError
 
-
 #: Largest table read, bytes.
 MAX_TABLE_BYTES = 2**30
 

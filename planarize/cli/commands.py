@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from labrig.cli import print_table
-from labrig.files import slug
+from labrig.files import OutputSet, slug
 from labrig.validate import InputError
 
 from .. import render
@@ -31,26 +31,34 @@ MOVIE_FRAMES = 40
 MAX_SURFACE_PANELS = 9
 
 
-def run_scene(scene: PlanarizeScene, out: Path, *, movie: bool = False, progress: bool = True) -> dict:
-    """Run ``scene`` and write its files into ``out``; returns the summary (also printed as a table)."""
+def run_scene(scene: PlanarizeScene, out: Path, *, movie: bool = False, progress: bool = True,
+              source: Path | None = None) -> dict:
+    """Run ``scene`` and write its files into ``out``; returns the summary (also printed as a table).
+
+    The files are one `labrig.files.OutputSet`, written when the run has finished (the scene file last), so
+    a failed or killed run leaves earlier files of the same name as they were; ``source``, the scene file
+    the scene was read from, is never written over (its provenance copy is then ``NAME.ran.toml``).
+    """
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
     stem = slug(scene.name)
-    save_scene(scene, out / f"{stem}.toml")
     settings = scene.run
     shown = settings.snapshots if settings.snapshots is not None else [0.0, settings.thickness]
     snapshots = shown
     if movie:
         snapshots = sorted({*shown, *np.linspace(0.0, settings.thickness, MOVIE_FRAMES + 1).tolist()})
     run = scene.anodize(progress=progress, snapshots=snapshots)
-    files = [out / f"{stem}.toml", save_run(run, out / f"{stem}.npz"),
-             save_history_csv(run, out / f"{stem}_history.csv"),
-             render.save_figure(render.slice_figure(run, scene.name), out / f"{stem}_fig3-8.png"),
-             render.save_figure(render.history_figure(run, scene.name), out / f"{stem}_fig3-9.png")]
-    panels = _panels(run, shown)
-    files.append(render.save_figure(render.snapshots_figure(panels), out / f"{stem}_surfaces.png"))
-    if movie:
-        files.append(render.save_movie(run, out / f"{stem}.mp4"))
+    with OutputSet(out) as files:
+        save_run(run, files.stage(f"{stem}.npz"))
+        save_history_csv(run, files.stage(f"{stem}_history.csv"))
+        render.save_figure(render.slice_figure(run, scene.name), files.stage(f"{stem}_fig3-8.png"))
+        render.save_figure(render.history_figure(run, scene.name), files.stage(f"{stem}_fig3-9.png"))
+        panels = _panels(run, shown)
+        if panels.snapshots:  # (a scene may keep none)
+            render.save_figure(render.snapshots_figure(panels), files.stage(f"{stem}_surfaces.png"))
+        if movie:
+            render.save_movie(run, files.stage(f"{stem}.mp4"))
+        save_scene(scene, files.stage(files.name_beside(f"{stem}.toml", source), last=True))
+    files = files.written
     summary = summarize(scene, run)
     print_table(f"{scene.name}: {summary['grid']}, k_exp {summary['k_exp']:g}, step {summary['step_nm']:g} nm, "
                 f"{summary['engine']} engine", [

@@ -18,7 +18,7 @@ from typing import Sequence
 
 from labrig.cli import Parser, UsageError, float_in, fraction, run_main
 
-from ..anodize import engines
+from ..engines import ENGINES
 from ..io.scenefile import SCENES
 
 _positive = float_in(0.0, math.inf, low_open=True)
@@ -28,7 +28,7 @@ def _add_outputs(p, out_default: str) -> None:
     """Options shared by the commands that run: output directory, engine, quick mode, movie."""
     p.add_argument("--out", type=Path, default=Path(out_default), metavar="DIR",
                    help=f"output directory, created if missing (default ./{out_default})")
-    p.add_argument("--engine", choices=list(engines()), default=None,
+    p.add_argument("--engine", choices=list(ENGINES), default=None,
                    help="override the scene's engine: fast (batched) or reference (the thesis algorithm, slow)")
     p.add_argument("--quick", type=fraction, default=None, metavar="F",
                    help="a first look: steps 1/F times larger, refinement F times smaller")
@@ -112,8 +112,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _prepare(scene, args):
     """The scene with the command-line overrides applied."""
-    if args.engine is not None:
-        scene = scene.replace(run={"engine": args.engine})
+    if args.engine is not None:  # another engine: the fast engine's settings do not apply to it
+        fast_only = {} if args.engine == "fast" else {"tolerance": None, "interacting": "wait"}
+        scene = scene.replace(run={"engine": args.engine, **fast_only})
     if args.quick is not None:
         scene = scene.quick(args.quick)
     return scene
@@ -123,7 +124,7 @@ def _run_file(args: argparse.Namespace) -> int:
     from ..io.scenefile import load_scene
     from .commands import run_scene
 
-    run_scene(_prepare(load_scene(args.scene), args), args.out, movie=args.movie)
+    run_scene(_prepare(load_scene(args.scene), args), args.out, movie=args.movie, source=args.scene)
     return 0
 
 

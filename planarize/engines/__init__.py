@@ -1,7 +1,36 @@
-"""The planarization engines: one model (`planarize.engines.base`), three ways to compute it.
+"""The planarization engines: one model (`planarize.model.Model`), three ways to compute it.
 
-* `planarize.engines.reference` -- the thesis's sequential algorithm (and its Matlab shortcuts);
-* `planarize.engines.fast` -- batched sweeps with incremental updates, compiled with numba;
-* `planarize.engines.features` -- which features are compared (the slot layout), and the sets;
-* `planarize.engines.kernels`, `bookkeeping`, `pyramid`, `closer` -- the fast engine's compiled parts.
+Choose one with its settings object, ``anodize(..., engine=Fast(tolerance=0.05))``, or by name
+(``engine="reference"``):
+
+* `Fast` -- batched sweeps with incremental updates, compiled (`planarize.engines.fast`);
+* `Reference` -- the thesis's sequential algorithm (`planarize.engines.reference`);
+* `Matlab` -- the reference with the Matlab listings' shortcuts, to measure them.
+
+The parts: `planarize.engines.base` (surfaces, Eq 3.9, volume accounting), `features` (the slot
+layout), `kernels` (the compiled distance kernel), `sets` (the fast engine's oxide sets),
+`pyramid` (ball searches), `closer` (where raised oxide can come closer).
 """
+
+from __future__ import annotations
+
+from labrig.validate import InputError
+
+from .fast import Fast
+from .reference import Matlab, Reference
+
+#: The engines by name, each as its settings class (default settings: ``ENGINES[name]()``).
+ENGINES = {"fast": Fast, "reference": Reference, "matlab": Matlab}
+
+
+def engine_settings(engine) -> Fast | Reference | Matlab:
+    """An engine's settings object from a name of `ENGINES` or a settings object (returned as it is)."""
+    if isinstance(engine, tuple(ENGINES.values())):
+        return engine
+    if isinstance(engine, str) and engine in ENGINES:
+        return ENGINES[engine]()
+    raise InputError(f"engine must be one of {', '.join(map(repr, ENGINES))} or a settings object "
+                     f"(planarize.engines.Fast(...)), got {engine!r}")
+
+
+__all__ = ["ENGINES", "Fast", "Reference", "Matlab", "engine_settings"]

@@ -25,33 +25,15 @@ speed/accuracy knob.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from labrig.validate import InputError
 
 from ..grid import Grid
+from ..model import Model
 from ..surface import Surface, volume_weights
-from .features import FeatureKernel
-
-#: Volume accounting: exact for the piecewise-linear surface, or the thesis's equal weights.
-VOLUME_RULES = ("exact", "thesis")
-#: What the fast engine does with interacting candidates of a batch: one after the other, or together.
-INTERACTING = ("wait", "together")
-
-
-def check_parameters(k_exp: float, step: float) -> tuple[float, float]:
-    """``k_exp`` (>= 1) and ``step`` (> 0, nm) as floats, or a ValueError naming the bad one."""
-    try:
-        k_exp, step = float(k_exp), float(step)
-    except (TypeError, ValueError):
-        raise InputError(f"k_exp and step must be numbers, got {k_exp!r} and {step!r}") from None
-    if not (math.isfinite(k_exp) and k_exp >= 1.0):
-        raise InputError(f"k_exp (oxide volume per metal volume) must be >= 1, got {k_exp!r}")
-    if not (math.isfinite(step) and step > 0):
-        raise InputError(f"step must be > 0 nm, got {step!r}")
-    return k_exp, step
+from .features import feature_tables
+from .kernels import max_feature_length
 
 
 class Engine:
@@ -64,36 +46,29 @@ class Engine:
     oxide : Surface, optional
         The oxide surface at the start, on the same grid, nowhere below the
         metal. Default: a copy of the metal (no oxide yet).
-    k_exp : float
-        Oxide volume per metal volume consumed (>= 1; Ta2O5 2.3, Al2O3 ~1.3).
-    step : float
-        Metal height consumed per oxidation of one point, nm (> 0).
-    distance : {"thesis", "exact"}
-        Feature pairs compared (`planarize.engines.features`).
-    volume : {"exact", "thesis"}
-        Volume accounting (see module docstring).
+    model : Model
+        The physics: ``k_exp``, ``step``, ``distance``, ``volume`` (`planarize.model.Model`).
     """
 
     name = "base"
 
-    def __init__(self, metal: Surface, oxide: Surface | None = None, *, k_exp: float = 2.3, step: float = 0.01,
-                 distance: str = "thesis", volume: str = "exact"):
+    def __init__(self, metal: Surface, oxide: Surface | None = None, model: Model | None = None):
         if not isinstance(metal, Surface):
-            raise TypeError(f"metal must be a planarize.Surface, got {type(metal).__name__}")
-        if volume not in VOLUME_RULES:
-            raise InputError(f"volume must be one of {VOLUME_RULES}, got {volume!r}")
-        self.k_exp, self.step = check_parameters(k_exp, step)
+            raise InputError(f"metal must be a planarize.Surface, got {type(metal).__name__}")
+        self.model = Model() if model is None else model
+        if not isinstance(self.model, Model):
+            raise InputError(f"model must be a planarize.Model, got {type(self.model).__name__}")
         if oxide is None:
             oxide = metal
         elif (oxide.shape, oxide.spacing, oxide.boundary) != (metal.shape, metal.spacing, metal.boundary):
             raise InputError(f"oxide must be on the metal's grid: {oxide!r} vs {metal!r}")
         elif np.any(oxide.z < metal.z):
             raise InputError("oxide must lie nowhere below the metal")
+        self.k_exp, self.step = self.model.k_exp, self.model.step
+        self.distance, self.volume_rule = self.model.distance, self.model.volume
         self.surface = metal
         self.grid = Grid(metal.shape, metal.spacing, metal.periodic)
-        self.kernel = FeatureKernel(self.grid, distance)
-        self.distance = distance
-        self.volume_rule = volume
+        self.tables = feature_tables(self.grid, self.distance)
         self.zm = metal.z.ravel().astype(float)
         self.zo = oxide.z.ravel().astype(float)
         self.zm0 = self.zm.copy()
@@ -133,7 +108,7 @@ class Engine:
 
     def max_feature_length(self) -> float:
         """Longest feature edge on either surface, nm (the reach candidate searches add)."""
-        return max(self.kernel.max_feature_length(self.zm), self.kernel.max_feature_length(self.zo))
+        return max(max_feature_length(self.tables, self.zm), max_feature_length(self.tables, self.zo))
 
     # -- one oxidation ---------------------------------------------------------------------
 

@@ -1,69 +1,43 @@
-"""The feature kernel compiled with numba: `closest_sets` without numpy's per-call overhead.
+"""The compiled feature kernel: each metal point's distance to the oxide and its oxide set, pair by pair.
 
-`planarize.engines.features.closest_sets` evaluates every feature pair with some
-thirty numpy calls on temporary arrays; here one compiled loop does the same
-arithmetic pair by pair, in the same order of operations, so the distances
-are the same to the last bit (tests/test_planarize_compiled.py checks this
-against the numpy kernel on random surfaces, open and periodic, with both
-distance kinds). The fast engine uses it when numba is installed (the
-``fast`` extra); the reference engine always uses the numpy kernel, so that
-it stays the thesis algorithm in plain numpy.
+`closest_sets` evaluates every feature pair (`planarize.engines.features`, the slot layout) of a
+list of (metal point, anchor oxide point) pairs with the geometry of `planarize.geometry`, keeps
+each metal point's smallest distance and collects the oxide points of every pair within ``tie`` of
+it. Everything is seen from the metal point, at the origin; every vertex is placed from its integer
+grid offset and its own height, and every feature is evaluated in one fixed vertex order, so a
+feature reached from any of its grid points gives the same distance, bit for bit. Both engines use
+it: the reference engine over its windows, the fast engine over its ball searches.
 
-numba is optional: without it `AVAILABLE` is False and the fast engine runs
-on the numpy kernel, with the same results, several times slower.
+`star_reach` (how far a point's features reach) and `search_radii` (how far a candidate search
+must look) are the bounds the engines' searches rest on.
 """
 
 from __future__ import annotations
 
-import functools
 import math
 
 import numpy as np
 
-from ..geometry import triangle_frame
+from labrig.compiled import jit
 
-try:
-    import numba
-except ImportError:  # pragma: no cover - exercised only where numba is absent
-    numba = None
+from ..geometry import segment_foot_inside, triangle
+from .features import (
+    EXACT_SLOTS,
+    METAL_HALF_DIAGONALS,
+    METAL_SEGMENTS,
+    OXIDE_HALF_DIAGONALS,
+    OXIDE_SEGMENTS,
+    OXIDE_TRIANGLES,
+    POINT,
+    THESIS_SLOTS,
+    FeatureTables,
+)
 
-#: True when numba is installed and the compiled kernel can be used.
-AVAILABLE = numba is not None
-
-_TINY = float(np.finfo(float).tiny)
 _INF = math.inf
 
 
-def _jit(function=None, *, inline: bool = False):
-    # error_model="numpy": a division by zero gives inf/nan as in numpy, not an exception; inline: for small
-    # helpers called per pair with many array arguments, where a call costs more than the work
-    if function is None:
-        return functools.partial(_jit, inline=inline)
-    if numba is None:  # pragma: no cover
-        return function
-    return numba.njit(cache=True, nogil=True, error_model="numpy", inline="always" if inline else "never")(function)
-
-
-_triangle_frame = _jit(triangle_frame)
-
-
-@_jit
-def _foot(px, py, pz, ax, ay, az, bx, by, bz):
-    """`planarize.geometry.segment_foot_xyz` for one point, as the features use it: the distance when
-    the foot is strictly inside the segment, else inf."""
-    ux, uy, uz = bx - ax, by - ay, bz - az
-    wx, wy, wz = px - ax, py - ay, pz - az
-    length2 = ux * ux + uy * uy + uz * uz
-    along = wx * ux + wy * uy + wz * uz
-    # computed whether or not the foot is inside, then chosen: a branch per pair mispredicts often
-    t = along / length2
-    inside = (0 < along) & (along < length2) & (0 < t) & (t < 1)
-    value = math.sqrt(max(wx * wx + wy * wy + wz * wz - t * along, 0.0))
-    return value if inside else _INF
-
-
-@_jit(inline=True)
-def _nearest_image(di, dj, nx, ny, periodic):
+@jit(inline=True)
+def nearest_image(di, dj, nx, ny, periodic):
     """Grid offsets ``di, dj`` (each within the grid's size) of the nearest periodic image:
     ``di - nx * floor((di + nx // 2) / nx)`` as `Grid.offsets` has it, without a division."""
     if periodic:
@@ -78,19 +52,19 @@ def _nearest_image(di, dj, nx, ny, periodic):
     return di, dj
 
 
-@_jit(inline=True)
-def _own_segments(seg, zm, m, dx, dy, edge_nb, step_i, step_j):
+@jit(inline=True)
+def _own_segments(seg, zm, m, t):
     """The 4 grid segments at metal point ``m``, relative to it, as `_segments` orients them: row ``e`` of
     ``seg`` holds the start, direction and squared length (or a negative length: no segment there). They are
     the same for every anchor paired with ``m``, so they are set up once per metal point."""
     zref = zm[m]
     for e in range(4):
-        u = edge_nb[m, e]
+        u = t.edge_nb[m, e]
         if u < 0:
             seg[e, 6] = -1.0
             continue
-        tx, ty, tz = step_i[e] * dx, step_j[e] * dy, zm[u] - zref
-        if step_i[e] + step_j[e] > 0:  # from m to u
+        tx, ty, tz = t.step_i[e] * t.dx, t.step_j[e] * t.dy, zm[u] - zref
+        if t.step_i[e] + t.step_j[e] > 0:  # from m to u
             ax, ay, az, bx, by, bz = 0.0, 0.0, 0.0, tx, ty, tz
         else:
             ax, ay, az, bx, by, bz = tx, ty, tz, 0.0, 0.0, 0.0
@@ -99,9 +73,10 @@ def _own_segments(seg, zm, m, dx, dy, edge_nb, step_i, step_j):
         seg[e, 6] = ux * ux + uy * uy + uz * uz
 
 
-@_jit(inline=True)
+@jit(inline=True)
 def _own_feet(out, r, first, px, py, pz, seg):
-    """Slots ``out[r, first .. first + 3]``: `_foot` of point p on the 4 segments set up by `_own_segments`."""
+    """Slots ``out[r, first .. first + 3]``: `segment_foot_inside` of point p on the 4 segments set up by
+    `_own_segments` (the same arithmetic, on the kept start and direction)."""
     for e in range(4):
         length2 = seg[e, 6]
         if length2 < 0:
@@ -110,84 +85,55 @@ def _own_feet(out, r, first, px, py, pz, seg):
         ux, uy, uz = seg[e, 3], seg[e, 4], seg[e, 5]
         wx, wy, wz = px - seg[e, 0], py - seg[e, 1], pz - seg[e, 2]
         along = wx * ux + wy * uy + wz * uz
-        t = along / length2  # as in `_foot`: computed, then chosen
+        t = along / length2  # as in segment_foot_inside: computed, then chosen
         inside = (0 < along) & (along < length2) & (0 < t) & (t < 1)
         value = math.sqrt(max(wx * wx + wy * wy + wz * wz - t * along, 0.0))
         out[r, first + e] = value if inside else _INF
 
 
-@_jit
-def _segment(px, py, pz, ax, ay, az, bx, by, bz):
-    """`planarize.geometry.point_segment_xyz` for one point: (distance, t)."""
-    ux, uy, uz = bx - ax, by - ay, bz - az
-    wx, wy, wz = px - ax, py - ay, pz - az
-    length2 = ux * ux + uy * uy + uz * uz
-    along = wx * ux + wy * uy + wz * uz
-    t = along / length2 if length2 > 0 else 0.0
-    t = min(max(t, 0.0), 1.0)
-    dx, dy, dz = wx - t * ux, wy - t * uy, wz - t * uz
-    return math.sqrt(dx * dx + dy * dy + dz * dz)
-
-
-@_jit
-def _inside_triangle(px, py, pz, ax, ay, az, bx, by, bz, cx, cy, cz):
-    """`planarize.geometry.point_triangle_xyz` for one point, as the features use it: the distance
-    when the closest point is strictly inside the triangle, else inf."""
-    d_ab = _segment(px, py, pz, ax, ay, az, bx, by, bz)
-    d_bc = _segment(px, py, pz, bx, by, bz, cx, cy, cz)
-    d_ca = _segment(px, py, pz, cx, cy, cz, ax, ay, az)
-    distance = min(d_ab, d_bc, d_ca)  # the closest point is on an edge: a weight is 0
-    ux, uy, uz, vx, vy, vz, wx, wy, wz, d00, d01, d11, d20, d21, det = _triangle_frame(
-        px, py, pz, ax, ay, az, bx, by, bz, cx, cy, cz)
-    if not det > 1e-12 * max(d00 * d11, _TINY):
-        return _INF
-    fb = (d11 * d20 - d01 * d21) / det
-    fc = (d00 * d21 - d01 * d20) / det
-    fa = 1.0 - fb - fc
-    if not (fa > 0 and fb > 0 and fc > 0):
-        return _INF
-    ex, ey, ez = wx - fb * ux - fc * vx, wy - fb * uy - fc * vy, wz - fb * uz - fc * vz
-    face = math.sqrt(ex * ex + ey * ey + ez * ez)
-    return face if face < distance else _INF
-
-
-@_jit(inline=True)
-def _segments(out, r, first, px, py, pz, z, k, di, dj, zref, dx, dy, edge_nb, step_i, step_j):
+@jit(inline=True)
+def _segments(out, r, first, px, py, pz, z, k, di, dj, zref, t):
     """Slots ``out[r, first .. first + 3]``: the 4 grid segments at point ``k`` (offset ``di, dj``), seen from p."""
-    hx, hy, hz = di * dx, dj * dy, z[k] - zref
+    hx, hy, hz = di * t.dx, dj * t.dy, z[k] - zref
     for e in range(4):
-        u = edge_nb[k, e]
+        u = t.edge_nb[k, e]
         if u < 0:
             out[r, first + e] = _INF
             continue
-        tx, ty, tz = (di + step_i[e]) * dx, (dj + step_j[e]) * dy, z[u] - zref
-        if step_i[e] + step_j[e] > 0:  # always from the -x/-y end to the +x/+y end
-            out[r, first + e] = _foot(px, py, pz, hx, hy, hz, tx, ty, tz)
+        tx, ty, tz = (di + t.step_i[e]) * t.dx, (dj + t.step_j[e]) * t.dy, z[u] - zref
+        if t.step_i[e] + t.step_j[e] > 0:  # always from the -x/-y end to the +x/+y end
+            out[r, first + e] = segment_foot_inside(px, py, pz, hx, hy, hz, tx, ty, tz)
         else:
-            out[r, first + e] = _foot(px, py, pz, tx, ty, tz, hx, hy, hz)
+            out[r, first + e] = segment_foot_inside(px, py, pz, tx, ty, tz, hx, hy, hz)
 
 
-@_jit
-def _facets(out, r, first, px, py, pz, z, k, di, dj, zref, dx, dy, quad_cell, quad_corners, cell_corners,
-            quad_i, quad_j, centre_i, centre_j):
+@jit(inline=True)
+def _inside_triangle(px, py, pz, ax, ay, az, bx, by, bz, cx, cy, cz):
+    """The distance from p to the triangle abc when its closest point lies strictly inside it, else inf."""
+    d, wa, wb, wc = triangle(px, py, pz, ax, ay, az, bx, by, bz, cx, cy, cz)
+    return d if (wa > 0 and wb > 0 and wc > 0) else _INF
+
+
+@jit
+def _facets(out, r, first, px, py, pz, z, k, di, dj, zref, t):
     """Slots ``out[r, first .. first + 11]``: half-diagonals, then two triangles per quadrant, at point ``k``."""
-    hx, hy, hz = di * dx, dj * dy, z[k] - zref
+    hx, hy, hz = di * t.dx, dj * t.dy, z[k] - zref
     for q in range(4):
-        cell = quad_cell[k, q]
+        cell = t.quad_cell[k, q]
         if cell < 0:
             out[r, first + q] = _INF
             out[r, first + 4 + 2 * q] = _INF
             out[r, first + 5 + 2 * q] = _INF
             continue
-        c = cell_corners[cell]
+        c = t.cell_corners[cell]
         zc = 0.25 * (((z[c[0]] + z[c[1]]) + z[c[2]]) + z[c[3]])
-        cx, cy, cz = (di + centre_i[q]) * dx, (dj + centre_j[q]) * dy, zc - zref
-        out[r, first + q] = _foot(px, py, pz, hx, hy, hz, cx, cy, cz)
+        cx, cy, cz = (di + t.centre_i[q]) * t.dx, (dj + t.centre_j[q]) * t.dy, zc - zref
+        out[r, first + q] = segment_foot_inside(px, py, pz, hx, hy, hz, cx, cy, cz)
         for side in range(2):
-            si = quad_i[q] if side == 0 else 0
-            sj = 0 if side == 0 else quad_j[q]
-            w = quad_corners[k, q, 0 if side == 0 else 2]
-            tx, ty, tz = (di + si) * dx, (dj + sj) * dy, z[w] - zref
+            si = t.quad_i[q] if side == 0 else 0
+            sj = 0 if side == 0 else t.quad_j[q]
+            w = t.quad_corners[k, q, 0 if side == 0 else 2]
+            tx, ty, tz = (di + si) * t.dx, (dj + sj) * t.dy, z[w] - zref
             if si + sj > 0:
                 d = _inside_triangle(px, py, pz, hx, hy, hz, tx, ty, tz, cx, cy, cz)
             else:
@@ -195,51 +141,49 @@ def _facets(out, r, first, px, py, pz, z, k, di, dj, zref, dx, dy, quad_cell, qu
             out[r, first + 4 + side + 2 * q] = d
 
 
-@_jit(inline=True)
-def _pair_slots(out, r, zm, zo, m, v, do_oxide, do_metal, exact, nx, ny, periodic, dx, dy, edge_nb, quad_cell,
-                quad_corners, cell_corners, step_i, step_j, quad_i, quad_j, centre_i, centre_j, own, mi, mj):
-    """`FeatureKernel.distances` of one (metal ``m`` at row ``mi``, column ``mj``, anchor ``v``) pair, into row
-    ``r`` of ``out`` (filled with inf). (Rows are passed as (array, index), not as views: a view per pair costs
+@jit(inline=True)
+def _pair_slots(out, r, zm, zo, m, v, do_oxide, do_metal, exact, t, own, mi, mj):
+    """Every slot of one (metal ``m`` at row ``mi``, column ``mj``, anchor ``v``) pair, into row ``r`` of
+    ``out`` (filled with inf). (Rows are passed as (array, index), not as views: a view per pair costs
     more than the pair.)"""
-    vi = v // ny
-    di, dj = _nearest_image(vi - mi, v - vi * ny - mj, nx, ny, periodic)
+    vi = v // t.ny
+    di, dj = nearest_image(vi - mi, v - vi * t.ny - mj, t.nx, t.ny, t.periodic)
     zref = zm[m]
-    vx, vy, vz = di * dx, dj * dy, zo[v] - zref
+    vx, vy, vz = di * t.dx, dj * t.dy, zo[v] - zref
     if do_oxide:
-        out[r, 0] = math.sqrt(vx * vx + vy * vy + vz * vz)
-        _segments(out, r, 1, 0.0, 0.0, 0.0, zo, v, di, dj, zref, dx, dy, edge_nb, step_i, step_j)
+        out[r, POINT] = math.sqrt(vx * vx + vy * vy + vz * vz)
+        _segments(out, r, OXIDE_SEGMENTS, 0.0, 0.0, 0.0, zo, v, di, dj, zref, t)
         if exact:
-            _facets(out, r, 9, 0.0, 0.0, 0.0, zo, v, di, dj, zref, dx, dy, quad_cell, quad_corners, cell_corners,
-                    quad_i, quad_j, centre_i, centre_j)
+            _facets(out, r, OXIDE_HALF_DIAGONALS, 0.0, 0.0, 0.0, zo, v, di, dj, zref, t)
     if do_metal:
-        _own_feet(out, r, 5, vx, vy, vz, own)  # = _segments(out, r, 5, vx, vy, vz, zm, m, 0, 0, zref, ...)
+        _own_feet(out, r, METAL_SEGMENTS, vx, vy, vz, own)  # = _segments(out, r, METAL_SEGMENTS, vx, vy, vz, zm, m, ...)
         if exact:
-            _facets(out, r, 21, vx, vy, vz, zm, m, 0, 0, zref, dx, dy, quad_cell, quad_corners, cell_corners,
-                    quad_i, quad_j, centre_i, centre_j)
+            _facets(out, r, METAL_HALF_DIAGONALS, vx, vy, vz, zm, m, 0, 0, zref, t)
 
 
-@_jit
-def _set_of(slot, v, edge_nb, quad_corners, into, count):
-    """Append the oxide points of slot ``slot`` at anchor ``v`` (`FeatureKernel.oxide_sets`) to ``into``;
-    past an open edge there are none (a slot that does not apply can be asked for when all are inf)."""
+@jit
+def _set_of(slot, v, t, into, count):
+    """Append the oxide points of slot ``slot`` at anchor ``v`` to ``into``: the anchor, and a segment's other
+    end or a cell's other three corners; past an open edge there are none (a slot that does not apply can be
+    asked for when all are inf)."""
     into[count] = v
     count += 1
-    if 1 <= slot <= 4:
-        u = edge_nb[v, slot - 1]
+    if OXIDE_SEGMENTS <= slot < METAL_SEGMENTS:
+        u = t.edge_nb[v, slot - OXIDE_SEGMENTS]
         if u >= 0:
             into[count] = u
             count += 1
-    elif 9 <= slot <= 20:
-        q = slot - 9 if slot < 13 else (slot - 13) // 2
+    elif OXIDE_HALF_DIAGONALS <= slot < METAL_HALF_DIAGONALS:
+        q = slot - OXIDE_HALF_DIAGONALS if slot < OXIDE_TRIANGLES else (slot - OXIDE_TRIANGLES) // 2
         for c in range(3):
-            u = quad_corners[v, q, c]
+            u = t.quad_corners[v, q, c]
             if u >= 0:
                 into[count] = u
                 count += 1
     return count
 
 
-@_jit
+@jit
 def _sort_unique(values, count):
     """Sort ``values[:count]`` in place (insertion sort: a set has a few points) and drop repeats;
     return the new count."""
@@ -258,9 +202,8 @@ def _sort_unique(values, count):
     return kept
 
 
-@_jit(inline=True)
-def _closest_sets(zm, zo, m, v, tie, do_oxide, do_metal, n_slots, exact, nx, ny, periodic, dx, dy, edge_nb, quad_cell,
-                  quad_corners, cell_corners, step_i, step_j, quad_i, quad_j, centre_i, centre_j):
+@jit(inline=True)
+def _closest_sets(zm, zo, m, v, tie, do_oxide, do_metal, n_slots, exact, t):
     n_pairs = len(m)
     n_groups = 0
     for r in range(n_pairs):
@@ -281,16 +224,14 @@ def _closest_sets(zm, zo, m, v, tie, do_oxide, do_metal, n_slots, exact, nx, ny,
             stop += 1
         if stop - start > len(dist):
             dist = np.empty((2 * (stop - start), n_slots))
-        _own_segments(own, zm, m[start], dx, dy, edge_nb, step_i, step_j)
-        mi = m[start] // ny
-        mj = m[start] - mi * ny
+        _own_segments(own, zm, m[start], t)
+        mi = m[start] // t.ny
+        mj = m[start] - mi * t.ny
         low = _INF
         for r in range(start, stop):
             row = r - start
             dist[row, :] = _INF
-            _pair_slots(dist, row, zm, zo, m[r], v[r], do_oxide[r], do_metal[r], exact, nx, ny, periodic, dx, dy,
-                        edge_nb, quad_cell, quad_corners, cell_corners, step_i, step_j, quad_i, quad_j, centre_i,
-                        centre_j, own, mi, mj)
+            _pair_slots(dist, row, zm, zo, m[r], v[r], do_oxide[r], do_metal[r], exact, t, own, mi, mj)
             for s in range(n_slots):
                 low = min(low, dist[row, s])
         points[g] = m[start]
@@ -301,7 +242,7 @@ def _closest_sets(zm, zo, m, v, tie, do_oxide, do_metal, n_slots, exact, nx, ny,
                 if dist[r - start, s] <= low + tie:
                     if count + 4 > len(found):
                         found = np.concatenate((found, np.empty_like(found)))
-                    count = _set_of(s, v[r], edge_nb, quad_corners, found, count)
+                    count = _set_of(s, v[r], t, found, count)
         count = _sort_unique(found, count)
         if n_out + count > len(owner):
             grow = max(len(owner), count)
@@ -316,22 +257,18 @@ def _closest_sets(zm, zo, m, v, tie, do_oxide, do_metal, n_slots, exact, nx, ny,
 
 
 # one compiled kernel per distance kind: with ``exact`` a constant, the thesis kind carries no facet code
-@_jit
-def _closest_sets_thesis(zm, zo, m, v, tie, do_oxide, do_metal, nx, ny, periodic, dx, dy, edge_nb, quad_cell,
-                         quad_corners, cell_corners, step_i, step_j, quad_i, quad_j, centre_i, centre_j):
-    return _closest_sets(zm, zo, m, v, tie, do_oxide, do_metal, 9, False, nx, ny, periodic, dx, dy, edge_nb,
-                         quad_cell, quad_corners, cell_corners, step_i, step_j, quad_i, quad_j, centre_i, centre_j)
+@jit
+def _closest_sets_thesis(zm, zo, m, v, tie, do_oxide, do_metal, t):
+    return _closest_sets(zm, zo, m, v, tie, do_oxide, do_metal, THESIS_SLOTS, False, t)
 
 
-@_jit
-def _closest_sets_exact(zm, zo, m, v, tie, do_oxide, do_metal, nx, ny, periodic, dx, dy, edge_nb, quad_cell,
-                        quad_corners, cell_corners, step_i, step_j, quad_i, quad_j, centre_i, centre_j):
-    return _closest_sets(zm, zo, m, v, tie, do_oxide, do_metal, 33, True, nx, ny, periodic, dx, dy, edge_nb,
-                         quad_cell, quad_corners, cell_corners, step_i, step_j, quad_i, quad_j, centre_i, centre_j)
+@jit
+def _closest_sets_exact(zm, zo, m, v, tie, do_oxide, do_metal, t):
+    return _closest_sets(zm, zo, m, v, tie, do_oxide, do_metal, EXACT_SLOTS, True, t)
 
 
-def closest_sets(kernel, zm, zo, m, v, tie: float, oxide=None, metal=None):
-    """`planarize.engines.features.closest_sets`, compiled: same arguments, same results bit for bit."""
+def _pairs(m, v, oxide, metal):
+    """The (metal, anchor) pairs as int arrays sorted by metal point (stable), with their slot masks."""
     m, v = np.asarray(m, dtype=np.intp), np.asarray(v, dtype=np.intp)
     every = np.ones(len(m), dtype=bool)
     oxide = every if oxide is None else np.asarray(oxide, dtype=bool)
@@ -339,44 +276,141 @@ def closest_sets(kernel, zm, zo, m, v, tie: float, oxide=None, metal=None):
     if len(m) > 1 and np.any(m[1:] < m[:-1]):
         order = np.argsort(m, kind="stable")
         m, v, oxide, metal = m[order], v[order], oxide[order], metal[order]
-    g = kernel.grid
-    closest = _closest_sets_exact if kernel.n_slots > 9 else _closest_sets_thesis
-    return closest(zm, zo, m, v, float(tie), oxide, metal, g.nx, g.ny, g.periodic, g.dx,
-                         g.dy, g.edge_neighbours, g.quadrant_cell, g.quadrant_corners, g.cell_corners,
-                         kernel._step_i, kernel._step_j, kernel._quad_i, kernel._quad_j, kernel._centre_i,
-                         kernel._centre_j)
+    return m, v, oxide, metal
 
 
-@_jit
-def _star(z, k, exact, edge_nb, edge2, quad_cell, cell_corners, half2):
+def closest_sets(tables: FeatureTables, zm, zo, m, v, tie: float, oxide=None, metal=None):
+    """Smallest pair distance of each metal point, and the oxide points it belongs to.
+
+    Parameters
+    ----------
+    tables : FeatureTables
+    zm, zo : ndarray, shape (n,)
+        Flat metal and oxide heights, nm.
+    m, v : ndarray of int, shape (P,)
+        (metal point, anchor oxide point) candidate pairs; every metal point that appears gets an
+        answer from its own pairs only.
+    tie : float
+        Pairs within ``tie`` nm of a point's smallest distance count as equally close (their oxide
+        points are all in its set).
+    oxide, metal : ndarray of bool, shape (P,), optional
+        Evaluate only for these pairs the slots of the oxide features at the anchor, resp. of the
+        metal features at ``m``; default all pairs.
+
+    Returns
+    -------
+    points : ndarray of int, shape (M,)
+        The distinct metal points of ``m``, sorted.
+    distance : ndarray, shape (M,)
+        Their smallest distance, nm.
+    owner, oxide : ndarray of int, shape (K,)
+        The sets as unique (index into ``points``, oxide point) pairs, sorted.
+    """
+    m, v, oxide, metal = _pairs(m, v, oxide, metal)
+    closest = _closest_sets_exact if tables.exact else _closest_sets_thesis
+    return closest(zm, zo, m, v, float(tie), oxide, metal, tables)
+
+
+@jit
+def _all_slots(zm, zo, m, v, oxide, metal, t, out):
+    own = np.empty((4, 7))
+    for r in range(len(m)):
+        _own_segments(own, zm, m[r], t)
+        mi = m[r] // t.ny
+        _pair_slots(out, r, zm, zo, m[r], v[r], oxide[r], metal[r], t.exact, t, own, mi, m[r] - mi * t.ny)
+
+
+def pair_slots(tables: FeatureTables, zm, zo, m, v, oxide=None, metal=None) -> np.ndarray:
+    """Every slot of each (metal ``m``, anchor ``v``) pair, shape (P, n_slots), nm; inf where a slot does not
+    apply (no neighbour past an open edge, the closest point is not inside the feature, or not asked for).
+    What `closest_sets` takes the smallest of, for inspection and tests."""
+    m, v = np.asarray(m, dtype=np.intp), np.asarray(v, dtype=np.intp)
+    every = np.ones(len(m), dtype=bool)
+    oxide = every if oxide is None else np.asarray(oxide, dtype=bool)
+    metal = every if metal is None else np.asarray(metal, dtype=bool)
+    out = np.full((len(m), tables.n_slots), np.inf)
+    _all_slots(zm, zo, m, v, oxide, metal, tables, out)
+    return out
+
+
+@jit(inline=True)
+def star(z, k, t):
+    """How far the features touching grid point ``k`` reach from it, nm: the far end of its longest edge."""
     zk = z[k]
     reach2 = -_INF
     for e in range(4):
-        u = edge_nb[k, e]
+        u = t.edge_nb[k, e]
         if u >= 0:
             dz = z[u] - zk
-            reach2 = max(reach2, edge2[e] + dz * dz)
-    if exact:
+            reach2 = max(reach2, t.edge2[e] + dz * dz)
+    if t.exact:
         for q in range(4):
-            cell = quad_cell[k, q]
+            cell = t.quad_cell[k, q]
             if cell >= 0:
-                c = cell_corners[cell]
+                c = t.cell_corners[cell]
                 dz = 0.25 * (((z[c[0]] + z[c[1]]) + z[c[2]]) + z[c[3]]) - zk
-                reach2 = max(reach2, half2[q] + dz * dz)
+                reach2 = max(reach2, t.half2[q] + dz * dz)
     return math.sqrt(reach2)
 
 
-@_jit
-def _star_reach(z, points, exact, edge_nb, edge2, quad_cell, cell_corners, half2):
+@jit
+def _star_reach(z, points, t):
     reach = np.empty(len(points))
     for a in range(len(points)):
-        reach[a] = _star(z, points[a], exact, edge_nb, edge2, quad_cell, cell_corners, half2)
+        reach[a] = star(z, points[a], t)
     return reach
 
 
-def star_reach(kernel, z, points) -> np.ndarray:
-    """`FeatureKernel.star_reach` of the surface ``z`` at ``points``, compiled: same values bit for bit."""
-    g = kernel.grid
-    return _star_reach(z, np.asarray(points, dtype=np.intp), kernel.distance == "exact", g.edge_neighbours,
-                       kernel._edge_x ** 2 + kernel._edge_y ** 2, g.quadrant_cell, g.cell_corners,
-                       kernel._half_x ** 2 + kernel._half_y ** 2)
+def star_reach(tables: FeatureTables, z, points=None) -> np.ndarray:
+    """For each of ``points`` (default every grid point), the distance to the far end of its longest
+    feature edge, nm: every point of a feature touching it (segment, and with exact distances
+    half-diagonal or triangle) lies within this distance of it."""
+    points = np.arange(tables.nx * tables.ny) if points is None else np.asarray(points, dtype=np.intp)
+    return _star_reach(np.asarray(z, dtype=float), points, tables)
+
+
+def max_feature_length(tables: FeatureTables, z) -> float:
+    """Longest feature edge of the surface ``z`` (flat), nm."""
+    return float(star_reach(tables, z).max())
+
+
+@jit
+def _search_radii(zm, points, bound, oxide_reach, tie, t):
+    inflate = 1 + 1e-12
+    r_ox = np.empty(len(points))
+    r_me = np.empty(len(points))
+    for a in range(len(points)):
+        reach = star(zm, points[a], t)
+        r_ox[a] = math.sqrt(bound[a] * bound[a] + oxide_reach * oxide_reach) * inflate + tie
+        r_me[a] = math.sqrt(bound[a] * bound[a] + reach * reach) * inflate + tie
+    return r_ox, r_me
+
+
+def search_radii(tables: FeatureTables, zm, points, bound, oxide_reach: float, tie: float):
+    """Search radii (oxide features, metal features) around metal points ``points`` for the features that can
+    be closer than ``bound[i]`` to them, nm.
+
+    An oxide feature closer than ``B`` to metal point ``m`` has a grid point within ``sqrt(B^2 + R^2)`` of
+    ``m``, ``R`` = ``oxide_reach`` (`planarize.engines.features.oxide_reach`); a metal feature at ``m``
+    closer than ``B`` to an oxide point lies within ``sqrt(B^2 + S^2)`` of it, ``S`` = the star reach of
+    ``m``. (When the closest point ``q`` is a perpendicular foot, ``|m - a|^2 = d^2 + |q - a|^2`` for
+    every grid point ``a`` of the feature.) Both are inflated by round-off and ``tie``.
+    """
+    return _search_radii(zm, np.asarray(points, dtype=np.intp), np.asarray(bound, dtype=float), float(oxide_reach),
+                         float(tie), tables)
+
+
+@jit
+def _within(which, gap, r_ox, r_me):
+    oxide = np.empty(len(which), dtype=np.bool_)
+    metal = np.empty(len(which), dtype=np.bool_)
+    for a in range(len(which)):
+        oxide[a] = gap[a] <= r_ox[which[a]]
+        metal[a] = gap[a] <= r_me[which[a]]
+    return oxide, metal
+
+
+def within(which, gap, r_ox, r_me):
+    """For search results (query ``which``, distance ``gap``): within the query's oxide radius ``r_ox``,
+    and within its metal radius ``r_me`` (two boolean arrays)."""
+    return _within(which, gap, r_ox, r_me)

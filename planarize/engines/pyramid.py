@@ -19,7 +19,7 @@ import math
 
 import numpy as np
 
-from .kernels import _jit
+from labrig.compiled import jit
 
 _FACTOR = 2
 
@@ -91,7 +91,7 @@ class BallCache:
 _NO_CACHE = BallCache(0, 0.0, 0)
 
 
-@_jit
+@jit
 def _build(z, nx, ny, shapes, offsets, low, high):
     low[:] = np.inf
     high[:] = -np.inf
@@ -114,7 +114,7 @@ def _build(z, nx, ny, shapes, offsets, low, high):
                 high[b] = max(high[b], high[child])
 
 
-@_jit
+@jit
 def _runs(start, stop, n, size, out):
     """Split the unwrapped index range ``start .. stop`` into pieces that each lie in one block of
     ``size`` (indices wrap modulo ``n``); ``out[k] = (block, unwrapped first index of the block)``."""
@@ -130,7 +130,7 @@ def _runs(start, stop, n, size, out):
     return count
 
 
-@_jit(inline=True)
+@jit(inline=True)
 def _near(level, bi, bj, u0, v0, iq, jq, h, r2, ua, ub, va, vb, nx, ny, dx, dy, shapes, offsets, low, high):
     """Whether block ``(bi, bj)`` of ``level`` (first row/column ``u0, v0`` unwrapped) can hold a point within
     the query's window and ball."""
@@ -146,7 +146,7 @@ def _near(level, bi, bj, u0, v0, iq, jq, h, r2, ua, ub, va, vb, nx, ny, dx, dy, 
     return hx * hx + hy * hy + hz * hz <= r2
 
 
-@_jit(inline=True)
+@jit(inline=True)
 def _grow(which, found, gap, need):
     """The result arrays with room for at least ``need`` entries (doubled as often as it takes).
 
@@ -160,7 +160,7 @@ def _grow(which, found, gap, need):
     return which, found, gap
 
 
-@_jit
+@jit
 def _ball(z, points, zq, radius, nx, ny, dx, dy, periodic, shapes, offsets, low, high, use_cache, kept, kept_count,
           kept_radius, margin):
     top = len(shapes) - 1

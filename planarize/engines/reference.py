@@ -26,11 +26,12 @@ oxidized together (see `planarize.engines.base`).
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
 from .base import Engine
-from .features import closest_sets
+from .kernels import closest_sets
 
 
 class ReferenceEngine(Engine):
@@ -38,8 +39,8 @@ class ReferenceEngine(Engine):
 
     name = "reference"
 
-    def __init__(self, metal, oxide=None, **kwargs):
-        super().__init__(metal, oxide, **kwargs)
+    def __init__(self, metal, oxide=None, model=None):
+        super().__init__(metal, oxide, model)
         n = self.grid.n
         self.ox: list[set[int]] = [set() for _ in range(n)]
         self.met: list[set[int]] = [set() for _ in range(n)]
@@ -68,7 +69,7 @@ class ReferenceEngine(Engine):
 
     def _update(self, m, v, rule: str) -> None:
         """Closest sets over the (metal, anchor) pairs ``m``, ``v``; ``rule`` "replace" or "take closer"."""
-        found, distance, owner, oxide = closest_sets(self.kernel, self.zm, self.zo, m, v, self.tie)
+        found, distance, owner, oxide = closest_sets(self.tables, self.zm, self.zo, m, v, self.tie)
         sets = np.split(oxide, np.flatnonzero(np.diff(owner)) + 1)
         for p, d, s in zip(found.tolist(), distance.tolist(), sets):
             if rule == "replace" or d < self.D[p] - self.tie:
@@ -165,3 +166,31 @@ class MatlabEngine(ReferenceEngine):
         stale = np.array(sorted(stale), dtype=np.intp)
         self._recompute(stale, previous[stale])
         self._take_closer(raised)
+
+
+@dataclass(frozen=True)
+class Reference:
+    """The thesis's sequential algorithm (`ReferenceEngine`): ``anodize(..., engine=Reference())``. No settings."""
+
+    name = "reference"
+
+    def build(self, metal, oxide, model) -> ReferenceEngine:
+        """The engine for ``metal`` (and ``oxide``) under ``model``."""
+        return ReferenceEngine(metal, oxide, model)
+
+    def options(self) -> dict:
+        return {}
+
+
+@dataclass(frozen=True)
+class Matlab:
+    """The reference with the Matlab listings' shortcuts (`MatlabEngine`), to measure what they cost. No settings."""
+
+    name = "matlab"
+
+    def build(self, metal, oxide, model) -> MatlabEngine:
+        """The engine for ``metal`` (and ``oxide``) under ``model``."""
+        return MatlabEngine(metal, oxide, model)
+
+    def options(self) -> dict:
+        return {}

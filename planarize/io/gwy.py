@@ -12,17 +12,17 @@ the format details.
 
 from __future__ import annotations
 
-import math
 import os
 import re
 from pathlib import Path
 
 import numpy as np
 
-from labrig.validate import InputError
+from labrig import validate
+from labrig.validate import InputError, count
 
-from ..surface import Surface
-from .heights import FILE_UNITS, _file_unit, _given_spacing, _scales
+from ..surface import MAX_POINTS, Surface
+from .heights import FILE_UNITS, MAX_COORDINATE, file_unit, given_spacing, unit_scales
 
 
 def _gwyfile():
@@ -57,9 +57,13 @@ def _channels(container) -> list[dict]:
         match = re.fullmatch(r"/(\d+)/data", str(key))
         if match and getattr(field, "name", None) == "GwyDataField":
             number = int(match.group(1))
+            shape = tuple(count(f"channel {number} {key}", field.get(key), 1, MAX_POINTS) for key in ("yres", "xres"))
+            if shape[0] * shape[1] > MAX_POINTS:
+                raise InputError(f"channel {number} has {shape[1]} x {shape[0]} pixels, more than the {MAX_POINTS:,} "
+                                 "points a surface may have")
             found.append({"number": number, "title": str(container.get(f"/{number}/data/title", f"channel {number}")),
                           "xy_unit": _unit(field.get("si_unit_xy")), "z_unit": _unit(field.get("si_unit_z")),
-                          "shape": (int(field["yres"]), int(field["xres"])), "field": field})
+                          "shape": shape, "field": field})
     return sorted(found, key=lambda c: c["number"])
 
 
@@ -86,24 +90,25 @@ def read_gwy(path, unit, z_unit, spacing, channel):
         chosen = wanted[0]
     label = f"channel {chosen['number']} {chosen['title']!r}"
     try:
-        stated_z = None if chosen["z_unit"] is None else _file_unit(chosen["z_unit"], f"{label} values")
+        stated_z = None if chosen["z_unit"] is None else file_unit(chosen["z_unit"], f"{label} values")
     except ValueError as exc:
         heights = [c for c in channels if c["z_unit"] in FILE_UNITS]
         raise InputError(f"{exc}: not a height channel; height channels: {_describe(heights)}") from None
-    stated_xy = None if chosen["xy_unit"] is None else _file_unit(chosen["xy_unit"], f"{label} lateral sizes")
-    xy_scale, z_scale = _scales(stated_xy, stated_z, unit, z_unit)
+    stated_xy = None if chosen["xy_unit"] is None else file_unit(chosen["xy_unit"], f"{label} lateral sizes")
+    xy_scale, z_scale = unit_scales(stated_xy, stated_z, unit, z_unit)
     field = chosen["field"]
     ny, nx = chosen["shape"]
+    if field.get("data") is None:
+        raise InputError(f"{label} holds no data")
     data = np.asarray(field["data"], dtype=float)
     if data.size != nx * ny:
         raise InputError(f"{label}: {data.size} values for {nx} x {ny} pixels")
     real = (field.get("xreal"), field.get("yreal"))
     stated = all(v is not None for v in real)
-    given = _given_spacing(spacing, stated)
+    given = given_spacing(spacing, stated)
     if stated:
         for name, v in zip(("xreal", "yreal"), real):
-            if not (math.isfinite(v) and v > 0):
-                raise InputError(f"{label}: {name} must be > 0, got {v!r}")
+            validate.real(f"{label}: {name}", v, 0.0, MAX_COORDINATE, low_open=True)
         pixel = (real[0] / nx, real[1] / ny)
     else:
         pixel = given

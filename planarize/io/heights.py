@@ -44,9 +44,9 @@ from pathlib import Path
 import numpy as np
 
 from labrig.files import atomic_path
-from labrig.validate import InputError
+from labrig.validate import InputError, array, real
 
-from ..surface import Surface, check_heights
+from ..surface import MAX_POINTS, Surface, check_heights
 
 #: Length units, nm per unit. "A" is the ångström here (the user's word); see `FILE_UNITS`.
 LENGTH_UNITS = {"nm": 1.0, "um": 1e3, "µm": 1e3, "μm": 1e3, "mm": 1e6, "m": 1e9, "pm": 1e-3, "A": 0.1, "Å": 0.1}
@@ -56,6 +56,10 @@ FILE_UNITS = {k: v for k, v in LENGTH_UNITS.items() if k != "A"}
 SUFFIXES = {".xyz": "xyz", ".csv": "matrix", ".txt": "matrix", ".asc": "matrix", ".dat": "matrix",
             ".npy": "npy", ".gwy": "gwy"}
 FORMATS = ("xyz", "matrix", "npy", "gwy")
+#: Largest text height map read, bytes.
+MAX_TEXT_BYTES = 2**30
+#: Largest coordinate or size stated in a file, in its own unit.
+MAX_COORDINATE = 1e15
 #: Most elongated pixel (longer / shorter side) accepted by default.
 MAX_PIXEL_ASPECT = 8.0
 
@@ -69,7 +73,7 @@ def unit_scale(unit: str, name: str = "unit") -> float:
     return LENGTH_UNITS[unit]
 
 
-def _file_unit(unit, what: str) -> str:
+def file_unit(unit, what: str) -> str:
     """A length unit stated in a file (SI spelling), or a ValueError saying what it is instead."""
     unit = "" if unit is None else str(unit).strip()
     if unit not in FILE_UNITS:
@@ -190,7 +194,7 @@ def load_heights(path, *, unit: str | None = None, z_unit: str | None = None, sp
     return level_plane(surface) if level else surface
 
 
-def _scales(stated_xy, stated_z, unit, z_unit) -> tuple[float, float]:
+def unit_scales(stated_xy, stated_z, unit, z_unit) -> tuple[float, float]:
     """nm per unit of the lateral coordinates and of the heights: the file's, else the user's."""
     xy = _agree(stated_xy, unit, "unit", "lateral coordinates")
     if z_unit is not None:
@@ -198,7 +202,7 @@ def _scales(stated_xy, stated_z, unit, z_unit) -> tuple[float, float]:
     return xy, _agree(stated_z, None if stated_z else unit, "unit", "heights")
 
 
-def _given_spacing(spacing, stated: bool):
+def given_spacing(spacing, stated: bool):
     if spacing is not None and stated:
         raise InputError("the file states its grid spacing: leave spacing out")
     if spacing is None and not stated:
@@ -208,6 +212,9 @@ def _given_spacing(spacing, stated: bool):
 
 def _text_table(path: Path) -> tuple[dict, np.ndarray]:
     """Header (``# key: value`` lines, keys lower-case) and the numeric table of a text file."""
+    size = path.stat().st_size
+    if size > MAX_TEXT_BYTES:
+        raise InputError(f"the file has {size:,} bytes, more than the {MAX_TEXT_BYTES:,} a text height map may have")
     try:
         text = path.read_bytes().decode("utf-8-sig")
     except (OSError, UnicodeDecodeError) as exc:
@@ -264,7 +271,8 @@ def _quantity(header: dict, key: str) -> tuple[float, str] | None:
     match = _QUANTITY.match(header[key])
     if not match or not _is_number(match.group(1)):
         raise InputError(f"header {key!r}: cannot read {header[key]!r} as a number and a unit")
-    return float(match.group(1)), _file_unit(match.group(2), f"header {key!r} values")
+    value = real(f"header {key!r}", float(match.group(1)), 0.0, MAX_COORDINATE, low_open=True)
+    return value, file_unit(match.group(2), f"header {key!r} values")
 
 
 def _read_xyz(path, unit, z_unit, spacing, channel):
@@ -273,13 +281,13 @@ def _read_xyz(path, unit, z_unit, spacing, channel):
     header, table = _text_table(path)
     if table.shape[1] != 3:
         raise InputError(f"wrong shape: an XYZ file has 3 columns (x y z), this one has {table.shape[1]}")
-    stated_xy = _file_unit(header["xy units"], "header 'XY units'") if "xy units" in header else None
-    stated_z = _file_unit(header["value units"], "header 'Value units'") if "value units" in header else None
-    xy_scale, z_scale = _scales(stated_xy, stated_z, unit, z_unit)
-    _given_spacing(spacing, stated=True)
-    x, y, z = table.T
-    if not (np.isfinite(x).all() and np.isfinite(y).all()):
-        raise InputError("x and y coordinates must be finite")
+    stated_xy = file_unit(header["xy units"], "header 'XY units'") if "xy units" in header else None
+    stated_z = file_unit(header["value units"], "header 'Value units'") if "value units" in header else None
+    xy_scale, z_scale = unit_scales(stated_xy, stated_z, unit, z_unit)
+    given_spacing(spacing, stated=True)
+    x = array("x coordinates", table[:, 0], (None,), limit=MAX_COORDINATE)
+    y = array("y coordinates", table[:, 1], (None,), limit=MAX_COORDINATE)
+    z = table[:, 2]
     i, x0, dx = _axis(x, "x")
     j, y0, dy = _axis(y, "y")
     nx, ny = int(i.max()) + 1, int(j.max()) + 1
@@ -321,17 +329,17 @@ def _read_matrix(path, unit, z_unit, spacing, channel):
         raise InputError("channel applies to .gwy files only")
     header, z = _text_table(path)
     width, height = _quantity(header, "width"), _quantity(header, "height")
-    stated_z = _file_unit(header["value units"], "header 'Value units'") if "value units" in header else None
+    stated_z = file_unit(header["value units"], "header 'Value units'") if "value units" in header else None
     if (width is None) != (height is None):
         raise InputError("the header states only one of Width and Height")
     if width is None:  # plain matrix: rows are x, as in Surface.z
-        xy_scale, z_scale = _scales(None, stated_z, unit, z_unit)
-        return z, _given_spacing(spacing, stated=False), xy_scale, z_scale
+        xy_scale, z_scale = unit_scales(None, stated_z, unit, z_unit)
+        return z, given_spacing(spacing, stated=False), xy_scale, z_scale
     # Gwyddion text export: rows are image rows (y); Width spans the columns
-    _given_spacing(spacing, stated=True)
+    given_spacing(spacing, stated=True)
     if width[1] != height[1]:
         raise InputError("the header states Width and Height in different units")
-    xy_scale, z_scale = _scales(width[1], stated_z, unit, z_unit)
+    xy_scale, z_scale = unit_scales(width[1], stated_z, unit, z_unit)
     ny, nx = z.shape
     return z.T, (width[0] / nx, height[0] / ny), xy_scale, z_scale
 
@@ -340,13 +348,18 @@ def _read_npy(path, unit, z_unit, spacing, channel):
     if channel is not None:
         raise InputError("channel applies to .gwy files only")
     try:
-        z = np.load(path, allow_pickle=False)
+        z = np.load(path, mmap_mode="r", allow_pickle=False)  # the header first: nothing is read before the checks
     except (OSError, ValueError, EOFError) as exc:
         raise InputError(f"cannot read the file as a .npy array: {exc}") from None
-    if not (np.issubdtype(z.dtype, np.number) and not np.iscomplexobj(z)):
+    if not isinstance(z, np.ndarray):
+        raise InputError(f"the file is not a .npy array (a .npz archive renamed?), got {type(z).__name__}")
+    if z.dtype.kind not in "iuf":
         raise InputError(f"heights must be real numbers, the array holds {z.dtype}")
-    xy_scale, z_scale = _scales(None, None, unit, z_unit)
-    return z, _given_spacing(spacing, stated=False), xy_scale, z_scale
+    if z.size > MAX_POINTS:
+        raise InputError(f"the array has {z.size:,} values, more than the {MAX_POINTS:,} points a surface may have")
+    z = np.array(z)
+    xy_scale, z_scale = unit_scales(None, None, unit, z_unit)
+    return z, given_spacing(spacing, stated=False), xy_scale, z_scale
 
 
 # -- writing -----------------------------------------------------------------------------------

@@ -23,23 +23,26 @@ from pathlib import Path
 
 import numpy as np
 
-from labrig.files import atomic_path, write_csv, write_text_atomic
-from labrig.validate import InputError
+from labrig.files import read_archive, write_archive, write_csv, write_text_atomic
+from labrig.validate import InputError, choice, reals
 
 from ..anodize import Anodization, Snapshot
-from ..surface import Surface
+from ..surface import BOUNDARIES, Surface
 
 FORMAT = "planarize-run"
 VERSION = 1
+#: Arrays every run file holds.
+ARRAYS = ("initial", "metal", "oxide", "distances", "snapshot_target", "snapshot_thickness", "snapshot_metal",
+          "snapshot_oxide", "snapshot_distances")
 
 
 def save_run(run: Anodization, path: str | os.PathLike) -> Path:
     """Write ``run`` to ``path`` (.npz), atomically; returns the path."""
     if not isinstance(run, Anodization):
-        raise TypeError(f"run must be a planarize.Anodization, got {type(run).__name__}")
+        raise InputError(f"run must be a planarize.Anodization, got {type(run).__name__}")
     grid = run.initial
     metadata = {"format": FORMAT, "version": VERSION, "spacing": list(grid.spacing), "boundary": grid.boundary,
-                "history_columns": list(run.history), "parameters": run.parameters}
+                "history_columns": list(run.history), "parameters": run.parameters, "complete": run.complete}
     shots = run.snapshots
     empty = np.zeros((0, *grid.shape))
     arrays = {
@@ -51,12 +54,8 @@ def save_run(run: Anodization, path: str | os.PathLike) -> Path:
         "snapshot_metal": np.array([s.metal.z for s in shots]) if shots else empty,
         "snapshot_oxide": np.array([s.oxide.z for s in shots]) if shots else empty,
         "snapshot_distances": np.array([s.distances for s in shots]) if shots else empty,
-        "metadata": np.array(json.dumps(metadata)),
     }
-    with atomic_path(path) as tmp:
-        with open(tmp, "wb") as stream:
-            np.savez(stream, **arrays)
-    return Path(path)
+    return write_archive(path, metadata, arrays)
 
 
 def load_run(path: str | os.PathLike) -> Anodization:
@@ -66,35 +65,47 @@ def load_run(path: str | os.PathLike) -> Anodization:
     ------
     FileNotFoundError
         If ``path`` does not exist.
-    ValueError
-        If it is not a readable planarize run file; the message starts with the path.
+    labrig.validate.InputError
+        If it is not a readable planarize run file (truncated, corrupted, another format or version,
+        arrays of the wrong shape, bad metadata); the message starts with the path.
     """
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"run file {str(path)!r} does not exist")
+    metadata, arrays = read_archive(path, FORMAT, VERSION, ARRAYS, "planarize run")
     try:
-        with np.load(path, allow_pickle=False) as data:
-            arrays = {key: data[key] for key in data.files}
-        metadata = json.loads(str(arrays.pop("metadata")))
-        if metadata.get("format") != FORMAT:
-            raise InputError(f"not a planarize run file (format {metadata.get('format')!r})")
-        if metadata.get("version") != VERSION:
-            raise InputError(f"unsupported run file version {metadata.get('version')!r} (this is {VERSION})")
-        spacing, boundary = tuple(metadata["spacing"]), metadata["boundary"]
+        spacing = reals("spacing", metadata.get("spacing"), 2)
+        boundary = choice("boundary", metadata.get("boundary"), BOUNDARIES)
+        columns = metadata.get("history_columns")
+        if not (isinstance(columns, list) and all(isinstance(c, str) for c in columns)):
+            raise InputError(f"history_columns must be a list of names, got {columns!r}")
+        if not isinstance(metadata.get("parameters"), dict):
+            raise InputError(f"parameters must be a table, got {metadata.get('parameters')!r}")
 
         def surface(z) -> Surface:
             return Surface(z, spacing, boundary)
 
+        initial = surface(arrays["initial"])
+        shape = initial.shape
+        for name in ("metal", "oxide", "distances"):
+            if arrays[name].shape != shape:
+                raise InputError(f"{name} has shape {arrays[name].shape}, the initial surface {shape}")
+        k = len(arrays["snapshot_target"])
+        for name in ("snapshot_metal", "snapshot_oxide", "snapshot_distances"):
+            if arrays[name].shape != (k, *shape):
+                raise InputError(f"{name} has shape {arrays[name].shape}, expected {(k, *shape)}")
         snapshots = [Snapshot(float(t), float(h), surface(m), surface(o), d) for t, h, m, o, d in zip(
             arrays["snapshot_target"], arrays["snapshot_thickness"], arrays["snapshot_metal"],
             arrays["snapshot_oxide"], arrays["snapshot_distances"])]
-        history = {key: arrays[f"history_{key}"] for key in metadata["history_columns"]}
+        missing = [c for c in columns if f"history_{c}" not in arrays]
+        if missing:
+            raise InputError(f"no history column {missing[0]!r}")
+        history = {key: arrays[f"history_{key}"] for key in columns}
+        if len({len(v) for v in history.values()}) > 1:
+            raise InputError("the history columns have different lengths")
         distances = arrays["distances"]
-        return Anodization(metadata["parameters"], history, snapshots, surface(arrays["initial"]),
-                           surface(arrays["metal"]), surface(arrays["oxide"]),
-                           None if np.isnan(distances).all() else distances)
-    except (OSError, ValueError, KeyError, TypeError, EOFError) as exc:
-        raise InputError(f"{path}: cannot read the run file: {exc}") from None
+        return Anodization(metadata["parameters"], history, snapshots, initial, surface(arrays["metal"]),
+                           surface(arrays["oxide"]), None if np.isnan(distances).all() else distances,
+                           bool(metadata.get("complete", True)))
+    except InputError as exc:
+        raise InputError(f"{path}: the saved run is invalid: {exc}") from None
 
 
 def save_history_csv(run: Anodization, path: str | os.PathLike) -> Path:

@@ -21,19 +21,18 @@ from __future__ import annotations
 
 import dataclasses
 import inspect
-import math
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from labrig.files import write_text_atomic
 from labrig.tomlfile import check_keys, from_source, parse_toml, read_toml, toml_line
-from labrig.validate import InputError, typed
+from labrig.validate import MAX_SEED, InputError, number, real, seed, text, typed
 
 from .. import surfaces
-from ..anodize import Anodization, anodize, engines
-from ..engines.base import INTERACTING, VOLUME_RULES
-from ..engines.features import DISTANCES
+from ..anodize import MAX_RECORD, MAX_THICKNESS, Anodization, anodize, thickness_targets
+from ..engines import ENGINES, Fast, engine_settings
+from ..model import K_EXP_RANGE, MAX_STEP, Model
 from ..surface import Surface
 from .heights import FORMATS, LENGTH_UNITS, load_heights
 
@@ -60,7 +59,7 @@ SURFACES = {
     "random_roughness": (surfaces.random_roughness, {
         "size": ("float", "nm, side of the square sample, a whole number of half the widest width"),
         "thickness": ("float", "nm, mean metal thickness, >= 0"),
-        "scales": ("scales", "[[width, height], ...] nm, widest first, each width dividing the previous"),
+        "scales": ("float2s", "[[width, height], ...] nm, widest first, each width dividing the previous"),
         "refine": ("int", "final refinement factor, integer >= 1"),
         "method": ("str", '"linear" | "cubic" final refinement'),
         "boundary": ("str", '"open" | "periodic"'),
@@ -70,9 +69,9 @@ SURFACES = {
         "unit": ("str?", f"unit of lateral sizes (and heights), for files that do not state it: "
                          f"{' | '.join(repr(u) for u in ('nm', 'um', 'm', 'A'))}"),
         "z_unit": ("str?", "unit of the heights if different from unit"),
-        "spacing": ("spacing?", "grid spacing in unit, number or [dx, dy]; .npy and plain matrices only"),
+        "spacing": ("float|float2?", "grid spacing in unit, number or [dx, dy]; .npy and plain matrices only"),
         "level": ("bool", "remove the least-squares plane's tilt"),
-        "channel": ("channel?", ".gwy channel number or title; unset: the first height channel"),
+        "channel": ("int|str?", ".gwy channel number or title; unset: the first height channel"),
         "format": ("str?", f"{' | '.join(repr(f) for f in FORMATS)}; unset: from the suffix"),
         "boundary": ("str", '"open" | "periodic"'),
         "max_aspect": ("float", "largest pixel aspect ratio accepted, >= 1"),
@@ -80,20 +79,23 @@ SURFACES = {
 }
 #: Run settings: key -> (type, comment).
 RUN = {
-    "thickness": ("float", "nm, oxide thickness to grow, >= 0"),
-    "step": ("float", "nm, metal height consumed per oxidation, > 0 (thesis: 0.01 hill, 0.5 Ta)"),
-    "k_exp": ("float", "oxide volume per metal volume consumed, >= 1 (Ta 2.3, Al ~1.3)"),
-    "engine": ("str", " | ".join(f'"{e}"' for e in engines()) + ' ("reference": the thesis algorithm, slow)'),
+    "thickness": ("float", f"nm, oxide thickness to grow, in [0, {number(MAX_THICKNESS)}]"),
+    "step": ("float", f"nm, metal height consumed per oxidation, in (0, thickness] and at most {number(MAX_STEP)} "
+                      "(thesis: 0.01 hill, 0.5 Ta)"),
+    "k_exp": ("float", f"oxide volume per metal volume consumed, in [{number(K_EXP_RANGE[0])}, "
+                       f"{number(K_EXP_RANGE[1])}] (Ta 2.3, Al ~1.3)"),
+    "engine": ("str", " | ".join(f'"{e}"' for e in ENGINES) + ' ("reference": the thesis algorithm, slow)'),
     "distance": ("str", '"thesis" (points and segments) | "exact" (the triangulated surfaces)'),
     "volume": ("str", '"exact" | "thesis" (equal point weights)'),
     "tolerance": ("float?", "nm, fast engine batch tolerance, >= 0; unset: step / 10"),
     "interacting": ("str", '"wait" | "together" (fast engine: interacting candidates of a batch; together is faster, '
                            'changes the result by what the tolerance lets in)'),
-    "record": ("record", "history rows: a count n (n + 1 evenly spaced) or [thicknesses nm]"),
+    "record": ("int|floats", f"history rows: a count n (n + 1 evenly spaced) or [thicknesses nm]; at most "
+                             f"{MAX_RECORD:,}"),
     "snapshots": ("floats?", "[thicknesses nm] at which both surfaces are kept, in [0, thickness]; unset: [0, thickness]"),
 }
 #: Top-level keys.
-TOP = {"name": ("str", "label of the run"), "seed": ("int", "integer >= 0, seeds random_roughness")}
+TOP = {"name": ("str", "label of the run"), "seed": ("int", f"integer in [0, {MAX_SEED}], seeds random_roughness")}
 
 
 def _defaults(kind: str) -> dict:
@@ -107,46 +109,6 @@ def _defaults(kind: str) -> dict:
 def _plain(value):
     """Tuples (of tuples) as lists: the form TOML reads back."""
     return [_plain(v) for v in value] if isinstance(value, (list, tuple)) else value
-
-
-def _check_type(key: str, value, kind: str):
-    """``value`` as ``kind``; ValueError naming the full ``key`` otherwise."""
-    if value is None and kind.endswith("?"):
-        return None
-    plain = kind.rstrip("?")
-    number = (int, float)
-
-    def is_number(v):
-        return isinstance(v, number) and not isinstance(v, bool)
-
-    if plain == "float2":
-        if isinstance(value, (list, tuple)) and len(value) == 2 and all(map(is_number, value)):
-            return [float(v) for v in value]
-        raise InputError(f"{key} must be a list of two numbers, got {value!r}")
-    if plain == "scales":
-        if isinstance(value, (list, tuple)) and value and all(
-                isinstance(p, (list, tuple)) and len(p) == 2 and all(map(is_number, p)) for p in value):
-            return [[float(w), float(h)] for w, h in value]
-        raise InputError(f"{key} must be a non-empty list of [width, height] pairs (nm), got {value!r}")
-    if plain == "floats":
-        if isinstance(value, (list, tuple)) and all(map(is_number, value)):
-            return [float(v) for v in value]
-        raise InputError(f"{key} must be a list of numbers (nm), got {value!r}")
-    if plain == "record":
-        if isinstance(value, int) and not isinstance(value, bool):
-            return value
-        if isinstance(value, (list, tuple)) and all(map(is_number, value)):
-            return [float(v) for v in value]
-        raise InputError(f"{key} must be an integer count or a list of thicknesses (nm), got {value!r}")
-    if plain == "spacing":
-        if is_number(value):
-            return float(value)
-        return _check_type(key, value, "float2")
-    if plain == "channel":
-        if isinstance(value, str) or (isinstance(value, int) and not isinstance(value, bool)):
-            return value
-        raise InputError(f"{key} must be a channel number or title, got {value!r}")
-    return typed(key, value, plain)
 
 
 # -- the scene ---------------------------------------------------------------------------------
@@ -171,7 +133,7 @@ class SurfaceSpec:
         check_keys("surface", self.params, ["kind", *schema])
         if self.kind == "file" and "path" not in self.params:
             raise InputError("surface.path is required for kind = \"file\" (the height map to import)")
-        given = {key: _check_type(f"surface.{key}", value, schema[key][0]) for key, value in self.params.items()}
+        given = {key: typed(f"surface.{key}", value, schema[key][0]) for key, value in self.params.items()}
         full = {**_defaults(self.kind), **given}
         object.__setattr__(self, "params", {key: full[key] for key in schema if key in full})
         if self.kind == "file":
@@ -208,7 +170,9 @@ def _name_key(message: str, keys) -> str:
 
 @dataclass(frozen=True)
 class RunSettings:
-    """What `planarize.anodize` is asked to do (see its docstring for each argument)."""
+    """What `planarize.anodize` is asked to do, as a scene file's ``[run]`` table: the thickness, the
+    `planarize.Model` (``step``, ``k_exp``, ``distance``, ``volume``), the engine and its settings
+    (``tolerance`` and ``interacting`` are the fast engine's), the records and snapshots."""
 
     thickness: float = 1.0
     step: float = 0.01
@@ -223,36 +187,34 @@ class RunSettings:
 
     def __post_init__(self):
         for key, (kind, _) in RUN.items():
-            object.__setattr__(self, key, _check_type(key, getattr(self, key), kind))
-        _at_least("thickness", self.thickness, 0.0, "nm")
-        _at_least("step", self.step, 0.0, "nm", open_=True)
-        _at_least("k_exp", self.k_exp, 1.0, "")
-        if self.tolerance is not None:
-            _at_least("tolerance", self.tolerance, 0.0, "nm")
-        for key, allowed in (("engine", tuple(engines())), ("distance", DISTANCES), ("volume", VOLUME_RULES),
-                             ("interacting", INTERACTING)):
-            if getattr(self, key) not in allowed:
-                raise InputError(f"{key} must be one of {', '.join(map(repr, allowed))}, got {getattr(self, key)!r}")
-        if isinstance(self.record, int) and self.record < 1:
-            raise InputError(f"record must be a count >= 1 or a list of thicknesses, got {self.record!r}")
-        for key in ("record", "snapshots"):
-            values = getattr(self, key)
-            if isinstance(values, list) and not all(0 <= v <= self.thickness for v in values):
-                raise InputError(f"{key} must lie in [0, thickness = {self.thickness!r}] nm, got {values!r}")
+            object.__setattr__(self, key, typed(key, getattr(self, key), kind))
+        real("thickness", self.thickness, 0.0, MAX_THICKNESS, unit="nm")
+        self.model()
+        if self.engine != "fast" and (self.tolerance is not None or self.interacting != "wait"):
+            raise InputError(f"tolerance and interacting are settings of the fast engine, not of engine "
+                             f"{self.engine!r}: leave them out")
+        self.engine_settings()
+        if 0 < self.thickness < self.step:
+            raise InputError(f"step ({self.step:g} nm) must not exceed thickness ({self.thickness:g} nm)")
+        thickness_targets(self.record, self.thickness, "record")
+        if self.snapshots is not None:
+            thickness_targets(self.snapshots, self.thickness, "snapshots", empty=True)
+
+    def model(self) -> Model:
+        """The physics of the run."""
+        return Model(k_exp=self.k_exp, step=self.step, distance=self.distance, volume=self.volume)
+
+    def engine_settings(self):
+        """The engine and its settings (`planarize.engines.Fast`, `Reference` or `Matlab`)."""
+        settings = engine_settings(self.engine)
+        if isinstance(settings, Fast):
+            settings = Fast(tolerance=self.tolerance, interacting=self.interacting)
+        return settings
 
     def options(self) -> dict:
         """Keyword arguments of `planarize.anodize` (all but the surface and ``progress``)."""
-        out = {key: getattr(self, key) for key in RUN if key not in ("tolerance", "interacting")}
-        if self.engine == "fast":  # the reference engine has no batches
-            out["interacting"] = self.interacting
-            if self.tolerance is not None:
-                out["tolerance"] = self.tolerance
-        return out
-
-
-def _at_least(key: str, value: float, low: float, unit: str, open_: bool = False) -> None:
-    if not (math.isfinite(value) and (value > low if open_ else value >= low)):
-        raise InputError(f"{key} must be {'>' if open_ else '>='} {low:g}{' ' + unit if unit else ''}, got {value!r}")
+        return {"thickness": self.thickness, "model": self.model(), "engine": self.engine_settings(),
+                "record": self.record, "snapshots": self.snapshots}
 
 
 @dataclass(frozen=True)
@@ -274,9 +236,8 @@ class PlanarizeScene:
     run: RunSettings = field(default_factory=RunSettings)
 
     def __post_init__(self):
-        _check_type("name", self.name, "str")
-        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
-            raise InputError(f"seed must be an integer >= 0, got {self.seed!r}")
+        text("name", self.name)
+        seed("seed", self.seed)
         if not isinstance(self.surface, SurfaceSpec) or not isinstance(self.run, RunSettings):
             raise InputError("surface must be a SurfaceSpec and run a RunSettings")
 
@@ -284,9 +245,10 @@ class PlanarizeScene:
         """The starting metal surface."""
         return self.surface.build(self.seed)
 
-    def anodize(self, *, progress: bool = False, **overrides) -> Anodization:
-        """Run the scene (`planarize.anodize`); ``overrides`` replace run settings for this call."""
-        return anodize(self.build_surface(), progress=progress, **{**self.run.options(), **overrides})
+    def anodize(self, *, progress: bool = False, **options) -> Anodization:
+        """Run the scene (`planarize.anodize`); ``options`` replace its arguments for this call (e.g.
+        ``snapshots``, ``observer``, ``max_seconds``)."""
+        return anodize(self.build_surface(), progress=progress, **{**self.run.options(), **options})
 
     def replace(self, **changes) -> "PlanarizeScene":
         """A copy with top-level fields (or ``run`` settings given as a dict) replaced."""
@@ -340,14 +302,14 @@ def scene_from_dict(data: dict, base_dir: str | os.PathLike | None = None) -> Pl
     if not isinstance(data, dict):
         raise InputError(f"a scene must be a table, got {type(data).__name__}")
     check_keys("", data, [*TOP, "surface", "run"])
-    top = {key: _check_type(key, data[key], kind) for key, (kind, _) in TOP.items() if key in data}
+    top = {key: typed(key, data[key], kind) for key, (kind, _) in TOP.items() if key in data}
     surface = data.get("surface", {})
     run = data.get("run", {})
     for name, table in (("surface", surface), ("run", run)):
         if not isinstance(table, dict):
             raise InputError(f"{name} must be a table ([{name}]), got {table!r}")
     params = {k: v for k, v in surface.items() if k != "kind"}
-    kind = _check_type("surface.kind", surface.get("kind", "hill"), "str")
+    kind = typed("surface.kind", surface.get("kind", "hill"), "str")
     if kind not in SURFACES:
         raise InputError(f"surface.kind must be one of {', '.join(map(repr, SURFACES))}, got {kind!r}")
     if kind == "file" and isinstance(params.get("path"), str) and base_dir is not None:

@@ -114,14 +114,6 @@ def report(rows: Sequence[dict], out: Path) -> None:
     print(f"wrote {out / 'summary.csv'} and the .npz/.png files beside it")
 
 
-def _provenance_name(stem: str, out: Path, source: Path | None) -> str:
-    """``stem.toml``, or ``stem.ran.toml`` when that is the experiment file the run was started from."""
-    target = out / f"{stem}.toml"
-    if source is not None and target.exists() and Path(source).exists() and target.samefile(source):
-        return f"{stem}.ran.toml"
-    return f"{stem}.toml"
-
-
 def run_experiments(experiments: Sequence, out: Path, *, movie: bool, gsd: bool, progress: bool = True,
                     source: Path | None = None) -> list[dict]:
     """Run each experiment, writing its files into ``out``; returns the summary rows.
@@ -142,7 +134,7 @@ def run_experiments(experiments: Sequence, out: Path, *, movie: bool, gsd: bool,
             rows.append(finish(sim, files, stem, time.perf_counter() - start,
                                {"name": exp.name, "seed": exp.seed, "sigma": exp.deposition.sigma,
                                 "mass_model": exp.deposition.mass_model, "grating_px": exp.grating}))
-            save_experiment(exp, files.stage(_provenance_name(stem, out, source), last=True))
+            save_experiment(exp, files.stage(files.name_beside(f"{stem}.toml", source), last=True))
     report(rows, out)
     return rows
 

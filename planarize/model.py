@@ -1,0 +1,60 @@
+"""The anodization model (thesis section 3.3): what happens to the surfaces, apart from how it is computed.
+
+A `Model` is the physics every engine computes: the metal point closest to the oxide is lowered by
+``step`` and its closest oxide points raised by ``(k_exp - 1) step`` shared by Eq 3.9, distances
+measured between the features ``distance`` names, volume accounted by ``volume``. The engines
+(`planarize.engines`) differ only in how they find and update those distances.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+from labrig.validate import choice, real
+
+#: Distance kinds: the thesis's point/segment pairs, or the exact surface distance (`planarize.engines.features`).
+DISTANCES = ("thesis", "exact")
+#: Volume accounting: exact for the piecewise-linear surface, or the thesis's equal weights.
+VOLUME_RULES = ("exact", "thesis")
+#: Oxide volume per metal volume: at least 1 (an oxide that takes less room than its metal does not
+#: planarize), at most 5 (the Pilling-Bedworth ratios of real metals lie between about 0.5 and 4;
+#: Ta2O5 2.3, Nb2O5 2.7, WO3 3.4, Al2O3 ~1.3).
+K_EXP_RANGE = (1.0, 5.0)
+#: Largest metal height consumed per oxidation, nm.
+MAX_STEP = 1e3
+
+
+@dataclass(frozen=True)
+class Model:
+    """The physics of a run (thesis section 3.3).
+
+    Parameters
+    ----------
+    k_exp : float
+        Oxide volume per metal volume consumed, in `K_EXP_RANGE` (Ta 2.3, Al ~1.3).
+    step : float
+        Metal height consumed per oxidation of one point, nm, in (0, `MAX_STEP`] (thesis 0.01 for the
+        hill, 0.5 for the Ta film).
+    distance : {"thesis", "exact"}
+        Feature pairs compared (`planarize.engines.features`): the thesis's points and segments, or
+        the exact distance to the triangulated surfaces.
+    volume : {"exact", "thesis"}
+        Volume accounting: exact for the piecewise-linear surface (edge points of an open grid
+        carry half the area), or the thesis's equal weights (exact on periodic grids only).
+    """
+
+    k_exp: float = 2.3
+    step: float = 0.01
+    distance: str = "thesis"
+    volume: str = "exact"
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "k_exp", real("k_exp", self.k_exp, *K_EXP_RANGE))
+        object.__setattr__(self, "step", real("step", self.step, 0.0, MAX_STEP, low_open=True, unit="nm"))
+        choice("distance", self.distance, DISTANCES)
+        choice("volume", self.volume, VOLUME_RULES)
+
+    def replace(self, **changes) -> "Model":
+        """A copy with some fields changed, validated again."""
+        return dataclasses.replace(self, **changes)
