@@ -18,7 +18,6 @@ Run: ``python -m benchmarks.analysis [--rings 182]``
 from __future__ import annotations
 
 import argparse
-import math
 import platform
 import time
 from types import SimpleNamespace
@@ -29,15 +28,13 @@ from qdots.analysis import fill_within_radius, neighbour_counts, packing_summary
 from qdots.analysis.structure import clusters, hexatic_order, radial_distribution, voronoi_coordination
 
 from .report import Headline, Table, print_results
+from qdots.placement import hexagonal_lattice
 
 DIAMETER = 15.0
 
 
 def flake(rings: int) -> SimpleNamespace:
-    i, j = np.meshgrid(np.arange(-rings, rings + 1), np.arange(-rings, rings + 1), indexing="ij")
-    keep = np.abs(i + j) <= rings
-    i, j = i[keep], j[keep]
-    xy = np.column_stack([DIAMETER * (i + j / 2), DIAMETER * math.sqrt(3) / 2 * j])
+    xy = hexagonal_lattice(rings, DIAMETER, "flake")
     side = 2 * (rings + 2) * DIAMETER
     return SimpleNamespace(positions=xy + side / 2, radii=np.full(len(xy), DIAMETER / 2), box=(side, side))
 

@@ -30,6 +30,7 @@ from qdots.analysis.forster import TAU_NS, exciton_network
 from qdots.analysis.lqe import lqe_exact, lqe_monte_carlo
 
 from .report import Headline, Table, print_results
+from qdots.placement import hexagonal_lattice
 
 DIAMETER = 15.0
 
@@ -37,10 +38,8 @@ DIAMETER = 15.0
 def hex_film(n: int) -> SimpleNamespace:
     """About ``n`` touching dots on a square-ish patch of a hexagonal lattice."""
     m = int(round(math.sqrt(n)))
-    i, j = np.meshgrid(np.arange(m), np.arange(m), indexing="ij")
-    xy = np.column_stack([(DIAMETER * i + DIAMETER / 2 * (j % 2)).ravel(),
-                          (DIAMETER * math.sqrt(3) / 2 * j).ravel()])
-    return SimpleNamespace(positions=xy + DIAMETER, radii=np.full(m * m, DIAMETER / 2))
+    return SimpleNamespace(positions=hexagonal_lattice(m, DIAMETER, origin=(DIAMETER, DIAMETER)),
+                           radii=np.full(m * m, DIAMETER / 2))
 
 
 def timed(fn, *args, **kwargs):

@@ -157,7 +157,7 @@ def vdw_pair(settings: dict, quick: bool) -> Measured:
 
 # ---------------------------------------------------------------- dense pack under centre gravity
 def pack_forces(centre: float, gravity: float, skin_px: float) -> list[qdots.Force]:
-    return [qdots.CenterGravity((centre, centre), 750.0 * gravity), qdots.VanDerWaals(skin=skin_px),
+    return [qdots.CentreGravity((centre, centre), 750.0 * gravity), qdots.VanDerWaals(skin=skin_px),
             qdots.ThermalKicks(), qdots.Drag(1.0, 0.01)]
 
 

@@ -54,7 +54,7 @@ def variants(scene: qdots.Scene) -> list[tuple[str, qdots.Simulation, bool]]:
             ("no forces, open board (no walls)", [], False, scene.replace(closed=False)),
             ("bulk I/O only (a force that adds nothing)", [NoForce()], False, scene),
             ("Gravity", [qdots.Gravity()], False, scene),
-            ("CenterGravity", [qdots.CenterGravity((w / 2, h / 2))], False, scene),
+            ("CentreGravity", [qdots.CentreGravity((w / 2, h / 2))], False, scene),
             ("Drag", [qdots.Drag()], False, scene),
             ("ThermalKicks", [qdots.ThermalKicks()], False, scene),
             ("Langevin", [qdots.Langevin()], False, scene),

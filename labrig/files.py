@@ -40,6 +40,17 @@ def temporary_beside(path: Path) -> Path:
     return tmp
 
 
+def existing_file(path: str | os.PathLike, what: str) -> Path:
+    """``path`` as a Path if it names a regular file; FileNotFoundError if nothing is there, `InputError` if it
+    is a directory, a pipe or another kind of file (``what`` names the file in messages, e.g. "scene file")."""
+    path = Path(path)
+    if not path.exists():
+        raise FileNotFoundError(f"{what} {str(path)!r} does not exist")
+    if not path.is_file():
+        raise InputError(f"{what} {str(path)!r} is not a regular file (a directory or a pipe?)")
+    return path
+
+
 _TEMPORARY = re.compile(r"^\..+-[0-9a-f]{8}\.tmp(\..*)?$")
 
 
@@ -203,12 +214,10 @@ def read_archive(path: str | os.PathLike, kind: str, version: int, names: Sequen
         array under another name), larger than `MAX_ARCHIVE_BYTES`, has no JSON object of metadata,
         is of another format or version, or lacks an array; the message starts with the path.
     """
-    path = Path(path)
     what = what or kind
-    if not path.exists():
+    if not Path(path).exists():
         raise FileNotFoundError(f"no such {what} file: {path}")
-    if not path.is_file():
-        raise InputError(f"{path} is not a regular file (a directory or a pipe?)")
+    path = existing_file(path, f"{what} file")
     try:
         with zipfile.ZipFile(path) as archive:
             size = sum(info.file_size for info in archive.infolist())

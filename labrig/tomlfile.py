@@ -17,6 +17,7 @@ try:
 except ModuleNotFoundError:  # Python 3.10
     import tomli as tomllib
 
+from .files import existing_file
 from .validate import InputError
 
 #: Largest parameter file read, bytes.
@@ -52,11 +53,7 @@ def read_toml(path: str | os.PathLike, what: str) -> dict:
         If it is not a regular file, is larger than `MAX_BYTES`, cannot be read or decoded (UTF-8)
         or is not valid TOML; the message starts with the path.
     """
-    path = Path(path)
-    if not path.exists():
-        raise FileNotFoundError(f"{what} {str(path)!r} does not exist")
-    if not path.is_file():
-        raise InputError(f"{what} {str(path)!r} is not a regular file (a directory or a pipe?)")
+    path = existing_file(path, what)
     if path.stat().st_size > MAX_BYTES:
         raise InputError(f"{path}: the {what} is {path.stat().st_size:,} bytes, more than the {MAX_BYTES:,} "
                          "a parameter file may have")

@@ -141,23 +141,6 @@ class Surface:
         """Volume between the surface and the plane ``z = base``, nm^3 (exact for this surface)."""
         return float(np.sum(self.weights * (self._z - base)))
 
-    def mean_height(self) -> float:
-        """Area-weighted mean height, nm: the height of the flat surface with the same volume."""
-        w = self.weights
-        return float(np.sum(w * self._z) / np.sum(w))
-
-    def center_heights(self) -> np.ndarray:
-        """Height of each cell centre (mean of its 4 corners), nm.
-
-        Shape ``(nx - 1, ny - 1)`` for an open grid; ``(nx, ny)`` for a
-        periodic one, where cell ``[i, j]`` has corners ``i, i+1`` and ``j, j+1``
-        modulo the grid.
-        """
-        z = self._z
-        if self.periodic:
-            z = np.pad(z, ((0, 1), (0, 1)), mode="wrap")
-        return 0.25 * (z[:-1, :-1] + z[1:, :-1] + z[:-1, 1:] + z[1:, 1:])
-
     def with_heights(self, z) -> "Surface":
         """The same grid with new heights."""
         return Surface(z, (self.dx, self.dy), self.boundary)

@@ -8,11 +8,11 @@
 """
 
 from labrig import __version__  # noqa: F401 (one version for the distribution)
-from labrig.deprecation import alias_modules
+from labrig.deprecation import alias_modules, renamed_attributes
 
 from ._malloc import ALLOCATOR_TUNED
 from .collisions import Restitution
-from .forces import CenterGravity, Drag, Force, Gravity, Langevin, ThermalKicks, VanDerWaals
+from .forces import CentreGravity, Drag, Force, Gravity, Langevin, ThermalKicks, VanDerWaals
 from .io.checkpoint import load, read_state, save
 from .scene import Scene, grating_segments
 from .simulation import EngineSettings, Simulation
@@ -42,7 +42,8 @@ __all__ = [
     "Langevin",
     "Drag",
     "Gravity",
-    "CenterGravity",
+    "CentreGravity",
     "grating_segments",
     "ALLOCATOR_TUNED",
 ]
+__getattr__ = renamed_attributes(__name__, {"CenterGravity": "CentreGravity"})

@@ -66,7 +66,9 @@ class Restitution:
         return min((1.0 - self.mean) / 2.0, self.mean / 2.0)
 
     def draw(self, rng: np.random.Generator, approach_speed: float) -> float:
-        """Elasticity of one dot-dot impact with the given normal approach speed (px/s)."""
+        """Elasticity of one dot-dot impact with the given normal approach speed (px/s): the rule the
+        collision handlers apply (`install_handlers`), one normal draw from ``rng`` per impact that does
+        not stick."""
         if approach_speed < self.sticking_speed:
             return 0.0
         if self.std == 0.0:
@@ -102,8 +104,7 @@ def install_handlers(space: pymunk.Space, rule: Restitution, rng: np.random.Gene
     """
     counter = CollisionCounter() if counter is None else counter
 
-    mean, std, sticking_speed = rule.mean, rule.std, rule.sticking_speed
-    normal_draw = rng.standard_normal
+    sticking_speed, draw = rule.sticking_speed, rule.draw
 
     # This runs for every new contact (hundreds per step in a film), so it avoids
     # pymunk's slower accessors (arbiter.bodies, Vec2d arithmetic): ~3 us instead of ~7 us.
@@ -115,12 +116,9 @@ def install_handlers(space: pymunk.Space, rule: Restitution, rng: np.random.Gene
         counter.dot_dot += 1
         if approach < sticking_speed:
             counter.sticking += 1
-            arbiter.restitution = 0.0
-        elif std == 0.0:
-            arbiter.restitution = mean
+            arbiter.restitution = 0.0  # Restitution.draw's sticking case, without the call (most impacts)
         else:
-            eps = mean + std * normal_draw()
-            arbiter.restitution = 0.0 if eps < 0.0 else (1.0 if eps > 1.0 else eps)
+            arbiter.restitution = draw(rng, approach)
 
     def dot_wall_begin(arbiter: pymunk.Arbiter, space: pymunk.Space, data: object) -> None:
         counter.dot_wall += 1

@@ -18,17 +18,18 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from labrig.deprecation import warn as warn_renamed
 from labrig.validate import InputError, choice, count, flag, real, seed, text
 
 from .collisions import Restitution
 from .forces import Force, ThermalKicks, VanDerWaals, force_from_dict
 from .placement import MAX_TRIES
-from .protocols import GAP, MASS_MODELS, MAX_INTERVAL, deposit, deposit_around_center, ring_radius
+from .protocols import GAP, MASS_MODELS, MAX_INTERVAL, deposit, deposit_around_centre, ring_radius
 from .scene import MAX_DOTS, MAX_LENGTH, MAX_MASS, Scene
 from .simulation import MAX_STEPS, EngineSettings, Simulation
 
 #: Deposition protocols: dots at random in the board (or grating channel), or on a ring around a centre.
-PROTOCOLS = ("random", "center")
+PROTOCOLS = ("random", "centre")
 #: Longest settling time, s (the thesis settles for 100 s).
 MAX_SETTLE = 1e5
 
@@ -65,11 +66,11 @@ class Deposition:
 
     Parameters
     ----------
-    protocol : {"random", "center"}
+    protocol : {"random", "centre"}
         ``"random"``: `deposit` uniformly over the board, or over the grating
-        channel when there is one (``runRandomAttraction*``). ``"center"``:
-        `deposit_around_center` on a growing ring around the centre of the
-        first `qdots.CenterGravity` force, else the board centre (``runRandomCenter``).
+        channel when there is one (``runRandomAttraction*``). ``"centre"``:
+        `deposit_around_centre` on a growing ring around the centre of the
+        first `qdots.CentreGravity` force, else the board centre (``runRandomCenter``).
     n_dots : int
         Dots deposited (>= 0).
     mean_diameter : float
@@ -99,6 +100,9 @@ class Deposition:
     max_tries: int = 10_000
 
     def __post_init__(self) -> None:
+        if self.protocol == "center":  # the spelling of 0.1 (files keep loading)
+            warn_renamed("deposition.protocol 'center'", "'centre'")
+            _set(self, "protocol", "centre")
         choice("deposition.protocol", self.protocol, PROTOCOLS)
         choice("deposition.mass_model", self.mass_model, MASS_MODELS)
         _set(self, "n_dots", count("deposition.n_dots", self.n_dots, 0, MAX_DOTS))
@@ -199,21 +203,21 @@ class Experiment:
             if not dep.mean_diameter + 2 * GAP < self.grating < b.height:
                 raise InputError(f"grating must be 0 (none) or in (deposition.mean_diameter = "
                                  f"{dep.mean_diameter:g}, board.height = {b.height:g}) px, got {self.grating!r}")
-            if dep.protocol == "center":
-                raise InputError("deposition.protocol 'center' cannot be combined with a grating (use 'random')")
-        if dep.protocol == "center" and dep.n_dots:
-            cx, cy = self.center()
+            if dep.protocol == "centre":
+                raise InputError("deposition.protocol 'centre' cannot be combined with a grating (use 'random')")
+        if dep.protocol == "centre" and dep.n_dots:
+            cx, cy = self.centre()
             room = min(cx, cy, b.width - cx, b.height - cy)
             reach = ring_radius(dep.n_dots - 1, dep.mean_diameter, dep.sigma) + dep.mean_diameter / 2
             if reach > room:
                 raise InputError(f"deposition.n_dots = {dep.n_dots} needs a deposition ring reaching "
                                  f"{reach:.1f} px from the centre ({cx:g}, {cy:g}), but the board leaves {room:.1f} px")
 
-    def center(self) -> tuple[float, float]:
-        """Centre of the ``"center"`` protocol: the first CenterGravity's centre, else the board centre, px."""
+    def centre(self) -> tuple[float, float]:
+        """Centre of the ``"centre"`` protocol: the first CentreGravity's centre, else the board centre, px."""
         for spec in self.forces:
-            if spec["type"] == "CenterGravity":
-                return float(spec["center"][0]), float(spec["center"][1])
+            if spec["type"] == "CentreGravity":
+                return float(spec["centre"][0]), float(spec["centre"][1])
         return self.board.width / 2.0, self.board.height / 2.0
 
     def region(self) -> tuple[float, float, float, float]:
@@ -244,8 +248,8 @@ class Experiment:
         ``sqrt(factor)`` only, so its dots get sparser by ``sqrt(factor)``: the
         full channel is filled beyond the random-packing jam (0.57 of its
         area) and only takes its dots because they aggregate in the 1 s
-        between arrivals. A ``"center"`` board keeps its size (the ring
-        geometry sets it). CenterGravity centres move with the board.
+        between arrivals. A ``"centre"`` board keeps its size (the ring
+        geometry sets it). CentreGravity centres move with the board.
 
         Parameters
         ----------
@@ -257,14 +261,14 @@ class Experiment:
         n = max(1, round(dep.n_dots * factor)) if dep.n_dots else 0
         dep = dataclasses.replace(dep, n_dots=n, interval=dep.interval * factor, settle=dep.settle * factor)
         floor = 4.0 * dep.mean_diameter
-        if dep.protocol == "center":
+        if dep.protocol == "centre":
             sx = sy = 1.0
         elif self.grating:
             sx, sy = max(math.sqrt(factor), min(1.0, floor / b.width)), 1.0
         else:
             sx = max(math.sqrt(factor), min(1.0, floor / b.width))
             sy = max(math.sqrt(factor), min(1.0, floor / b.height))
-        forces = [dict(f, center=[f["center"][0] * sx, f["center"][1] * sy]) if f["type"] == "CenterGravity" else f
+        forces = [dict(f, centre=[f["centre"][0] * sx, f["centre"][1] * sy]) if f["type"] == "CentreGravity" else f
                   for f in self.forces]
         return self.replace(name=f"{self.name} (quick x{factor:g})", deposition=dep, forces=tuple(forces),
                             board=dataclasses.replace(b, width=b.width * sx, height=b.height * sy))
@@ -285,8 +289,8 @@ def populate(sim: Simulation, exp: Experiment, progress: bool = False) -> Simula
     common = dict(mean_diameter=dep.mean_diameter, sigma=dep.sigma, mass_model=dep.mass_model,
                   heavy_mass=dep.heavy_mass, interval=dep.interval, max_tries=dep.max_tries,
                   rng=np.random.default_rng(deposit_seed), progress=progress)
-    if dep.protocol == "center":
-        deposit_around_center(sim, dep.n_dots, exp.center(), **common)
+    if dep.protocol == "centre":
+        deposit_around_centre(sim, dep.n_dots, exp.centre(), **common)
     else:
         deposit(sim, dep.n_dots, region=exp.region(), **common)
     sim.run(dep.settle, progress=progress)

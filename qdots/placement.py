@@ -16,10 +16,12 @@ for any other ``n >= k`` with the same seed.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from scipy.spatial import cKDTree
 
-from labrig.validate import InputError, count, generator, real, reals
+from labrig.validate import InputError, choice, count, generator, real, reals
 
 from .scene import MAX_DOTS, MAX_LENGTH
 
@@ -174,7 +176,7 @@ def random_sequential(
     -----
     RSA of equal discs jams at an area fraction of about 0.547, far below
     hexagonal close packing (0.907); denser boards need compression (e.g.
-    `qdots.CenterGravity`) after placement.
+    `qdots.CentreGravity`) after placement.
     """
     w, h = _check_args(n, box, mean_diameter, sigma, max_tries, margin)
     gen = generator("rng", rng)
@@ -219,3 +221,44 @@ def _too_full(n, placed, box, mean_diameter, sigma, max_tries, placed_radii) -> 
         f"area fraction reached {fraction:.3f} of {wanted:.3f} requested (random sequential "
         f"placement jams near 0.55)"
     )
+
+
+#: Layouts of `hexagonal_lattice`.
+LATTICE_LAYOUTS = ("rectangle", "parallelogram", "flake")
+
+
+def hexagonal_lattice(m: int, pitch: float, layout: str = "rectangle", origin=(0.0, 0.0)) -> np.ndarray:
+    """Centres of a patch of the hexagonal (triangular) lattice: close-packed dots of diameter ``pitch`` touch.
+
+    Parameters
+    ----------
+    m : int
+        Size: points per side (``"rectangle"``, ``"parallelogram"``: ``m * m`` points), or rings around
+        the centre point (``"flake"``: ``3 m (m + 1) + 1`` points, the centre at ``origin``).
+    pitch : float
+        Nearest-neighbour distance, px (> 0).
+    layout : {"rectangle", "parallelogram", "flake"}
+        ``"rectangle"``: point ``(i, j)`` at ``pitch (i + (j mod 2) / 2, sqrt(3)/2 j)`` (every other row
+        shifted); ``"parallelogram"``: at ``pitch (i + j / 2, sqrt(3)/2 j)``; ``"flake"``: the points of
+        the parallelogram with ``|i|, |j|, |i + j| <= m``, a hexagon.
+    origin : (float, float)
+        Added to every point, px.
+
+    Returns
+    -------
+    ndarray, shape (N, 2)
+        In the order of ``i`` then ``j`` (C order of the ``(i, j)`` grid).
+    """
+    m = count("m", m, 0, 10_000)
+    pitch = real("pitch", pitch, 0.0, MAX_LENGTH, low_open=True, unit="px")
+    choice("layout", layout, LATTICE_LAYOUTS)
+    low = -m if layout == "flake" else 0
+    high = m + 1 if layout == "flake" else m
+    i, j = (a.ravel() for a in np.meshgrid(np.arange(low, high), np.arange(low, high), indexing="ij"))
+    if layout == "flake":
+        keep = np.abs(i + j) <= m
+        i, j = i[keep], j[keep]
+    shift = 0.5 * (j % 2) if layout == "rectangle" else 0.5 * j
+    x = pitch * (i + shift)
+    y = pitch * math.sqrt(3) / 2 * j
+    return np.column_stack([x, y]) + np.asarray(reals("origin", origin, 2))

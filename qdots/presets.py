@@ -8,7 +8,7 @@
 ``fig2-6``         equal vs d^3 masses at sigma 0, 0.05, 0.10, 0.15 (Fig 2-6a), and uniform size
                    with half the dots twice as heavy (Fig 2-6b, Table 2.1,
                    ``runRandomAttractionBimodal(15, 0, 15, 0, 2.0, 300, false)``).
-``center-gravity`` ``runCentralSuite(500)``: 500 dots dropped on a ring around the centre, pulled
+``centre-gravity`` ``runCentralSuite(500)``: 500 dots dropped on a ring around the centre, pulled
                    in at 750 px/s^2 (``setGravity(25)`` x 30 px), drag ``setFriction(0.1, 0.1)``;
                    sigma 0 and 0.15, 0.5 s between dots, 15 s to settle (``advance(15000)``;
                    the Java comment says 100 s).
@@ -25,8 +25,10 @@ import math
 
 from labrig.validate import InputError
 
+from labrig.deprecation import warn as warn_renamed
+
 from .experiment import Board, Deposition, Experiment, default_forces
-from .forces import CenterGravity, Drag
+from .forces import CentreGravity, Drag
 
 #: Root seed of every preset (the Java's ``new Random(154)``).
 THESIS_SEED = 154
@@ -49,9 +51,9 @@ def _film(name: str, sigma: float, *, n_dots: int = 300, mass_model: str = "equa
 
 def _central(name: str, sigma: float, n_dots: int = 500) -> Experiment:
     """A ``runRandomCenterGravity`` run: ring deposition 0.5 s apart, centre gravity and drag."""
-    deposition = Deposition(protocol="center", n_dots=n_dots, mean_diameter=MEAN_DIAMETER, sigma=sigma,
+    deposition = Deposition(protocol="centre", n_dots=n_dots, mean_diameter=MEAN_DIAMETER, sigma=sigma,
                             mass_model="equal", interval=0.5, settle=15.0)
-    forces = default_forces() + (CenterGravity((300.0, 300.0), 750.0).to_dict(),
+    forces = default_forces() + (CentreGravity((300.0, 300.0), 750.0).to_dict(),
                                  Drag(0.1, 0.1 / 30.0).to_dict())
     return Experiment(name=name, seed=THESIS_SEED, board=Board(600.0, 600.0, True), deposition=deposition,
                       forces=forces)
@@ -73,7 +75,7 @@ PRESETS: dict[str, tuple[Experiment, ...]] = {
                _film("fig2-3b grating sigma=0.15", 0.15, n_dots=150, mass_model="volume",
                      grating=GRATING_WIDTH)),
     "fig2-6": _fig2_6(),
-    "center-gravity": (_central("central sigma=0", 0.0), _central("central sigma=0.15", 0.15)),
+    "centre-gravity": (_central("central sigma=0", 0.0), _central("central sigma=0.15", 0.15)),
 }
 
 
@@ -83,7 +85,7 @@ def get_preset(name: str, quick: bool | float = False) -> list[Experiment]:
     Parameters
     ----------
     name : str
-        One of `PRESETS` (``"fig2-2"``, ``"fig2-3"``, ``"fig2-6"``, ``"center-gravity"``).
+        One of `PRESETS` (``"fig2-2"``, ``"fig2-3"``, ``"fig2-6"``, ``"centre-gravity"``).
     quick : bool or float
         False: the thesis's sizes. True: `Experiment.quick` with `QUICK_FACTOR`
         (0.1). A number in (0, 1]: that factor.
@@ -97,6 +99,9 @@ def get_preset(name: str, quick: bool | float = False) -> list[Experiment]:
     ValueError
         On an unknown name (the message lists the known ones) or a bad ``quick``.
     """
+    if name == "center-gravity":  # the name of 0.1
+        warn_renamed("preset 'center-gravity'", "'centre-gravity'")
+        name = "centre-gravity"
     if name not in PRESETS:
         raise InputError(f"unknown preset {name!r} (known: {', '.join(PRESETS)})")
     if quick is False:

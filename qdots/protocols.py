@@ -5,7 +5,7 @@ board keeps moving: draw a diameter ``d = mean (1 + sigma N(0, 1))`` and a
 uniformly random position; if the dot overlaps one already on the board,
 draw both again; add it; advance the board ``interval`` seconds; repeat
 (``addRandomBallInRect``, ``runRandomAttraction*``). `deposit` does that.
-`deposit_around_center` is ``runRandomCenter``: the i-th dot is dropped on a
+`deposit_around_centre` is ``runRandomCenter``: the i-th dot is dropped on a
 ring that grows with the cluster around the centre of gravity.
 
 Candidates are drawn in batches of `BATCH` and the first that fits is taken:
@@ -20,6 +20,7 @@ from typing import Sequence
 
 import numpy as np
 
+from labrig.deprecation import renamed_attributes
 from labrig.deprecation import warn as warn_renamed
 from labrig.validate import InputError, count, generator, real
 
@@ -168,6 +169,9 @@ def _sequential(sim, n, mean_diameter, mass_model, heavy_mass, interval, max_tri
     return diameters
 
 
+__getattr__ = renamed_attributes(__name__, {"deposit_around_center": "deposit_around_centre"})
+
+
 def _attach_deprecated(sim, writers) -> None:
     for writer in writers:
         if writer not in sim.writers:
@@ -255,21 +259,21 @@ def deposit(sim, n_dots: int, mean_diameter: float = 15.0, sigma: float = 0.0, r
                        draw, f"in region ({x0:g}, {y0:g}, {x1:g}, {y1:g}) px", (x1 - x0) * (y1 - y0))
 
 
-def deposit_around_center(sim, n_dots: int, center, mean_diameter: float = 15.0, sigma: float = 0.0,
+def deposit_around_centre(sim, n_dots: int, centre, mean_diameter: float = 15.0, sigma: float = 0.0,
                           interval: float = 0.5, mass_model: str = "equal", heavy_mass: float = 2.0,
                           max_tries: int = 10_000, rng=None, progress: bool = False,
                           writers: Sequence = ()) -> np.ndarray:
-    """Deposit dots on a growing ring around ``center`` (thesis ``runRandomCenter``).
+    """Deposit dots on a growing ring around ``centre`` (thesis ``runRandomCenter``).
 
     The i-th dot (0-based) is dropped at distance `ring_radius` ``(i)`` from
-    ``center`` at a uniformly random angle, its diameter drawn as in
+    ``centre`` at a uniformly random angle, its diameter drawn as in
     `deposit`; a candidate that overlaps a dot or wall or leaves the box is
-    drawn again (angle and diameter). Pair it with `qdots.CenterGravity` at
-    ``center``, as ``runRandomCenterGravity`` does.
+    drawn again (angle and diameter). Pair it with `qdots.CentreGravity` at
+    ``centre``, as ``runRandomCenterGravity`` does.
 
     Parameters
     ----------
-    center : (float, float)
+    centre : (float, float)
         Centre of the ring, px.
     interval : float
         Simulated time between two dots, s (>= 0; thesis 0.5).
@@ -291,13 +295,13 @@ def deposit_around_center(sim, n_dots: int, center, mean_diameter: float = 15.0,
     sigma, n = real("sigma", sigma, 0.0, 1.0, high_open=True), count("n_dots", n_dots, 0, MAX_DOTS)
     _attach_deprecated(sim, writers)
     try:
-        cx, cy = (float(v) for v in center)
+        cx, cy = (float(v) for v in centre)
     except (TypeError, ValueError):
-        raise InputError(f"center must be (x, y) in px, got {center!r}") from None
+        raise InputError(f"center must be (x, y) in px, got {centre!r}") from None
     w, h = sim.scene.box
     room, reach = min(cx, cy, w - cx, h - cy), ring_radius(max(n - 1, 0), mean_diameter, sigma)
     if n and reach + mean_diameter / 2 > room:
-        raise InputError(f"n_dots = {n} needs a ring of radius {reach:.1f} px (+ a dot radius) around center "
+        raise InputError(f"n_dots = {n} needs a ring of radius {reach:.1f} px (+ a dot radius) around centre "
                          f"({cx:g}, {cy:g}) px, but the {w:g} x {h:g} px box leaves {room:.1f} px")
     gen = as_generator(rng, sim)
 

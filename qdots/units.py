@@ -86,11 +86,3 @@ class PhysicalScale:
         """One simulation energy unit (mean mass * px^2 / s^2) in joules."""
         metres_per_px = self.nm_per_px * 1e-9
         return self.mean_mass_kg * metres_per_px**2 / self.seconds_per_time_unit**2
-
-    def energy_from_joule(self, energy_joule: float) -> float:
-        """Convert an energy in joules to simulation energy units."""
-        return energy_joule / self.energy_unit_joule
-
-    def px_from_nm(self, length_nm: float) -> float:
-        """Convert a length in nanometres to pixels."""
-        return length_nm / self.nm_per_px

@@ -11,6 +11,7 @@ from conftest import worst_overlap
 from qdots import placement
 from qdots.analysis import neighbour_counts, overlaps, packing_summary
 from qdots.placement import random_sequential
+from qdots.placement import hexagonal_lattice
 
 R = 7.5  # thesis mean radius, px
 
@@ -31,10 +32,7 @@ def board(positions, radii, velocities=None, masses=None, box=(600.0, 600.0)):
 
 def hex_patch(m, r=R, origin=(100.0, 100.0)):
     """m x m parallelogram of a hexagonal lattice with spacing 2r (every bond in exact contact)."""
-    i, j = np.meshgrid(np.arange(m), np.arange(m), indexing="ij")
-    x = origin[0] + 2 * r * i + r * j
-    y = origin[1] + r * math.sqrt(3) * j
-    return np.column_stack([x.ravel(), y.ravel()])
+    return hexagonal_lattice(m, 2 * r, "parallelogram", origin)
 
 
 def flower(r=R):

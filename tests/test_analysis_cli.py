@@ -1,22 +1,19 @@
 """``qdots analyze``: table, JSON and figure of a saved state; bad input exits 2."""
 
 import json
-import math
 
 import numpy as np
 import pytest
 
 import qdots
 from qdots.cli import main
+from qdots.placement import hexagonal_lattice
 
 
 @pytest.fixture(scope="module")
 def state_file(tmp_path_factory):
     """A saved hexagonal flake of 19 dots (exact numbers known) plus one far-away dot."""
-    pitch = 15.0
-    a1, a2 = np.array([pitch, 0.0]), np.array([pitch / 2, pitch * math.sqrt(3) / 2])
-    flake = [i * a1 + j * a2 for i in range(-2, 3) for j in range(-2, 3) if abs(i + j) <= 2]
-    positions = np.vstack([np.array(flake) + 100.0, [[250.0, 250.0]]])
+    positions = np.vstack([hexagonal_lattice(2, 15.0, "flake", (100.0, 100.0)), [[250.0, 250.0]]])
     scene = qdots.Scene(box=(300.0, 300.0), positions=positions, radii=np.full(len(positions), 7.5),
                         overlap_tolerance=1e-6)
     sim = qdots.Simulation(scene, [], seed=1)

@@ -10,6 +10,7 @@ from qdots.analysis import (
     fill_within_radius, neighbour_counts, neighbour_edges, packing_summary, separation,
     size_separation_correlation,
 )
+from qdots.placement import hexagonal_lattice
 
 R = 7.5
 
@@ -20,12 +21,9 @@ def board(positions, radii, box=(600.0, 600.0)):
                            box=box)
 
 
-def hexagon(rings, pitch=2 * R, center=(300.0, 300.0)):
+def hexagon(rings, pitch=2 * R, centre=(300.0, 300.0)):
     """A hexagonal flake: a centre dot and ``rings`` hexagonal rings, 3 s (s + 1) + 1 dots."""
-    a1, a2 = np.array([pitch, 0.0]), np.array([pitch / 2, pitch * math.sqrt(3) / 2])
-    pts = [i * a1 + j * a2 for i in range(-rings, rings + 1) for j in range(-rings, rings + 1)
-           if abs(i) <= rings and abs(j) <= rings and abs(i + j) <= rings]
-    return np.array(pts) + center
+    return hexagonal_lattice(rings, pitch, "flake", centre)
 
 
 @pytest.mark.parametrize("rings", [1, 2, 5, 9])
@@ -95,7 +93,7 @@ def test_fill_within_radius_one_dot_matches_the_java_self_test():
     # The Java's testDetermineFillWithinRadius: one dot of radius 7.5 at the centre.
     curve = fill_within_radius(board([[300.0, 300.0]], R), [3, 7.5, 15, 30])
     np.testing.assert_allclose(curve.fill, [1, 1, 0.25, 1 / 16], rtol=1e-14)
-    assert curve.center == (300.0, 300.0)
+    assert curve.centre == (300.0, 300.0)
     np.testing.assert_array_equal(curve.overlap_bound, 0.0)
 
 
@@ -155,7 +153,7 @@ def test_bad_fill_arguments():
     with pytest.raises(ValueError, match="radius must be"):
         fill_within_radius(b, [-1.0])
     with pytest.raises(ValueError, match="center must be"):
-        fill_within_radius(b, [5.0], center=(1.0, float("nan")))
+        fill_within_radius(b, [5.0], centre=(1.0, float("nan")))
 
 
 def test_neighbour_counts_unchanged_by_edges_refactor():

@@ -9,6 +9,7 @@ import pytest
 from qdots.analysis import neighbour_counts, neighbour_edges
 from qdots.placement import random_sequential
 from qdots.analysis.structure import clusters, hexatic_order, radial_distribution, voronoi_coordination
+from qdots.placement import hexagonal_lattice
 
 freud = pytest.importorskip("freud")
 
@@ -21,8 +22,7 @@ def board(positions, radii=R, box=(600.0, 600.0)):
 
 
 def hex_lattice(m, pitch=2 * R, angle=0.0, origin=(60.0, 60.0)):
-    i, j = np.meshgrid(np.arange(m), np.arange(m), indexing="ij")
-    xy = np.column_stack([(pitch * i + pitch / 2 * (j % 2)).ravel(), (pitch * math.sqrt(3) / 2 * j).ravel()])
+    xy = hexagonal_lattice(m, pitch)
     c, s = math.cos(angle), math.sin(angle)
     return xy @ np.array([[c, s], [-s, c]]) + origin
 

@@ -227,7 +227,7 @@ def test_uniform_gravity_exact():
 
 
 def test_center_gravity_points_at_centre():
-    sim = qdots.Simulation(lone_dot(position=(1300.0, 1400.0)), [qdots.CenterGravity((1000.0, 1000.0), 500.0)],
+    sim = qdots.Simulation(lone_dot(position=(1300.0, 1400.0)), [qdots.CentreGravity((1000.0, 1000.0), 500.0)],
                            seed=0, dt=1e-3)
     sim.step()
     v = sim.state().velocities[0]
@@ -246,7 +246,7 @@ def test_dense_pack_under_centre_gravity_overlap_bounded(gravity):
     grid = grid[rng.permutation(len(grid))[:n]]
     radii = rng.normal(7.5, 0.75, n).clip(5, 9.5)
     scene = qdots.Scene(box=(side, side), positions=grid, radii=radii)
-    forces = [qdots.CenterGravity((300, 300), 750.0 * gravity), qdots.VanDerWaals(), qdots.ThermalKicks(),
+    forces = [qdots.CentreGravity((300, 300), 750.0 * gravity), qdots.VanDerWaals(), qdots.ThermalKicks(),
               qdots.Drag(1.0, 0.01)]
     sim = qdots.Simulation(scene, forces, seed=1)
     sim.run(3.0)
@@ -303,7 +303,7 @@ def test_no_forces_means_no_bulk_traffic():
         (lambda: qdots.Langevin(gamma=-1), r"gamma must be in \[0, "),
         (lambda: qdots.Drag(-0.1), r"linear must be in \[0, "),
         (lambda: qdots.Gravity((0, np.nan)), "Gravity.acceleration"),
-        (lambda: qdots.CenterGravity((1, 2), -5), r"magnitude must be in \[0, "),
+        (lambda: qdots.CentreGravity((1, 2), -5), r"magnitude must be in \[0, "),
     ],
 )
 def test_force_validation(make, message):

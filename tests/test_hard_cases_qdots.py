@@ -1,11 +1,11 @@
-"""Numerical stability of the qdots engine on hard cases (scenes: `benchmarks.qdots_hard_cases`).
+"""Numerical stability of the qdots engine on hard cases (scenes: `qdots.hard_cases`).
 
 Each case asserts: every sampled state is finite; no dot is lost (left the box, or swallowed by
 another); no dot crossed a grating line; the settled overlap (dots and walls) is below
 `qdots.simulation.OVERLAP_WARNING` (10 % of a radius, what the engine itself accepts
 when it reads a board back), and every sampled overlap is below 10 % plus the discrete-contact
 bound ``impact_speed * dt / substeps / r`` (Chipmunk sees a contact only once the discs overlap).
-`benchmarks.qdots_hard_cases` states each case's impact-speed bound and why.
+`qdots.hard_cases` states each case's impact-speed bound and why.
 
 Known failures (measured limits, listed in docs/performance.md) are strict xfails: a change that
 fixes one shows up as an unexpected pass. Long cases are marked slow.
@@ -13,7 +13,7 @@ fixes one shows up as an unexpected pass. Long cases are marked slow.
 
 import pytest
 
-from benchmarks.qdots_hard_cases import CASES, check
+from qdots.hard_cases import CASES, check
 
 
 def case_params():

@@ -13,6 +13,7 @@ from qdots.analysis.forster import (
 from qdots.analysis.lqe import film_lqe, lqe_exact, lqe_monte_carlo
 from qdots.analysis.lqe_thesis import _event_table, step_probabilities
 from qdots.placement import random_sequential
+from qdots.placement import hexagonal_lattice
 
 R = 7.5
 
@@ -24,8 +25,7 @@ def board(positions, radii=R):
 
 
 def hex_lattice(m, pitch=2 * R):
-    i, j = np.meshgrid(np.arange(m), np.arange(m), indexing="ij")
-    return np.column_stack([(pitch * i + pitch / 2 * (j % 2)).ravel(), (pitch * math.sqrt(3) / 2 * j).ravel()]) + 50
+    return hexagonal_lattice(m, pitch, origin=(50.0, 50.0))
 
 
 # --------------------------------------------------------------------------- exact answers

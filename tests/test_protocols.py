@@ -9,7 +9,7 @@ from conftest import worst_overlap
 import qdots
 from qdots.experiment import Board, Deposition, Experiment, run_experiment
 from qdots.presets import GRATING_WIDTH, PRESETS, get_preset
-from qdots.protocols import (HEX_PACKING, draw_diameters, deposit, deposit_around_center, dot_masses,
+from qdots.protocols import (HEX_PACKING, draw_diameters, deposit, deposit_around_centre, dot_masses,
                              ring_radius)
 
 
@@ -121,14 +121,14 @@ def test_writers_see_one_continuous_run():
     assert np.allclose(rec.times, np.arange(16) * 0.01)  # steps 0, 10, ..., 150, no repeats
 
 
-def test_deposit_around_center_uses_the_thesis_ring():
+def test_deposit_around_centre_uses_the_thesis_ring():
     sim = empty_sim(box=(300.0, 300.0))
-    deposit_around_center(sim, 10, (150.0, 150.0), sigma=0.1, interval=0.0, rng=4)
+    deposit_around_centre(sim, 10, (150.0, 150.0), sigma=0.1, interval=0.0, rng=4)
     distance = np.linalg.norm(sim.state().positions - 150.0, axis=1)
     expected = [math.sqrt(HEX_PACKING * i) * 7.5 + 3.1 * 15.0 for i in range(10)]
     assert np.allclose(distance, expected) and np.allclose(distance, [ring_radius(i, 15.0, 0.1) for i in range(10)])
     with pytest.raises(ValueError, match="needs a ring of radius"):
-        deposit_around_center(empty_sim(box=(100.0, 100.0)), 10, (50.0, 50.0))
+        deposit_around_centre(empty_sim(box=(100.0, 100.0)), 10, (50.0, 50.0))
 
 
 # --- experiments -------------------------------------------------------------------------------
@@ -162,7 +162,7 @@ def test_grating_keeps_dots_in_the_channel():
 
 
 def test_center_gravity_quick_run_gathers_dots():
-    exp = get_preset("center-gravity", quick=True)[1]
+    exp = get_preset("centre-gravity", quick=True)[1]
     sim = run_experiment(exp)
     state = sim.state()
     assert state.n_dots == 50
@@ -171,7 +171,7 @@ def test_center_gravity_quick_run_gathers_dots():
 
 
 def test_every_preset_builds_with_thesis_parameters():
-    assert set(PRESETS) == {"fig2-2", "fig2-3", "fig2-6", "center-gravity"}
+    assert set(PRESETS) == {"fig2-2", "fig2-3", "fig2-6", "centre-gravity"}
     for name, runs in PRESETS.items():
         for exp, quick in zip(runs, get_preset(name, quick=True)):
             assert exp.seed == 154 and exp.board == Board(600.0, 600.0, True)
@@ -184,14 +184,14 @@ def test_every_preset_builds_with_thesis_parameters():
     fig26 = PRESETS["fig2-6"]
     assert [e.deposition.mass_model for e in fig26].count("volume") == 4
     assert fig26[-1].deposition.mass_model == "bimodal" and fig26[-1].deposition.sigma == 0.0
-    central = PRESETS["center-gravity"][0]
+    central = PRESETS["centre-gravity"][0]
     types = {f["type"]: f for f in central.forces}
-    assert types["CenterGravity"]["center"] == [300.0, 300.0] and types["CenterGravity"]["magnitude"] == 750.0
+    assert types["CentreGravity"]["centre"] == [300.0, 300.0] and types["CentreGravity"]["magnitude"] == 750.0
     assert types["Drag"]["linear"] == 0.1 and types["Drag"]["quadratic"] == 0.1 / 30.0
 
 
 def test_unknown_preset_lists_the_known_ones():
-    with pytest.raises(ValueError, match="unknown preset 'fig9'.*fig2-2, fig2-3, fig2-6, center-gravity"):
+    with pytest.raises(ValueError, match="unknown preset 'fig9'.*fig2-2, fig2-3, fig2-6, centre-gravity"):
         get_preset("fig9")
 
 
@@ -203,13 +203,13 @@ def test_unknown_preset_lists_the_known_ones():
     (lambda: Board(width=-1.0), r"board.width must be in \(0, 1e6\] px"),
     (lambda: Board(closed=1), r"board.closed must be true or false"),
     (lambda: Experiment(grating=700.0), r"grating must be 0 \(none\) or in \(deposition.mean_diameter"),
-    (lambda: Experiment(grating=50.0, deposition=Deposition(protocol="center")), r"cannot be combined with a grating"),
+    (lambda: Experiment(grating=50.0, deposition=Deposition(protocol="centre")), r"cannot be combined with a grating"),
     (lambda: Experiment(seed=-1), r"seed must be an integer in \[0, "),
     (lambda: Experiment(name=""), r"name must be a non-empty string"),
     (lambda: Experiment(engine={"dt": 1e-3}), r"engine must be a qdots.settings.EngineSettings"),
     (lambda: Experiment(forces=({"type": "Magnetic"},)), r"forces\[0\]: unknown force type 'Magnetic'"),
     (lambda: Experiment(forces=({"type": "Drag", "lin": 1.0},)), r"forces\[0\]: Drag has no parameter 'lin'"),
-    (lambda: Experiment(deposition=Deposition(protocol="center", n_dots=5000)),
+    (lambda: Experiment(deposition=Deposition(protocol="centre", n_dots=5000)),
      r"deposition.n_dots = 5000 needs a deposition ring"),
 ])
 def test_experiment_validation_names_the_key(build, message):

@@ -26,7 +26,7 @@ def test_floats_and_optional_engine_settings_round_trip_exactly():
         restitution=qdots.Restitution(mean=0.8123456789012345, wall=0.9, sticking_speed=0.0),
         engine=EngineSettings(dt=1e-3 / 3, substeps=3, iterations=25, collision_slop=1e-9,
                               collision_bias=0.123, spatial_hash=(22.5, 1000), threads=2),
-        forces=(qdots.Langevin(gamma=0.7), qdots.CenterGravity((123.456, 0.1 + 0.2), 1e-300),
+        forces=(qdots.Langevin(gamma=0.7), qdots.CentreGravity((123.456, 0.1 + 0.2), 1e-300),
                 qdots.Gravity((0.0, -9.81))),
     )
     back = experiment_from_toml(experiment_to_toml(exp))
@@ -68,7 +68,7 @@ def test_missing_keys_take_defaults_and_ints_are_accepted_for_floats():
     ("[engine]\ndt = -0.001", r"engine.dt must be in \[1e-7, 0.1\] s, got -0.001"),
     ("[engine]\nthreads = 4", r"engine.threads must be one of 1, 2, got 4"),
     ("grating = 900.0", r"grating must be 0 \(none\) or in \(deposition.mean_diameter = 15, board.height = 600\)"),
-    ("[[forces]]\ntype = 'Magnetic'", r"forces\[0\]: unknown force type 'Magnetic' \(known: CenterGravity, "),
+    ("[[forces]]\ntype = 'Magnetic'", r"forces\[0\]: unknown force type 'Magnetic' \(known: CentreGravity, "),
     ("[[forces]]\ntype = 'Drag'\nlinaer = 0.1", r"forces\[0\]: Drag has no parameter 'linaer'"),
     ("[[forces]]\nlinear = 0.1", r"forces\[0\]: a force must be a table with a 'type' key"),
     ("[[forces]]\ntype = 'Drag'\nlinear = -1.0", r"forces\[0\]: Drag.linear must be in \[0, "),
@@ -88,12 +88,12 @@ def test_malformed_toml_names_the_file_and_the_toml_error(tmp_path):
     with pytest.raises(ValueError, match=r"broken.toml: invalid TOML: .*line 1"):
         load_experiment(path)
     path.write_bytes(b"name = '\xff'\n")
-    with pytest.raises(ValueError, match=r"broken.toml: cannot read the scene file"):
+    with pytest.raises(ValueError, match=r"broken.toml: cannot read the experiment file"):
         load_experiment(path)
 
 
 def test_missing_file(tmp_path):
-    with pytest.raises(FileNotFoundError, match=r"scene file .*nothing.toml' does not exist"):
+    with pytest.raises(FileNotFoundError, match=r"experiment file .*nothing.toml. does not exist"):
         load_experiment(tmp_path / "nothing.toml")
 
 

@@ -45,7 +45,7 @@ def local(tmp_path_factory):
 
 def test_experiment_dict_round_trip():
     assert experiment_from_dict(experiment_to_dict(TINY)) == TINY
-    exp = TINY.replace(forces=(qdots.VanDerWaals(strength=2.0).to_dict(), qdots.CenterGravity((60, 60), 5).to_dict()))
+    exp = TINY.replace(forces=(qdots.VanDerWaals(strength=2.0).to_dict(), qdots.CentreGravity((60, 60), 5).to_dict()))
     assert experiment_from_dict(experiment_to_dict(exp)) == exp
 
 

@@ -9,7 +9,7 @@ import os
 from pathlib import Path
 from typing import Sequence
 
-from ..files import atomic_path, write_csv
+from ..files import atomic_path, existing_file, write_csv
 from ..validate import InputError
 
 #: Largest table read, bytes.
@@ -107,9 +107,7 @@ def read_table(path: str | os.PathLike) -> list[dict]:
     FileNotFoundError, ValueError
         If the file does not exist, or is not a readable table.
     """
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"table {str(path)!r} does not exist")
+    path = existing_file(path, "table")
     if path.suffix == ".parquet":
         try:
             import pyarrow.parquet as pq

@@ -115,15 +115,6 @@ def load_sweep(path: str | os.PathLike) -> SweepFile:
     return sweep_file
 
 
-def run_sweep_file(path: str | os.PathLike, out: str | os.PathLike | None = None, *, quick: float | None = None,
-                   **options) -> SweepResult:
-    """Run a planarize sweep file (see the module docstring); ``out`` overrides its ``output.dir``.
-
-    ``options`` go to `labrig.sweeps.run_sweep` (``workers``, ``scheduler``, ``retries``, ``progress``).
-    """
-    return run_loaded(load_sweep(path), AnodizeRunner(quick), out, **options)
-
-
 def add_sweep_command(subparsers) -> None:
     """``planarize sweep SWEEP.toml [--out DIR] [--workers N] [--scheduler ADDRESS] [--quick F]``."""
     from labrig.sweeps.command import add_sweep_command as add

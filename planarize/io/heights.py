@@ -43,7 +43,7 @@ from pathlib import Path
 
 import numpy as np
 
-from labrig.files import atomic_path
+from labrig.files import atomic_path, existing_file
 from labrig.validate import InputError, array, real
 
 from ..surface import MAX_POINTS, Surface, check_heights
@@ -177,8 +177,7 @@ def load_heights(path, *, unit: str | None = None, z_unit: str | None = None, sp
                              f"{', '.join(SUFFIXES)} or pass format= ({', '.join(FORMATS)})")
     elif format not in FORMATS:
         raise InputError(f"format must be one of {FORMATS}, got {format!r}")
-    if not path.is_file():
-        raise FileNotFoundError(f"height map {str(path)!r} does not exist")
+    existing_file(path, "height map")
     try:
         if format == "gwy":
             from .gwy import read_gwy as reader

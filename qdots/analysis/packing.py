@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
+from labrig.deprecation import warn as warn_renamed
 from labrig.validate import InputError
 
 #: Neighbour rules: "text" is the thesis's prose (section 2.4), "code" its Java (Appendix A).
@@ -237,17 +238,17 @@ class FillCurve:
         overlapping pairs that reach into the circle, over the circle's area.
         The true union fill lies in ``[fill - overlap_bound, fill]``; 0 for a
         board without overlaps.
-    center : (float, float)
+    centre : (float, float)
         Centre of the circles, px.
     """
 
     radius: np.ndarray
     fill: np.ndarray
     overlap_bound: np.ndarray
-    center: tuple[float, float]
+    centre: tuple[float, float]
 
 
-def fill_within_radius(state, radius, center=None) -> FillCurve:
+def fill_within_radius(state, radius, centre=None, **deprecated) -> FillCurve:
     """Covered fraction of circles around a centre, computed exactly (no sampling).
 
     The Java (``determineFillWithinRadius``) throws 10^6 random points into
@@ -263,7 +264,7 @@ def fill_within_radius(state, radius, center=None) -> FillCurve:
     radius : float or array_like
         Circle radii, px (> 0). The Java's ``runLinearGraphFillWithinRadius(100, 20)``
         is ``radius = 5 * np.arange(1, 21)``.
-    center : (float, float), optional
+    centre : (float, float), optional
         Centre, px. Default: the centre of ``state.box`` (the Java's
         ``boardDimension / 2``), or the dots' centroid if there is no box.
     """
@@ -271,13 +272,18 @@ def fill_within_radius(state, radius, center=None) -> FillCurve:
     big = np.atleast_1d(np.asarray(radius, dtype=float))
     if big.ndim != 1 or not big.size or not np.all(np.isfinite(big) & (big > 0)):
         raise InputError(f"radius must be finite circle radii > 0 px, got {radius!r}")
-    if center is None:
+    if "center" in deprecated:  # the spelling of 0.1
+        warn_renamed("fill_within_radius(center=...)", "fill_within_radius(centre=...)")
+        centre = deprecated.pop("center")
+    if deprecated:
+        raise TypeError(f"fill_within_radius() got an unexpected keyword argument {sorted(deprecated)[0]!r}")
+    if centre is None:
         box = getattr(state, "box", None)
-        center = (0.5 * float(box[0]), 0.5 * float(box[1])) if box is not None else \
+        centre = (0.5 * float(box[0]), 0.5 * float(box[1])) if box is not None else \
             (tuple(positions.mean(axis=0)) if len(positions) else (0.0, 0.0))
-    c = np.asarray(center, dtype=float)
+    c = np.asarray(centre, dtype=float)
     if c.shape != (2,) or not np.all(np.isfinite(c)):
-        raise InputError(f"center must be two finite coordinates, px, got {center!r}")
+        raise InputError(f"center must be two finite coordinates, px, got {centre!r}")
     d = np.sqrt(((positions - c) ** 2).sum(axis=1))
     reach = d - radii < big.max()
     covered = _disc_in_circle_area(radii[reach, None], d[reach, None], big[None, :]).sum(axis=0)

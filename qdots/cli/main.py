@@ -61,11 +61,11 @@ def _add_outputs(p, out_default: str | None) -> None:
 
 
 def _add_run(subparsers) -> None:
-    p = subparsers.add_parser("run", help="run the experiment described by a TOML scene file",
-                              description="Run a scene file (see `qdots preset NAME --save-scenes DIR` "
+    p = subparsers.add_parser("run", help="run the experiment described by a TOML experiment file",
+                              description="Run an experiment file (see `qdots preset NAME --save DIR` "
                                           "for examples): deposit, settle, then write the final state "
                                           "(.npz, resumable), a picture, a summary row and optionally a movie.")
-    p.add_argument("scene", type=Path, metavar="SCENE.toml", help="scene file")
+    p.add_argument("experiment", type=Path, metavar="EXPERIMENT.toml", help="experiment file")
     _add_outputs(p, "qdots-run")
     p.add_argument("--seed", type=int_in(0, MAX_SEED), default=None, help="override the file's seed")
     p.add_argument("--quick", type=fraction, default=None,
@@ -83,8 +83,9 @@ def _add_preset(subparsers) -> None:
     _add_outputs(p, "qdots-preset")
     p.add_argument("--quick", type=fraction, default=None,
                    metavar="F", help="scale the runs down by F (e.g. 0.1) for a first look")
-    p.add_argument("--save-scenes", type=Path, default=None, metavar="DIR",
-                   help="only write the preset's scene files (TOML) into DIR, do not run")
+    p.add_argument("--save", "--save-scenes", dest="save", type=Path, default=None, metavar="DIR",
+                   help="only write the preset's experiment files (TOML) into DIR, do not run "
+                        "(--save-scenes: the name of 0.1)")
     p.set_defaults(func=_run_preset)
 
 
@@ -154,12 +155,12 @@ def _run_scene(args: argparse.Namespace) -> int:
     from ..io.experiment_file import load_experiment
     from .commands import run_experiments
 
-    exp = load_experiment(args.scene)
+    exp = load_experiment(args.experiment)
     if args.seed is not None:
         exp = exp.replace(seed=args.seed)
     if args.quick is not None:
         exp = exp.quick(args.quick)
-    run_experiments([exp], args.out, movie=args.movie, gsd=args.gsd, source=args.scene)
+    run_experiments([exp], args.out, movie=args.movie, gsd=args.gsd, source=args.experiment)
     return 0
 
 
@@ -171,10 +172,10 @@ def _run_preset(args: argparse.Namespace) -> int:
     from .commands import run_experiments
 
     experiments = get_preset(args.name, quick=False if args.quick is None else args.quick)
-    if args.save_scenes is not None:
-        args.save_scenes.mkdir(parents=True, exist_ok=True)
+    if args.save is not None:
+        args.save.mkdir(parents=True, exist_ok=True)
         for exp in experiments:
-            path = args.save_scenes / f"{slug(exp.name)}.toml"
+            path = args.save / f"{slug(exp.name)}.toml"
             save_experiment(exp, path)
             print(path)
         return 0

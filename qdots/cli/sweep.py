@@ -2,7 +2,7 @@
 
 A sweep file for thesis Fig 2-4 (free films and gratings, four size spreads, four seeds)::
 
-    base = "fig2-2a_sigma0.toml"          # from `qdots preset fig2-2 --save-scenes .`
+    base = "fig2-2a_sigma0.toml"          # from `qdots preset fig2-2 --save .`
     seeds = [154, 155, 156, 157]
 
     [axes]
@@ -23,7 +23,7 @@ A sweep file for thesis Fig 2-4 (free films and gratings, four size spreads, fou
 then ``qdots sweep fig2-4.toml`` and ``qdots sweep-plot fig2-4/table.csv
 --metric interior_fraction --x deposition.sigma --group label``.
 
-Every run's parameters are checked like a scene file (an unknown key is an
+Every run's parameters are checked like a experiment file (an unknown key is an
 error naming it, e.g. ``deposition.sigmaa``) before anything runs, and
 completed with every default, so a run's hash covers the whole experiment.
 """
@@ -43,7 +43,7 @@ from ..io.experiment_file import TABLES, TOP, experiment_from_dict
 
 
 def experiment_to_dict(exp: Experiment) -> dict:
-    """Every parameter of ``exp`` as nested plain data (the scene file's tables; unset values left out).
+    """Every parameter of ``exp`` as nested plain data (the experiment file's tables; unset values left out).
 
     ``experiment_from_dict(experiment_to_dict(exp)) == exp``.
     """
@@ -104,15 +104,6 @@ class ExperimentRunner:
 def load_sweep(path: str | os.PathLike) -> SweepFile:
     """Read a qdots sweep file (`labrig.sweeps.files`); its seeds go to the experiment's ``seed``."""
     return load_sweep_file(path, seed_key="seed")
-
-
-def run_sweep_file(path: str | os.PathLike, out: str | os.PathLike | None = None, *, quick: float | None = None,
-                   **options) -> SweepResult:
-    """Run a qdots sweep file (see the module docstring); ``out`` overrides its ``output.dir``.
-
-    ``options`` go to `labrig.sweeps.run_sweep` (``workers``, ``scheduler``, ``retries``, ``progress``).
-    """
-    return run_loaded(load_sweep(path), ExperimentRunner(quick), out, **options)
 
 
 def add_sweep_command(subparsers) -> None:

@@ -5,15 +5,18 @@ All act as velocity changes applied once per time step (see `Force`).
 
 import inspect
 
+from labrig.deprecation import renamed_attributes
+from labrig.deprecation import warn as warn_renamed
+
 from labrig.validate import InputError
 
 from .base import Force, StepContext
-from .fields import CenterGravity, Drag, Gravity
+from .fields import CentreGravity, Drag, Gravity
 from .thermal import Langevin, ThermalKicks
 from .vdw import VanDerWaals, hamaker_force, thesis_offset
 
-#: The built-in forces by name, for files (checkpoints, scene files).
-FORCE_TYPES = {cls.__name__: cls for cls in (VanDerWaals, ThermalKicks, Langevin, Drag, Gravity, CenterGravity)}
+#: The built-in forces by name, for files (checkpoints, experiment files).
+FORCE_TYPES = {cls.__name__: cls for cls in (VanDerWaals, ThermalKicks, Langevin, Drag, Gravity, CentreGravity)}
 
 
 def force_from_dict(spec: dict) -> Force:
@@ -21,13 +24,18 @@ def force_from_dict(spec: dict) -> Force:
 
     Raises
     ------
-    ValueError
+    labrig.validate.InputError
         On an unknown ``type`` or a parameter the force does not take.
     """
     if not isinstance(spec, dict) or "type" not in spec:
         raise InputError(f"a force must be a table with a 'type' key, got {spec!r}")
     params = dict(spec)
     name = params.pop("type")
+    if name == "CenterGravity":  # the spelling of 0.1 (files keep loading)
+        warn_renamed("force type 'CenterGravity' (and its key 'center')", "'CentreGravity' ('centre')")
+        name = "CentreGravity"
+        if "center" in params:
+            params["centre"] = params.pop("center")
     if name not in FORCE_TYPES:
         raise InputError(f"unknown force type {name!r} (known: {', '.join(sorted(FORCE_TYPES))})")
     cls = FORCE_TYPES[name]
@@ -48,7 +56,9 @@ __all__ = [
     "Langevin",
     "Drag",
     "Gravity",
-    "CenterGravity",
+    "CentreGravity",
     "hamaker_force",
     "thesis_offset",
 ]
+
+__getattr__ = renamed_attributes(__name__, {"CenterGravity": "CentreGravity"})

@@ -1,4 +1,4 @@
-"""External fields and substrate drag: `Gravity`, `CenterGravity`, `Drag`."""
+"""External fields and substrate drag: `Gravity`, `CentreGravity`, `Drag`."""
 
 from __future__ import annotations
 
@@ -36,24 +36,24 @@ class Gravity(Force):
         ctx.dv += np.multiply(self.acceleration, ctx.dt)
 
 
-class CenterGravity(Force):
+class CentreGravity(Force):
     """Constant-magnitude acceleration toward a point (thesis ``runRandomCenterGravity``).
 
     Parameters
     ----------
-    center : (float, float)
+    centre : (float, float)
         The attracting point, px.
     magnitude : float
         Acceleration, px/s^2 (>= 0). Default 750 px/s^2 as in the thesis.
     """
 
-    def __init__(self, center: tuple[float, float], magnitude: float = THESIS_GRAVITY):
-        self.center = reals("CenterGravity.center", center, 2, -MAX_LENGTH, MAX_LENGTH, unit="px")
-        self.magnitude = real("CenterGravity.magnitude", magnitude, 0.0, MAX_ACCELERATION, unit="px/s^2")
+    def __init__(self, centre: tuple[float, float], magnitude: float = THESIS_GRAVITY):
+        self.centre = reals("CentreGravity.centre", centre, 2, -MAX_LENGTH, MAX_LENGTH, unit="px")
+        self.magnitude = real("CentreGravity.magnitude", magnitude, 0.0, MAX_ACCELERATION, unit="px/s^2")
 
     def kick(self, ctx: StepContext) -> None:
-        dx = self.center[0] - ctx.x
-        dy = self.center[1] - ctx.y
+        dx = self.centre[0] - ctx.x
+        dy = self.centre[1] - ctx.y
         d = np.sqrt(dx * dx + dy * dy)
         # A dot exactly on the centre feels no pull (the direction is undefined).
         scale = np.divide(self.magnitude * ctx.dt, d, out=np.zeros_like(d), where=d > 0)

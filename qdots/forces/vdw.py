@@ -69,7 +69,7 @@ class VanDerWaals(Force):
         Hamaker constant for ``"hamaker"``, simulation energy units. Default:
         the value that gives two mean-size (15 px) dots at a 1 px gap the same
         acceleration as the thesis proxy (so the two models are comparable).
-        `qdots.units.PhysicalScale.energy_from_joule` converts from joules.
+        Divide an energy in joules by `qdots.units.PhysicalScale.energy_unit_joule`.
     min_gap : float
         Gaps below this (px) are treated as contact (thesis
         ``forceDistanceThresh = 0.1``).

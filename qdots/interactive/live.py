@@ -33,7 +33,7 @@ from labrig.validate import InputError, choice, count, real
 
 from ..analysis.packing import packing_summary
 from ..analysis.structure import hexatic_order
-from ..forces import CenterGravity, Drag, Gravity, ThermalKicks, VanDerWaals
+from ..forces import CentreGravity, Drag, Gravity, ThermalKicks, VanDerWaals
 from ..forces.fields import MAX_ACCELERATION, MAX_DRAG, THESIS_GRAVITY
 from ..forces.thermal import MAX_SCALE
 from ..forces.vdw import MAX_RANGE
@@ -44,7 +44,7 @@ from ..settings import DT_RANGE, EngineSettings
 from ..simulation import Simulation
 from ..state import State
 
-#: Gravity modes: off, uniform toward y = 0 (`Gravity`), toward the board centre (`CenterGravity`).
+#: Gravity modes: off, uniform toward y = 0 (`Gravity`), toward the board centre (`CentreGravity`).
 GRAVITY_MODES = ("none", "uniform", "centre")
 #: The board of a `LiveRun` given no scene: empty, closed, px.
 DEFAULT_BOX = (400.0, 400.0)
@@ -72,7 +72,7 @@ class Knobs:
         Substrate friction ``f``, 1/s (>= 0): `qdots.Drag` ``(f, f / 30)``, the
         thesis's ``setFriction(f, f)`` at 30 px per length unit. 0 = none.
     gravity : {"none", "uniform", "centre"}
-        No gravity, `qdots.Gravity` toward y = 0, or `qdots.CenterGravity`
+        No gravity, `qdots.Gravity` toward y = 0, or `qdots.CentreGravity`
         toward the centre of the board.
     gravity_magnitude : float
         Acceleration, px/s^2 (>= 0; thesis 750).
@@ -106,7 +106,7 @@ class Knobs:
         if self.gravity == "uniform" and self.gravity_magnitude > 0:
             forces.append(Gravity((0.0, -self.gravity_magnitude)))
         elif self.gravity == "centre" and self.gravity_magnitude > 0:
-            forces.append(CenterGravity((box[0] / 2.0, box[1] / 2.0), self.gravity_magnitude))
+            forces.append(CentreGravity((box[0] / 2.0, box[1] / 2.0), self.gravity_magnitude))
         return forces
 
 

@@ -1,6 +1,6 @@
-"""TOML scene files for an `Experiment`.
+"""TOML experiment files for an `Experiment`.
 
-A scene file holds one experiment: top-level ``name``, ``seed`` and
+An experiment file holds one experiment: top-level ``name``, ``seed`` and
 ``grating``, the tables ``[board]``, ``[deposition]``, ``[restitution]`` and
 ``[engine]``, and one ``[[forces]]`` table per force. Every key is optional
 (a missing key takes its default) and `experiment_to_toml` writes all of
@@ -49,7 +49,7 @@ TABLES = {
         "closed": ("bool", "the four edges are hard walls"),
     }),
     "deposition": (Deposition, {
-        "protocol": ("str", '"random" (uniform in the board or grating channel) | "center" (ring around the centre)'),
+        "protocol": ("str", '"random" (uniform in the board or grating channel) | "centre" (ring around the centre)'),
         "n_dots": ("int", f"dots deposited, integer in [0, {MAX_DOTS:,}]"),
         "mean_diameter": ("float", f"px, in {_PX}"),
         "sigma": ("float", "fraction of mean diameter, [0, 1)"),
@@ -92,12 +92,12 @@ FORCE_NOTES = {
                  "kT": f"mean-dot mass px^2/s^2, in [0, {number(MAX_KT)}]"},
     "Drag": {"linear": f"f1, 1/s, in [0, {number(MAX_DRAG)}]", "quadratic": f"f2, 1/px, in [0, {number(MAX_DRAG)}]"},
     "Gravity": {"acceleration": f"[ax, ay], px/s^2, each within +-{number(MAX_ACCELERATION)}"},
-    "CenterGravity": {"center": "[x, y], px", "magnitude": f"px/s^2, in [0, {number(MAX_ACCELERATION)}]"},
+    "CentreGravity": {"centre": "[x, y], px", "magnitude": f"px/s^2, in [0, {number(MAX_ACCELERATION)}]"},
 }
 
 
 def experiment_to_toml(exp: Experiment) -> str:
-    """The scene file text of ``exp``: every parameter, with units and ranges in comments."""
+    """The experiment file text of ``exp``: every parameter, with units and ranges in comments."""
     lines = ["# qdots experiment. Units: px, s (simulated), masses in units of a mean-size dot's mass.",
              "# Every key is optional; a missing key takes the default. Load with qdots.io.experiment_file.load_experiment.",
              ""]
@@ -162,7 +162,7 @@ def experiment_from_toml(text: str, source: str = "<string>") -> Experiment:
 
 
 def load_experiment(path: str | os.PathLike) -> Experiment:
-    """Read a scene file.
+    """Read a experiment file.
 
     Raises
     ------
@@ -172,4 +172,4 @@ def load_experiment(path: str | os.PathLike) -> Experiment:
         If it cannot be read or decoded (UTF-8), is not valid TOML, or holds
         a bad key or value; the message starts with the path.
     """
-    return from_source(experiment_from_dict, read_toml(path, "scene file"), str(path))
+    return from_source(experiment_from_dict, read_toml(path, "experiment file"), str(path))

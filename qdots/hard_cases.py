@@ -1,0 +1,244 @@
+"""Hard cases of the engine: the scenes it must survive (stability, lost or escaped dots, overlap), and their check.
+
+The same scenes are asserted by the test suite and timed by ``python -m benchmarks.qdots_hard_cases``;
+this module builds them and checks a run of each (`check`). Each case is sampled every `SAMPLE` seconds of its run. A case passes
+when every sample is finite, no dot left the box or crossed a wall segment (its side of every
+grating line is unchanged), no dot is swallowed by another (centre distance below the larger
+radius minus the smaller), and overlap stays within the documented tolerances:
+
+* *settled* (the last 40 % of the samples): below `qdots.simulation.OVERLAP_WARNING`
+  (10 % of the pair's mean radius), the overlap above which a run warns (`qdots.simulation.OVERLAP_WARNING`);
+* *transient* (any sample): below 10 % plus ``impact_speed * dt / substeps / r``. Chipmunk has no
+  continuous collision detection: it sees a contact only once the discs overlap, so an impact at
+  normal speed v can overlap by v dt before it is resolved. ``impact_speed`` is each case's
+  bound on the normal approach speed, from its physics (stated where the case is built).
+
+Overlap is (r_i + r_j - d) / ((r_i + r_j) / 2), as in `qdots.analysis.overlaps` (r: the mean
+radius); dot-wall overlap is (r - distance to the segment) / r.
+
+Cases marked *known failure* are limits measured here and documented, not hidden: the tests
+expect them to fail (strict xfail), so a fix shows up as an unexpected pass.
+
+"""
+
+from __future__ import annotations
+
+import math
+import time
+import warnings
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from .collisions import Restitution
+from .forces import CentreGravity, Drag, Gravity, ThermalKicks, VanDerWaals
+from .scene import Scene, grating_segments, segment_distances
+from .simulation import OVERLAP_WARNING, Simulation
+from .units import thesis_kick_speed
+
+#: Simulated time between samples, s.
+SAMPLE = 0.05
+
+
+@dataclass(frozen=True)
+class HardCase:
+    """A scene, its forces and engine settings, how long to run it, and whether it is a known failure."""
+
+    name: str
+    build: Callable[[], tuple[Scene, list]]
+    seconds: float
+    impact_speed: float
+    settings: dict = field(default_factory=dict)
+    slow: bool = False
+    sample: float = SAMPLE
+    known_failure: str = ""
+
+
+def _channels(positions: np.ndarray, segments: np.ndarray) -> np.ndarray:
+    """For each dot, how many grating lines (horizontal segments) lie below its centre."""
+    return (positions[:, 1][:, None] > segments[:, 1][None, :]).sum(axis=1)
+
+
+def grating_corners(gravity: float) -> Callable:
+    """Dots in three rows per 75 px grating channel, pushed into the channels' lower-left corners."""
+    def build():
+        box = (300.0, 300.0)
+        positions = [(x, y0 + dy) for y0 in (0, 75, 150, 225) for x in np.arange(15.0, 290.0, 17.0)
+                     for dy in (15.0, 35.0, 55.0)]
+        scene = Scene(box=box, positions=positions, radii=np.full(len(positions), 7.0),
+                            segments=grating_segments(box, 75.0))
+        g = 750.0 * gravity
+        return scene, [Gravity((-g, -g)), VanDerWaals(), ThermalKicks()]
+    return build
+
+
+def centre_pack(gravity: float, n: int = 400) -> Callable:
+    """400 polydisperse dots (radii N(7.5, 0.75)) pulled to the centre at ``gravity`` x 750 px/s^2."""
+    def build():
+        rng = np.random.default_rng(0)
+        grid = np.array([(x, y) for x in range(20, 585, 25) for y in range(20, 585, 25)], float)
+        scene = Scene(box=(600.0, 600.0), positions=grid[rng.permutation(len(grid))[:n]],
+                            radii=rng.normal(7.5, 0.75, n).clip(5, 9.5))
+        return scene, [CentreGravity((300.0, 300.0), 750.0 * gravity), VanDerWaals(),
+                       ThermalKicks(), Drag(1.0, 0.01)]
+    return build
+
+
+def mixture(masses: str, centre_gravity: float = 0.0) -> Callable:
+    """60 dots of radius 15 px and 500 of 1.5 px (size ratio 10), vdW + kicks (+ centre gravity)."""
+    def build():
+        rng = np.random.default_rng(0)
+        positions, radii = [], []
+        for p in rng.uniform(30, 570, (5000, 2)):
+            r = 15.0 if len(positions) < 60 else 1.5
+            if all(math.dist(p, q) > r + s + 0.5 for q, s in zip(positions, radii)):
+                positions.append(p)
+                radii.append(r)
+            if len(positions) == 560:
+                break
+        radii = np.array(radii)
+        m = {"equal": np.ones(len(radii)), "volume": (radii / 7.5) ** 3}[masses]
+        scene = Scene(box=(600.0, 600.0), positions=positions, radii=radii, masses=m)
+        forces = [VanDerWaals(), ThermalKicks()]
+        if centre_gravity:
+            forces += [CentreGravity((300.0, 300.0), 750.0 * centre_gravity), Drag(1.0, 0.01)]
+        return scene, forces
+    return build
+
+
+def falling_gas(elasticity: float) -> Callable:
+    """400 dots at 100 px/s rms in a 420 px box under the thesis's gravity, restitution ``elasticity``."""
+    def build():
+        rng = np.random.default_rng(1)
+        ij = np.argwhere(np.ones((20, 20))).astype(float)
+        scene = Scene(box=(420.0, 420.0), positions=20 + 19 * ij + rng.uniform(-1, 1, (400, 2)),
+                            radii=np.full(400, 7.5), velocities=rng.normal(0, 100 / math.sqrt(2), (400, 2)),
+                            restitution=Restitution(mean=elasticity))
+        return scene, [Gravity()]
+    return build
+
+
+def head_on(multiple: float) -> Callable:
+    """Two blocks of 200 dots (17 px lattice) flying at each other at ``multiple`` x the thesis kick speed."""
+    def build():
+        v0 = multiple * float(thesis_kick_speed(1.0))
+        block = np.array([(100 + 17 * i, 60 + 17 * k) for i in range(10) for k in range(20)], float)
+        positions = np.vstack([block, block + [200, 0]])  # facing rows 32 px apart
+        velocities = np.vstack([np.tile([v0, 0.0], (200, 1)), np.tile([-v0, 0.0], (200, 1))])
+        return Scene(box=(800.0, 450.0), positions=positions, radii=np.full(400, 7.5),
+                           velocities=velocities), []
+    return build
+
+
+def large_film() -> tuple[Scene, list]:
+    """30,000 dots on a jittered 17 px lattice, thermal velocities, vdW + kicks + drag."""
+    from .qdots_cases import loose_film
+
+    return loose_film(30000), [VanDerWaals(), ThermalKicks(), Drag()]
+
+
+def fall_speed(acceleration: float, distance: float, quadratic_drag: float = 0.0) -> float:
+    """Speed after falling ``distance`` px at ``acceleration`` px/s^2, capped by the terminal speed of the drag."""
+    v = math.sqrt(2.0 * acceleration * distance)
+    return min(v, math.sqrt(acceleration / quadratic_drag)) if quadratic_drag else v
+
+
+KICK = float(thesis_kick_speed(1.0))
+#: Impact speed bounds: a dot sliding the whole channel (300 px) into the corner; two dots meeting
+#: head-on at the centre after falling up to 424 px (drag caps the speed); a gas dot at 3 sigma of
+#: its 100 px/s rms speed after falling 420 px, met head-on; the blocks' closing speed.
+CASES = [
+    HardCase("grating corners, gravity x1 into the corners", grating_corners(1.0), 2.0,
+             fall_speed(750 * math.sqrt(2), 300)),
+    HardCase("grating corners, gravity x10 into the corners", grating_corners(10.0), 2.0,
+             fall_speed(7500 * math.sqrt(2), 300)),
+    HardCase("centre gravity x30", centre_pack(30.0), 2.0, 2 * fall_speed(22500, 424, 0.01)),
+    HardCase("centre gravity x100, substeps 2", centre_pack(100.0), 1.5, 2 * fall_speed(75000, 424, 0.01),
+             {"substeps": 2}),
+    HardCase("centre gravity x100, defaults", centre_pack(100.0), 2.0, 2 * fall_speed(75000, 424, 0.01), slow=True,
+             known_failure="settles at ~12 % overlap (measured), over the 10 % the engine accepts; 2 substeps "
+                           "give ~3 %"),
+    HardCase("centre gravity x100, substeps 4", centre_pack(100.0), 1.0, 2 * fall_speed(75000, 424, 0.01),
+             {"substeps": 4}, slow=True,
+             known_failure="unstable: rms speed ~165 px/s and ~40 % overlap (measured). Stable with restitution 0, "
+                           "or 10 % overlap correction per sub-step, or slop 0.1 px: re-made contacts in the "
+                           "compressed pile get an elastic impact each time"),
+    HardCase("size ratio 10, equal masses, vdW film", mixture("equal"), 3.0, 50.0),
+    HardCase("size ratio 10, masses ~ r^3, vdW film, substeps 4", mixture("volume"), 1.5, 50.0, {"substeps": 4}),
+    HardCase("size ratio 10, masses ~ r^3, vdW film, defaults", mixture("volume"), 3.0, 50.0, slow=True,
+             known_failure="small dots (mass 1/1000 of the large) overlap by ~40-100 % (measured): the vdW proxy's "
+                           "acceleration goes as 1/m; dt 0.25 ms or 4 substeps bring it to ~2-6 %"),
+    HardCase("size ratio 10, masses ~ r^3, centre gravity x1", mixture("volume", 1.0), 2.0,
+             2 * fall_speed(750, 424, 0.01), slow=True,
+             known_failure="light dots are pushed into heavy ones (overlap > 100 % of the small radius, measured); "
+                           "more iterations, substeps or a smaller dt do not help: Chipmunk's iterative solver with "
+                           "a 1000:1 mass ratio under load"),
+    HardCase("elasticity 0.02, falling gas", falling_gas(0.02), 2.5, 2 * math.hypot(300, fall_speed(750, 420))),
+    HardCase("elasticity 0.98, falling gas", falling_gas(0.98), 2.5, 2 * math.hypot(300, fall_speed(750, 420))),
+    HardCase("head-on at 100x thermal speed (188 px/s)", head_on(100), 0.5, 200 * KICK, sample=0.002),
+    HardCase("head-on at 1000x thermal speed (1,876 px/s), substeps 8", head_on(1000), 0.1, 2000 * KICK,
+             {"substeps": 8}, sample=0.002),
+    HardCase("head-on at 3000x thermal speed (5,628 px/s), defaults", head_on(3000), 0.1, 6000 * KICK, slow=True,
+             sample=0.002,
+             known_failure="no continuous collision detection: at 5.6 px per step (0.75 r) dots pass through "
+                           "walls (measured); the run warns (`qdots.simulation.SAFE_TRAVEL`). Keep the normal approach speed below "
+                           "~0.1 r / dt (or use substeps)"),
+    HardCase("30,000 dots, vdW + kicks + drag, 10^3 steps", large_film, 1.0, 100.0, slow=True),
+]
+
+
+def _pair_overlaps(positions: np.ndarray, radii: np.ndarray) -> tuple[float, bool]:
+    """Worst overlap / mean radius of the pair, and whether some dot is inside another."""
+    pairs = cKDTree(positions).query_pairs(2.0 * float(radii.max()), output_type="ndarray")
+    if not len(pairs):
+        return 0.0, False
+    i, j = pairs.T
+    d = np.linalg.norm(positions[i] - positions[j], axis=1)
+    rsum = radii[i] + radii[j]
+    swallowed = bool((d < np.abs(radii[i] - radii[j]) + 1e-9).any())
+    return max(0.0, float(((rsum - d) / (0.5 * rsum)).max())), swallowed
+
+
+def check(case: HardCase) -> dict:
+    """Run ``case``; everything the tests assert, with the wall time."""
+    scene, forces = case.build()
+    sim = Simulation(scene, forces, seed=1, **case.settings)
+    walls, channels = scene.wall_segments(), _channels(scene.positions, scene.segments)
+    samples = max(1, round(case.seconds / case.sample))
+    pair, wall, finite, lost, crossed, wall_time = [], [], True, False, False, 0.0
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", RuntimeWarning)
+        for _ in range(samples):
+            start = time.perf_counter()
+            try:
+                sim.run(case.seconds / samples)
+            except FloatingPointError:
+                finite = False
+                break
+            finally:
+                wall_time += time.perf_counter() - start
+            s = sim.state()
+            overlap, swallowed = _pair_overlaps(s.positions, s.radii)
+            pair.append(overlap)
+            wall.append(max(0.0, float(((s.radii[:, None] - segment_distances(s.positions, walls))
+                                        / s.radii[:, None]).max())))
+            outside = (s.positions < 0).any() or (s.positions > np.array(s.box)).any()
+            lost = lost or swallowed or bool(outside) or sim.n_dots != scene.n_dots
+            crossed = crossed or not np.array_equal(_channels(s.positions, scene.segments), channels)
+    settled = slice(int(0.6 * samples), None)
+    step = sim.dt / sim.substeps
+    return {"case": case.name, "dots": sim.n_dots, "steps": sim.steps_taken, "wall_s": wall_time,
+            "finite": finite, "lost": lost, "crossed": crossed,
+            "warned": any("per sub-step" in str(w.message) for w in caught),
+            "overlap": max(pair + wall, default=math.inf), "settled": max(pair[settled] + wall[settled], default=math.inf),
+            "transient_tolerance": OVERLAP_WARNING + case.impact_speed * step / float(scene.radii.min()),
+            "settled_tolerance": OVERLAP_WARNING}
+
+
+def passed(result: dict) -> bool:
+    return (result["finite"] and not result["lost"] and not result["crossed"]
+            and result["settled"] < result["settled_tolerance"] and result["overlap"] < result["transient_tolerance"])
+
+
