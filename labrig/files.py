@@ -221,8 +221,11 @@ def read_archive(path: str | os.PathLike, kind: str, version: int, names: Sequen
     try:
         with zipfile.ZipFile(path) as archive:
             size = sum(info.file_size for info in archive.infolist())
-        if size > MAX_ARCHIVE_BYTES:
-            raise InputError(f"it holds {size:,} bytes, more than the {MAX_ARCHIVE_BYTES:,} read")
+            if size > MAX_ARCHIVE_BYTES:
+                raise InputError(f"it holds {size:,} bytes, more than the {MAX_ARCHIVE_BYTES:,} read")
+            damaged = archive.testzip()  # every member against its checksum (numpy's reader does not check)
+            if damaged is not None:
+                raise InputError(f"{damaged} is damaged (its checksum does not match)")
         with np.load(path, allow_pickle=False) as data:
             if "metadata" not in data.files:
                 raise InputError("no metadata in it")

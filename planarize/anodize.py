@@ -26,6 +26,8 @@ from .surface import Surface
 
 #: Thickest oxide grown, nm (1 mm).
 MAX_THICKNESS = 1e6
+#: Most steps of thickness a run may take (thickness / step; the thesis's hill takes 100, its Ta film 400).
+MAX_STEPS_PER_RUN = 1_000_000
 #: Most history rows or snapshots of a run.
 MAX_RECORD = 100_000
 #: Memory an engine needs per grid point, bytes (measured: the fast engine 0.89 GB at 1025 x 1025;
@@ -92,6 +94,17 @@ class Anodization:
         """The history as a list of row dicts (CSV/JSON friendly)."""
         keys = list(self.history)
         return [{k: self.history[k][i].item() for k in keys} for i in range(len(self.history[keys[0]]))]
+
+
+def check_steps(thickness: float, step: float) -> None:
+    """`InputError` unless ``step`` fits ``thickness`` (nm): at most the thickness, at least `MAX_STEPS_PER_RUN`-th
+    of it (a smaller step would take days)."""
+    if 0 < thickness < step:
+        raise InputError(f"step ({step:g} nm) must not exceed thickness ({thickness:g} nm): one oxidation would "
+                         "overshoot the target")
+    if thickness / step > MAX_STEPS_PER_RUN:
+        raise InputError(f"thickness / step = {thickness / step:.3g} steps per grid point, more than the "
+                         f"{MAX_STEPS_PER_RUN:,} a run may take: use a larger step")
 
 
 def thickness_targets(spec, thickness: float, name: str, limit: int = MAX_RECORD, empty: bool = False) -> np.ndarray:
@@ -201,9 +214,7 @@ def anodize(metal: Surface, thickness: float, model: Model | None = None, engine
     if not isinstance(metal, Surface):
         raise InputError(f"metal must be a planarize.Surface, got {type(metal).__name__}")
     thickness = real("thickness", thickness, 0.0, MAX_THICKNESS, unit="nm")
-    if 0 < thickness < model.step:
-        raise InputError(f"step ({model.step:g} nm) must not exceed thickness ({thickness:g} nm): one oxidation "
-                         "would overshoot the target")
+    check_steps(thickness, model.step)
     if max_seconds is not None:
         max_seconds = real("max_seconds", max_seconds, 0.0, low_open=True, unit="s")
     rows_at = thickness_targets(record, thickness, "record", MAX_RECORD)

@@ -235,6 +235,7 @@ def test_cliffs_and_spikes_stay_finite(kind, distance):
     (lambda hill: anodize(hill, 1e300), "thickness"),
     (lambda hill: anodize(hill, 0.1, Model(step=0)), "step"),
     (lambda hill: anodize(hill, 0.1, Model(step=5.0)), r"step \(5 nm\) must not exceed thickness"),
+    (lambda hill: anodize(hill, 100.0, Model(step=1e-5)), r"thickness / step = 1e\+07 steps"),
     (lambda hill: anodize(hill, 0.1, Model(k_exp=0.5)), r"k_exp must be in \[1, 5\]"),
     (lambda hill: anodize(hill, 0.1, Model(k_exp=1e100)), "k_exp"),
     (lambda hill: anodize(hill, 0.1, engine="gpu"), "engine"),

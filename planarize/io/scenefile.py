@@ -30,7 +30,7 @@ from labrig.tomlfile import check_keys, from_source, parse_toml, read_toml, toml
 from labrig.validate import MAX_SEED, InputError, number, real, seed, text, typed
 
 from .. import surfaces
-from ..anodize import MAX_RECORD, MAX_THICKNESS, Anodization, anodize, thickness_targets
+from ..anodize import MAX_RECORD, MAX_THICKNESS, Anodization, anodize, check_steps, thickness_targets
 from ..engines import ENGINES, Fast, engine_settings
 from ..model import K_EXP_RANGE, MAX_STEP, Model
 from ..surface import Surface
@@ -194,8 +194,7 @@ class RunSettings:
             raise InputError(f"tolerance and interacting are settings of the fast engine, not of engine "
                              f"{self.engine!r}: leave them out")
         self.engine_settings()
-        if 0 < self.thickness < self.step:
-            raise InputError(f"step ({self.step:g} nm) must not exceed thickness ({self.thickness:g} nm)")
+        check_steps(self.thickness, self.step)
         thickness_targets(self.record, self.thickness, "record")
         if self.snapshots is not None:
             thickness_targets(self.snapshots, self.thickness, "snapshots", empty=True)

@@ -1,0 +1,325 @@
+"""Fuzzing every kind of file a person gives: accepted and run, or refused in one line naming the key.
+
+Valid files are mutated at random (known keys and unknown ones; booleans, strings, lists, huge, tiny,
+negative, non-finite numbers). Each result must be one of: accepted (and, when small, run to the end with
+finite results), or refused through the command line with exit status 2 and one line ``PROG: error: ...``;
+never a traceback, a hang, or a changed earlier file. A few examples per kind run by default; ``-m slow``
+runs many more.
+"""
+
+import json
+import string
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+import qdots
+from labrig.tomlfile import toml_value
+from labrig.validate import InputError
+from planarize.cli import main as planarize_main
+from qdots.cli import main as qdots_main
+from qdots.io.experiment_file import experiment_from_dict
+
+FEW, MANY = 12, 60
+
+WEIRD = st.one_of(
+    st.booleans(),
+    st.integers(-2**70, 2**70),
+    st.floats(allow_nan=True, allow_infinity=True),
+    st.sampled_from([0, -1, 1e-300, 1e300, 2**62, -0.0, 1e9, 0.5, 3]),
+    st.text(alphabet=string.ascii_letters + " .-", max_size=6),
+    st.lists(st.one_of(st.integers(-5, 5), st.floats(-1e3, 1e3), st.text(max_size=2)), max_size=3),
+)
+
+EXPERIMENT_KEYS = ["name", "seed", "grating", "board.width", "board.height", "board.closed", "deposition.protocol",
+                   "deposition.n_dots", "deposition.mean_diameter", "deposition.sigma", "deposition.mass_model",
+                   "deposition.heavy_mass", "deposition.interval", "deposition.settle", "deposition.max_tries",
+                   "restitution.mean", "restitution.wall", "restitution.sticking_speed", "engine.dt",
+                   "engine.substeps", "engine.iterations", "engine.collision_slop", "engine.collision_bias",
+                   "engine.spatial_hash", "engine.threads", "forces.0.r0", "forces.0.min_gap", "forces.0.skin",
+                   "forces.0.model", "forces.1.interval", "forces.1.scale", "forces.2.acceleration", "forces.0.type",
+                   "board.colour", "deposition.sigmaa", "extra"]
+SMALL_EXPERIMENT = {"name": "fuzz", "board": {"width": 80.0, "height": 80.0},
+                    "deposition": {"n_dots": 4, "interval": 0.01, "settle": 0.05},
+                    "forces": [{"type": "VanDerWaals"}, {"type": "ThermalKicks"}, {"type": "Gravity"}]}
+
+
+def set_key(tree: dict, key: str, value) -> None:
+    node = tree
+    parts = key.split(".")
+    for part in parts[:-1]:
+        node = node[int(part)] if part.isdigit() else node.setdefault(part, {})
+    last = parts[-1]
+    if isinstance(node, list):
+        node[int(last)] = value
+    else:
+        node[last] = value
+
+
+def to_toml(tree: dict) -> str:
+    lines, tables = [], []
+    for key, value in tree.items():
+        if isinstance(value, dict):
+            tables.append((key, value))
+        elif isinstance(value, list) and value and all(isinstance(v, dict) for v in value):
+            tables += [(f"[{key}]", item) for item in value]
+        else:
+            lines.append(f"{key} = {toml_value(value)}")
+    for name, table in tables:
+        lines.append(f"[{name}]" if not name.startswith("[") else f"[{name}]")
+        lines += [f"{k} = {toml_value(v)}" for k, v in table.items()]
+    return "\n".join(lines) + "\n"
+
+
+def refused_in_one_line(capsys, prog: str) -> str:
+    err = capsys.readouterr().err.strip().split("\r")[-1]
+    assert err.startswith(f"{prog}: error:") and "\n" not in err and "Traceback" not in err, err
+    return err
+
+
+def snapshot(directory) -> dict:
+    return {p.name: p.read_bytes() for p in directory.iterdir() if p.is_file()}
+
+
+@pytest.fixture(scope="module")
+def earlier(tmp_path_factory):
+    """An output directory that holds a good result of every name the fuzzed runs use."""
+    out = tmp_path_factory.mktemp("earlier")
+    scene = out / "seed.toml"
+    scene.write_text(to_toml(SMALL_EXPERIMENT))
+    assert qdots_main(["run", str(scene), "--out", str(out)]) == 0
+    scene.unlink()
+    return out
+
+
+def check_experiment_file(tmp_path, capsys, earlier, mutations) -> None:
+    tree = json.loads(json.dumps(SMALL_EXPERIMENT))
+    for key, value in mutations:
+        set_key(tree, key, value)
+    try:
+        text = to_toml(tree)
+    except ValueError:  # a value TOML cannot hold
+        return
+    path = tmp_path / "fuzz.toml"
+    path.write_text(text)
+    try:
+        exp = experiment_from_dict(tree)
+    except InputError:
+        exp = None
+    if exp is not None:
+        steps = (exp.deposition.n_dots * exp.deposition.interval + exp.deposition.settle) / exp.engine.dt
+        if steps > 2000 or exp.deposition.n_dots > 30 or exp.board.width * exp.board.height > 1e6:
+            return  # accepted; too long to run here
+    before = snapshot(earlier)
+    status = qdots_main(["run", str(path), "--out", str(earlier)])
+    if status == 2:
+        refused_in_one_line(capsys, "qdots")
+        assert snapshot(earlier) == before  # nothing of the earlier result was replaced
+        return
+    assert status == 0
+    capsys.readouterr()
+    state = qdots.read_state(earlier / f"{qdots.cli.commands.slug(exp.name)}.npz")
+    assert np.isfinite(state.positions).all() and np.isfinite(state.velocities).all()
+
+
+MUTATIONS = st.lists(st.tuples(st.sampled_from(EXPERIMENT_KEYS), WEIRD), min_size=1, max_size=3)
+
+
+@settings(max_examples=FEW, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(mutations=MUTATIONS)
+def test_experiment_files(tmp_path, capsys, earlier, mutations):
+    check_experiment_file(tmp_path, capsys, earlier, mutations)
+
+
+@pytest.mark.slow
+@settings(max_examples=MANY, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(mutations=MUTATIONS)
+def test_experiment_files_many(tmp_path, capsys, earlier, mutations):
+    check_experiment_file(tmp_path, capsys, earlier, mutations)
+
+
+# -- state files --------------------------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def state_parts(tmp_path_factory):
+    scene = qdots.Scene(box=(100, 100), positions=[[30, 50], [70, 50], [50, 20]], radii=[7.5, 7.5, 5.0])
+    sim = qdots.Simulation(scene, [qdots.ThermalKicks(), qdots.VanDerWaals()], seed=1)
+    sim.run(0.02)
+    path = tmp_path_factory.mktemp("state") / "good.npz"
+    qdots.save(sim, path)
+    with np.load(path) as data:
+        arrays = {k: data[k] for k in data.files}
+    return json.loads(str(arrays.pop("metadata"))), arrays
+
+
+ARRAY_CHANGES = st.sampled_from(["nan", "huge", "complex", "empty", "shape", "int", "bool", "text", "negative"])
+METADATA_KEYS = ["time", "start_time", "steps_taken", "box", "closed", "restitution", "engine", "forces", "rng",
+                 "collisions", "format", "version", "new"]
+
+
+def changed_array(array: np.ndarray, how: str) -> np.ndarray:
+    return {"nan": np.full_like(array, np.nan, dtype=float), "huge": np.full_like(array, 1e300, dtype=float),
+            "complex": array + 1j, "empty": np.zeros((0,) + array.shape[1:]), "shape": np.zeros((7, 3)),
+            "int": array.astype(np.int64), "bool": array.astype(bool), "text": np.full(array.shape, "x"),
+            "negative": -np.abs(array) - 1}[how]
+
+
+def check_state_file(tmp_path, capsys, state_parts, array_changes, metadata_changes) -> None:
+    metadata, arrays = json.loads(json.dumps(state_parts[0])), dict(state_parts[1])
+    for name, how in array_changes:
+        arrays[name] = changed_array(state_parts[1][name], how)
+    for key, value in metadata_changes:
+        metadata[key] = value
+    path = tmp_path / "fuzz.npz"
+    with open(path, "wb") as stream:
+        np.savez(stream, metadata=np.array(json.dumps(metadata)), **arrays)
+    for argv in (["render", str(path), "--out", str(tmp_path / "fuzz.png")],
+                 ["resume", str(path), "--seconds", "0.01", "--out", str(tmp_path / "out")]):
+        status = qdots_main(argv)
+        if status == 2:
+            refused_in_one_line(capsys, "qdots")
+        else:
+            assert status == 0
+            capsys.readouterr()
+
+
+STATE_ARGS = dict(array_changes=st.lists(st.tuples(st.sampled_from(["positions", "velocities", "radii", "masses",
+                                                                    "segments"]), ARRAY_CHANGES), max_size=2),
+                  metadata_changes=st.lists(st.tuples(st.sampled_from(METADATA_KEYS), WEIRD), max_size=2))
+
+
+@settings(max_examples=FEW, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(**STATE_ARGS)
+def test_state_files(tmp_path, capsys, state_parts, array_changes, metadata_changes):
+    check_state_file(tmp_path, capsys, state_parts, array_changes, metadata_changes)
+
+
+@pytest.mark.slow
+@settings(max_examples=MANY, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(**STATE_ARGS)
+def test_state_files_many(tmp_path, capsys, state_parts, array_changes, metadata_changes):
+    check_state_file(tmp_path, capsys, state_parts, array_changes, metadata_changes)
+
+
+# -- height maps ---------------------------------------------------------------------------------------
+
+CELLS = st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.integers(-10**25, 10**25),
+                  st.sampled_from(["x", "", "1e400", "-", "#", "1,5"]), st.floats(-5, 5))
+GRIDS = st.lists(st.lists(CELLS, min_size=1, max_size=5), min_size=1, max_size=5)
+
+
+def check_height_map(tmp_path, capsys, rows, suffix, header) -> None:
+    path = tmp_path / f"fuzz{suffix}"
+    if suffix == ".npy":
+        try:
+            array = np.array(rows)
+        except ValueError:  # ragged
+            return
+        np.save(path, array)
+    else:
+        text = "\n".join((",".join(str(c) for c in row) if suffix == ".csv" else " ".join(str(c) for c in row))
+                         for row in rows)
+        path.write_text(header + text + "\n")
+    argv = ["import", str(path), "--thickness", "0.5", "--unit", "nm", "--save", str(tmp_path / "imported.toml")]
+    if suffix != ".xyz" and not header:
+        argv += ["--spacing", "1"]
+    status = planarize_main(argv)
+    if status == 2:
+        refused_in_one_line(capsys, "planarize")
+        return
+    assert status == 0
+    capsys.readouterr()
+    from planarize.io.scenefile import load_scene
+
+    scene = load_scene(tmp_path / "imported.toml")
+    surface = scene.build_surface()
+    if surface.z.size <= 36 and scene.run.thickness / scene.run.step <= 1000:  # small enough to run
+        run = scene.anodize()
+        assert np.isfinite(run.oxide.z).all() and np.isfinite(run.distances).all()
+
+
+HEADERS = st.sampled_from(["", "# Width: 4 nm\n# Height: 4 nm\n# Value units: nm\n", "# Width: 0 nm\n# Height: 1 nm\n",
+                           "# XY units: nm\n# Value units: nm\n", "# Width: 1e400 um\n# Height: 1 um\n"])
+HEIGHT_ARGS = dict(rows=GRIDS, suffix=st.sampled_from([".csv", ".txt", ".xyz", ".npy"]), header=HEADERS)
+
+
+@settings(max_examples=FEW, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(**HEIGHT_ARGS)
+def test_height_maps(tmp_path, capsys, rows, suffix, header):
+    check_height_map(tmp_path, capsys, rows, suffix, header)
+
+
+@pytest.mark.slow
+@settings(max_examples=MANY, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(**HEIGHT_ARGS)
+def test_height_maps_many(tmp_path, capsys, rows, suffix, header):
+    check_height_map(tmp_path, capsys, rows, suffix, header)
+
+
+# -- sweep files ---------------------------------------------------------------------------------------
+
+SWEEP_KEYS = ["seeds", "axes.run.k_exp", "axes.run.step", "axes.surface.refine", "axes.run.thickness",
+              "output.dir", "output.state", "points", "base", "axes", "extra"]
+
+
+def check_sweep_file(tmp_path, capsys, mutations) -> None:
+    tree = {"base": "hill", "seeds": 1, "axes": {"run": {"k_exp": [2.0, 2.3]}}, "output": {"dir": "out"}}
+    for key, value in mutations:
+        set_key(tree, key, value)
+    try:
+        text = to_toml(tree)
+    except ValueError:
+        return
+    path = tmp_path / "sweep.toml"
+    path.write_text(text)
+    from planarize.cli.sweep import AnodizeRunner, load_sweep
+
+    try:
+        sweep = load_sweep(path).sweep
+        runs = sweep.runs(AnodizeRunner(quick=0.25).canonical)
+    except InputError as exc:
+        assert "\n" not in str(exc)
+        assert planarize_main(["sweep", str(path), "--workers", "1", "--quick", "0.25"]) == 2
+        refused_in_one_line(capsys, "planarize")
+        return
+    assert 1 <= len(runs) <= 100_000
+
+
+SWEEP_ARGS = dict(mutations=st.lists(st.tuples(st.sampled_from(SWEEP_KEYS), WEIRD), min_size=1, max_size=3))
+
+
+@settings(max_examples=FEW, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(**SWEEP_ARGS)
+def test_sweep_files(tmp_path, capsys, mutations):
+    check_sweep_file(tmp_path, capsys, mutations)
+
+
+@pytest.mark.slow
+@settings(max_examples=MANY, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(**SWEEP_ARGS)
+def test_sweep_files_many(tmp_path, capsys, mutations):
+    check_sweep_file(tmp_path, capsys, mutations)
+
+
+def test_the_checks_fail_on_a_traceback_or_a_long_message(tmp_path, capsys, earlier, monkeypatch):
+    """The fuzzers' verdicts are not vacuous: a valid file is run, and a crash or a multi-line refusal fails them."""
+    check_experiment_file(tmp_path, capsys, earlier, [])
+    assert (earlier / "fuzz.npz").exists()
+    import sys
+
+    def refuse_in_two_lines(argv):
+        print("qdots: error: first\nsecond", file=sys.stderr)
+        return 2
+
+    monkeypatch.setattr(sys.modules[__name__], "qdots_main", refuse_in_two_lines)
+    with pytest.raises(AssertionError):
+        check_experiment_file(tmp_path, capsys, earlier, [("deposition.sigma", 2.0)])
+
+    def crash(argv):
+        raise KeyError("a bug")
+
+    monkeypatch.setattr(sys.modules[__name__], "qdots_main", crash)
+    with pytest.raises(KeyError):
+        check_experiment_file(tmp_path, capsys, earlier, [])
