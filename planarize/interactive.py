@@ -8,20 +8,21 @@
 A slider over the oxide thicknesses at which the run kept both surfaces
 (``snapshots=`` of `planarize.anodize`) shows the metal and oxide surfaces in
 3-D and along the centre line, next to the run's RMS and z-range curves with a
-marker at the selected thickness. Needs the ``widgets`` extra
-(``pip install "nanodisorder[widgets]"``).
+marker at the selected thickness. Metal and oxide have the colours and markers
+of the static figures (`planarize.render`: metal blue squares, oxide red
+circles). Needs the ``widgets`` extra (``pip install "nanodisorder[widgets]"``).
 """
 
 from __future__ import annotations
 
 import numpy as np
+from matplotlib.lines import Line2D
 
 from labrig.validate import InputError
 
 from .anodize import Anodization
 from .metrics import rms, z_range
-
-METAL, OXIDE = "tab:brown", "tab:blue"
+from .render import METAL, OXIDE
 
 
 def nearest_snapshot(run: Anodization, thickness: float) -> int:
@@ -45,6 +46,14 @@ def _labels(run: Anodization) -> list[str]:
     return [f"{label} (#{i})" if labels.count(label) > 1 else label for i, label in enumerate(labels)]
 
 
+def _marker_path(marker: str):
+    """The path of a scatter marker, as ``Axes.scatter`` makes it (for one marker per point)."""
+    from matplotlib.markers import MarkerStyle
+
+    style = MarkerStyle(marker)
+    return style.get_path().transformed(style.get_transform())
+
+
 class ThicknessExplorer:
     """Metal and oxide surfaces of a run, one snapshot at a time, chosen by a thickness slider.
 
@@ -53,7 +62,7 @@ class ThicknessExplorer:
     run : Anodization
         A finished run with at least one snapshot.
     size : (float, float)
-        Figure size, inches.
+        Figure size, inches (the default, 800 x 560 px, fits a notebook beside JupyterLab's file browser).
     mesh : int
         Most grid lines drawn per side in the 3-D view (>= 2; larger grids are strided).
 
@@ -62,12 +71,13 @@ class ThicknessExplorer:
     slider : ipywidgets.SelectionSlider
         Its value is the index of the snapshot shown; its labels are oxide thicknesses, nm.
     figure : matplotlib.figure.Figure
-        3-D view, centre slice along x, RMS / z-range curves (its ``canvas`` is an ipympl widget).
+        3-D view (left), centre slice along x (top right), RMS / z-range curves (bottom right), one
+        legend for all at the bottom (its ``canvas`` is an ipympl widget).
     ui : ipywidgets.VBox
         The whole widget.
     """
 
-    def __init__(self, run: Anodization, *, size: tuple[float, float] = (12.0, 4.0), mesh: int = 40):
+    def __init__(self, run: Anodization, *, size: tuple[float, float] = (8.0, 5.6), mesh: int = 40):
         from labrig.widgets import require_widgets, widget_figure
 
         w = require_widgets("planarize.interactive")
@@ -81,12 +91,11 @@ class ThicknessExplorer:
         self.figure = widget_figure(size)
         self.slider = w.SelectionSlider(options=list(zip(_labels(run), range(len(run.snapshots)))), value=0,
                                         description="oxide (nm)", continuous_update=True,
-                                        layout=w.Layout(width="60%"))
+                                        layout=w.Layout(width="min(100%, 600px)"))
         self._draw_fixed()
         self.slider.observe(lambda change: self.show(change["new"]), "value")
         self.ui = w.VBox([self.slider, self.figure.canvas])
-        self.show(0)
-        self.figure.canvas.draw()  # the first picture, before any front end asks for one
+        self.show(0)  # drawn when the front end shows the canvas (labrig.widgets)
 
     @property
     def snapshot(self):
@@ -99,38 +108,46 @@ class ThicknessExplorer:
         return self.snapshot
 
     def _draw_fixed(self) -> None:
-        """Axes, the initial metal and the history curves: everything that does not move."""
+        """Axes, the initial metal, the history curves and the legend: everything that does not move."""
         fig, run, first = self.figure, self.run, self.run.snapshots[0]
-        self.ax3d = fig.add_subplot(1, 3, 1, projection="3d")
-        self.ax_slice = fig.add_subplot(1, 3, 2)
-        self.ax_curves = fig.add_subplot(1, 3, 3)
-        fig.subplots_adjust(left=0.02, right=0.98, bottom=0.14, top=0.84, wspace=0.35)
+        grid = fig.add_gridspec(2, 2, width_ratios=(1.15, 1), left=0.01, right=0.98, bottom=0.15, top=0.86,
+                                wspace=0.28, hspace=0.5)
+        self.ax3d = fig.add_subplot(grid[:, 0], projection="3d")
+        self.ax_slice = fig.add_subplot(grid[0, 1])
+        self.ax_curves = fig.add_subplot(grid[1, 1])
         self.row = first.metal.shape[1] // 2
         x = first.metal.x
+        every = max(1, len(x) // 25)  # markers on at most ~25 points of the slice
         ax = self.ax_slice
         ax.plot(x, run.initial.z[:, self.row], color="0.6", ls="--", lw=1, label="initial metal")
-        (self.metal_line,) = ax.plot(x, first.metal.z[:, self.row], color=METAL, label="metal")
-        (self.oxide_line,) = ax.plot(x, first.oxide.z[:, self.row], color=OXIDE, label="oxide")
+        (self.metal_line,) = ax.plot(x, first.metal.z[:, self.row], color=METAL["color"], marker=METAL["marker"],
+                                     markersize=3, markevery=every, lw=1.2, label="metal")
+        (self.oxide_line,) = ax.plot(x, first.oxide.z[:, self.row], color=OXIDE["color"], marker=OXIDE["marker"],
+                                     markersize=3, markevery=every, lw=1.2, label="oxide")
         heights = [run.initial.z] + [z for s in run.snapshots for z in (s.metal.z, s.oxide.z)]
         low, high = min(z.min() for z in heights), max(z.max() for z in heights)
         pad = 0.05 * (high - low or 1.0)
         ax.set_ylim(low - pad, high + pad)
         ax.set_xlabel("x (nm)")
         ax.set_ylabel("z (nm)")
-        ax.legend(loc="best", fontsize="small")
         self.ax3d.set_zlim(low - pad, high + pad)
         self.ax3d.set_xlabel("x (nm)")
         self.ax3d.set_ylabel("y (nm)")
         self.ax3d.set_zlabel("z (nm)")
         ax, h = self.ax_curves, run.history
-        for key, colour, style in (("metal_rms_nm", METAL, "-"), ("oxide_rms_nm", OXIDE, "-"),
-                                   ("metal_zrange_nm", METAL, ":"), ("oxide_zrange_nm", OXIDE, ":")):
-            ax.plot(h["thickness_nm"], h[key], color=colour, ls=style, label=key[:-3].replace("_", " "))
+        for key, style, ls in (("metal_rms_nm", METAL, "-"), ("oxide_rms_nm", OXIDE, "-"),
+                               ("metal_zrange_nm", METAL, ":"), ("oxide_zrange_nm", OXIDE, ":")):
+            ax.plot(h["thickness_nm"], h[key], color=style["color"], ls=ls, lw=1.2)
         self.marker = ax.axvline(first.thickness, color="k", lw=0.8)
-        self.points = ax.scatter(np.zeros(4), np.zeros(4), c=[METAL, OXIDE, METAL, OXIDE], zorder=3, s=18)
+        self.points = ax.scatter(np.zeros(4), np.zeros(4), c=[METAL["color"], OXIDE["color"]] * 2, zorder=3, s=18)
+        self.points.set_paths([_marker_path(style["marker"]) for style in (METAL, OXIDE, METAL, OXIDE)])
         ax.set_xlabel("oxide thickness (nm)")
-        ax.set_ylabel("RMS (solid), z-range (dotted), nm")
-        ax.legend(loc="best", fontsize="small")
+        ax.set_ylabel("nm")
+        ax.set_title("RMS (solid), z-range (dotted)", fontsize="medium")
+        # one legend in a fixed place: it never moves with the data
+        handles = self.ax_slice.get_lines()[:3] + [Line2D([], [], color="k", lw=1.2, ls="-", label="RMS"),
+                                                   Line2D([], [], color="k", lw=1.2, ls=":", label="z-range")]
+        self.legend = fig.legend(handles=handles, loc="lower center", ncol=5, fontsize="small", frameon=False)
         self._surfaces: list = []
 
     def show(self, index: int) -> None:
@@ -146,10 +163,10 @@ class ThicknessExplorer:
             artist.remove()
         gx, gy = np.meshgrid(shot.metal.x, shot.metal.y, indexing="ij")
         count = {"rcount": min(self.mesh, gx.shape[0]), "ccount": min(self.mesh, gx.shape[1])}
-        self._surfaces = [self.ax3d.plot_surface(gx, gy, shot.metal.z, color=METAL, alpha=0.9, **count),
-                          self.ax3d.plot_surface(gx, gy, shot.oxide.z, color=OXIDE, alpha=0.45, **count)]
+        self._surfaces = [self.ax3d.plot_surface(gx, gy, shot.metal.z, color=METAL["color"], alpha=0.9, **count),
+                          self.ax3d.plot_surface(gx, gy, shot.oxide.z, color=OXIDE["color"], alpha=0.45, **count)]
         d = shot.distances
-        self.figure.suptitle(f"oxide {shot.thickness:.4g} nm (asked {shot.target:.4g} nm); metal-oxide distance "
+        self.figure.suptitle(f"oxide {shot.thickness:.4g} nm (asked {shot.target:.4g} nm)\nmetal-oxide distance "
                              f"{d.mean():.4g} ± {d.std():.2g} nm (mean ± std over the grid)", fontsize="medium")
         self.figure.canvas.draw_idle()
 

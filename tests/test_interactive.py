@@ -1,8 +1,11 @@
 """The notebook widgets driven headless: controls set, buttons clicked, the board checked."""
 
 import asyncio
+import base64
 import dataclasses
 import html
+import io
+import json
 import sys
 
 import matplotlib
@@ -17,7 +20,7 @@ import planarize  # noqa: E402
 import qdots  # noqa: E402
 from planarize.interactive import ThicknessExplorer, nearest_snapshot  # noqa: E402
 from qdots.analysis import packing_summary  # noqa: E402
-from labrig.widgets import require_widgets  # noqa: E402
+from labrig.widgets import require_widgets, widget_figure  # noqa: E402
 from qdots.interactive import LiveBoard  # noqa: E402
 from qdots.interactive.live import Knobs, LiveRun  # noqa: E402
 from qdots.protocols import deposit  # noqa: E402
@@ -92,7 +95,7 @@ def test_knob_controls_rebuild_the_simulation():
     assert board.sim.forces[-1].acceleration == (0.0, -750.0)
     c["gravity_magnitude"].value = 100.0
     c["gravity"].value = "centre"
-    assert board.sim.forces[-1].to_dict() == {"type": "CenterGravity", "center": [200.0, 200.0], "magnitude": 100.0}
+    assert board.sim.forces[-1].to_dict() == {"type": "CentreGravity", "centre": [200.0, 200.0], "magnitude": 100.0}
     c["frame_steps"].value = 7
     steps = board.sim.steps_taken
     board.buttons["step"].click()
@@ -208,6 +211,57 @@ def test_live_run_rejects_bad_input():
     assert small.pending == 0 and small.sim.n_dots > 0
 
 
+def _sent_pictures(canvas, monkeypatch):
+    """Record the binary frames ``canvas`` sends to the front end."""
+    sent = []
+
+    def send(content, buffers=None):
+        if json.loads(content["data"])["type"] == "binary":
+            sent.append(bytes(buffers[0]))
+
+    monkeypatch.setattr(canvas, "send", send)
+    return sent
+
+
+def test_a_draw_before_the_canvas_is_shown_sends_a_png(monkeypatch):
+    # ipympl sends raw pixels labelled PNG when it draws before a front end is there: the browser's
+    # image is broken and a canvas inside a Box stays blank (labrig.widgets)
+    from PIL import Image
+
+    figure = widget_figure((3.0, 2.0))
+    figure.add_subplot().plot([0, 1], [0, 1], color="tab:red")
+    sent = _sent_pictures(figure.canvas, monkeypatch)
+    figure.canvas.draw()
+    assert len(sent) == 1 and sent[0].startswith(b"\x89PNG\r\n\x1a\n")
+    url = figure.canvas._data_url
+    assert url.startswith("data:image/png;base64,")
+    for png in (sent[0], base64.b64decode(url.split(",", 1)[1])):
+        with Image.open(io.BytesIO(png)) as image:
+            pixels = np.asarray(image.convert("RGB"))
+        assert pixels.shape == (200, 300, 3)
+        assert np.all(pixels == (214, 39, 40), axis=2).any()  # the line is in it
+
+
+def test_widgets_do_not_draw_while_they_are_built(monkeypatch, hill_run):
+    # the front end asks for the first picture once the canvas is shown
+    drawn = []
+    monkeypatch.setattr("matplotlib.backends.backend_webagg_core.FigureCanvasWebAggCore.draw",
+                        lambda canvas: drawn.append(canvas))
+    board = LiveBoard(seed=1)
+    explorer = ThicknessExplorer(hill_run)
+    board.buttons["step"].click()
+    explorer.slider.value = 2
+    assert drawn == []
+    assert board.figure.canvas._data_url is None and explorer.figure.canvas._data_url is None
+
+
+def test_buttons_say_what_they_do_in_plain_words():
+    board = LiveBoard(seed=1)
+    labels = [button.description for button in board.buttons.values()]
+    assert all(label.isascii() for label in labels), labels  # icons come from the front end's icon font
+    assert board.buttons["pause"].icon == "pause" and board.buttons["record"].icon == "circle"
+
+
 def test_missing_extra_is_named(monkeypatch):
     monkeypatch.setitem(sys.modules, "ipywidgets", None)
     with pytest.raises(ImportError, match=r"'widgets' extra .*nanodisorder\[widgets\]"):
@@ -216,7 +270,7 @@ def test_missing_extra_is_named(monkeypatch):
 
 @pytest.fixture(scope="module")
 def hill_run():
-    return planarize.anodize(planarize.surfaces.hill(), 1.0, step=0.05, record=20,
+    return planarize.anodize(planarize.surfaces.hill(), 1.0, planarize.Model(step=0.05), record=20,
                              snapshots=[0.0, 0.25, 0.5, 0.75, 1.0])
 
 
@@ -236,6 +290,25 @@ def test_thickness_slider_selects_the_snapshot(hill_run):
         assert f"{shot.thickness:.4g}" in explorer.slider.label
     assert explorer.select(0.3) is hill_run.snapshots[1] and explorer.slider.value == 1
     explorer.figure.canvas.draw()
+
+
+def test_explorer_looks_like_the_static_figures(hill_run):
+    from matplotlib.colors import to_hex
+
+    from planarize.render import METAL, OXIDE
+
+    explorer = ThicknessExplorer(hill_run)
+    assert explorer.figure.get_size_inches()[0] * explorer.figure.dpi <= 800  # fits beside the file browser
+    for line, style in ((explorer.metal_line, METAL), (explorer.oxide_line, OXIDE)):
+        assert (to_hex(line.get_color()), line.get_marker()) == (to_hex(style["color"]), style["marker"])
+    legend = explorer.legend
+    explorer.figure.canvas.draw()
+    where = legend.get_window_extent().bounds
+    for index in (4, 0, 2):
+        explorer.slider.value = index
+        explorer.figure.canvas.draw()
+        assert legend.get_window_extent().bounds == where  # one legend, in a fixed place
+    assert [text.get_text() for text in legend.get_texts()] == ["initial metal", "metal", "oxide", "RMS", "z-range"]
 
 
 def test_nearest_snapshot(hill_run):

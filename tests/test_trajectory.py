@@ -63,3 +63,37 @@ def test_freud_reads_the_frames(tmp_path):
 def test_bad_every():
     with pytest.raises(ValueError, match="every must be an integer"):
         GSDWriter("x.gsd", every=0)
+
+
+def test_a_viewer_gets_sizes_colours_heavy_dots_and_walls(tmp_path):
+    scene = qdots.Scene(box=(200, 120), positions=[[40, 60], [100, 60], [160, 60]], radii=[5.0, 7.5, 10.0],
+                        masses=[1.0, 2.0, 1.0], segments=qdots.scene.grating_segments((200, 120), 40.0))
+    state = qdots.Simulation(scene, seed=1).state()
+    path = tmp_path / "traj.gsd"
+    with GSDWriter(path, every=1) as writer:
+        writer.write(state)
+    with gsd_hoomd.open(path, "r") as traj:
+        frame = traj[0]
+    assert list(frame.particles.types) == ["dot", "heavy"]
+    np.testing.assert_array_equal(frame.particles.typeid, [0, 1, 0])
+    np.testing.assert_allclose(frame.log["particles/Color"], qdots.render.size_colours(state.radii), atol=1e-7)
+    walls = frame.log["qdots/walls"].reshape(-1, 4) + [100, 60, 100, 60]
+    np.testing.assert_allclose(walls, state.walls)
+    assert len(walls) == len(state.walls) > 4  # the board's four sides and the grating lines
+    np.testing.assert_array_equal(frame.log["qdots/periodic"], [0, 0])
+
+
+def test_ovito_reads_what_the_state_file_holds(tmp_path):
+    ovito_io = pytest.importorskip("ovito.io")
+    sim = small_run()
+    sim.run(0.02)
+    state = sim.state()
+    path = tmp_path / "traj.gsd"
+    with GSDWriter(path, every=1) as writer:
+        writer.write(state)
+    data = ovito_io.import_file(str(path)).compute()
+    xy = np.asarray(data.particles["Position"])[:, :2] + [100.0, 60.0]
+    np.testing.assert_allclose(xy, state.positions, atol=1e-4)
+    np.testing.assert_allclose(np.asarray(data.particles["Radius"]), state.radii, rtol=1e-6)
+    np.testing.assert_allclose(np.asarray(data.particles["Color"]), qdots.render.size_colours(state.radii), atol=1e-7)
+    assert data.attributes["qdots/periodic"] == (0, 0)

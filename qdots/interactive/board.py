@@ -53,7 +53,8 @@ class LiveBoard:
         Wall-clock pause after each frame, s (>= 0): time left to the kernel
         for clicks and cells.
     size : float
-        Width and height of the canvas, inches.
+        Width and height of the canvas, inches (4.8: 480 px, room for the controls beside it in a
+        notebook next to JupyterLab's file browser; on a narrower page the controls go below).
     **kwargs
         Passed to `qdots.interactive.live.LiveRun` when ``live`` is not given (``scene``,
         ``knobs``, ``seed``, ``frame_steps``, engine settings).
@@ -77,7 +78,7 @@ class LiveBoard:
         The whole widget (what displaying the LiveBoard shows).
     """
 
-    def __init__(self, live: LiveRun | None = None, *, frame_pause: float = 0.02, size: float = 5.5, **kwargs):
+    def __init__(self, live: LiveRun | None = None, *, frame_pause: float = 0.02, size: float = 4.8, **kwargs):
         w = require_widgets("qdots.interactive")
         self.live = LiveRun(**kwargs) if live is None else live
         if not isinstance(self.live, LiveRun):
@@ -88,7 +89,7 @@ class LiveBoard:
         self._task: asyncio.Task | None = None
         self._restoring = False
         knobs, (width, height) = self.live.knobs, self.live.sim.scene.box
-        text = {"style": {"description_width": "initial"}, "layout": w.Layout(width="150px")}
+        text = {"style": {"description_width": "initial"}, "layout": w.Layout(width="145px")}
         slider = {"continuous_update": False, "style": {"description_width": "120px"}}
         self.controls = {
             "dt": w.FloatLogSlider(knobs.dt, base=10, min=-4.5, max=-1.5, description="dt (s)",
@@ -100,7 +101,7 @@ class LiveBoard:
                                      **slider),
             "drag": w.FloatSlider(knobs.drag, min=0, max=2, step=0.025, description="drag f (1/s)", **slider),
             "gravity": w.ToggleButtons(options=GRAVITY_MODES, value=knobs.gravity, description="gravity",
-                                       style={"button_width": "70px"}),
+                                       style={"button_width": "auto"}),
             "gravity_magnitude": w.FloatText(knobs.gravity_magnitude, description="g (px/s²)", **text),
             "frame_steps": w.IntSlider(self.live.frame_steps, min=1, max=500, description="steps/frame", **slider),
             **{name: w.FloatText(value, description=name[5:], **text) for name, value in
@@ -113,10 +114,13 @@ class LiveBoard:
             "state_path": w.Text("board.npz", description="checkpoint", **text),
             "movie_path": w.Text("board.mp4", description="movie", **text),
         }
-        self.buttons = {name: w.Button(description=label, layout=w.Layout(width="auto")) for name, label in
-                        (("start", "▶ start"), ("pause", "⏸ pause"), ("step", "step"), ("add_wall", "add wall"),
-                         ("add_grating", "add grating"), ("clear_walls", "clear walls"), ("drop", "drop N dots"),
-                         ("save", "save board"))}
+        # plain words, and icons from the front end's own icon font: no glyph a browser's fonts may lack
+        self.buttons = {name: w.Button(description=label, icon=icon, layout=w.Layout(width="auto"))
+                        for name, label, icon in
+                        (("start", "start", "play"), ("pause", "pause", "pause"), ("step", "step", "step-forward"),
+                         ("add_wall", "add wall", ""), ("add_grating", "add grating", ""),
+                         ("clear_walls", "clear walls", ""), ("drop", "drop N dots", ""),
+                         ("save", "save board", ""))}
         self.buttons["record"] = w.Button(layout=w.Layout(width="auto"))
         self.readout, self.status = w.HTML(), w.HTML()
         self._connect()
@@ -127,8 +131,7 @@ class LiveBoard:
         self._board = BoardArtists(ax)
         self.ui = self._layout(w)
         self._buttons_for(running=False)
-        self.refresh()
-        self.figure.canvas.draw()  # the first picture, before any front end asks for one
+        self.refresh()  # the canvas itself is drawn when the front end shows it (labrig.widgets)
 
     # -- wiring ----------------------------------------------------------------------------------
 
@@ -153,17 +156,18 @@ class LiveBoard:
         c, b = self.controls, self.buttons
         knobs = w.VBox([c[k] for k in ("dt", "elasticity", "vdw_r0", "thermal", "drag", "gravity",
                                         "gravity_magnitude", "frame_steps")])
-        build = w.VBox([
-            w.HBox([c["wall_x0"], c["wall_y0"], b["add_wall"]]), w.HBox([c["wall_x1"], c["wall_y1"], b["clear_walls"]]),
-            w.HBox([c["pitch"], b["add_grating"]]),
-            w.HBox([c["n_dots"], c["mean_diameter"]]), w.HBox([c["sigma"], c["interval"], b["drop"]]),
+        build = w.VBox([  # two fields a row at most: the tab fits the 340 px column
+            w.HBox([c["wall_x0"], c["wall_y0"]]), w.HBox([c["wall_x1"], c["wall_y1"]]),
+            w.HBox([b["add_wall"], b["clear_walls"]]), w.HBox([c["pitch"], b["add_grating"]]),
+            w.HBox([c["n_dots"], c["mean_diameter"]]), w.HBox([c["sigma"], c["interval"]]), b["drop"],
             w.HBox([c["state_path"], b["save"]]), w.HBox([c["movie_path"], b["record"]]),
         ])
         tabs = w.Tab([knobs, build])
         tabs.set_title(0, "parameters")
         tabs.set_title(1, "walls, dots, files")
         run = w.HBox([b["start"], b["pause"], b["step"]])
-        return w.HBox([self.figure.canvas, w.VBox([run, tabs, self.readout, self.status])])
+        side = w.VBox([run, tabs, self.readout, self.status], layout=w.Layout(width="340px"))
+        return w.HBox([self.figure.canvas, side], layout=w.Layout(flex_flow="row wrap"))  # narrow: controls below
 
     def _turn(self, name: str, value) -> None:
         """Set knob ``name``; a refused value is reported and the control shows the knob again."""
@@ -271,7 +275,9 @@ class LiveBoard:
             ("worst overlap", f"{100 * r['max_overlap']:.2f} % of a radius"),
             ("speed", f"{r['speed']:.2g} x real time"),
         ])
-        self.buttons["record"].description = "■ stop recording" if self.live.recording else "● record MP4"
+        recording = self.live.recording
+        self.buttons["record"].description = "stop recording" if recording else "record MP4"
+        self.buttons["record"].icon = "stop" if recording else "circle"
         self.figure.canvas.draw_idle()
 
     def close(self) -> None:

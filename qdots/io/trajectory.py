@@ -8,9 +8,19 @@ Conventions of the file, which follow HOOMD so other tools read it as is:
 * positions are *centred*: ``x_gsd = x - width/2``, ``y_gsd = y - height/2``, ``z = 0``
   (HOOMD boxes span ``[-L/2, L/2)``); add ``box/2`` back to get qdots coordinates;
 * ``particles.diameter`` (px), ``particles.mass`` (mean dot mass), ``particles.velocity`` (px/s);
-* ``configuration.step`` is the frame's step count and ``log/qdots/time`` its time in s.
-
-Walls are not stored (GSD has no segments); the scene or checkpoint file has them.
+* ``particles.types = ["dot", "heavy"]``: a dot heavier than the mean dot mass (``mass > 1``,
+  e.g. the heavy half of the bimodal mass model of Fig 2-6b) is ``"heavy"``;
+* ``log/particles/Color`` (RGB in [0, 1]): the size colours of the pictures (`qdots.render.size_colours`:
+  large red, mean green, small blue); OVITO reads it as its ``Color`` property and the diameter
+  as ``Radius``, so the board looks as in our pictures without any setting;
+* ``configuration.step`` is the frame's step count and ``log/qdots/time`` its time in s;
+* ``log/qdots/walls``: the wall segments, shape (M, 4), ``x0 y0 x1 y1`` in the file's centred
+  coordinates (OVITO shows it as the global attribute ``qdots/walls``);
+* ``log/qdots/periodic = [0, 0]``: the board is **not periodic**. GSD has no flag for it, so
+  OVITO and freud take the box as periodic. In OVITO untick the cell's periodic boundary
+  conditions (Python: ``data.cell_.pbc = (False, False, False)``); in freud use a box twice the
+  board's size (``freud.box.Box(2 * width, 2 * height, is2D=True)``) so that no distance wraps
+  round the walls (freud's RDF then needs the board's density, not the box's).
 """
 
 from __future__ import annotations
@@ -22,7 +32,11 @@ import numpy as np
 from labrig.files import StreamedFile
 from labrig.validate import InputError
 
+from ..render import size_colours
 from ..state import State
+
+#: Particle types of the file (``typeid`` indexes them).
+TYPES = ("dot", "heavy")
 
 
 class GSDWriter(StreamedFile):
@@ -71,11 +85,17 @@ class GSDWriter(StreamedFile):
         velocity = np.zeros((n, 3), dtype=np.float32)
         velocity[:, :2] = state.velocities
         frame.particles.N = n
+        frame.particles.types = list(TYPES)
+        frame.particles.typeid = (state.masses > 1.0 + 1e-9).astype(np.uint32)
         frame.particles.position = position
         frame.particles.velocity = velocity
         frame.particles.diameter = (2.0 * state.radii).astype(np.float32)
         frame.particles.mass = state.masses.astype(np.float32)
+        frame.log["particles/Color"] = size_colours(state.radii).astype(np.float32)
         frame.log["qdots/time"] = np.array([state.time], dtype=np.float64)
+        walls = np.array(state.walls, dtype=np.float64).reshape(-1, 4) - [width / 2, height / 2, width / 2, height / 2]
+        frame.log["qdots/walls"] = walls if len(walls) else np.zeros((0, 4))
+        frame.log["qdots/periodic"] = np.zeros(2, dtype=np.uint8)
         self._file.append(frame)
         self.frames += 1
 
