@@ -26,9 +26,9 @@ import numpy as np
 
 from qdots.analysis import fill_within_radius, neighbour_counts, packing_summary
 from qdots.analysis.structure import clusters, hexatic_order, radial_distribution, voronoi_coordination
+from qdots.placement import hexagonal_lattice
 
 from .report import Headline, Table, print_results
-from qdots.placement import hexagonal_lattice
 
 DIAMETER = 15.0
 

@@ -28,9 +28,9 @@ import numpy as np
 
 from qdots.analysis.forster import TAU_NS, exciton_network
 from qdots.analysis.lqe import lqe_exact, lqe_monte_carlo
+from qdots.placement import hexagonal_lattice
 
 from .report import Headline, Table, print_results
-from qdots.placement import hexagonal_lattice
 
 DIAMETER = 15.0
 

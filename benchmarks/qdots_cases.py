@@ -34,6 +34,7 @@ from scipy.integrate import solve_ivp
 import qdots
 from qdots.analysis import overlaps
 from qdots.forces import StepContext
+from qdots.hard_cases import loose_film
 
 #: The engine's defaults (the knob values marked on every plot).
 DEFAULTS = {"dt": 1e-3, "substeps": 1, "iterations": 10, "collision_slop": 0.01, "collision_bias": None,
@@ -196,15 +197,6 @@ def dense_pack(settings: dict, quick: bool, gravity: float) -> Measured:
 
 
 # ---------------------------------------------------------------- Verlet pair list against brute force
-def loose_film(n: int) -> qdots.Scene:
-    """``n`` dots of 7.5 px on a jittered 17 px square lattice, thermal velocities."""
-    side = int(math.ceil(math.sqrt(n)))
-    rng = np.random.default_rng(5)
-    ij = np.argwhere(np.ones((side, side)))[:n].astype(float)
-    return qdots.Scene(box=(17.0 * side + 40,) * 2, positions=20 + 17.0 * ij + rng.uniform(-0.9, 0.9, (n, 2)),
-                       radii=np.full(n, 7.5), velocities=rng.normal(0, 10.0, (n, 2)))
-
-
 def list_force_error(sim: qdots.Simulation, steps: int) -> float:
     """Largest |dv(list) - dv(brute force)| / max |dv| of the vdW force over ``steps`` further steps."""
     listed = next(f for f in sim.forces if isinstance(f, qdots.VanDerWaals))

@@ -32,10 +32,10 @@ import numpy as np
 import qdots
 from qdots.analysis import overlaps
 from qdots.forces import StepContext
+from qdots.hard_cases import loose_film
 
 from . import lammps_scene
 from .python_loop import LoopForces
-from .qdots_cases import loose_film
 from .report import Headline, Note, Table, cli
 
 RADIUS, KT, GAMMA, RESTITUTION = 7.5, 1.76, 1.0, 0.8

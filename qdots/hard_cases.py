@@ -132,10 +132,17 @@ def head_on(multiple: float) -> Callable:
     return build
 
 
+def loose_film(n: int) -> Scene:
+    """``n`` dots of 7.5 px on a jittered 17 px square lattice, thermal velocities (seeded)."""
+    side = int(math.ceil(math.sqrt(n)))
+    rng = np.random.default_rng(5)
+    ij = np.argwhere(np.ones((side, side)))[:n].astype(float)
+    return Scene(box=(17.0 * side + 40,) * 2, positions=20 + 17.0 * ij + rng.uniform(-0.9, 0.9, (n, 2)),
+                 radii=np.full(n, 7.5), velocities=rng.normal(0, 10.0, (n, 2)))
+
+
 def large_film() -> tuple[Scene, list]:
     """30,000 dots on a jittered 17 px lattice, thermal velocities, vdW + kicks + drag."""
-    from .qdots_cases import loose_film
-
     return loose_film(30000), [VanDerWaals(), ThermalKicks(), Drag()]
 
 

@@ -23,9 +23,8 @@ from __future__ import annotations
 
 import math
 
-from labrig.validate import InputError
-
 from labrig.deprecation import warn as warn_renamed
+from labrig.validate import InputError
 
 from .experiment import Board, Deposition, Experiment, default_forces
 from .forces import CentreGravity, Drag

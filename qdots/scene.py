@@ -190,6 +190,22 @@ def segment_distances(points: np.ndarray, segments: np.ndarray) -> np.ndarray:
     return np.linalg.norm(offset - t[:, :, None] * along, axis=2)
 
 
+def check_clear(new: Scene, board, segments: np.ndarray) -> None:
+    """Raise `InputError` if a dot of ``new`` crosses a wall segment or overlaps a dot of ``board`` (a `State`)."""
+    if len(segments):
+        gap = segment_distances(new.positions, segments) - new.radii[:, None]
+        k, m = np.unravel_index(np.argmin(gap), gap.shape)
+        if gap[k, m] < 0:
+            raise InputError(f"new dot {k} crosses wall segments[{m}]")
+    if board.n_dots:
+        tree = cKDTree(board.positions)
+        reach = new.radii + float(board.radii.max())
+        for k, (point, r) in enumerate(zip(new.positions, new.radii)):
+            for j in tree.query_ball_point(point, reach[k]):
+                if np.linalg.norm(point - board.positions[j]) < r + board.radii[j]:
+                    raise InputError(f"new dot {k} overlaps dot {j} already on the board")
+
+
 def grating_segments(box: tuple[float, float], pitch: float, offset: float = 0.0) -> np.ndarray:
     """Horizontal grating lines spanning the board, ``pitch`` px apart.
 

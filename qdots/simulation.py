@@ -12,64 +12,31 @@ A `Scene` says what exists; a `Simulation` owns what acts on it and what records
 
 from __future__ import annotations
 
-import dataclasses
-import math
 import time
-import warnings
-from dataclasses import dataclass
-from typing import Iterable, Protocol, Sequence
+from typing import Iterable, Sequence
 
 import numpy as np
-import pymunk
-from scipy.spatial import cKDTree
 
 from labrig.deprecation import warn as warn_renamed
-from labrig.validate import InputError, count, real
+from labrig.validate import InputError, real
 from labrig.validate import seed as valid_seed
 
 from .bulk import BodyArrays
-from .collisions import DOT, WALL, CollisionCounter, Restitution, install_handlers
+from .collisions import CollisionCounter, Restitution, install_handlers
 from .forces.base import Force, StepContext
-from .scene import Scene, segment_distances
+from .motion import SAFE_TRAVEL, RunawayError, check_motion, warn_travel  # noqa: F401 (public here too)
+from .scene import Scene, check_clear
 from .settings import OVERLAP_CORRECTION, EngineSettings  # noqa: F401 (public here too)
+from .space import add_discs, new_space, tune_space
 from .state import State
+from .writers import Writer, WriterSchedule
 
 #: Relative overlap above which a finished run warns (and says so in its summary). Soft contacts
 #: overlap by < 1 % of a radius at the default settings; 10 % means the time step is too large.
 OVERLAP_WARNING = 0.1
 
-#: Largest travel per sub-step, in radii, that a run accepts without a warning. Chipmunk sees a
-#: contact only once two discs overlap, so a dot can overlap by what it travels in a sub-step; at
-#: ~0.75 r it passes through walls, while up to ~0.35 r the hard cases stay within their overlap
-#: tolerances (measured: `benchmarks.qdots_hard_cases`).
-SAFE_TRAVEL = 0.5
-
 #: Most time steps one `Simulation.run` takes (about 14 hours at 300 dots on one core).
 MAX_STEPS = 1_000_000_000
-
-
-class RunawayError(InputError, FloatingPointError):
-    """The dots left the model's range: speeds that cross the board in one sub-step, or non-finite values.
-
-    The parameters (forces, time step) are outside what the model can integrate; the message says
-    what was measured and lists them.
-    """
-
-
-class Writer(Protocol):
-    """Anything that records states during a run (movie, trajectory, table)."""
-
-    def write(self, state: State) -> None: ...
-
-
-@dataclass
-class Attached:
-    """A writer attached to a simulation: it gets the state every ``period`` steps (counted from step 0)."""
-
-    writer: object
-    period: int
-    seconds: float | None = None  # given in seconds: the period follows the time step
-    last: int = -1  # the step last written
 
 
 class Simulation:
@@ -97,22 +64,7 @@ class Simulation:
     **settings
         Shorthand for ``engine=EngineSettings(**settings)`` (e.g. ``dt=2e-3``). The knobs:
 
-        ``dt`` (s): time step; forces are applied once per step.
-        ``substeps``: Chipmunk steps per time step. More sub-steps resolve contacts
-        more finely at proportional cost.
-        ``iterations``: Chipmunk solver iterations per sub-step (pymunk default 10).
-        Two-body impacts are exact with any count; simultaneous impacts of
-        three or more dots converge with more (an elastic gas loses ~1e-5
-        of its energy per such event at 10, none at 30).
-        ``collision_slop`` (px): overlap Chipmunk tolerates without correcting
-        (pymunk's default 0.1 px is 1.3 % of a mean radius, ours is 0.01 px).
-        ``collision_bias``: fraction of an overlap left uncorrected after one second
-        (pymunk's meaning, in [0, 1)). Default: correct 30 % of the overlap per
-        sub-step (`OVERLAP_CORRECTION`). The correction moves positions only
-        (pseudo-velocities), not the velocities that carry energy.
-        ``spatial_hash`` ``(cell_size_px, count)``: Chipmunk's spatial hash instead of
-        its default bounding-box tree.
-        ``threads`` (1 or 2): Chipmunk solver threads; it helps dense piles a little.
+        The knobs and their meaning: `EngineSettings`.
     """
 
     def __init__(self, scene: Scene, forces: Iterable[Force] = (), *,
@@ -123,12 +75,7 @@ class Simulation:
         if engine is not None and settings:
             raise InputError(f"give engine=EngineSettings(...) or the settings {sorted(settings)}, not both")
         if engine is None:
-            try:
-                engine = EngineSettings(**settings)
-            except TypeError:
-                names = [f.name for f in dataclasses.fields(EngineSettings)]
-                unknown = sorted(set(settings) - set(names))
-                raise InputError(f"unknown engine setting {unknown[0]!r} (known: {', '.join(names)})") from None
+            engine = EngineSettings.from_dict(settings)
         if not isinstance(engine, EngineSettings):
             raise InputError(f"engine must be a qdots.EngineSettings, got {type(engine).__name__}")
         self._settings = engine
@@ -142,7 +89,7 @@ class Simulation:
         #: callbacks), accumulated over all steps.
         self.timings = {"forces": 0.0, "pymunk": 0.0}
         self.collisions = CollisionCounter()
-        self._writers: list[Attached] = []
+        self._schedule = WriterSchedule()
         self._warned_travel = False
         self._forces: tuple[Force, ...] = ()
         self.radii = np.zeros(0)
@@ -185,17 +132,12 @@ class Simulation:
         time_now = self.time
         old, self._settings = self._settings, settings
         if settings.dt != old.dt:  # the time so far is kept; steps count from here with the new step
-            now, self.start_time, self.steps_taken = self.steps_taken, time_now, 0
-            for attached in self._writers:
-                attached.last = 0 if attached.last == now else -1
+            self._schedule.restart(self.steps_taken, settings.dt)
+            self.start_time, self.steps_taken = time_now, 0
         if (old.spatial_hash, old.threads) != (settings.spatial_hash, settings.threads):
             self.reseat()
         else:
-            self._tune_space()
-        if settings.dt != old.dt:
-            for attached in self._writers:  # a writer given in seconds keeps its interval in seconds
-                if attached.seconds is not None:
-                    attached.period = _period(attached.seconds, settings.dt)
+            tune_space(self.space, settings)
 
     @property
     def restitution(self) -> Restitution:
@@ -222,38 +164,19 @@ class Simulation:
         -------
         writer
         """
-        if not callable(getattr(writer, "write", None)):
-            raise InputError(f"a writer needs a write(state) method, got {type(writer).__name__}")
-        if every is not None and seconds is not None:
-            raise InputError("give every (steps) or seconds, not both")
-        if any(a.writer is writer for a in self._writers):
-            raise InputError(f"{writer!r} is attached already")
-        if seconds is not None:
-            period = _period(seconds, self.dt)
-        else:
-            period = count("every", getattr(writer, "every", None) if every is None else every, 1)
-        self._writers.append(Attached(writer, period, None if seconds is None else float(seconds)))
+        self._schedule.attach(writer, self.dt, every, seconds)
         return writer
 
     def detach(self, writer) -> None:
         """Stop giving ``writer`` states (it is not closed)."""
-        kept = [a for a in self._writers if a.writer is not writer]
-        if len(kept) == len(self._writers):
-            raise InputError(f"{writer!r} is not attached")
-        self._writers = kept
+        self._schedule.detach(writer)
 
     @property
     def writers(self) -> tuple:
         """The attached writers, in the order they write."""
-        return tuple(a.writer for a in self._writers)
+        return self._schedule.writers
 
     # -- the space ------------------------------------------------------------------------------
-
-    def _tune_space(self) -> None:
-        settings, space = self._settings, self.space
-        space.iterations = int(settings.iterations)
-        space.collision_slop = float(settings.collision_slop)
-        space.collision_bias = settings.bias
 
     def _build(self, scene: Scene) -> None:
         """(Re)create the pymunk space holding ``scene``'s walls and dots.
@@ -262,37 +185,15 @@ class Simulation:
         simulations built from the same board have the same Chipmunk history
         (body order, shape ids, spatial index) and step identically.
         """
-        settings = self._settings
-        self.space = space = pymunk.Space(threaded=settings.threads > 1)
-        if settings.threads > 1:
-            space.threads = settings.threads
-        self._tune_space()
-        if settings.spatial_hash is not None:
-            cell, cells = settings.spatial_hash
-            space.use_spatial_hash(float(cell), int(cells))
-        for x0, y0, x1, y1 in scene.wall_segments():
-            wall = pymunk.Segment(space.static_body, (x0, y0), (x1, y1), 0.0)
-            wall.friction = 0.0
-            wall.elasticity = 1.0
-            wall.collision_type = WALL
-            space.add(wall)
-        self._bodies: list[pymunk.Body] = []
+        self.space = new_space(scene, self._settings)
+        self._bodies = []
         self.radii = np.zeros(0)
         self.masses = np.zeros(0)
         self._add_bodies(scene.positions, scene.velocities, scene.radii, scene.masses)
-        install_handlers(space, scene.restitution, self.rng, self.collisions)
+        install_handlers(self.space, scene.restitution, self.rng, self.collisions)
 
     def _add_bodies(self, positions, velocities, radii, masses) -> None:
-        for (x, y), (vx, vy), r, m in zip(positions, velocities, radii, masses):
-            body = pymunk.Body(float(m), math.inf)  # frictionless discs never spin
-            body.position = (float(x), float(y))
-            body.velocity = (float(vx), float(vy))
-            circle = pymunk.Circle(body, float(r))
-            circle.friction = 0.0
-            circle.elasticity = 0.0  # lasting contacts are inelastic; impacts are set in `begin`
-            circle.collision_type = DOT
-            self.space.add(body, circle)
-            self._bodies.append(body)
+        self._bodies += add_discs(self.space, positions, velocities, radii, masses)
         self._io = BodyArrays(self.space, self._bodies)
         self.radii = np.concatenate([self.radii, radii])
         self.masses = np.concatenate([self.masses, masses])
@@ -322,24 +223,11 @@ class Simulation:
             As `Scene` does for bad values, and when a new dot overlaps a wall
             segment or a dot already on the board.
         """
-        now = self.state()
         fresh = Scene(box=self.scene.box, positions=positions, radii=radii, masses=masses,
                       velocities=velocities)
-        if fresh.n_dots == 0:
-            return
-        if len(self.scene.segments):
-            gap = segment_distances(fresh.positions, self.scene.segments) - fresh.radii[:, None]
-            k, m = np.unravel_index(np.argmin(gap), gap.shape)
-            if gap[k, m] < 0:
-                raise InputError(f"new dot {k} crosses wall segments[{m}]")
-        if now.n_dots:
-            tree = cKDTree(now.positions)
-            reach = fresh.radii + float(now.radii.max())
-            for k, (point, r) in enumerate(zip(fresh.positions, fresh.radii)):
-                for j in tree.query_ball_point(point, reach[k]):
-                    if np.linalg.norm(point - now.positions[j]) < r + now.radii[j]:
-                        raise InputError(f"new dot {k} overlaps dot {j} already on the board")
-        self._add_bodies(fresh.positions, fresh.velocities, fresh.radii, fresh.masses)
+        if fresh.n_dots:
+            check_clear(fresh, self.state(), self.scene.segments)
+            self._add_bodies(fresh.positions, fresh.velocities, fresh.radii, fresh.masses)
 
     def current_scene(self) -> Scene:
         """The board as it is now, as a `Scene` (``from_engine=True``: soft-contact overlaps and dots
@@ -422,13 +310,6 @@ class Simulation:
             raise
         self._io.write_velocities(velocity + ctx.dv)
 
-    def _write_due(self) -> None:
-        """Give each attached writer the state if the current step is on its schedule and not yet written."""
-        for attached in self._writers:
-            if self.steps_taken % attached.period == 0 and attached.last != self.steps_taken:
-                attached.writer.write(self.state())
-                attached.last = self.steps_taken
-
     def run(self, seconds: float, *, progress: bool = False, writers: Sequence[Writer] = ()) -> State:
         """Advance by ``seconds`` of simulated time (rounded to whole steps), writing on the attached writers' schedules.
 
@@ -477,11 +358,10 @@ class Simulation:
         end = self.steps_taken + n_steps
         try:
             while True:
-                self._write_due()
+                self._schedule.write_due(self.steps_taken, self.state)
                 if self.steps_taken >= end:
                     break
-                due = [self.steps_taken + a.period - self.steps_taken % a.period for a in self._writers]
-                stop = min([end, self.steps_taken + chunk, *due])
+                stop = self._schedule.next_due(self.steps_taken, min(end, self.steps_taken + chunk))
                 done = stop - self.steps_taken
                 self.step(done)
                 self._check_motion()
@@ -498,23 +378,12 @@ class Simulation:
         if not self.n_dots:
             return
         position, velocity = self._io.read()
-        speed = np.hypot(velocity[:, 0], velocity[:, 1])
-        fastest = float(speed.max()) if np.isfinite(speed).all() else math.inf
-        sub_dt = self.dt / self.substeps
-        span = math.hypot(*self.scene.box)
-        if not (np.isfinite(position).all() and fastest * sub_dt < span):
-            raise RunawayError(
-                f"the dots left the model's range at t = {self.time:g} s (step {self.steps_taken}): speeds of "
-                f"{fastest:.3g} px/s cross the {self.scene.box[0]:g} x {self.scene.box[1]:g} px board in one "
-                f"sub-step of {sub_dt:g} s; the forces ({', '.join(map(_describe, self._forces)) or 'none'}) or the "
-                "time step are outside what the model integrates")
-        travel = float((speed / self.radii).max()) * sub_dt
+        where = f"at t = {self.time:g} s (step {self.steps_taken})"
+        causes = f"the forces ({', '.join(map(_describe, self._forces)) or 'none'}) or the time step"
+        travel = check_motion(position, velocity, self.radii, self.dt / self.substeps, self.scene.box, where, causes)
         if travel > SAFE_TRAVEL and not self._warned_travel:
             self._warned_travel = True
-            warnings.warn(f"at t = {self.time:g} s a dot moves {travel:.2f} radii per sub-step (> {SAFE_TRAVEL}): "
-                          "contacts are found only once discs overlap, so overlaps of that size and dots passing "
-                          "through walls become possible; use a smaller dt or more substeps", RuntimeWarning,
-                          stacklevel=3)
+            warn_travel(travel, f"at t = {self.time:g} s")
 
     def state(self) -> State:
         """A snapshot of the board (copies of every array)."""
@@ -548,11 +417,6 @@ def _describe(force: Force) -> str:
         return repr(force)
     except (AttributeError, TypeError, ValueError):
         return type(force).__name__
-
-
-def _period(seconds: float, dt: float) -> int:
-    """Whole steps of ``dt`` closest to ``seconds`` (at least one)."""
-    return max(1, round(real("seconds", seconds, 0.0, low_open=True) / dt))
 
 
 def _generator(seed) -> np.random.Generator:

@@ -7,6 +7,8 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+import qdots
+
 from qdots.analysis.forster import (
     KB_EV, TAU_NS, cutoff_for, dot_energies, draw_traps, exciton_network, truncation_bound,
 )
@@ -236,3 +238,32 @@ def test_lqe_rejects_bad_input():
         lqe_exact(board(hex_lattice(3)))
     with pytest.raises(ValueError, match="share a centre"):
         exciton_network(board([[0, 0], [0, 0]]))
+
+
+def periodic_lattice(m: int = 16, pitch: float = 15.0):
+    """A close-packed hexagonal patch that tiles its box (m even: row m continues row 0)."""
+    box = (m * pitch, m * pitch * math.sqrt(3) / 2)
+    points = hexagonal_lattice(m, pitch) + [pitch / 4, pitch / 4]
+    return qdots.State(time=0.0, positions=points, velocities=np.zeros_like(points), radii=np.full(len(points), 7.5),
+                       masses=np.ones(len(points)), box=box, walls=np.zeros((0, 4)), closed=False)
+
+
+def test_a_periodic_lattice_has_no_edge_dots():
+    state = periodic_lattice()
+    periodic = exciton_network(state, cutoff=50.0, periodic=True, trap_fraction=0.0)
+    open_board = exciton_network(state, cutoff=50.0, trap_fraction=0.0)
+    total = periodic.total_rates()
+    assert np.ptp(total) <= 1e-12 * total.max()  # every dot sees the same endless lattice
+    assert open_board.total_rates().min() < 0.6 * total.max()  # a corner dot sees a quarter of it
+    # the nearest neighbours across the box's edges are one pitch away, six for every dot
+    nearest = (periodic.rates >= periodic.rates.max() * (1 - 1e-12)).sum(axis=1)
+    np.testing.assert_array_equal(np.asarray(nearest).ravel(), 6)
+
+
+def test_periodic_edges_lower_the_film_lqe_and_keep_the_cutoff_below_half_the_box():
+    state = periodic_lattice()
+    open_lqe = film_lqe(state, draws=4, seed=3, cutoff=50.0).mean
+    periodic_lqe = film_lqe(state, draws=4, seed=3, cutoff=50.0, periodic=True).mean
+    assert periodic_lqe < open_lqe  # edge dots have fewer partners, so excitons on them reach traps less
+    with pytest.raises(ValueError, match="below half the box's shorter side"):
+        exciton_network(state, cutoff=state.box[1] / 2, periodic=True)

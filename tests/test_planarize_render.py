@@ -11,7 +11,7 @@ from planarize import render
 
 @pytest.fixture(scope="module")
 def run():
-    return planarize.anodize(planarize.surfaces.hill(refine=2), 0.5, step=0.05, record=5,
+    return planarize.anodize(planarize.surfaces.hill(refine=2), 0.5, planarize.Model(step=0.05), record=5,
                              snapshots=[0.0, 0.1, 0.2, 0.3, 0.4, 0.5])
 
 

@@ -12,7 +12,7 @@ from planarize.io.results import history_json, load_run, save_history_csv, save_
 
 @pytest.fixture(scope="module")
 def run():
-    return planarize.anodize(planarize.surfaces.hill(refine=2), 0.5, step=0.05, record=5, snapshots=[0.0, 0.25, 0.5])
+    return planarize.anodize(planarize.surfaces.hill(refine=2), 0.5, planarize.Model(step=0.05), record=5, snapshots=[0.0, 0.25, 0.5])
 
 
 def assert_same_run(a, b):
@@ -33,7 +33,7 @@ def test_run_round_trips_exactly(run, tmp_path):
     assert_same_run(run, back)
     assert back.thickness == run.thickness and len(back.snapshots) == 3
     assert sorted(p.name for p in tmp_path.iterdir()) == ["run.npz"]
-    periodic = planarize.anodize(planarize.surfaces.bump(4.5, points=5, refine=1, boundary="periodic"), 0.2, step=0.05,
+    periodic = planarize.anodize(planarize.surfaces.bump(4.5, points=5, refine=1, boundary="periodic"), 0.2, planarize.Model(step=0.05),
                                  snapshots=[])
     assert_same_run(periodic, load_run(save_run(periodic, tmp_path / "periodic.npz")))
 

@@ -24,7 +24,7 @@ def test_rows_are_the_runs(tmp_path):
     result = run_sweep(sweep, AnodizeRunner(), tmp_path, workers=2, state=True, progress=False)
     assert result.failed == 0 and [r["run.k_exp"] for r in result.rows] == [1.3, 2.3]
     for row in result.rows:
-        direct = planarize.anodize(planarize.surfaces.hill(refine=1), 0.3, step=0.05, k_exp=row["run.k_exp"],
+        direct = planarize.anodize(planarize.surfaces.hill(refine=1), 0.3, planarize.Model(step=0.05, k_exp=row["run.k_exp"]),
                                    record=[0.1, 0.2, 0.3])
         h = direct.history
         assert row["oxide_rms_nm"] == h["oxide_rms_nm"][-1] and row["metal_zrange_nm"] == h["metal_zrange_nm"][-1]

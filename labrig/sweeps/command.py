@@ -10,7 +10,8 @@ from typing import Callable
 
 from ..cli import fraction, int_in, print_table
 from ..files import slug
-from .execute import MAX_RETRIES, MAX_WORKERS, run_sweep
+from .backends import MAX_WORKERS
+from .execute import MAX_RETRIES, run_sweep
 from .files import SweepFile
 from .plot import save_sweep_plot, summarize, summary_lines
 

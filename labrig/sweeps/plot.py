@@ -17,7 +17,7 @@ import numpy as np
 
 from ..files import atomic_path
 from ..validate import InputError
-from .table import _parse, is_number, read_table
+from .table import is_number, parse_cell, read_table
 
 
 def _rows(table) -> tuple[list[dict], list[str]]:
@@ -35,7 +35,7 @@ def _rows(table) -> tuple[list[dict], list[str]]:
 
 
 def _matches(value, wanted) -> bool:
-    wanted = _parse(wanted) if isinstance(wanted, str) else wanted
+    wanted = parse_cell(wanted) if isinstance(wanted, str) else wanted
     return value == wanted or str(value) == str(wanted)
 
 

@@ -85,7 +85,7 @@ def write_table(rows: Sequence[dict], out: str | os.PathLike, name: str = "table
     return csv_path, parquet_path
 
 
-def _parse(text: str):
+def parse_cell(text: str):
     """A CSV cell as Python: "" -> None, then int, float, bool, else the text."""
     if text == "":
         return None
@@ -127,7 +127,7 @@ def read_table(path: str | os.PathLike) -> list[dict]:
                 if None in row or None in row.values():  # more or fewer cells than the header has columns
                     raise InputError(f"{path}: line {reader.line_num} has {len(row) - (None in row) + len(row.get(None, []))} "
                                      f"cells, the header {len(reader.fieldnames)} (a truncated or edited table?)")
-                rows.append({key: _parse(value) for key, value in row.items()})
+                rows.append({key: parse_cell(value) for key, value in row.items()})
     except (OSError, UnicodeDecodeError, csv.Error) as exc:
         raise InputError(f"{path}: not a readable CSV table ({exc})") from None
     if not rows:

@@ -9,9 +9,20 @@
 * `qdots.analysis.report` -- the ``qdots analyze`` table and figure.
 """
 
-from .packing import (INTERIOR_MIN_NEIGHBOURS, RULES, FillCurve, Separation, escaped, fill_within_radius,
-                      neighbour_counts, neighbour_edges, overlaps, packing_summary, separation,
-                      size_separation_correlation)
+from .packing import (
+                      INTERIOR_MIN_NEIGHBOURS,
+                      RULES,
+                      FillCurve,
+                      Separation,
+                      escaped,
+                      fill_within_radius,
+                      neighbour_counts,
+                      neighbour_edges,
+                      overlaps,
+                      packing_summary,
+                      separation,
+                      size_separation_correlation,
+)
 
 __all__ = ["RULES", "INTERIOR_MIN_NEIGHBOURS", "overlaps", "escaped", "neighbour_edges", "neighbour_counts", "Separation",
            "separation", "FillCurve", "fill_within_radius", "size_separation_correlation", "packing_summary"]

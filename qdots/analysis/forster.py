@@ -51,7 +51,7 @@ from scipy.spatial import cKDTree
 from labrig.validate import InputError
 
 from ..units import THESIS_TEMPERATURE, PhysicalScale
-from .packing import _arrays
+from .packing import state_arrays
 
 #: Radiative lifetime of a dot, ns (thesis: ``radLife = 26.0``).
 TAU_NS = 26.0
@@ -204,7 +204,7 @@ def _traps(n: int, trap_fraction: float, traps, rng) -> np.ndarray:
 def exciton_network(state, forster_radius: float | None = None, trap_fraction: float = TRAP_FRACTION, *,
                     traps=None, seed=None, efficiency: float = 1.0, tau: float = TAU_NS, energies=None,
                     temperature: float = THESIS_TEMPERATURE, cutoff: float | None = None,
-                    tolerance: float = CUTOFF_TOLERANCE) -> ExcitonNetwork:
+                    tolerance: float = CUTOFF_TOLERANCE, periodic: bool = False) -> ExcitonNetwork:
     """Hop rates, traps and decay rates of a board.
 
     Parameters
@@ -233,8 +233,14 @@ def exciton_network(state, forster_radius: float | None = None, trap_fraction: f
         most ``tolerance``.
     tolerance : float
         Bound on the LQE error from the cutoff when ``cutoff`` is not given.
+    periodic : bool
+        Treat ``state.box`` as periodic: distances are minimum-image ones, so a finite patch of a
+        film stands for an endless one (no edge dots, which on an open board have fewer partners
+        and raise the LQE). The cutoff must then be below half the box's shorter side (each pair
+        has one image within it). Use it for ideal lattices (the thesis's "close-packed monolayer");
+        deposited films have real edges: keep them open (the default).
     """
-    positions, radii = _arrays(state)
+    positions, radii = state_arrays(state)
     n = len(radii)
     if forster_radius is None:
         forster_radius = 2.0 * float(radii.mean()) if n else 1.0
@@ -258,20 +264,30 @@ def exciton_network(state, forster_radius: float | None = None, trap_fraction: f
     if n < 2:
         return ExcitonNetwork(sparse.csr_matrix((n, n)), is_trap, k_r, k_nr, float(forster_radius),
                               0.0, 0.0, energies, float(temperature))
-    tree = cKDTree(positions)
+    box = np.asarray(state.box, dtype=float) if periodic else None
+    if periodic:
+        positions = positions % box  # cKDTree's periodic box holds [0, L)
+        positions[positions >= box] = 0.0  # -1e-17 % L rounds to L
+    tree = cKDTree(positions, boxsize=box)
     spacing = float(tree.query(positions, k=2)[0][:, 1].min())
     if spacing <= 0:
         raise InputError("two dots share a centre: their Förster rate is infinite")
-    extent = float(np.sqrt((np.ptp(positions, axis=0) ** 2).sum()))
+    extent = math.inf if periodic else float(np.sqrt((np.ptp(positions, axis=0) ** 2).sum()))
     if cutoff is None:
         cutoff = cutoff_for(forster_radius, spacing, tolerance, efficiency)
     elif not (isinstance(cutoff, (int, float)) and cutoff > spacing):
         raise InputError(f"cutoff must exceed the smallest centre distance {spacing:.4g} px, got {cutoff!r}")
+    if periodic and cutoff >= box.min() / 2:
+        raise InputError(f"periodic: the pair cutoff {cutoff:.4g} px must be below half the box's shorter side "
+                         f"({box.min() / 2:.4g} px); use a larger board, a larger tolerance or a smaller cutoff")
     bound = 0.0 if cutoff > extent else truncation_bound(forster_radius, cutoff, spacing, efficiency)
     pairs = tree.query_pairs(min(cutoff, extent * (1 + 1e-12) + 1e-9), output_type="ndarray")
     i, j = pairs[:, 0], pairs[:, 1]
     x, y = positions[:, 0].copy(), positions[:, 1].copy()  # contiguous: faster gathers
     dx, dy = x[i] - x[j], y[i] - y[j]
+    if periodic:  # minimum image
+        dx -= box[0] * np.round(dx / box[0])
+        dy -= box[1] * np.round(dy / box[1])
     forward = k_r * forster_radius**6 / (dx * dx + dy * dy) ** 3
     backward = forward
     if energies is not None:  # uphill hops slowed by the Boltzmann factor

@@ -22,7 +22,7 @@ RULES = ("text", "code")
 INTERIOR_MIN_NEIGHBOURS = 5
 
 
-def _arrays(state) -> tuple[np.ndarray, np.ndarray]:
+def state_arrays(state) -> tuple[np.ndarray, np.ndarray]:
     """Positions (N, 2) and radii (N,) of ``state`` as float arrays, checked."""
     try:
         positions = np.asarray(state.positions, dtype=float)
@@ -40,7 +40,7 @@ def _arrays(state) -> tuple[np.ndarray, np.ndarray]:
     return positions, radii
 
 
-def _pairs(positions: np.ndarray, reach: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def pairs_within(positions: np.ndarray, reach: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """All pairs ``i < j`` with centre distance <= ``reach`` px, and their distances."""
     if len(positions) < 2:
         empty = np.zeros(0, dtype=np.intp)
@@ -66,10 +66,10 @@ def overlaps(state) -> tuple[float, tuple[int, int]]:
     pair : (int, int)
         Indices ``(i, j)``, ``i < j``, of the worst pair, or ``(-1, -1)``.
     """
-    positions, radii = _arrays(state)
+    positions, radii = state_arrays(state)
     if len(radii) < 2:
         return 0.0, (-1, -1)
-    i, j, d = _pairs(positions, 2.0 * float(radii.max()))
+    i, j, d = pairs_within(positions, 2.0 * float(radii.max()))
     if not len(d):
         return 0.0, (-1, -1)
     rsum = radii[i] + radii[j]
@@ -84,7 +84,7 @@ def escaped(state) -> int:
     """Number of dots whose centre lies outside the box ``[0, width] x [0, height]`` (dots that left
     an open board; 0 on a closed one, where soft contacts let a dot sink into a wall by a fraction of
     its radius at most)."""
-    positions, _ = _arrays(state)
+    positions, _ = state_arrays(state)
     w, h = (float(v) for v in state.box)
     x, y = positions[:, 0], positions[:, 1]
     return int(np.count_nonzero((x < 0) | (x > w) | (y < 0) | (y > h)))
@@ -119,7 +119,7 @@ def neighbour_edges(state, rule: str = "text", mean_radius: float | None = None
     distance : ndarray, shape (E,)
         Centre distance of each edge, px.
     """
-    positions, radii = _arrays(state)
+    positions, radii = state_arrays(state)
     if rule not in RULES:
         raise InputError(f"rule must be one of {RULES}, got {rule!r}")
     if len(radii) < 2:
@@ -131,11 +131,11 @@ def neighbour_edges(state, rule: str = "text", mean_radius: float | None = None
             mean_radius = float(radii.mean())
         elif not (isinstance(mean_radius, (int, float)) and math.isfinite(mean_radius) and mean_radius > 0):
             raise InputError(f"mean_radius must be > 0 px, got {mean_radius!r}")
-        i, j, d = _pairs(positions, 2.0 * rmax + mean_radius)
+        i, j, d = pairs_within(positions, 2.0 * rmax + mean_radius)
         near = d - radii[i] - radii[j] < mean_radius
         i_sees_j = j_sees_i = near
     else:
-        i, j, d = _pairs(positions, 3.0 * rmax)
+        i, j, d = pairs_within(positions, 3.0 * rmax)
         i_sees_j = d <= radii[i] + 2.0 * radii[j]
         j_sees_i = d <= radii[j] + 2.0 * radii[i]
     src = np.concatenate([i[i_sees_j], j[j_sees_i]])
@@ -152,7 +152,7 @@ def neighbour_counts(state, rule: str = "text", mean_radius: float | None = None
         Neighbour count of each dot.
     """
     src, _, _ = neighbour_edges(state, rule, mean_radius)
-    return np.bincount(src, minlength=len(_arrays(state)[1]))
+    return np.bincount(src, minlength=len(state_arrays(state)[1]))
 
 
 @dataclass(frozen=True)
@@ -190,7 +190,7 @@ def separation(state, rule: str = "text", interior_only: bool = True,
     ``d <= r_i + 1.5 r_j``; here the neighbour ``rule`` is the caller's
     (see `neighbour_edges`). Values are nan when no dot or edge is measured.
     """
-    _, radii = _arrays(state)
+    _, radii = state_arrays(state)
     return _separation(radii, neighbour_edges(state, rule, mean_radius), interior_only)
 
 
@@ -268,7 +268,7 @@ def fill_within_radius(state, radius, centre=None, **deprecated) -> FillCurve:
         Centre, px. Default: the centre of ``state.box`` (the Java's
         ``boardDimension / 2``), or the dots' centroid if there is no box.
     """
-    positions, radii = _arrays(state)
+    positions, radii = state_arrays(state)
     big = np.atleast_1d(np.asarray(radius, dtype=float))
     if big.ndim != 1 or not big.size or not np.all(np.isfinite(big) & (big > 0)):
         raise InputError(f"radius must be finite circle radii > 0 px, got {radius!r}")
@@ -287,7 +287,7 @@ def fill_within_radius(state, radius, centre=None, **deprecated) -> FillCurve:
     d = np.sqrt(((positions - c) ** 2).sum(axis=1))
     reach = d - radii < big.max()
     covered = _disc_in_circle_area(radii[reach, None], d[reach, None], big[None, :]).sum(axis=0)
-    i, j, dij = _pairs(positions, 2.0 * float(radii.max()) if len(radii) else 0.0)
+    i, j, dij = pairs_within(positions, 2.0 * float(radii.max()) if len(radii) else 0.0)
     hit = dij < radii[i] + radii[j]
     i, j, dij = i[hit], j[hit], dij[hit]
     lens = _disc_in_circle_area(radii[i], dij, radii[j])  # common area of each overlapping pair
@@ -322,7 +322,7 @@ def size_separation_correlation(state, pairs: str = "neighbours", rule: str = "t
     """
     if pairs not in ("neighbours", "all"):
         raise InputError(f"pairs must be 'neighbours' or 'all', got {pairs!r}")
-    positions, radii = _arrays(state)
+    positions, radii = state_arrays(state)
     sums = np.zeros(6)  # n, sx, sy, sxx, sxy, syy
     def add(x, y):
         sums[:] += (len(x), x.sum(), y.sum(), (x * x).sum(), (x * y).sum(), (y * y).sum())
@@ -373,7 +373,7 @@ def packing_summary(state, rule: str = "text") -> dict[str, float]:
         has no ``kinetic_energy()`` method).
     """
     edges = neighbour_edges(state, rule)
-    radii = _arrays(state)[1]
+    radii = state_arrays(state)[1]
     counts = np.bincount(edges[0], minlength=len(radii))
     interior = counts >= INTERIOR_MIN_NEIGHBOURS
     n = len(counts)

@@ -18,7 +18,7 @@ from scipy.spatial import Delaunay, cKDTree
 
 from labrig.validate import InputError
 
-from .packing import _arrays, _pairs, neighbour_edges
+from .packing import neighbour_edges, pairs_within, state_arrays
 
 
 @dataclass(frozen=True)
@@ -49,7 +49,7 @@ class Hexatic:
 
 def hexatic_order(state, rule: str = "text", mean_radius: float | None = None) -> Hexatic:
     """Hexatic order ``psi_6`` per dot and for the board (neighbours by `neighbour_edges`)."""
-    positions, radii = _arrays(state)
+    positions, radii = state_arrays(state)
     src, dst, _ = neighbour_edges(state, rule, mean_radius)
     bond = positions[dst] - positions[src]
     phase = np.exp(6j * np.arctan2(bond[:, 1], bond[:, 0]))
@@ -127,7 +127,7 @@ def radial_distribution(state, r_max: float | None = None, bins: int = 100) -> R
     space between them has ``g < 1`` at large r, which is a real feature (the
     dots are denser than the window on average near one another).
     """
-    positions, radii = _arrays(state)
+    positions, radii = state_arrays(state)
     box = getattr(state, "box", None)
     if box is not None:
         width, height = float(box[0]), float(box[1])
@@ -144,7 +144,7 @@ def radial_distribution(state, r_max: float | None = None, bins: int = 100) -> R
     if not (isinstance(bins, (int, np.integer)) and bins >= 1):
         raise InputError(f"bins must be an integer >= 1, got {bins!r}")
     edges = np.linspace(0.0, float(r_max), int(bins) + 1)
-    _, _, d = _pairs(positions, float(r_max))
+    _, _, d = pairs_within(positions, float(r_max))
     counts = np.histogram(d, bins=edges)[0]
     ideal = _ideal_pairs(edges, len(radii), width, height)
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -162,7 +162,7 @@ def clusters(state, rule: str = "text", mean_radius: float | None = None) -> tup
     sizes : ndarray of int, shape (C,)
         Dots per cluster, largest first (an isolated dot is a cluster of 1).
     """
-    _, radii = _arrays(state)
+    _, radii = state_arrays(state)
     n = len(radii)
     if n == 0:
         return np.zeros(0, dtype=int), np.zeros(0, dtype=int)
@@ -208,7 +208,7 @@ def voronoi_coordination(state, min_edge: float = 1e-6) -> np.ndarray:
         Coordination; -1 for dots whose cell is unbounded (on the convex hull)
         and for boards of fewer than 3 dots or collinear dots.
     """
-    positions, radii = _arrays(state)
+    positions, radii = state_arrays(state)
     n = len(radii)
     out = np.full(n, -1, dtype=int)
     if n < 3 or np.linalg.matrix_rank(positions - positions.mean(axis=0)) < 2:

@@ -34,8 +34,8 @@ import os
 from dataclasses import dataclass
 from pathlib import Path
 
-from labrig.sweeps import SweepResult, load_sweep_file
-from labrig.sweeps.files import SweepFile, run_loaded
+from labrig.sweeps import load_sweep_file
+from labrig.sweeps.files import SweepFile
 from labrig.validate import InputError
 
 from ..experiment import Experiment, run_experiment

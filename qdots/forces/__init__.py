@@ -7,7 +7,6 @@ import inspect
 
 from labrig.deprecation import renamed_attributes
 from labrig.deprecation import warn as warn_renamed
-
 from labrig.validate import InputError
 
 from .base import Force, StepContext

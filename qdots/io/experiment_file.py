@@ -162,14 +162,6 @@ def experiment_from_toml(text: str, source: str = "<string>") -> Experiment:
 
 
 def load_experiment(path: str | os.PathLike) -> Experiment:
-    """Read a experiment file.
-
-    Raises
-    ------
-    FileNotFoundError
-        If ``path`` does not exist.
-    ValueError
-        If it cannot be read or decoded (UTF-8), is not valid TOML, or holds
-        a bad key or value; the message starts with the path.
-    """
+    """Read an experiment file; `InputError` (a ValueError) starting with the path if it cannot be read or
+    decoded (UTF-8), is not valid TOML or holds a bad key or value, `FileNotFoundError` if it is missing."""
     return from_source(experiment_from_dict, read_toml(path, "experiment file"), str(path))

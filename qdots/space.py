@@ -1,0 +1,63 @@
+"""Chipmunk's side of a simulation: a `pymunk.Space` holding a scene's walls and dots.
+
+One place builds the space, so a new simulation and one re-seated from a checkpoint have the
+same Chipmunk history (body order, shape ids, spatial index) and step identically.
+"""
+
+from __future__ import annotations
+
+import math
+
+import pymunk
+
+from .collisions import DOT, WALL
+from .scene import Scene
+from .settings import EngineSettings
+
+
+def tune_space(space: pymunk.Space, settings: EngineSettings) -> None:
+    """Apply the solver knobs that can change on a live space (iterations, slop, bias)."""
+    space.iterations = int(settings.iterations)
+    space.collision_slop = float(settings.collision_slop)
+    space.collision_bias = settings.bias
+
+
+def new_space(scene: Scene, settings: EngineSettings) -> pymunk.Space:
+    """A space with ``settings``' solver, threads and spatial index, holding ``scene``'s wall segments.
+
+    Walls are static, frictionless, perfectly elastic segments of zero thickness.
+    """
+    space = pymunk.Space(threaded=settings.threads > 1)
+    if settings.threads > 1:
+        space.threads = settings.threads
+    tune_space(space, settings)
+    if settings.spatial_hash is not None:
+        cell, cells = settings.spatial_hash
+        space.use_spatial_hash(float(cell), int(cells))
+    for x0, y0, x1, y1 in scene.wall_segments():
+        wall = pymunk.Segment(space.static_body, (x0, y0), (x1, y1), 0.0)
+        wall.friction = 0.0
+        wall.elasticity = 1.0
+        wall.collision_type = WALL
+        space.add(wall)
+    return space
+
+
+def add_discs(space: pymunk.Space, positions, velocities, radii, masses) -> list[pymunk.Body]:
+    """Add one frictionless, non-rotating disc per dot (px, px/s, px, mean mass = 1); returns their bodies.
+
+    A disc's own elasticity is 0, so lasting contacts are inelastic; the restitution of each impact
+    is set by the collision handler (`qdots.collisions`).
+    """
+    bodies = []
+    for (x, y), (vx, vy), r, m in zip(positions, velocities, radii, masses):
+        body = pymunk.Body(float(m), math.inf)
+        body.position = (float(x), float(y))
+        body.velocity = (float(vx), float(vy))
+        circle = pymunk.Circle(body, float(r))
+        circle.friction = 0.0
+        circle.elasticity = 0.0
+        circle.collision_type = DOT
+        space.add(body, circle)
+        bodies.append(body)
+    return bodies
