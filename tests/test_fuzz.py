@@ -50,7 +50,12 @@ def set_key(tree: dict, key: str, value) -> None:
     node = tree
     parts = key.split(".")
     for part in parts[:-1]:
-        node = node[int(part)] if part.isdigit() else node.setdefault(part, {})
+        if part.isdigit():
+            node = node[int(part)]
+            continue
+        if not isinstance(node.get(part), dict):  # an earlier mutation made the table a value: a table again
+            node[part] = {}
+        node = node[part]
     last = parts[-1]
     if isinstance(node, list):
         node[int(last)] = value
