@@ -12,7 +12,7 @@ import string
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 import qdots
@@ -49,13 +49,15 @@ SMALL_EXPERIMENT = {"name": "fuzz", "board": {"width": 80.0, "height": 80.0},
 def set_key(tree: dict, key: str, value) -> None:
     node = tree
     parts = key.split(".")
-    for part in parts[:-1]:
-        if part.isdigit():
-            node = node[int(part)]
-            continue
-        if not isinstance(node.get(part), dict):  # an earlier mutation made the table a value: a table again
-            node[part] = {}
-        node = node[part]
+    for part, below in zip(parts[:-1], parts[1:]):
+        # an earlier mutation may have made a table (or a list of tables) a value: make it a table again
+        container = list if below.isdigit() else dict
+        index = int(part) if isinstance(node, list) else part
+        if isinstance(node, list):
+            node.extend({} for _ in range(index + 1 - len(node)))
+        if not isinstance(node[index] if isinstance(node, list) else node.get(index), container):
+            node[index] = [{} for _ in range(3)] if container is list else {}
+        node = node[index]
     last = parts[-1]
     if isinstance(node, list):
         node[int(last)] = value
@@ -134,6 +136,8 @@ MUTATIONS = st.lists(st.tuples(st.sampled_from(EXPERIMENT_KEYS), WEIRD), min_siz
 
 @settings(max_examples=FEW, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(mutations=MUTATIONS)
+@example(mutations=[("forces.0.r0", False)])  # found by CI: a key inside the list of forces
+@example(mutations=[("forces", 5), ("forces.1.scale", 2.0)])  # a list made a value, then one of its tables
 def test_experiment_files(tmp_path, capsys, earlier, mutations):
     check_experiment_file(tmp_path, capsys, earlier, mutations)
 
