@@ -1,4 +1,4 @@
-"""Figures and movies of a run: thesis Figs 3-8, 3-9 and 3-11, and an MP4 of the oxide growing.
+"""Figures and movies of a run: thesis Figs 3-8, 3-9, 3-11 and 3-12, and an MP4 of the oxide growing.
 
 Figures are built on matplotlib's object API (no pyplot state) except when a
 ``draw_*`` function is asked to make its own axes, so that it shows in
@@ -15,7 +15,7 @@ from pathlib import Path
 import matplotlib
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.colors import Normalize
+from matplotlib.colors import LightSource, Normalize
 from matplotlib.figure import Figure
 
 from labrig.files import atomic_path
@@ -100,8 +100,33 @@ def draw_slice(run: Anodization, ax=None, *, index: int | None = None, axis: int
 
 # -- Fig 3-9 -----------------------------------------------------------------------------------
 
-def draw_history(run: Anodization, axes=None, *, errorbars: bool = True):
-    """Thesis Fig 3-9: RMS and z-range of metal and oxide against oxide thickness.
+def log_axis(ax, values, min_decades: float = 0.5) -> tuple[float, float]:
+    """Make ``ax``'s y axis logarithmic, with limits from ``values`` and at least two labelled ticks.
+
+    The limits hold the positive finite ``values`` with a 5 % margin and span at least ``min_decades``
+    decades. Over two decades or more the decades are labelled; over fewer, ticks at 1, 2, 5 x 10^k
+    (from one decade) or at every digit x 10^k, labelled like 0.05, 2 or 30. Returns the limits.
+    """
+    from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
+
+    v = np.asarray(values, dtype=float).ravel()
+    v = v[np.isfinite(v) & (v > 0)]
+    if not v.size:
+        raise InputError("a log axis needs data > 0; these are all zero, negative or not finite")
+    low, high = math.log10(v.min()), math.log10(v.max())
+    margin = max(0.05 * (high - low), 0.5 * (min_decades - (high - low)))
+    ax.set_yscale("log")
+    ax.set_ylim(10 ** (low - margin), 10 ** (high + margin))
+    if high - low + 2 * margin < 2:
+        subs = (1.0, 2.0, 5.0) if high - low + 2 * margin >= 1 else np.arange(1.0, 10.0)
+        ax.yaxis.set_major_locator(LogLocator(base=10, subs=subs))
+        ax.yaxis.set_major_formatter(FuncFormatter(lambda value, _: f"{value:g}"))
+        ax.yaxis.set_minor_formatter(NullFormatter())
+    return ax.get_ylim()
+
+
+def draw_history(run: Anodization, axes=None, *, errorbars: bool = True, log: bool = False):
+    """Thesis Figs 3-9 and 3-12: RMS and z-range of metal and oxide against oxide thickness.
 
     The x axis is the oxide thickness reached (the smallest metal-oxide
     distance); horizontal error bars are the standard deviation of the
@@ -112,6 +137,11 @@ def draw_history(run: Anodization, axes=None, *, errorbars: bool = True):
     run : Anodization
     axes : pair of matplotlib.axes.Axes, optional
         Where to draw RMS and z-range. Default: a new pyplot figure with two panels.
+    errorbars : bool
+        Draw the horizontal error bars.
+    log : bool
+        Logarithmic y axes (Fig 3-12: an exponential decay is a straight line), with limits from the
+        data and at least two labelled ticks (`log_axis`); values of 0 are left out. Default: linear from 0.
 
     Returns
     -------
@@ -130,7 +160,10 @@ def draw_history(run: Anodization, axes=None, *, errorbars: bool = True):
                         markersize=4, linewidth=1, capsize=2, elinewidth=0.6, label=name)
         ax.set_xlabel("oxide thickness (nm)")
         ax.set_ylabel(label)
-        ax.set_ylim(bottom=0)
+        if log:
+            log_axis(ax, [h[f"{name}_{measure}_nm"] for name in ("metal", "oxide")])
+        else:
+            ax.set_ylim(bottom=0)
         ax.legend(fontsize="small")
     return axes
 
@@ -143,9 +176,41 @@ def surface_scale(surfaces) -> float:
     return half if half > 0 else 1.0
 
 
+def surface_faces(surface: Surface, max_lines: int = 60):
+    """The mesh `draw_surface` draws: grid lines (subsampled to ``max_lines``) and each face's height.
+
+    Returns
+    -------
+    x, y, z : ndarray, shape (nx, ny)
+        Coordinates and heights of the grid points kept, nm (``x`` varies along the first axis).
+    faces : ndarray, shape (nx - 1, ny - 1)
+        Mean height of each face's four corners, nm, which colours it (coloured by one corner, a
+        lone raised point would colour one of its four faces only).
+    """
+    def lines(n):  # evenly strided, both ends kept (as matplotlib strides)
+        stride = max(1, math.ceil(n / max(int(max_lines), 1)))
+        return np.unique(np.r_[np.arange(0, n - 1, stride), n - 1])
+
+    rows, cols = lines(surface.shape[0]), lines(surface.shape[1])
+    z = surface.z[np.ix_(rows, cols)]
+    x, y = np.meshgrid(surface.x[rows], surface.y[cols], indexing="ij")
+    faces = 0.25 * (z[:-1, :-1] + z[1:, :-1] + z[:-1, 1:] + z[1:, 1:])
+    return x, y, z, faces
+
+
+#: Grids with at most this many lines per direction are drawn with their mesh lines (the facets show).
+MESH_LINES = 24
+#: The light of the 3-D surfaces: from the back left, 45 degrees up (a flat face keeps 90 % of its colour).
+LIGHT = LightSource(azdeg=315, altdeg=45)
+
+
 def draw_surface(surface: Surface, ax=None, *, half_range: float | None = None, cmap: str = "viridis",
-                 title: str | None = None, max_lines: int = 60):
+                 title: str | None = None, max_lines: int = 60, shade: bool = True):
     """A 3-D render of ``surface`` in a z window centred on its mean (thesis Fig 3-11 style).
+
+    Each face is coloured by the mean height of its corners and, with ``shade``, lit from one
+    side so that facets of the same height stay apart; small grids (up to `MESH_LINES` lines)
+    also show their mesh lines.
 
     Parameters
     ----------
@@ -161,16 +226,22 @@ def draw_surface(surface: Surface, ax=None, *, half_range: float | None = None, 
     title : str, optional
     max_lines : int
         Most grid lines drawn per direction (larger grids are subsampled for speed).
+    shade : bool
+        Light the faces (from `LIGHT`); False: flat colours of the height.
     """
     ax = _axes(ax, projection="3d", figsize=(6, 5))
     half = surface_scale([surface]) if half_range is None else float(half_range)
     if not (math.isfinite(half) and half > 0):
         raise InputError(f"half_range must be > 0 nm, got {half_range!r}")
     mean = float(surface.z.mean())
-    x, y = np.meshgrid(surface.x, surface.y, indexing="ij")
-    face = matplotlib.colormaps[cmap](Normalize(-half, half)(surface.z - mean))
-    ax.plot_surface(x, y, surface.z, facecolors=face, rcount=max_lines, ccount=max_lines, linewidth=0,
-                    antialiased=False, shade=False)
+    x, y, z, faces = surface_faces(surface, max_lines)
+    colours = np.zeros(z.shape + (4,))  # plot_surface colours the face (i, j) by entry [i, j]
+    colours[:-1, :-1] = matplotlib.colormaps[cmap](Normalize(-half, half)(faces - mean))
+    mesh = max(z.shape) <= MESH_LINES
+    # transposed to matplotlib's layout (y along the rows): the faces' normals then point up (else lit from below)
+    ax.plot_surface(x.T, y.T, z.T, facecolors=colours.transpose(1, 0, 2), rstride=1, cstride=1,
+                    linewidth=0.4 if mesh else 0, edgecolor=(0, 0, 0, 0.3) if mesh else None, antialiased=mesh,
+                    shade=shade, lightsource=LIGHT)
     ax.set_zlim(mean - half, mean + half)
     ax.set_xlabel("x (nm)")
     ax.set_ylabel("y (nm)")
@@ -194,7 +265,7 @@ def snapshots_figure(run: Anodization, which: str = "oxide", *, cmap: str = "vir
     if which not in ("oxide", "metal", "both"):
         raise InputError(f"which must be 'oxide', 'metal' or 'both', got {which!r}")
     kinds = ("oxide", "metal") if which == "both" else (which,)
-    panels = [(getattr(shot, kind), f"{kind}, {shot.target:.4g} nm oxide") for shot in run.snapshots for kind in kinds]
+    panels = [(getattr(shot, kind), thickness_label(kind, shot.thickness)) for shot in run.snapshots for kind in kinds]
     if not panels:
         raise InputError("the run has no snapshots")
     half = surface_scale([s for s, _ in panels])
@@ -222,11 +293,11 @@ def slice_figure(run: Anodization, title: str | None = None) -> Figure:
     return fig
 
 
-def history_figure(run: Anodization, title: str | None = None) -> Figure:
-    """Fig 3-9 as a Figure (no pyplot state)."""
+def history_figure(run: Anodization, title: str | None = None, *, log: bool = False) -> Figure:
+    """Fig 3-9 (``log``: Fig 3-12) as a Figure (no pyplot state); see `draw_history`."""
     fig = Figure(figsize=(10, 4))
     FigureCanvasAgg(fig)
-    draw_history(run, fig.subplots(1, 2))
+    draw_history(run, fig.subplots(1, 2), log=log)
     if title:
         fig.suptitle(title)
     fig.tight_layout()
@@ -279,17 +350,49 @@ class SurfaceMovie(FigureMovie):
         self.add_frame()
 
 
-def save_movie(run: Anodization, path, which: str = "oxide", fps: float = 10, size_px: int = 600) -> Path:
-    """An MP4 of ``which`` surface ("oxide" or "metal") at each of the run's snapshots, atomically.
+#: Significant digits of the oxide thickness in panel and frame titles (as in the ``planarize`` summary).
+THICKNESS_DIGITS = 4
+#: Seconds a movie holds its last frame, the final state, so that every player shows it at the end.
+HOLD_S = 1.0
 
-    Take many snapshots for a smooth movie, e.g. ``anodize(..., snapshots=np.linspace(0, t, 51))``.
+
+def thickness_label(which: str, thickness: float) -> str:
+    """Title of a surface at an oxide ``thickness`` (nm): ``"oxide, 1.001 nm oxide"``."""
+    return f"{which}, {thickness:.{THICKNESS_DIGITS}g} nm oxide"
+
+
+def movie_frames(run: Anodization, which: str = "oxide") -> list[tuple[Surface, float]]:
+    """The frames of `save_movie`: ``(surface, thickness in nm)`` of each snapshot, then the final state.
+
+    Each frame is labelled with the thickness its surface was taken at (not the one asked for); the
+    last is always the final ``which`` surface at ``run.thickness`` (appended if the snapshots stop short).
     """
     if which not in ("oxide", "metal"):
         raise InputError(f"which must be 'oxide' or 'metal', got {which!r}")
     if not run.snapshots:
         raise InputError("the run has no snapshots to make a movie of")
-    surfaces = [getattr(shot, which) for shot in run.snapshots]
-    with SurfaceMovie(path, surface_scale(surfaces), fps=fps, size_px=size_px) as movie:
-        for shot, surface in zip(run.snapshots, surfaces):
-            movie.write(surface, f"{which}, {shot.thickness:.3g} nm oxide")
+    frames = [(getattr(shot, which), float(shot.thickness)) for shot in run.snapshots]
+    final = getattr(run, which)
+    last, reached = frames[-1]
+    if not (reached == run.thickness and np.array_equal(last.z, final.z)):
+        frames.append((final, run.thickness))
+    return frames
+
+
+def save_movie(run: Anodization, path, which: str = "oxide", fps: float = 10, size_px: int = 600,
+               hold_s: float = HOLD_S) -> Path:
+    """An MP4 of ``which`` surface ("oxide" or "metal") growing, atomically (frames: `movie_frames`).
+
+    One frame per snapshot, each titled with the thickness of the state it shows; the final state,
+    last, is held for ``hold_s`` seconds (at least one frame). Take many snapshots for a smooth
+    movie, e.g. ``anodize(..., snapshots=np.linspace(0, t, 51))``.
+    """
+    frames = movie_frames(run, which)
+    if not (isinstance(hold_s, numbers.Real) and 0 <= hold_s <= 60):
+        raise InputError(f"hold_s must be in [0, 60] s, got {hold_s!r}")
+    with SurfaceMovie(path, surface_scale([surface for surface, _ in frames]), fps=fps, size_px=size_px) as movie:
+        for surface, thickness in frames:
+            movie.write(surface, thickness_label(which, thickness))
+        for _ in range(max(1, round(hold_s * movie.fps)) - 1):
+            movie.add_frame()  # the figure still shows the final state
     return Path(path)

@@ -1,4 +1,4 @@
-"""Pictures and movies of a board: size colouring (thesis Fig 2-2), PNG, MP4.
+"""Pictures and movies of a board: size colouring (thesis Fig 2-2), heavy dots, a key, PNG, MP4.
 
 Figures are built on matplotlib's object API (no pyplot state) except when
 `draw_state` is asked to make its own axes, so that it shows in notebooks.
@@ -17,7 +17,9 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.collections import EllipseCollection, LineCollection
 from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
 from matplotlib.patches import Rectangle
+from matplotlib.transforms import ScaledTranslation
 
 from labrig.files import atomic_path
 from labrig.movies import FigureMovie
@@ -67,6 +69,103 @@ def size_colours(radii, mean: float | None = None, sigma: float | None = None) -
     return colours
 
 
+#: Relative margin of `heavy_dots`: the boards' mean diameter stands in for the scene's nominal one,
+#: which differs by a few per cent on small boards.
+HEAVY_MARGIN = 0.05
+#: Edges of the dots: (colour, line width in points) of an ordinary and of a heavy dot.
+DOT_EDGE = ((0.0, 0.0, 0.0, 0.5), 0.3)
+HEAVY_EDGE = ((0.0, 0.0, 0.0, 1.0), 1.8)
+
+
+def heavy_dots(masses, radii) -> np.ndarray:
+    """Which dots are heavier than their size makes them: the heavy half of a bimodal board.
+
+    A dot is heavy when its mass exceeds both the mean dot mass (1) and the mass a dot of its size
+    has under the steepest size-based mass model, ``(d / mean d)^3`` (``mass_model = "volume"``),
+    by more than `HEAVY_MARGIN` (5 %; mean d is the board's). So no dot of the ``"equal"``,
+    ``"area"`` or ``"volume"`` models is heavy, and under ``"bimodal"`` (thesis Fig 2-6b,
+    Table 2.1) the heavy dots are those given ``heavy_mass``, except a heavy dot so large that its
+    size alone would make it as heavy (``1.05 (d / mean d)^3 >= heavy_mass``).
+
+    Parameters
+    ----------
+    masses : array_like, shape (N,) or None
+        Dot masses in units of the mean dot mass; None: every dot is of mean mass.
+    radii : array_like, shape (N,)
+        Dot radii, px.
+
+    Returns
+    -------
+    ndarray of bool, shape (N,)
+    """
+    r = np.asarray(radii, dtype=float).reshape(-1)
+    if masses is None or r.size == 0:
+        return np.zeros(r.size, dtype=bool)
+    m = np.asarray(masses, dtype=float).reshape(-1)
+    if m.size != r.size:
+        raise InputError(f"masses and radii must have the same length, got {m.size} and {r.size}")
+    by_size = np.maximum(1.0, (r / r.mean()) ** 3)
+    return m > by_size * (1.0 + HEAVY_MARGIN)
+
+
+def _edges(state, n: int):
+    """Edge colours (N, 4) and line widths (N,) of the dots: dark and thick for heavy ones."""
+    heavy = heavy_dots(getattr(state, "masses", None), state.radii)
+    colours = np.where(heavy[:, None], HEAVY_EDGE[0], DOT_EDGE[0])
+    widths = np.where(heavy, HEAVY_EDGE[1], DOT_EDGE[1])
+    return colours, widths
+
+
+def key_entries(state) -> tuple[list, list[str], str]:
+    """The key of a board's size colours (and heavy dots): legend handles, labels and a title.
+
+    The colours follow `size_colours` with its defaults: ``m`` the mean diameter and ``s`` the
+    standard deviation of the diameters, px. A dot is fully red at ``d >= m + s``, fully blue at
+    ``d <= m - s`` and pure green at ``d = m``; sizes in between mix. Heavy dots (`heavy_dots`)
+    have a thick dark edge.
+
+    Returns
+    -------
+    handles : list of matplotlib.lines.Line2D
+    labels : list of str
+    title : str
+    """
+    d = 2.0 * np.asarray(state.radii, dtype=float).reshape(-1)
+    m = float(d.mean()) if d.size else 0.0
+    s = float(d.std()) if d.size else 0.0
+
+    def dot(colour, edge=DOT_EDGE):
+        return Line2D([], [], linestyle="none", marker="o", markersize=9, markerfacecolor=colour,
+                      markeredgecolor=edge[0], markeredgewidth=max(edge[1], 0.6))
+
+    if d.size and s > 1e-12 * m:
+        handles = [dot((1.0, 0.0, 0.0)), dot((0.0, 1.0, 0.0)), dot((0.0, 0.0, 1.0))]
+        labels = [f"red: large, d \u2265 m + s = {m + s:.3g} px", f"green: mean size, d = m = {m:.3g} px",
+                  f"blue: small, d \u2264 m \u2212 s = {m - s:.3g} px"]
+        title = f"colour by diameter d (mean m, std s = {s:.2g} px; mixed in between)"
+    else:
+        handles, labels = [dot((0.0, 1.0, 0.0))], [f"green: all one size, d = {m:.3g} px"]
+        title = "colour by diameter d"
+    heavy = heavy_dots(getattr(state, "masses", None), state.radii)
+    if heavy.any():
+        handles.append(dot((0.0, 1.0, 0.0), HEAVY_EDGE))
+        labels.append(f"dark edge: heavy, heavier than its size makes it ({int(heavy.sum())} of {heavy.size})")
+    return handles, labels, title
+
+
+def add_key(ax, state, **legend):
+    """Put the key of `key_entries` on ``ax`` (under its x label by default); returns the Legend.
+
+    ``legend`` overrides `matplotlib.axes.Axes.legend` arguments (``loc``, ``bbox_to_anchor``, ...).
+    """
+    handles, labels, title = key_entries(state)
+    below = ax.transAxes + ScaledTranslation(0.0, -0.5, ax.figure.dpi_scale_trans)  # 0.5 in: under the x label
+    options = {"loc": "upper center", "bbox_to_anchor": (0.5, 0.0), "bbox_transform": below, "ncol": 1,
+               "fontsize": "small", "title_fontsize": "small", "frameon": False, "handletextpad": 0.3,
+               "labelspacing": 0.3}
+    return ax.legend(handles, labels, title=title, **{**options, **legend})
+
+
 class BoardArtists:
     """The artists of one board on one Axes, created once and then updated."""
 
@@ -82,6 +181,7 @@ class BoardArtists:
         walls = np.asarray(getattr(state, "walls", np.zeros((0, 4))), dtype=float).reshape(-1, 2, 2)
         if colours is None:
             colours = size_colours(state.radii)
+        edges, widths = _edges(state, len(diameters))
         if self.dots is None:
             self.outline = Rectangle((0, 0), w, h, fill=False, edgecolor="0.6", linewidth=0.8,
                                      linestyle="--", zorder=1)
@@ -90,8 +190,8 @@ class BoardArtists:
             ax.add_collection(self.walls, autolim=False)
             self.dots = EllipseCollection(
                 diameters, diameters, np.zeros(len(diameters)), units="xy", offsets=positions,
-                offset_transform=ax.transData, facecolors=colours, edgecolors=(0, 0, 0, 0.5),
-                linewidths=0.3, zorder=2,
+                offset_transform=ax.transData, facecolors=colours, edgecolors=edges,
+                linewidths=widths, zorder=2,
             )
             ax.add_collection(self.dots, autolim=False)
             ax.set_aspect("equal")
@@ -104,14 +204,16 @@ class BoardArtists:
             self.dots.set_heights(diameters)
             self.dots.set_angles(np.zeros(len(diameters)))
             self.dots.set_facecolor(colours)
+            self.dots.set_edgecolor(edges)
+            self.dots.set_linewidth(widths)
         pad = 0.01 * max(w, h)
         ax.set_xlim(-pad, w + pad)
         ax.set_ylim(-pad, h + pad)
         ax.set_title(f"t = {float(getattr(state, 'time', 0.0)):.1f} s" if show_time else "")
 
 
-def draw_state(state, ax=None, colours=None, show_time: bool = True):
-    """Draw a board: outline, walls (black), dots coloured by size.
+def draw_state(state, ax=None, colours=None, show_time: bool = True, key: bool = False):
+    """Draw a board: outline, walls (black), dots coloured by size, heavy dots with a dark edge; axes in px.
 
     Parameters
     ----------
@@ -125,6 +227,9 @@ def draw_state(state, ax=None, colours=None, show_time: bool = True):
         `size_colours` of the radii.
     show_time : bool
         Put ``t = 12.3 s`` in the title.
+    key : bool
+        Add the key of the size colours and heavy dots below the axes (`add_key`); only
+        meaningful with the default size colours.
 
     Returns
     -------
@@ -136,11 +241,17 @@ def draw_state(state, ax=None, colours=None, show_time: bool = True):
 
         _, ax = plt.subplots(figsize=(6, 6))
     BoardArtists(ax).draw(state, colours, show_time)
+    ax.set_xlabel("x (px)")
+    ax.set_ylabel("y (px)")
+    if key:
+        add_key(ax, state)
     return ax
 
 
 def save_png(state, path, dpi: int = 100) -> Path:
     """Write a picture of the board to ``path`` (PNG, 6 x 6 in at ``dpi``), atomically.
+
+    Axes in px, with the key of the size colours and of the heavy dots below the board.
 
     Returns
     -------
@@ -151,10 +262,8 @@ def save_png(state, path, dpi: int = 100) -> Path:
         raise InputError(f"dpi must be > 0, got {dpi!r}")
     fig = Figure(figsize=(6, 6))
     FigureCanvasAgg(fig)
-    ax = fig.add_subplot()
-    BoardArtists(ax).draw(state)
-    ax.set_xlabel("x (px)")
-    ax.set_ylabel("y (px)")
+    ax = fig.add_axes((0.14, 0.27, 0.76, 0.66))
+    draw_state(state, ax, key=True)
     path = Path(path)
     with atomic_path(path) as tmp:
         fig.savefig(tmp, format="png", dpi=dpi)

@@ -33,7 +33,7 @@ def test_scene_writes_every_file(hill_run, capsys):
         rows = list(csv.DictReader(stream))
     assert [float(r["oxide_rms_nm"]) for r in rows] == pytest.approx(run.history["oxide_rms_nm"].tolist())
     assert len(run.snapshots) == 41  # 40 intervals, ends included: one frame each, 10 frames/s, 600 px
-    assert_playable(hill_run / f"{stem}.mp4", frames=41, fps=10, size_px=600)
+    assert_playable(hill_run / f"{stem}.mp4", frames=41 + 9, fps=10, size_px=600)  # the last held 1 s
     assert load_scene(hill_run / f"{stem}.toml") == SCENES["hill"].quick(0.25)
 
 

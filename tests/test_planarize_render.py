@@ -3,6 +3,7 @@
 import imageio.v2 as imageio
 import numpy as np
 import pytest
+from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 import planarize
@@ -50,6 +51,78 @@ def test_history_plots_rms_and_zrange_with_distance_spread(run):
     np.testing.assert_allclose(widths, 2 * h["distance_std_nm"])
 
 
+def test_history_on_log_axes_is_read_from_the_data(run):
+    fig = Figure()
+    FigureCanvasAgg(fig)
+    axes = render.draw_history(run, fig.subplots(1, 2), log=True)
+    fig.canvas.draw()
+    for ax, measure in zip(axes, ("rms", "zrange")):
+        data = np.concatenate([run.history[f"{name}_{measure}_nm"] for name in ("metal", "oxide")])
+        bottom, top = ax.get_ylim()
+        assert ax.get_yscale() == "log"
+        assert 0 < bottom < data.min() and data.max() < top  # inside, on neither edge
+        assert np.log10(data.max() / data.min()) > 0.25 * np.log10(top / bottom)  # and spread over the axis
+        assert len(labelled_ticks(ax)) >= 2
+    linear = render.draw_history(run, Figure().subplots(1, 2))
+    assert linear[0].get_yscale() == "linear" and linear[0].get_ylim()[0] == 0
+
+
+def labelled_ticks(ax):
+    """The y ticks inside the view that carry a label (major or minor)."""
+    bottom, top = ax.get_ylim()
+    ticks = [*ax.yaxis.get_major_ticks(), *ax.yaxis.get_minor_ticks()]
+    return [t.get_loc() for t in ticks if t.label1.get_visible() and t.label1.get_text() and bottom <= t.get_loc() <= top]
+
+
+@pytest.mark.parametrize("values", [[3.1, 3.3], [3.0, 3.0], [0.02, 0.09], [0.5, 12.0], [1e-3, 10.0, 0.0]])
+def test_log_axis_has_two_labelled_ticks_whatever_the_range(values):
+    fig = Figure()
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot()
+    ax.plot(values)
+    bottom, top = render.log_axis(ax, values)
+    fig.canvas.draw()
+    positive = [v for v in values if v > 0]
+    assert 0 < bottom < min(positive) and max(positive) < top and np.log10(top / bottom) >= 0.5 - 1e-9
+    assert len(labelled_ticks(ax)) >= 2
+    with pytest.raises(ValueError, match="needs data > 0"):
+        render.log_axis(ax, [0.0, -1.0])
+
+
+def test_lone_raised_point_draws_four_like_faces_lit_from_above():
+    hill = planarize.surfaces.hill(refine=1)  # 5 x 5, the centre point 0.5 nm up: a pyramid of four faces
+    flat = Figure().add_subplot(projection="3d")
+    render.draw_surface(hill, flat, shade=False)
+    (mesh,) = flat.collections
+    colours = mesh.get_facecolor()
+    assert len(colours) == 16
+    kinds, counts = np.unique(colours.round(6), axis=0, return_counts=True)
+    assert sorted(counts) == [4, 12]  # the pyramid's four faces alike, the twelve flat ones alike
+    lit = Figure().add_subplot(projection="3d")
+    render.draw_surface(hill, lit)
+    shaded = lit.collections[0].get_facecolor()
+    level = [np.allclose(c, kinds[np.argmax(counts)], atol=1e-6) for c in colours.round(6)]
+    # the flat faces face the light (from above): lit, they keep ~90 % of their colour (from below: ~53 %)
+    np.testing.assert_allclose(shaded[level, :3] / colours[level, :3], 0.3 + 0.35 * (1 + np.sqrt(0.5)), rtol=1e-6)
+    x, y, z, faces = render.surface_faces(planarize.surfaces.hill(refine=4), max_lines=5)
+    np.testing.assert_array_equal(x[:, 0], [0, 1, 2, 3, 4])  # every 4th line of 17, both ends kept
+    np.testing.assert_array_equal(y[0], [0, 1, 2, 3, 4])
+    assert faces.shape == (4, 4) and faces[1, 1] == faces[2, 2] == pytest.approx(4.125)
+
+
+def test_movie_frames_are_labelled_with_the_state_shown_and_end_at_the_final_state(run):
+    frames = render.movie_frames(run)
+    assert [t for _, t in frames] == [shot.thickness for shot in run.snapshots]
+    assert frames[-1][1] == run.thickness and frames[-1][0] == run.oxide
+    assert render.thickness_label("oxide", 1.0006103826481292) == "oxide, 1.001 nm oxide"
+    # snapshots that stop short of the end: the final state is appended
+    short = planarize.anodize(planarize.surfaces.hill(refine=1), 0.5, planarize.Model(step=0.05), record=2,
+                              snapshots=[0.0, 0.2])
+    frames = render.movie_frames(short, "metal")
+    assert len(frames) == 3 and frames[-1][1] == short.thickness >= 0.5 and frames[-1][0] == short.metal
+    assert frames[1][1] == short.snapshots[1].thickness
+
+
 def test_figures_and_movie_files(run, tmp_path):
     paths = [render.save_figure(render.slice_figure(run, "hill"), tmp_path / "a.png"),
              render.save_figure(render.history_figure(run), tmp_path / "b.png"),
@@ -61,7 +134,10 @@ def test_figures_and_movie_files(run, tmp_path):
     reader = imageio.get_reader(movie)
     frames = [frame for frame in reader]
     reader.close()
-    assert len(frames) == len(run.snapshots) and frames[0].shape == (200, 200, 3)
+    # one frame per snapshot, the last (the final state) held for a second at 10 frames/s
+    assert len(frames) == len(run.snapshots) + 9 and frames[0].shape == (200, 200, 3)
+    held = np.array(frames[len(run.snapshots) - 1:], dtype=float)
+    assert np.abs(held - held[0]).mean() < 2 < np.abs(held[0] - np.array(frames[0], dtype=float)).mean()
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.png", "b.png", "c.png", "m.mp4"]
 
 

@@ -15,7 +15,8 @@ from matplotlib.figure import Figure
 import qdots
 from qdots import cli
 from qdots.placement import random_sequential
-from qdots.render import MovieWriter, draw_state, save_png, size_colours
+from qdots.protocols import dot_masses
+from qdots.render import MovieWriter, draw_state, heavy_dots, key_entries, save_png, size_colours
 
 from movie_probe import assert_playable
 
@@ -98,6 +99,66 @@ def test_save_png_is_atomic_and_readable(tmp_path):
     # Some dots are drawn in saturated size colours (the extremes of a 10 % spread).
     assert np.any((rgb[..., 0] > 200) & (rgb[..., 2] < 80)) and np.any((rgb[..., 2] > 200) & (rgb[..., 0] < 80))
     assert sorted(p.name for p in tmp_path.iterdir()) == ["board.png"]  # no temporary left
+
+
+def heavy_board():
+    """Four dots in a row: diameters 12, 14, 16, 18 px; the 2nd and 4th twice as heavy (Fig 2-6b's model)."""
+    return qdots.State(time=0.0, positions=np.array([[20.0, 30], [40, 30], [60, 30], [80, 30]]),
+                       velocities=np.zeros((4, 2)), radii=np.array([6.0, 7.0, 8.0, 9.0]),
+                       masses=np.array([1.0, 2.0, 1.0, 2.0]), box=(100.0, 60.0), walls=np.zeros((0, 4)))
+
+
+def test_board_axes_in_px_and_heavy_dots_with_a_dark_edge():
+    fig = Figure()
+    FigureCanvasAgg(fig)
+    ax = draw_state(heavy_board(), ax=fig.add_subplot())
+    assert ax.get_xlabel() == "x (px)" and ax.get_ylabel() == "y (px)"
+    (dots,) = [c for c in ax.collections if isinstance(c, EllipseCollection)]
+    widths = np.asarray(dots.get_linewidths())
+    edges = np.asarray(dots.get_edgecolors())
+    heavy = np.array([False, True, False, True])
+    assert np.all(widths[heavy] > 3 * widths[~heavy])  # thick edges on the heavy dots only
+    np.testing.assert_allclose(edges[heavy], [[0, 0, 0, 1]] * 2)  # opaque black
+    assert np.all(edges[~heavy, 3] < 1)
+    assert ax.get_legend() is None  # the key only when asked for
+
+
+def test_heavy_dots_are_those_heavier_than_their_size_makes_them():
+    rng = np.random.default_rng(3)
+    d = 15.0 * (1 + 0.15 * rng.standard_normal(400)).clip(0.5)
+    for model in ("equal", "area", "volume"):  # masses that follow size: no dot is heavy
+        assert not heavy_dots(dot_masses(d, 15.0, model), d / 2).any(), model
+    bimodal = dot_masses(d, 15.0, "bimodal", 2.0, rng)
+    heavy = heavy_dots(bimodal, d / 2)
+    given_heavy = bimodal == 2.0
+    assert not heavy[~given_heavy].any()  # a large light dot is not heavy
+    # a heavy dot is missed only when its size alone would make it as heavy: 1.05 (d / mean)^3 >= 2
+    np.testing.assert_array_equal(heavy[given_heavy], 1.05 * (d[given_heavy] / d.mean()) ** 3 < 2.0)
+    assert heavy.sum() > 0.9 * given_heavy.sum()
+    assert heavy_dots(None, d / 2).shape == (400,) and not heavy_dots(None, d / 2).any()
+
+
+def test_key_states_the_colour_rule_and_the_heavy_dots():
+    state = heavy_board()
+    d = 2 * state.radii
+    m, s = d.mean(), d.std()  # 15 px and 2.24 px: size_colours' defaults
+    handles, labels, title = key_entries(state)
+    assert [h.get_markerfacecolor() for h in handles[:3]] == [(1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)]
+    assert labels[0].startswith("red: large") and f"m + s = {m + s:.3g} px" in labels[0]
+    assert labels[1].startswith("green: mean") and f"m = {m:.3g} px" in labels[1]
+    assert labels[2].startswith("blue: small") and f"m \u2212 s = {m - s:.3g} px" in labels[2]
+    assert f"s = {s:.2g} px" in title
+    # the stated thresholds are where size_colours saturates
+    red, green, blue = size_colours(np.array([m + s, m, m - s, m + 0.9 * s, m - 0.9 * s]) / 2, mean=m, sigma=s / m).T
+    assert red[0] == green[1] == blue[2] == 1 and red[3] < 1 and blue[4] < 1 and red[1] < 1 and blue[1] < 1
+    assert "heavy" in labels[3] and "(2 of 4)" in labels[3] and handles[3].get_markeredgewidth() > 1
+    # equal sizes and masses: one entry, no heavy dots
+    equal = qdots.State(time=0.0, positions=state.positions, velocities=state.velocities, radii=np.full(4, 7.5),
+                        masses=np.ones(4), box=state.box, walls=state.walls)
+    assert key_entries(equal)[1] == ["green: all one size, d = 15 px"]
+    fig = Figure()
+    ax = draw_state(state, ax=fig.add_subplot(), key=True)
+    assert [t.get_text() for t in ax.get_legend().get_texts()] == labels
 
 
 def test_save_png_to_missing_directory_raises(tmp_path):

@@ -8,8 +8,8 @@ Conventions of the file, which follow HOOMD so other tools read it as is:
 * positions are *centred*: ``x_gsd = x - width/2``, ``y_gsd = y - height/2``, ``z = 0``
   (HOOMD boxes span ``[-L/2, L/2)``); add ``box/2`` back to get qdots coordinates;
 * ``particles.diameter`` (px), ``particles.mass`` (mean dot mass), ``particles.velocity`` (px/s);
-* ``particles.types = ["dot", "heavy"]``: a dot heavier than the mean dot mass (``mass > 1``,
-  e.g. the heavy half of the bimodal mass model of Fig 2-6b) is ``"heavy"``;
+* ``particles.types = ["dot", "heavy"]``: a dot heavier than its size makes it (`qdots.render.heavy_dots`:
+  the heavy half of the bimodal mass model of Fig 2-6b) is ``"heavy"``, as in the pictures;
 * ``log/particles/Color`` (RGB in [0, 1]): the size colours of the pictures (`qdots.render.size_colours`:
   large red, mean green, small blue); OVITO reads it as its ``Color`` property and the diameter
   as ``Radius``, so the board looks as in our pictures without any setting;
@@ -32,7 +32,7 @@ import numpy as np
 from labrig.files import StreamedFile
 from labrig.validate import InputError
 
-from ..render import size_colours
+from ..render import heavy_dots, size_colours
 from ..state import State
 
 #: Particle types of the file (``typeid`` indexes them).
@@ -86,7 +86,7 @@ class GSDWriter(StreamedFile):
         velocity[:, :2] = state.velocities
         frame.particles.N = n
         frame.particles.types = list(TYPES)
-        frame.particles.typeid = (state.masses > 1.0 + 1e-9).astype(np.uint32)
+        frame.particles.typeid = heavy_dots(state.masses, state.radii).astype(np.uint32)
         frame.particles.position = position
         frame.particles.velocity = velocity
         frame.particles.diameter = (2.0 * state.radii).astype(np.float32)
