@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import warnings
+from typing import Callable
 
 import numpy as np
 
@@ -25,7 +26,7 @@ class RunawayError(InputError, FloatingPointError):
 
 
 def check_motion(positions: np.ndarray, velocities: np.ndarray, radii: np.ndarray, sub_dt: float,
-                 box: tuple[float, float], where: str, causes: str) -> float:
+                 box: tuple[float, float], describe: Callable[[], tuple[str, str]]) -> float:
     """The largest travel of a dot in one sub-step, in its radii; raise when the board ran away.
 
     Parameters
@@ -38,8 +39,9 @@ def check_motion(positions: np.ndarray, velocities: np.ndarray, radii: np.ndarra
         Chipmunk's sub-step, s.
     box : (float, float)
         Board size, px.
-    where, causes : str
-        When it happened and what acts on the dots, for the message.
+    describe : callable
+        Returns ``(where, causes)``: when it happened and what acts on the dots, for the message
+        (called only to raise: describing the forces costs more than the check).
 
     Raises
     ------
@@ -49,6 +51,7 @@ def check_motion(positions: np.ndarray, velocities: np.ndarray, radii: np.ndarra
     speed = np.hypot(velocities[:, 0], velocities[:, 1])
     fastest = float(speed.max()) if np.isfinite(speed).all() else math.inf
     if not (np.isfinite(positions).all() and fastest * sub_dt < math.hypot(*box)):
+        where, causes = describe()
         raise RunawayError(
             f"the dots left the model's range {where}: speeds of {fastest:.3g} px/s cross the {box[0]:g} x "
             f"{box[1]:g} px board in one sub-step of {sub_dt:g} s; {causes} are outside what the model integrates")

@@ -37,6 +37,8 @@ OVERLAP_WARNING = 0.1
 
 #: Most time steps one `Simulation.run` takes (about 14 hours at 300 dots on one core).
 MAX_STEPS = 1_000_000_000
+#: Fewest steps between two checks of the dots' motion in `Simulation.run` (a check reads the whole board).
+CHECK_EVERY = 50
 
 
 class Simulation:
@@ -332,7 +334,8 @@ class Simulation:
         ------
         RunawayError
             When the dots leave the model's range (speeds that cross the board in one sub-step, or
-            non-finite values; checked between chunks of steps, at most 200 times per run).
+            non-finite values; checked between chunks of steps: every `CHECK_EVERY` steps, at most
+            200 times per run).
 
         Warns
         -----
@@ -354,7 +357,7 @@ class Simulation:
             from tqdm.auto import tqdm
 
             bar = tqdm(total=n_steps, unit="step", desc="qdots run", leave=False)
-        chunk = max(1, n_steps // 200)
+        chunk = max(CHECK_EVERY, n_steps // 200)
         end = self.steps_taken + n_steps
         try:
             while True:
@@ -378,9 +381,12 @@ class Simulation:
         if not self.n_dots:
             return
         position, velocity = self._io.read()
-        where = f"at t = {self.time:g} s (step {self.steps_taken})"
-        causes = f"the forces ({', '.join(map(_describe, self._forces)) or 'none'}) or the time step"
-        travel = check_motion(position, velocity, self.radii, self.dt / self.substeps, self.scene.box, where, causes)
+
+        def describe() -> tuple[str, str]:
+            forces = ", ".join(map(_describe, self._forces)) or "none"
+            return f"at t = {self.time:g} s (step {self.steps_taken})", f"the forces ({forces}) or the time step"
+
+        travel = check_motion(position, velocity, self.radii, self.dt / self.substeps, self.scene.box, describe)
         if travel > SAFE_TRAVEL and not self._warned_travel:
             self._warned_travel = True
             warn_travel(travel, f"at t = {self.time:g} s")

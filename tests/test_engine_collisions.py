@@ -207,6 +207,6 @@ class _Blowup(qdots.forces.base.Force):
 def test_a_non_finite_state_stops_the_run_with_its_time():
     scene = qdots.Scene(box=(400, 200), positions=[[100, 100], [200, 100]], radii=[7.5, 7.5])
     sim = qdots.Simulation(scene, [_Blowup()], seed=0)
-    with pytest.raises(FloatingPointError, match=r"the dots left the model's range at t = 0\.005 s \(step 5\)"):
-        sim.run(1.0)  # checked every 1000 / 200 = 5 steps
-    assert sim.steps_taken == 5
+    with pytest.raises(FloatingPointError, match=r"the dots left the model's range at t = 0\.05 s \(step 50\)"):
+        sim.run(1.0)  # checked every max(CHECK_EVERY, 1000 / 200) = 50 steps
+    assert sim.steps_taken == qdots.simulation.CHECK_EVERY == 50
