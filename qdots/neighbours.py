@@ -12,10 +12,23 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
+from labrig.compiled import jit
 from labrig.validate import real
 
 #: Largest Verlet skin, px.
 MAX_SKIN = 1000.0
+
+
+@jit
+def moved_beyond(x, y, anchor_x, anchor_y, reach):
+    """True when some point moved farther than ``reach`` from its anchor (one pass, no temporaries)."""
+    reach2 = reach * reach
+    for k in range(x.size):
+        dx = x[k] - anchor_x[k]
+        dy = y[k] - anchor_y[k]
+        if not dx * dx + dy * dy <= reach2:  # also true for nan
+            return True
+    return False
 
 
 class VerletPairs:
@@ -48,10 +61,7 @@ class VerletPairs:
         Returns True when the list was rebuilt.
         """
         if cutoff == self._cutoff and len(x) == len(self._anchor_x):
-            dx = x - self._anchor_x
-            dy = y - self._anchor_y
-            half_skin = 0.5 * self.skin
-            if len(x) == 0 or (dx * dx + dy * dy).max() <= half_skin * half_skin:
+            if not moved_beyond(x, y, self._anchor_x, self._anchor_y, 0.5 * self.skin):
                 return False
         self._rebuild(x, y, cutoff)
         return True

@@ -310,7 +310,8 @@ class Simulation:
         except (ValueError, OverflowError, MemoryError, FloatingPointError, RuntimeError):
             self._check_motion()  # a blown-up board makes the pair search fail: say what happened
             raise
-        self._io.write_velocities(velocity + ctx.dv)
+        ctx.dv += velocity  # the new velocities, without a temporary
+        self._io.write_velocities(ctx.dv)
 
     def run(self, seconds: float, *, progress: bool = False, writers: Sequence[Writer] = ()) -> State:
         """Advance by ``seconds`` of simulated time (rounded to whole steps), writing on the attached writers' schedules.

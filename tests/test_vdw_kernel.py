@@ -87,3 +87,33 @@ def test_coincident_centres_get_no_force():
     dv = np.zeros((3, 2))
     force.kick(StepContext(0.0, 1e-3, x, y, np.zeros((3, 2)), radii, m, np.random.default_rng(0), dv))
     assert np.all(dv == 0.0)
+
+
+@pytest.mark.parametrize("skin", [0.0, 1.0, 3.0])
+def test_the_verlet_list_never_misses_a_pair_and_rebuilds_only_when_needed(skin):
+    rng = np.random.default_rng(5)
+    xy = rng.uniform(0, 200, (150, 2))
+    pairs, cutoff, rebuilds = VerletPairs(skin), 20.0, 0
+    anchor = None
+    for step in range(200):
+        xy += rng.normal(0, 0.05, xy.shape)
+        x, y = xy[:, 0].copy(), xy[:, 1].copy()
+        rebuilt = pairs.update(x, y, cutoff)
+        if rebuilt:
+            anchor, rebuilds = xy.copy(), rebuilds + 1
+        moved = np.hypot(*(xy - anchor).T).max()
+        assert moved <= skin / 2 or skin == 0  # kept only while every dot stayed within skin / 2
+        listed = set(zip(pairs.i.tolist(), pairs.j.tolist()))
+        d = np.hypot(*(xy[:, None] - xy[None]).transpose(2, 0, 1))
+        close = {(a, b) for a, b in zip(*np.nonzero(np.triu(d < cutoff, 1)))}
+        assert close <= listed, step
+    assert pairs.rebuilds == rebuilds
+    assert (rebuilds == 200) if skin == 0 else (1 < rebuilds < 100)
+
+
+def test_a_non_finite_position_forces_a_rebuild():
+    pairs = VerletPairs(3.0)
+    x, y = np.array([0.0, 10.0]), np.array([0.0, 0.0])
+    assert pairs.update(x, y, 20.0) and not pairs.update(x, y, 20.0)
+    with pytest.raises(ValueError):
+        pairs.update(np.array([np.nan, 10.0]), y, 20.0)  # the tree refuses it: the run says what happened
