@@ -33,6 +33,9 @@ def test_analyze_json_has_the_exact_packing_numbers(state_file, capsys):
     assert 0 < out["lqe"] < out["solution_lqe"] <= 1
     assert out["size_separation_correlation"] is None  # equal sizes: undefined, null in JSON
     assert out["trap_draws"] == 2 and out["forster_radius_px"] == 15.0
+    assert main(["analyze", str(state_file), "--json", "--draws", "2", "--forster-radii", "1"]) == 0
+    in_radii = json.loads(capsys.readouterr().out)
+    assert in_radii["forster_radius_px"] == 7.5 and in_radii["lqe"] > out["lqe"]
 
 
 def test_analyze_table_and_plot(state_file, tmp_path, capsys):
@@ -50,6 +53,9 @@ def test_analyze_table_and_plot(state_file, tmp_path, capsys):
     (["--traps", "1.5"], "--traps"),
     (["--rule", "java"], "--rule"),
     (["--forster-radius", "-3"], "--forster-radius"),
+    (["--forster-radius", "1"], "forster_radii=1"),
+    (["--forster-radius", "15", "--forster-radii", "2"], "not allowed with"),
+    (["--forster-radii", "0"], "--forster-radii"),
     (["--draws", "0"], "--draws"),
 ])
 def test_analyze_rejects_bad_options(state_file, argv, message, capsys):

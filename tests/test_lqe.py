@@ -68,7 +68,7 @@ def test_no_traps_every_dot_emits_with_its_efficiency(efficiency):
 
 def test_small_and_large_forster_radius_limits():
     b = board(hex_lattice(10))
-    weak = exciton_network(b, forster_radius=0.5, seed=4)       # hops ~ (0.5/15)^6 = 1e-9 of the decay
+    weak = exciton_network(b, forster_radii=0.5 / R, seed=4)    # R_F 0.5 px: hops ~ (0.5/15)^6 = 1e-9 of the decay
     assert lqe_exact(weak).lqe == pytest.approx(weak.solution_lqe, abs=1e-7)
     strong = exciton_network(b, forster_radius=60.0, seed=4, cutoff=60.0)
     assert lqe_exact(strong).lqe < 0.02 * strong.solution_lqe
@@ -196,6 +196,27 @@ def test_monte_carlo_is_reproducible_and_traps_count():
     assert a.lqe == b.lqe
     assert lqe_monte_carlo(net, 5000, method="thesis", seed=9).lqe == \
         lqe_monte_carlo(net, 5000, method="thesis", seed=9).lqe
+
+
+def test_forster_radius_unit_cannot_be_mistaken():
+    """R_F is px, or mean radii when asked for by name; a count of radii given as px is refused."""
+    b = board(hex_lattice(6))
+    default = exciton_network(b, seed=1)
+    assert default.forster_radius == 2 * R
+    in_radii = exciton_network(b, forster_radii=2.0, seed=1)
+    assert in_radii.forster_radius == 2 * R
+    assert (in_radii.rates != default.rates).nnz == 0
+    assert exciton_network(b, forster_radius=0.5 * R, seed=1).forster_radius == 0.5 * R  # the smallest px value
+    with pytest.raises(ValueError, match=r"forster_radius is in px: 1 px is 0\.133 mean radii.*forster_radii=1"):
+        exciton_network(b, forster_radius=1.0)
+    with pytest.raises(ValueError, match="not both"):
+        exciton_network(b, forster_radius=15.0, forster_radii=2.0)
+    for bad in (0.0, -1.0, math.inf, True, 1e4):
+        with pytest.raises(ValueError, match=r"forster_radii must be in \(0, 1000\] mean radii"):
+            exciton_network(b, forster_radii=bad)
+    by_radii = film_lqe(b, draws=2, seed=0, forster_radii=1.0)  # film_lqe passes it on
+    np.testing.assert_array_equal(by_radii.values, film_lqe(b, draws=2, seed=0, forster_radius=R).values)
+    assert by_radii.mean > film_lqe(b, draws=2, seed=0).mean  # shorter R_F, fewer hops to traps
 
 
 def test_film_lqe_averages_trap_draws():

@@ -67,9 +67,14 @@ class ReferenceEngine(Engine):
             self._length_checked = self.iterations
         return self._length
 
-    def _update(self, m, v, rule: str) -> None:
-        """Closest sets over the (metal, anchor) pairs ``m``, ``v``; ``rule`` "replace" or "take closer"."""
-        found, distance, owner, oxide = closest_sets(self.tables, self.zm, self.zo, m, v, self.tie)
+    def _update(self, m, v, rule: str, metal_only=None) -> None:
+        """Closest sets over the (metal, anchor) pairs ``m``, ``v``; ``rule`` "replace" or "take closer".
+
+        ``metal_only`` (bool per pair, optional): pairs that compare only the metal features at ``m``
+        with the anchor point (no oxide features of the anchor).
+        """
+        oxide = None if metal_only is None else ~metal_only
+        found, distance, owner, oxide = closest_sets(self.tables, self.zm, self.zo, m, v, self.tie, oxide=oxide)
         sets = np.split(oxide, np.flatnonzero(np.diff(owner)) + 1)
         for p, d, s in zip(found.tolist(), distance.tolist(), sets):
             if rule == "replace" or d < self.D[p] - self.tie:
@@ -126,7 +131,13 @@ class MatlabEngine(ReferenceEngine):
     * one metal point per iteration, the first of the smallest in storage order
       (Matlab's ``min``), ties included;
     * search windows of ``floor((distance + 1.5 k_exp step) / dx)`` points with no
-      feature-length term (``maxruffness``);
+      feature-length term (``maxruffness``); a segment is searched over the union of the
+      windows around its two ends (``union(allpoints2dist(index, ...), allpoints2dist(point2ind,
+      ...))``): the metal segments of a recomputed point against the oxide points in the windows
+      of both ends, a raised oxide point's segments against the metal points in both windows
+      (a grid segment's ends are neighbours, so the union is the window grown by one point in x
+      or in y; the four grown segments of a point are all compared with each point of that rim,
+      where the listing compares only the one whose end it belongs to);
     * the neighbours of an oxidized point keep their old distances;
     * raised oxide points are offered only to metal points within
       ``smallestdist + maxruffness`` (``updateoxidepoint``).
@@ -137,16 +148,30 @@ class MatlabEngine(ReferenceEngine):
     def _slack(self) -> float:
         return 1.5 * self.k_exp * self.step  # the Matlab's maxruffness
 
+    def _windows(self, centre: int, reach: float) -> tuple[np.ndarray, np.ndarray]:
+        """The listing's window around ``centre``, and its rim: the points the windows around
+        ``centre``'s four grid neighbours add (``union(window(index), window(point2ind))``)."""
+        g = self.grid
+        wx, wy = int(reach // g.dx), int(reach // g.dy)
+        window = g.window(centre, wx, wy)
+        grown = np.union1d(g.window(centre, wx + 1, wy), g.window(centre, wx, wy + 1))
+        return window, np.setdiff1d(grown, window, assume_unique=True)
+
     def _recompute(self, points: np.ndarray, bound: np.ndarray) -> None:
         reach = np.maximum(bound, 0.0) + self._slack()
-        windows = [self._window(p, r) for p, r in zip(points.tolist(), reach.tolist())]
-        self._update(np.repeat(points, [len(w) for w in windows]), np.concatenate(windows), "replace")
+        ms, vs, rims = [], [], []
+        for p, r in zip(points.tolist(), reach.tolist()):
+            window, rim = self._windows(p, r)
+            ms.append(np.full(len(window) + len(rim), p))
+            vs += [window, rim]
+            rims += [np.zeros(len(window), bool), np.ones(len(rim), bool)]  # rim: metal segments only
+        self._update(np.concatenate(ms), np.concatenate(vs), "replace", metal_only=np.concatenate(rims))
 
     def _take_closer(self, raised: np.ndarray) -> None:
         reach = float(self.D.min()) + self._slack()
         ms, vs = [], []
         for o in raised.tolist():
-            window = self._window(o, reach)
+            window = np.concatenate(self._windows(o, reach))
             ms.append(window)
             vs.append(np.full(len(window), o))
         if ms:

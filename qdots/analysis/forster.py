@@ -61,6 +61,12 @@ KB_EV = 8.617333262e-5
 TRAP_FRACTION = 1.0 / 3.0
 #: Default bound on the LQE error from the pair cutoff (absolute).
 CUTOFF_TOLERANCE = 1e-3
+#: Smallest ``forster_radius`` accepted in px, in mean radii: below it a number meant as radii or
+#: diameters was most likely given as px (hops to a neighbour at one diameter would be < 1/4096 of
+#: the radiative rate). Such radii can still be asked for as ``forster_radii``.
+MIN_PX_FORSTER_RADII = 0.5
+#: Largest ``forster_radii`` (mean radii): far beyond any dot film (the thesis uses 2).
+MAX_FORSTER_RADII = 1000.0
 
 #: CdSe constants of the effective-mass (Brus) model of `dot_energies`: bulk gap (eV, 300 K),
 #: electron and hole effective masses (units of the free electron mass), relative permittivity.
@@ -201,8 +207,48 @@ def _traps(n: int, trap_fraction: float, traps, rng) -> np.ndarray:
     return draw_traps(n, trap_fraction, rng)
 
 
+def resolve_forster_radius(radii, forster_radius: float | None = None, forster_radii: float | None = None) -> float:
+    """``R_F`` in px from one of its two spellings.
+
+    Parameters
+    ----------
+    radii : array_like
+        The dots' radii, px.
+    forster_radius : float, optional
+        ``R_F``, px. Values below `MIN_PX_FORSTER_RADII` mean radii are refused: they are a
+        radius or a diameter count given as px (``forster_radius=1.0`` meant as "one diameter"
+        would silently give the solution LQE); give those as ``forster_radii``.
+    forster_radii : float, optional
+        ``R_F`` in units of the mean dot radius, as the thesis's Fig 2-5 c states it (> 0).
+
+    Returns
+    -------
+    float
+        ``R_F``, px. Neither given: the mean diameter (the thesis), 1 px on an empty board.
+    """
+    radii = np.asarray(radii, dtype=float)
+    mean = float(radii.mean()) if radii.size else math.nan
+    if forster_radius is not None and forster_radii is not None:
+        raise InputError("give forster_radius (px) or forster_radii (mean radii), not both")
+    if forster_radii is not None:
+        if not (isinstance(forster_radii, (int, float, np.floating, np.integer)) and not isinstance(forster_radii, bool)
+                and math.isfinite(forster_radii) and 0 < forster_radii <= MAX_FORSTER_RADII):
+            raise InputError(f"forster_radii must be in (0, {MAX_FORSTER_RADII:g}] mean radii, got {forster_radii!r}")
+        return float(forster_radii) * mean if radii.size else 1.0
+    if forster_radius is None:
+        return 2.0 * mean if radii.size else 1.0
+    if not (isinstance(forster_radius, (int, float, np.floating, np.integer)) and not isinstance(forster_radius, bool)
+            and math.isfinite(forster_radius) and forster_radius > 0):
+        raise InputError(f"forster_radius must be > 0 px, got {forster_radius!r}")
+    if radii.size and forster_radius < MIN_PX_FORSTER_RADII * mean:
+        raise InputError(f"forster_radius is in px: {forster_radius:g} px is {forster_radius / mean:.3g} mean radii "
+                         f"(< {MIN_PX_FORSTER_RADII:g}); for R_F in mean radii pass forster_radii={forster_radius:g}")
+    return float(forster_radius)
+
+
 def exciton_network(state, forster_radius: float | None = None, trap_fraction: float = TRAP_FRACTION, *,
-                    traps=None, seed=None, efficiency: float = 1.0, tau: float = TAU_NS, energies=None,
+                    forster_radii: float | None = None, traps=None, seed=None, efficiency: float = 1.0,
+                    tau: float = TAU_NS, energies=None,
                     temperature: float = THESIS_TEMPERATURE, cutoff: float | None = None,
                     tolerance: float = CUTOFF_TOLERANCE, periodic: bool = False) -> ExcitonNetwork:
     """Hop rates, traps and decay rates of a board.
@@ -212,9 +258,12 @@ def exciton_network(state, forster_radius: float | None = None, trap_fraction: f
     state : State
         The board (``positions``, ``radii`` in px).
     forster_radius : float, optional
-        ``R_F``, px (> 0). Default: the mean diameter (the thesis).
+        ``R_F``, px, at least `MIN_PX_FORSTER_RADII` mean radii. Default: the mean diameter (the
+        thesis). See `resolve_forster_radius`.
     trap_fraction : float
         Each dot is a trap with this probability, drawn from ``seed`` (thesis 1/3).
+    forster_radii : float, optional
+        ``R_F`` in units of the mean dot radius (Fig 2-5 c's unit), instead of ``forster_radius``.
     traps : array of bool, optional
         Explicit traps (overrides ``trap_fraction``).
     seed : int, Generator or SeedSequence, optional
@@ -242,9 +291,8 @@ def exciton_network(state, forster_radius: float | None = None, trap_fraction: f
     """
     positions, radii = state_arrays(state)
     n = len(radii)
-    if forster_radius is None:
-        forster_radius = 2.0 * float(radii.mean()) if n else 1.0
-    for name, value in (("forster_radius", forster_radius), ("tau", tau), ("temperature", temperature),
+    forster_radius = resolve_forster_radius(radii, forster_radius, forster_radii)
+    for name, value in (("tau", tau), ("temperature", temperature),
                         ("tolerance", tolerance)):
         if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
             raise InputError(f"{name} must be > 0, got {value!r}")

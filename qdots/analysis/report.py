@@ -13,7 +13,7 @@ from matplotlib.figure import Figure
 
 from labrig.files import atomic_path
 
-from .forster import TRAP_FRACTION
+from .forster import TRAP_FRACTION, resolve_forster_radius
 from .lqe import TrapAverage, film_lqe
 from .packing import fill_within_radius, packing_summary
 from .structure import Hexatic, RadialDistribution, clusters, hexatic_order, radial_distribution, voronoi_coordination
@@ -30,7 +30,8 @@ class BoardReport:
 
 
 def board_report(state, rule: str = "text", forster_radius: float | None = None,
-                 trap_fraction: float = TRAP_FRACTION, draws: int = 8, seed=0, lqe: bool = True) -> BoardReport:
+                 trap_fraction: float = TRAP_FRACTION, draws: int = 8, seed=0, lqe: bool = True,
+                 forster_radii: float | None = None) -> BoardReport:
     """Packing figures, hexatic order, clusters, Voronoi coordination, g(r) and the film LQE of a board.
 
     Parameters
@@ -40,6 +41,8 @@ def board_report(state, rule: str = "text", forster_radius: float | None = None,
         Neighbour rule (`qdots.analysis.neighbour_edges`).
     forster_radius : float, optional
         px; default the mean diameter (the thesis).
+    forster_radii : float, optional
+        R_F in mean dot radii instead (`qdots.analysis.forster.resolve_forster_radius`).
     trap_fraction : float
         Fraction of trap dots (thesis 1/3).
     draws : int
@@ -68,11 +71,13 @@ def board_report(state, rule: str = "text", forster_radius: float | None = None,
         rdf = radial_distribution(state, bins=80)
     average = None
     if lqe and n:
-        average = film_lqe(state, draws=draws, seed=seed, forster_radius=forster_radius, trap_fraction=trap_fraction)
+        radius_px = resolve_forster_radius(state.radii, forster_radius, forster_radii)
+        average = film_lqe(state, draws=draws, seed=seed, forster_radius=forster_radius, forster_radii=forster_radii,
+                           trap_fraction=trap_fraction)
         summary.update(
             lqe=average.mean, lqe_standard_error=average.standard_error, lqe_error_bound=average.error_bound,
             solution_lqe=average.solution_lqe,
-            forster_radius_px=2 * float(np.mean(state.radii)) if forster_radius is None else float(forster_radius),
+            forster_radius_px=radius_px,
             trap_fraction=float(trap_fraction), trap_draws=int(draws), lqe_cutoff_px=average.cutoff,
         )
     return BoardReport(summary, hexatic, rdf, average)

@@ -167,8 +167,8 @@ def render(state_path: Path, png: Path | None) -> Path:
 
 
 def analyze(state_path: Path, *, rule: str = "text", forster_radius: float | None = None,
-            trap_fraction: float = 1.0 / 3.0, draws: int = 8, seed: int = 0, as_json: bool = False,
-            plot: Path | None = None) -> dict:
+            forster_radii: float | None = None, trap_fraction: float = 1.0 / 3.0, draws: int = 8, seed: int = 0,
+            as_json: bool = False, plot: Path | None = None) -> dict:
     """Print the packing table and the film LQE of a saved board; optionally write the figure.
 
     Returns the summary (the ``--json`` object).
@@ -179,8 +179,8 @@ def analyze(state_path: Path, *, rule: str = "text", forster_radius: float | Non
     from ..analysis.report import board_report, save_report_png, table_rows
 
     state = checkpoint.read_state(state_path)
-    report = board_report(state, rule=rule, forster_radius=forster_radius, trap_fraction=trap_fraction,
-                          draws=draws, seed=seed)
+    report = board_report(state, rule=rule, forster_radius=forster_radius, forster_radii=forster_radii,
+                          trap_fraction=trap_fraction, draws=draws, seed=seed)
     summary = {"state_file": str(state_path), "rule": rule, **report.summary}
     if plot is not None:
         summary["figure"] = str(save_report_png(state, report, plot))

@@ -121,8 +121,11 @@ def _add_analyze(subparsers) -> None:
                    help="also write the figure (default: STATE with _analysis.png)")
     p.add_argument("--rule", choices=["text", "code"], default="text",
                    help="neighbours: surface gap < one mean radius (text, default) or d <= r_i + 2 r_j (code)")
-    p.add_argument("--forster-radius", type=float_in(0.0, math.inf, low_open=True), default=None, metavar="PX",
-                   help="Förster radius, px (default: the mean diameter)")
+    radius = p.add_mutually_exclusive_group()
+    radius.add_argument("--forster-radius", type=float_in(0.0, math.inf, low_open=True), default=None, metavar="PX",
+                        help="Förster radius, px (default: the mean diameter)")
+    radius.add_argument("--forster-radii", type=float_in(0.0, 1000.0, low_open=True), default=None, metavar="R",
+                        help="Förster radius in mean dot radii, as the thesis's Fig 2-5 c (2 = the default)")
     p.add_argument("--traps", type=float_in(0.0, 1.0, high_open=False), default=1 / 3, metavar="F",
                    help="fraction of trap dots (default 1/3)")
     p.add_argument("--draws", type=int_in(1, MAX_DRAWS), default=8, help="trap draws to average (default 8)")
@@ -146,7 +149,8 @@ def _run_analyze(args: argparse.Namespace) -> int:
     from .commands import analyze
 
     plot = args.state.with_name(f"{args.state.stem}_analysis.png") if args.plot is True else args.plot
-    analyze(args.state, rule=args.rule, forster_radius=args.forster_radius, trap_fraction=args.traps,
+    analyze(args.state, rule=args.rule, forster_radius=args.forster_radius, forster_radii=args.forster_radii,
+            trap_fraction=args.traps,
             draws=args.draws, seed=args.seed, as_json=args.json, plot=plot)
     return 0
 
