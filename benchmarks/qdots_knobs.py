@@ -30,6 +30,7 @@ from qdots.experiment import run_experiment
 from qdots.presets import get_preset
 
 from . import pareto
+from .fig2_2_realtime import paired_difference
 from .qdots_cases import CASES, DEFAULTS
 from .report import Figure, Headline, Note, Table, cli
 
@@ -140,10 +141,9 @@ def packing_convergence(quick: bool) -> tuple[Table, MplFigure, dict]:
         row = [dt * 1e3, float(np.mean(wall[dt]))]
         for m in metrics:
             v = np.array(values[dt][m])
-            diff = v - np.array(values[finest][m])
-            se = float(diff.std(ddof=1) / math.sqrt(len(diff))) if len(diff) > 1 else math.nan
-            stats[(dt, m)] = (float(v.mean()), float(diff.mean()), se)
-            row += [f"{v.mean():.3f}", f"{diff.mean():+.3f} +- {se:.3f}" if dt != finest else "(reference)"]
+            diff, se = paired_difference(v, values[finest][m])
+            stats[(dt, m)] = (float(v.mean()), diff, se)
+            row += [f"{v.mean():.3f}", f"{diff:+.3f} +- {se:.3f}" if dt != finest else "(reference)"]
         rows.append(row)
     table = Table(
         f"fig2-2 preset x{factor:g} ({base.deposition.n_dots} dots, {base.deposition.n_dots * base.deposition.interval + base.deposition.settle:g} s), "
