@@ -28,7 +28,7 @@ from pathlib import Path
 from labrig.files import write_text_atomic
 
 from . import BENCHMARKS
-from .report import Figure, Headline, Note, machine_info, machine_line, save_figure, section_markdown
+from .report import Figure, Headline, Note, load_store, machine_info, machine_line, save_figure, section_markdown
 
 DOCS = Path(__file__).resolve().parent.parent / "docs"
 
@@ -89,19 +89,6 @@ def render(store: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
-def load_store(path: Path) -> dict:
-    if not path.exists():
-        return {"machine": {}, "sections": {}}
-    try:
-        store = json.loads(path.read_text())
-        if not isinstance(store.get("sections"), dict):
-            raise ValueError("no 'sections' table")
-        return store
-    except (OSError, ValueError) as exc:
-        raise ValueError(f"cannot read the previous report data {path}: {exc} (move it away to start afresh)") \
-            from None
-
-
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m benchmarks", description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="small versions of every benchmark (< 3 minutes)")
@@ -118,7 +105,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     names = [n for n in BENCHMARKS if not args.only or n in args.only]
     try:
-        store = load_store(args.out / "performance.json")
+        store = load_store(args.out / "performance.json", "sections")
     except ValueError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

@@ -13,6 +13,7 @@ from __future__ import annotations
 import argparse
 import datetime
 import io
+import json
 import math
 import os
 import platform
@@ -150,6 +151,24 @@ def section_markdown(results: Sequence[Result], figure_dir: str = "figures") -> 
         elif isinstance(result, Figure):
             parts.append(f"![{result.name}]({figure_dir}/{result.name}.png)\n\n*{result.caption}*")
     return "\n\n".join(parts)
+
+
+def load_store(path: Path, table: str, what: str = "report") -> dict:
+    """The stored data of a generated report (``{"machine": {}, table: {}}`` when there is none yet).
+
+    Raises ValueError (naming the file and how to start afresh) when it cannot be read or has no
+    ``table``; the file is never changed here.
+    """
+    if not path.exists():
+        return {"machine": {}, table: {}}
+    try:
+        store = json.loads(path.read_text())
+        if not isinstance(store, dict) or not isinstance(store.get(table), dict):
+            raise ValueError(f"no {table!r} table")
+        return store
+    except (OSError, ValueError) as exc:
+        raise ValueError(f"cannot read the previous {what} data {path}: {exc} (move it away to start afresh)") \
+            from None
 
 
 def save_figure(figure: MplFigure, path: Path) -> Path:
