@@ -8,9 +8,9 @@ on this machine drift 20-40 % between runs, so interleaving keeps the
 comparison fair):
 
 * ``full``: ``VanDerWaals() + ThermalKicks() + Drag()`` (default settings); its
-  own timers split each step into our force phase (bulk read, kicks, bulk
-  write) and Chipmunk's ``space.step`` (which includes the Python ``begin``
-  callbacks of the collision rule). The overhead ratio is total / ``space.step``:
+  own timers split each step into our force phase (bulk read, sub-step plan,
+  kicks, bulk write) and Chipmunk's ``space.step`` calls (which include the
+  compiled ``begin`` callbacks of the collision rule). The overhead ratio is total / ``space.step``:
   what our forces add to the pymunk work of the *same* configuration.
 * ``bare``: the same start stepped with no forces. It is not the same workload:
   without attraction the packed film relaxes and keeps about a third of its
@@ -38,6 +38,8 @@ from qdots.analysis import overlaps
 
 from .report import Figure, Headline, Note, Table
 
+#: The default time step, ms.
+DT_MS = 1e3 * qdots.EngineSettings().dt
 #: Sizes of the scaling run (``run``), full and quick.
 SIZES = {False: [300, 1000, 3000, 10000, 30000, 100000], True: [300, 1000, 3000]}
 
@@ -76,7 +78,7 @@ def measure(n: int, kind: str, steps: int, chunk: int = 20, warmup_s: float = 0.
     bare.step(chunk)
     full.timings.update(forces=0.0, pymunk=0.0)
     bare.timings.update(forces=0.0, pymunk=0.0)
-    rebuilds0, begins0 = full.forces[0].pairs.rebuilds, full.collisions.dot_dot
+    rebuilds0, begins0, substeps0 = full.forces[0].pairs.rebuilds, full.collisions.dot_dot, full.substeps_taken
     rounds = max(1, steps // chunk)
     for _ in range(rounds):  # alternate, so drifts in machine speed hit both alike
         full.step(chunk)
@@ -90,6 +92,8 @@ def measure(n: int, kind: str, steps: int, chunk: int = 20, warmup_s: float = 0.
         "pymunk_ms": ms["pymunk"],
         "forces_ms": ms["forces"],
         "ratio": (ms["forces"] + ms["pymunk"]) / ms["pymunk"],
+        "substeps_per_step": (full.substeps_taken - substeps0) / done,
+        "s_per_simulated_s": (ms["forces"] + ms["pymunk"]) / (1e3 * full.dt),
         "begins_per_step": (full.collisions.dot_dot - begins0) / done,
         "bare_ms": 1e3 * bare.timings["pymunk"] / done,
         "rebuilds_per_100": 100.0 * (full.forces[0].pairs.rebuilds - rebuilds0) / done,
@@ -104,16 +108,19 @@ def contacts_per_dot(state: qdots.State, tol: float = 0.05) -> float:
     return 2.0 * len(pairs) / state.n_dots
 
 
-COLUMNS = ["scene", "N", "total ms/step", "pymunk step", "our forces + I/O", "overhead total/pymunk",
+COLUMNS = ["scene", "N", "total ms/step", "wall s per simulated s", "Chipmunk sub-steps per step", "pymunk step",
+           "our forces + I/O", "overhead total/pymunk",
            "begin callbacks /step", "contacts/dot", "list rebuilds /100 steps", "worst overlap (% r)",
            "bare: no forces, same start (ms, contacts/dot)"]
 
 
 def table(rows: list[dict]) -> Table:
     return Table(
-        "Cost per step (dt = 1 ms, VanDerWaals + ThermalKicks + Drag, defaults) and worst overlap after the timed steps",
+        f"Cost per step (dt = {DT_MS:g} ms, VanDerWaals + ThermalKicks + Drag, defaults) and worst overlap after "
+        "the timed steps",
         COLUMNS,
-        [[r["scene"], r["N"], r["full_ms"], r["pymunk_ms"], r["forces_ms"], f"{r['ratio']:.2f}x",
+        [[r["scene"], r["N"], r["full_ms"], r["s_per_simulated_s"], r["substeps_per_step"], r["pymunk_ms"],
+          r["forces_ms"], f"{r['ratio']:.2f}x",
           round(r["begins_per_step"]), r["contacts_per_dot"], r["rebuilds_per_100"], r["overlap_pct"],
           f"{r['bare_ms']:.2f} ms, {r['bare_contacts_per_dot']:.2f}"] for r in rows])
 
@@ -152,7 +159,7 @@ def scaling_figure(rows: list[dict]) -> MplFigure:
             slope = exponents(rows, kind).get(key, float("nan"))
             ax.loglog(n, ms, style, color=colour, label=f"{kind}, {label} (N^{slope:.2f})")
     ax.set_xlabel("dots N")
-    ax.set_ylabel("ms per step (dt = 1 ms)")
+    ax.set_ylabel(f"ms per step (dt = {DT_MS:g} ms)")
     ax.set_title("qdots cost per step against N")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7)
@@ -173,7 +180,8 @@ def run(quick: bool) -> list:
     at_3000 = next(r for r in rows if r["scene"] == "packed" and r["N"] == 3000)
     largest = max((r for r in rows if r["scene"] == "packed"), key=lambda r: r["N"])
     return [
-        Headline("qdots step, 3,000 packed dots, vdW + kicks + drag (dt 1 ms)", f"{at_3000['full_ms']:.2f} ms/step",
+        Headline(f"qdots step, 3,000 packed dots, vdW + kicks + drag (dt {DT_MS:g} ms)",
+                 f"{at_3000['full_ms']:.2f} ms/step ({at_3000['s_per_simulated_s']:.2f} s per simulated s)",
                  f"worst overlap {at_3000['overlap_pct']:.2f} % of r"),
         Headline(f"qdots scaling, packed film, {SIZES[quick][0]:,} to {largest['N']:,} dots",
                  f"N^{packed['full_ms']:.2f}; {largest['full_ms']:.0f} ms/step at {largest['N']:,}",
@@ -203,7 +211,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     rows = [measure(n, kind, args.steps) for kind in args.scenes for n in args.sizes]
     print(machine())
-    print("dt = 1 ms, defaults: VanDerWaals(thesis, skin 3 px) + ThermalKicks + Drag\n")
+    print(f"dt = {DT_MS:g} ms, defaults: VanDerWaals(thesis, skin 3 px) + ThermalKicks + Drag\n")
     print(table(rows).markdown())
     print("\n" + fit_lines(rows))
     return 0

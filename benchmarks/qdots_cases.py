@@ -37,8 +37,7 @@ from qdots.forces import StepContext
 from qdots.hard_cases import loose_film
 
 #: The engine's defaults (the knob values marked on every plot).
-DEFAULTS = {"dt": 1e-3, "substeps": 1, "iterations": 10, "collision_slop": 0.01, "collision_bias": None,
-            "spatial_hash": None, "skin": 3.0}
+DEFAULTS = {**qdots.EngineSettings().to_dict(), "skin": qdots.VanDerWaals().skin}
 
 
 @dataclass
@@ -83,13 +82,12 @@ def exact_impact(p: np.ndarray, v: np.ndarray, r_sum: float, eps: float, t_end: 
 
 def restitution(settings: dict, quick: bool) -> Measured:
     seed, t_end = 4, 1.2
-    eps = qdots.Restitution().draw(np.random.default_rng(seed), approach_speed=math.inf)
     worst, wall, simulated = 0.0, 0.0, 0.0
     for shift in np.linspace(0.0, 1.0, 6 if quick else 12):
         scene = qdots.Scene(box=(400, 200), positions=[[170 + shift, 100], [230, 109]], radii=[7.5, 7.5],
                             velocities=[[60.0, 0.0], [-10.0, 0.0]])
         sim = qdots.Simulation(scene, seed=seed, **engine(settings))
-        exact = exact_impact(scene.positions, scene.velocities, 15.0, eps, t_end)
+        exact = exact_impact(scene.positions, scene.velocities, 15.0, sim.collisions.next_elasticity(), t_end)
         wall += timed_run(sim, t_end)
         simulated += sim.time
         if sim.collisions.dot_dot != 1 or sim.collisions.dot_wall:
@@ -142,7 +140,7 @@ def vdw_reference(gap0: float = 8.0) -> tuple[float, float, float]:
     touch.terminal = True
     y0 = [0.0, 2 * r + gap0, 0.0, 0.0]
     t_contact = solve_ivp(rhs, (0, 100), y0, events=touch, rtol=1e-10, atol=1e-12).t_events[0][0]
-    t_end = round(0.8 * t_contact / 0.004) * 0.004  # whole steps for every dt that divides 4 ms
+    t_end = round(0.8 * t_contact / 0.02) * 0.02  # whole steps for every dt that divides 20 ms
     x1, x2 = solve_ivp(rhs, (0, t_end), y0, rtol=1e-10, atol=1e-12, method="DOP853").y[:2, -1]
     return t_end, float(x1), float(x2)
 
@@ -172,7 +170,7 @@ def settled_pack(gravity: float, quick: bool) -> qdots.Scene:
     scene = qdots.Scene(box=(side, side), positions=grid, radii=rng.normal(7.5, 0.75, n).clip(5, 9.5))
     sim = qdots.Simulation(scene, pack_forces(side / 2, gravity, DEFAULTS["skin"]), seed=1)
     sim.run(settle)
-    return sim.board()
+    return sim.current_scene()
 
 
 def pack_simulation(settings: dict, gravity: float, quick: bool) -> qdots.Simulation:

@@ -93,8 +93,8 @@ def our_restitution_error(seed: int = 3) -> float:
                         velocities=[[IMPACT_SPEED / 2, 0.0], [-IMPACT_SPEED / 2, 0.0]],
                         restitution=qdots.Restitution(mean=RESTITUTION))
     sim = qdots.Simulation(scene, seed=seed)
+    drawn = sim.collisions.next_elasticity()
     v = sim.run(1.0).velocities
-    drawn = qdots.Restitution(mean=RESTITUTION).draw(np.random.default_rng(seed), math.inf)
     return abs((v[1, 0] - v[0, 0]) / IMPACT_SPEED - drawn)
 
 

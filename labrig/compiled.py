@@ -3,6 +3,10 @@
 numba is a core dependency. Every compiled function is cached on disk (the first run compiles,
 later ones load), releases the GIL (threads can share the work) and follows numpy's error model (a
 division by zero gives inf or nan, as the same expression on arrays would, instead of raising).
+
+`c_callback` compiles a function that C code calls through a function pointer (a library's
+callback slot), and `pointer` turns a memory address into a pointer such a function can read
+with ``numba.carray``.
 """
 
 from __future__ import annotations
@@ -10,6 +14,9 @@ from __future__ import annotations
 import functools
 
 import numba
+from numba import types
+from numba.core import cgutils
+from numba.extending import intrinsic
 
 
 def jit(function=None, *, inline: bool = False):
@@ -21,3 +28,19 @@ def jit(function=None, *, inline: bool = False):
     if function is None:
         return functools.partial(jit, inline=inline)
     return numba.njit(cache=True, nogil=True, error_model="numpy", inline="always" if inline else "never")(function)
+
+
+def c_callback(signature: str):
+    """Compile a function with a C signature (e.g. ``"void(voidptr, voidptr, voidptr)"``); its
+    ``.address`` is the C function pointer."""
+    return numba.cfunc(signature, nopython=True, cache=True, error_model="numpy")
+
+
+@intrinsic
+def pointer(typingctx, address):
+    """The memory address ``address`` (an unsigned integer) as a ``void *`` (compiled code only)."""
+
+    def codegen(context, builder, signature, args):
+        return builder.inttoptr(args[0], cgutils.voidptr_t)
+
+    return types.voidptr(address), codegen

@@ -56,11 +56,18 @@ class BodyArrays:
         self._state_buffer = batch.Buffer()
         self._state_buffer.set_float_buf(self._state_rows)
 
-    def read(self) -> tuple[np.ndarray, np.ndarray]:
-        """Positions and velocities of the dots, two new (N, 2) arrays."""
+    def read_rows(self) -> np.ndarray:
+        """The dots' rows ``(x, y, vx, vy)``, shape (N, 4): a read-only view of pymunk's memory, valid
+        until the next read."""
         self._read.clear()
         batch.get_space_bodies(self._space, _POS_VEL, self._read)
         rows = np.frombuffer(self._read.float_buf(), dtype=np.float64).reshape(-1, 4)[: self.n]
+        rows.flags.writeable = False
+        return rows
+
+    def read(self) -> tuple[np.ndarray, np.ndarray]:
+        """Positions and velocities of the dots, two new (N, 2) arrays."""
+        rows = self.read_rows()
         return rows[:, :2].copy(), rows[:, 2:].copy()
 
     def write_velocities(self, velocities: np.ndarray) -> None:

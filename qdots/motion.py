@@ -62,4 +62,4 @@ def warn_travel(travel: float, when: str) -> None:
     """Warn that a dot moves ``travel`` radii per sub-step, more than `SAFE_TRAVEL`."""
     warnings.warn(f"{when} a dot moves {travel:.2f} radii per sub-step (> {SAFE_TRAVEL}): contacts are found "
                   "only once discs overlap, so overlaps of that size and dots passing through walls become "
-                  "possible; use a smaller dt or more substeps", RuntimeWarning, stacklevel=4)
+                  "possible; use a smaller dt, more substeps or a larger max_substeps", RuntimeWarning, stacklevel=4)

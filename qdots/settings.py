@@ -18,6 +18,8 @@ DT_RANGE = (1e-7, 0.1)
 #: Most Chipmunk sub-steps per time step and solver iterations per sub-step.
 MAX_SUBSTEPS = 1000
 MAX_ITERATIONS = 1000
+#: Range of `EngineSettings.overlap_tolerance`, radii.
+TOLERANCE_RANGE = (1e-6, 1.0)
 #: Largest collision slop, px.
 MAX_SLOP = 100.0
 #: Most cells of Chipmunk's spatial hash.
@@ -33,8 +35,17 @@ class EngineSettings:
     dt : float
         Time step, s, in `DT_RANGE`; the forces are applied once per step.
     substeps : int
-        Chipmunk steps per time step, in [1, `MAX_SUBSTEPS`]. More sub-steps resolve contacts more
-        finely at proportional cost.
+        Fewest Chipmunk steps per time step, in [1, `MAX_SUBSTEPS`]. More sub-steps resolve contacts
+        more finely at proportional cost.
+    overlap_tolerance : float, optional
+        Largest overlap a contact may make before Chipmunk sees it, as a fraction of the smaller
+        radius, in `TOLERANCE_RANGE`. Chipmunk finds a contact only once two discs overlap, so a
+        dot closing at ``u`` px/s overlaps by up to ``u h`` in a sub-step ``h``: each step takes as
+        many equal sub-steps as the fastest approach that can touch within it needs (at least
+        ``substeps``, at most ``max_substeps``; `qdots.stepping`). None: always ``substeps``.
+    max_substeps : int
+        Most sub-steps a step may take for ``overlap_tolerance``, in [1, `MAX_SUBSTEPS`] (``substeps``
+        when that is more).
     iterations : int
         Solver iterations per sub-step, in [1, `MAX_ITERATIONS`] (pymunk's default 10). Two-body
         impacts are exact with any count; simultaneous impacts of three or more dots converge with
@@ -52,8 +63,10 @@ class EngineSettings:
         Chipmunk solver threads, 1 or 2; it helps dense piles a little.
     """
 
-    dt: float = 1e-3
+    dt: float = 2.5e-3
     substeps: int = 1
+    overlap_tolerance: float | None = 0.005
+    max_substeps: int = 64
     iterations: int = 10
     collision_slop: float = 0.01
     collision_bias: float | None = None
@@ -66,6 +79,10 @@ class EngineSettings:
 
         put("dt", real("dt", self.dt, *DT_RANGE, unit="s"))
         put("substeps", count("substeps", self.substeps, 1, MAX_SUBSTEPS))
+        if self.overlap_tolerance is not None:
+            put("overlap_tolerance", real("overlap_tolerance", self.overlap_tolerance, *TOLERANCE_RANGE,
+                                          unit="radii"))
+        put("max_substeps", count("max_substeps", self.max_substeps, 1, MAX_SUBSTEPS))
         put("iterations", count("iterations", self.iterations, 1, MAX_ITERATIONS))
         put("collision_slop", real("collision_slop", self.collision_slop, 0.0, MAX_SLOP, unit="px"))
         if self.collision_bias is not None:
@@ -81,10 +98,14 @@ class EngineSettings:
 
     @property
     def bias(self) -> float:
-        """pymunk's collision_bias: given, or `OVERLAP_CORRECTION` per sub-step."""
+        """pymunk's collision_bias at ``substeps`` sub-steps per step (`bias_for`)."""
+        return self.bias_for(self.dt / self.substeps)
+
+    def bias_for(self, substep: float) -> float:
+        """pymunk's collision_bias for a sub-step of ``substep`` s: given, or `OVERLAP_CORRECTION` per sub-step."""
         if self.collision_bias is not None:
             return float(self.collision_bias)
-        return (1.0 - OVERLAP_CORRECTION) ** (self.substeps / self.dt)
+        return (1.0 - OVERLAP_CORRECTION) ** (1.0 / substep)
 
     def replace(self, **changes) -> "EngineSettings":
         """A copy with some settings changed, validated again."""

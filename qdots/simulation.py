@@ -12,7 +12,6 @@ A `Scene` says what exists; a `Simulation` owns what acts on it and what records
 
 from __future__ import annotations
 
-import time
 from typing import Iterable, Sequence
 
 import numpy as np
@@ -21,14 +20,14 @@ from labrig.deprecation import warn as warn_renamed
 from labrig.validate import InputError, real
 from labrig.validate import seed as valid_seed
 
-from .bulk import BodyArrays
-from .collisions import CollisionCounter, Restitution, install_handlers
-from .forces.base import Force, StepContext
+from .collisions import CollisionRecord, Restitution, install_handlers, stream_key
+from .forces.base import Force
 from .motion import SAFE_TRAVEL, RunawayError, check_motion, warn_travel  # noqa: F401 (public here too)
 from .scene import Scene, check_clear
 from .settings import OVERLAP_CORRECTION, EngineSettings  # noqa: F401 (public here too)
 from .space import add_discs, new_space, tune_space
 from .state import State
+from .stepping import Stepper
 from .writers import Writer, WriterSchedule
 
 #: Relative overlap above which a finished run warns (and says so in its summary). Soft contacts
@@ -44,12 +43,12 @@ CHECK_EVERY = 50
 class Simulation:
     """Dots of a `Scene` moving in a `pymunk.Space`.
 
-    Each step: read all positions and velocities in bulk, let every force
-    add its velocity change (evaluated on the same start-of-step state),
-    write the velocities back in bulk, then advance Chipmunk by ``dt`` in
-    ``substeps`` equal sub-steps, which moves the dots and resolves contacts
-    with the partial-elasticity rule (`qdots.collisions`). With no forces
-    the bulk read/write is skipped entirely.
+    Each step (`qdots.stepping`): read all positions and velocities in bulk, choose the Chipmunk
+    sub-steps so that no dot travels more than ``overlap_tolerance`` radii into a contact within
+    one, let every force add its velocity change (evaluated where the dots are at the end of the
+    first sub-step), hand that change to Chipmunk as a body force, and advance Chipmunk, which moves
+    the dots, adds the forces' velocity change, and resolves contacts with the partial-elasticity
+    rule (`qdots.collisions`). With no forces and ``overlap_tolerance=None`` the bulk read is skipped.
 
     Parameters
     ----------
@@ -86,14 +85,18 @@ class Simulation:
         self.steps_taken = 0
         #: Simulation time at step 0, s (nonzero for a run resumed from a checkpoint).
         self.start_time = 0.0
-        #: Wall-clock seconds spent in the force phase (bulk read, kicks, bulk
-        #: write) and in Chipmunk's ``space.step`` (which includes the collision
+        #: Wall-clock seconds spent in the force phase (bulk read, sub-step plan, kicks, force
+        #: write) and in Chipmunk's ``space.step`` calls (which include the collision
         #: callbacks), accumulated over all steps.
         self.timings = {"forces": 0.0, "pymunk": 0.0}
-        self.collisions = CollisionCounter()
+        #: Counts of impacts and the position in the elasticity draws (`qdots.collisions.CollisionRecord`).
+        self.collisions = CollisionRecord(stream_key(self.rng))
+        #: Chipmunk sub-steps taken, summed over all steps.
+        self.substeps_taken = 0
         self._schedule = WriterSchedule()
         self._warned_travel = False
         self._forces: tuple[Force, ...] = ()
+        self._stepper: Stepper | None = None
         self.radii = np.zeros(0)
         self.masses = np.zeros(0)
         self.forces = forces
@@ -151,7 +154,7 @@ class Simulation:
         if not isinstance(rule, Restitution):
             raise InputError(f"restitution must be a qdots.Restitution, got {type(rule).__name__}")
         self.scene = self.scene.replace(restitution=rule)
-        install_handlers(self.space, rule, self.rng, self.collisions)
+        install_handlers(self.space, rule, self.collisions)
 
     # -- writers --------------------------------------------------------------------------------
 
@@ -192,15 +195,19 @@ class Simulation:
         self.radii = np.zeros(0)
         self.masses = np.zeros(0)
         self._add_bodies(scene.positions, scene.velocities, scene.radii, scene.masses)
-        install_handlers(self.space, scene.restitution, self.rng, self.collisions)
+        install_handlers(self.space, scene.restitution, self.collisions)
 
     def _add_bodies(self, positions, velocities, radii, masses) -> None:
         self._bodies += add_discs(self.space, positions, velocities, radii, masses)
-        self._io = BodyArrays(self.space, self._bodies)
         self.radii = np.concatenate([self.radii, radii])
         self.masses = np.concatenate([self.masses, masses])
         self.radii.setflags(write=False)
         self.masses.setflags(write=False)
+        old = self._stepper
+        self._stepper = Stepper(self.space, self._bodies, self.radii, self.masses, self.scene.wall_segments())
+        if old is not None and old.space is self.space:  # same space: Chipmunk's contact impulses carry over
+            self._stepper.previous = old.previous
+        self._io = self._stepper.io
         for force in self._forces:
             force.bind(self.radii, self.masses)
 
@@ -277,41 +284,14 @@ class Simulation:
 
     def step(self, n: int = 1) -> None:
         """Advance ``n`` time steps (no writers, no checks: `run` is the checked way)."""
-        substep = self.dt / self.substeps
-        clock = time.perf_counter
-        timings = self.timings
         for _ in range(int(n)):
-            t0 = clock()
-            if self._forces:
-                self._apply_forces()
-            t1 = clock()
-            for _ in range(self.substeps):
-                self.space.step(substep)
-            timings["forces"] += t1 - t0
-            timings["pymunk"] += clock() - t1
+            try:
+                k = self._stepper.step(self._forces, self._settings, self.time, self.rng, self.timings)
+            except (ValueError, OverflowError, MemoryError, FloatingPointError, RuntimeError):
+                self._check_motion()  # a blown-up board makes the pair searches fail: say what happened
+                raise
+            self.substeps_taken += k
             self.steps_taken += 1
-
-    def _apply_forces(self) -> None:
-        position, velocity = self._io.read()
-        ctx = StepContext(
-            time=self.time,
-            dt=self.dt,
-            x=np.ascontiguousarray(position[:, 0]),
-            y=np.ascontiguousarray(position[:, 1]),
-            velocity=velocity,
-            radii=self.radii,
-            masses=self.masses,
-            rng=self.rng,
-            dv=np.zeros_like(velocity),
-        )
-        try:
-            for force in self._forces:
-                force.kick(ctx)
-        except (ValueError, OverflowError, MemoryError, FloatingPointError, RuntimeError):
-            self._check_motion()  # a blown-up board makes the pair search fail: say what happened
-            raise
-        ctx.dv += velocity  # the new velocities, without a temporary
-        self._io.write_velocities(ctx.dv)
 
     def run(self, seconds: float, *, progress: bool = False, writers: Sequence[Writer] = ()) -> State:
         """Advance by ``seconds`` of simulated time (rounded to whole steps), writing on the attached writers' schedules.
@@ -387,7 +367,10 @@ class Simulation:
             forces = ", ".join(map(_describe, self._forces)) or "none"
             return f"at t = {self.time:g} s (step {self.steps_taken})", f"the forces ({forces}) or the time step"
 
-        travel = check_motion(position, velocity, self.radii, self.dt / self.substeps, self.scene.box, describe)
+        sub_dt = self.dt / max(self._stepper.previous, self.substeps)  # the last step's sub-step
+        travel = check_motion(position, velocity, self.radii, sub_dt, self.scene.box, describe)
+        if self._settings.overlap_tolerance is not None:  # contacts are planned for: warn only when capped
+            travel = self._stepper.take_capped_travel()
         if travel > SAFE_TRAVEL and not self._warned_travel:
             self._warned_travel = True
             warn_travel(travel, f"at t = {self.time:g} s")

@@ -5,18 +5,45 @@ iteration, and overlap correction acts on pseudo-velocities only, so measured re
 tangential velocity and momentum agree with theory to round-off (we allow 1e-9 relative).
 """
 
+import hashlib
+import json
+import math
+
 import numpy as np
 import pytest
 
 import qdots
+from qdots.collisions import CollisionRecord, elasticity_of_impact, impact_normal, install_handlers
 
 TOL = 1e-9
+MASK = 2**64 - 1
+
+
+def splitmix(z):
+    """SplitMix64's finaliser on Python integers (the oracle of the compiled `mix64`)."""
+    z = (z + 0x9E3779B97F4A7C15) & MASK
+    z = ((z ^ (z >> 30)) * 0xBF58476D1CE4E5B9) & MASK
+    z = ((z ^ (z >> 27)) * 0x94D049BB133111EB) & MASK
+    return z ^ (z >> 31)
+
+
+def stream_normal(key, n):
+    """Draw n of the elasticity stream ``key``: Box-Muller on two hashed 53-bit uniforms."""
+    a, b = splitmix(key ^ ((2 * n) & MASK)), splitmix(key ^ ((2 * n + 1) & MASK))
+    u1, u2 = ((a >> 11) + 1) / 2.0**53, (b >> 11) / 2.0**53
+    return math.sqrt(-2.0 * math.log(u1)) * math.cos(2.0 * math.pi * u2)
+
+
+def seed_key(seed):
+    """The stream key of ``Simulation(seed=seed)``: a hash of its generator's first state."""
+    state = json.dumps(np.random.default_rng(seed).bit_generator.state, sort_keys=True).encode()
+    return int.from_bytes(hashlib.blake2b(state, digest_size=8).digest(), "little")
 
 
 def expected_eps(seed, mean=0.8):
-    """The first draw the simulation's generator makes for a dot-dot impact."""
-    rule = qdots.Restitution(mean=mean)
-    return rule.draw(np.random.default_rng(seed), approach_speed=np.inf)
+    """The first elasticity a simulation seeded ``seed`` draws for a dot-dot impact."""
+    std = min((1 - mean) / 2, mean / 2)
+    return min(max(mean + std * stream_normal(seed_key(seed), 0), 0.0), 1.0)
 
 
 def collide(v1, v2, m1=1.0, m2=1.0, offset=0.0, seed=0, mean=0.8, seconds=1.2, **rule):
@@ -72,21 +99,24 @@ def step_until_impact(sim, max_steps=5000):
 
 @pytest.mark.parametrize("m1, m2", [(1.0, 1.0), (1.0, 3.0)])
 def test_oblique_impact_keeps_tangential_velocity(m1, m2):
-    """Exact along the normal Chipmunk uses: the line of centres when the overlap is detected."""
+    """Frictionless: both velocity changes lie on one line, the contact normal; along it the
+    restitution is the drawn one, exactly. The normal is the line of centres when Chipmunk saw the
+    overlap, within a degree of the line of centres after the step."""
     seed = 4
     scene = qdots.Scene(box=(400, 200), positions=[[170, 100], [230, 109]], radii=[7.5, 7.5],
                         masses=[m1, m2], velocities=[[60.0, 0.0], [-10.0, 0.0]])
     sim = qdots.Simulation(scene, seed=seed)
     p_before = sim.state().momentum()
     v0, after = step_until_impact(sim)
-    n = after.positions[1] - after.positions[0]
-    n /= np.linalg.norm(n)
-    t = np.array([-n[1], n[0]])
     v1 = after.velocities
-    np.testing.assert_allclose(v1 @ t, v0 @ t, atol=TOL * 100)
+    n = (v1[0] - v0[0]) / np.linalg.norm(v1[0] - v0[0])
+    t = np.array([-n[1], n[0]])
+    np.testing.assert_allclose(v1 @ t, v0 @ t, atol=TOL * 100)  # no tangential impulse on either dot
     eps = -((v1[1] - v1[0]) @ n) / ((v0[1] - v0[0]) @ n)
     assert eps == pytest.approx(expected_eps(seed), abs=TOL)
     np.testing.assert_allclose(after.momentum(), p_before, atol=TOL * 100)
+    centres = after.positions[1] - after.positions[0]
+    assert np.degrees(np.arccos(-n @ centres / np.linalg.norm(centres))) < 1.0
 
 
 def test_contact_normal_error_shrinks_with_dt():
@@ -189,14 +219,28 @@ def test_elastic_gas_conserves_energy(rng, iterations, bound):
 
 def test_too_fast_for_the_time_step_warns_once_and_a_normal_run_does_not(recwarn):
     fast = qdots.Scene(box=(400, 200), positions=[[100, 100]], radii=[7.5], velocities=[[4500.0, 0.0]])
-    sim = qdots.Simulation(fast, seed=0)  # 4.5 px per 1 ms step = 0.6 r
+    sim = qdots.Simulation(fast, seed=0, dt=1e-3, overlap_tolerance=None)  # 4.5 px per 1 ms step = 0.6 r
     with pytest.warns(RuntimeWarning, match=r"moves 0\.60 radii per sub-step \(> 0\.5\)"):
         sim.run(0.5)
     recwarn.clear()
     sim.run(0.5)
     assert not [w for w in recwarn if issubclass(w.category, RuntimeWarning)]  # once per simulation
-    qdots.Simulation(fast, seed=0, substeps=2).run(0.5)  # 0.3 r per sub-step: accepted
+    qdots.Simulation(fast, seed=0, dt=1e-3, substeps=2, overlap_tolerance=None).run(0.5)  # 0.3 r per sub-step
     assert not [w for w in recwarn if issubclass(w.category, RuntimeWarning)]
+
+
+def test_sub_steps_adapt_to_a_fast_dot_and_warn_only_when_capped(recwarn):
+    fast = qdots.Scene(box=(400, 200), positions=[[100, 100]], radii=[7.5], velocities=[[4500.0, 0.0]])
+    sim = qdots.Simulation(fast, seed=0)  # default: sub-steps short enough near the walls
+    sim.run(0.5)
+    assert not [w for w in recwarn if issubclass(w.category, RuntimeWarning)]
+    assert sim.substeps_taken > sim.steps_taken  # split where the dot meets a wall (6 times) ...
+    assert sim.substeps_taken < 5 * sim.steps_taken  # ... and only there
+    assert 7.5 <= sim.state().positions[0, 0] <= 392.5
+    assert sim.state().velocities[0] == pytest.approx([4500.0, 0.0], abs=TOL)  # elastic walls, 6 bounces
+    capped = qdots.Scene(box=(4000, 200), positions=[[3000, 100]], radii=[7.5], velocities=[[2e5, 0.0]])
+    with pytest.warns(RuntimeWarning, match=r"radii per sub-step"):
+        qdots.Simulation(capped, seed=0, max_substeps=8).run(0.01)  # 2e5 px/s * 0.25 ms = 6.7 r
 
 
 class _Blowup(qdots.forces.base.Force):
@@ -207,6 +251,53 @@ class _Blowup(qdots.forces.base.Force):
 def test_a_non_finite_state_stops_the_run_with_its_time():
     scene = qdots.Scene(box=(400, 200), positions=[[100, 100], [200, 100]], radii=[7.5, 7.5])
     sim = qdots.Simulation(scene, [_Blowup()], seed=0)
-    with pytest.raises(FloatingPointError, match=r"the dots left the model's range at t = 0\.05 s \(step 50\)"):
-        sim.run(1.0)  # checked every max(CHECK_EVERY, 1000 / 200) = 50 steps
+    with pytest.raises(FloatingPointError, match=r"the dots left the model's range at t = \S+ s \(step 2\)"):
+        sim.run(1.0)  # the sub-step plan of step 2 meets the non-finite velocities of step 1
+    sim = qdots.Simulation(scene, [_Blowup()], seed=0, overlap_tolerance=None)
+    with pytest.raises(FloatingPointError, match=r"the dots left the model's range at t = \S+ s \(step 50\)"):
+        sim.run(1.0)  # without a plan: checked every max(CHECK_EVERY, 400 / 200) = 50 steps
     assert sim.steps_taken == qdots.simulation.CHECK_EVERY == 50
+
+
+@pytest.mark.parametrize("key, n", [(0, 0), (1, 5), (2**64 - 1, 2**63 + 7), (seed_key(3), 123456)])
+def test_compiled_stream_equals_its_oracle(key, n):
+    assert impact_normal(np.uint64(key), np.uint64(n)) == stream_normal(key, n)
+
+
+def test_stream_is_standard_normal():
+    z = np.array([impact_normal(np.uint64(seed_key(1)), np.uint64(n)) for n in range(40_000)])
+    assert abs(z.mean()) < 4 / math.sqrt(len(z))  # 4 standard errors
+    assert abs(z.std() - 1) < 4 / math.sqrt(2 * len(z))
+    assert abs(np.mean(z**3)) < 4 * math.sqrt(15 / len(z))  # symmetric
+    assert np.mean(z**4) == pytest.approx(3.0, abs=4 * math.sqrt(96 / len(z)))
+
+
+def test_rule_counts_sticks_and_clips():
+    record = CollisionRecord(key=seed_key(2))
+    record.set_rule(qdots.Restitution(mean=0.9, sticking_speed=1.0))
+    assert elasticity_of_impact(record.array, 0.99) == 0.0
+    draws = [elasticity_of_impact(record.array, 50.0) for _ in range(2000)]
+    assert 0.0 <= min(draws) and max(draws) == 1.0  # mean 0.9, std 0.05: some draws clip at 1
+    assert (record.dot_dot, record.sticking, record.draws) == (2001, 1, 2000)
+    assert draws[0] == min(0.9 + 0.05 * stream_normal(seed_key(2), 0), 1.0)
+
+
+def busy_film(seed, compiled):
+    rng = np.random.default_rng(5)
+    grid = np.array([(x, y) for x in range(20, 200, 18) for y in range(20, 200, 18)], float)
+    scene = qdots.Scene(box=(220, 220), positions=grid, radii=rng.uniform(6.5, 8.5, len(grid)),
+                        velocities=rng.normal(0, 40, (len(grid), 2)), segments=[[0, 110, 80, 110]])
+    sim = qdots.Simulation(scene, [qdots.VanDerWaals(), qdots.ThermalKicks()], seed=seed)
+    install_handlers(sim.space, scene.restitution, sim.collisions, compiled=compiled)
+    sim.run(1.0)
+    return sim
+
+
+def test_compiled_callbacks_equal_the_python_fallback_bit_for_bit():
+    if not CollisionRecord().compiled:
+        pytest.skip("pymunk's memory layout is not the expected one: only the Python callbacks run")
+    fast, slow = busy_film(11, True), busy_film(11, False)
+    assert fast.collisions.to_dict() == slow.collisions.to_dict()
+    assert fast.collisions.draws > 50 and fast.collisions.sticking > 10 and fast.collisions.dot_wall > 5
+    np.testing.assert_array_equal(fast.state().positions, slow.state().positions)
+    np.testing.assert_array_equal(fast.state().velocities, slow.state().velocities)

@@ -75,7 +75,7 @@ def test_deposit_advances_time_per_dot_and_sets_masses():
     sim = empty_sim(box=(120.0, 120.0), forces=[qdots.VanDerWaals(), qdots.ThermalKicks()])
     d = deposit(sim, 8, sigma=0.15, mass_model="volume", interval=0.05, rng=3)
     assert sim.n_dots == 8
-    assert sim.steps_taken == 8 * 50 and sim.time == pytest.approx(0.4)
+    assert sim.steps_taken == 8 * round(0.05 / sim.dt) and sim.time == pytest.approx(0.4)
     assert np.allclose(sim.masses, (d / 15.0) ** 3)
 
 
@@ -118,7 +118,8 @@ def test_writers_see_one_continuous_run():
     sim, rec = empty_sim(), Recorder()
     sim.attach(rec)
     deposit(sim, 3, interval=0.05, rng=2)
-    assert np.allclose(rec.times, np.arange(16) * 0.01)  # steps 0, 10, ..., 150, no repeats
+    steps = round(0.15 / sim.dt)  # steps 0, 10, 20, ... to the end, no repeats
+    assert np.allclose(rec.times, np.arange(1 + steps // 10) * 10 * sim.dt)
 
 
 def test_deposit_around_centre_uses_the_thesis_ring():

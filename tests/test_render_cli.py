@@ -26,7 +26,7 @@ E = math.e
 def small_sim(n=10, seed=2):
     positions, radii = random_sequential(n, (120, 120), sigma=0.1, rng=seed)
     scene = qdots.Scene(box=(120, 120), positions=positions, radii=radii, segments=[[0, 60, 80, 60]])
-    return qdots.Simulation(scene, [qdots.VanDerWaals(), qdots.ThermalKicks()], seed=seed)
+    return qdots.Simulation(scene, [qdots.VanDerWaals(), qdots.ThermalKicks()], seed=seed, dt=1e-3)
 
 
 # --------------------------------------------------------------------------- colours
@@ -219,7 +219,7 @@ def test_cli_demo_writes_outputs(tmp_path, capsys):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["demo.mp4", "demo.png", "summary.csv"]
     with open(tmp_path / "summary.csv") as f:
         (row,) = list(csv.DictReader(f))
-    assert int(row["dots"]) == 30 and int(row["steps"]) == 1000
+    assert int(row["dots"]) == 30 and int(row["steps"]) == round(1.0 / qdots.EngineSettings().dt)
     assert float(row["simulated_s"]) == pytest.approx(1.0)
     assert 0.0 <= float(row["interior_fraction"]) <= 1.0
     assert 0.0 <= float(row["max_overlap"]) < 0.05

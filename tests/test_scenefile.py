@@ -37,7 +37,7 @@ def test_floats_and_optional_engine_settings_round_trip_exactly():
 def test_written_file_has_every_key_with_units():
     text = experiment_to_toml(PRESETS["fig2-2"][1])
     for line in ("sigma = 0.15", "# fraction of mean diameter, [0, 1)", "[board]", "[deposition]",
-                 "[restitution]", "[engine]", "[[forces]]", 'type = "VanDerWaals"', "dt = 0.001",
+                 "[restitution]", "[engine]", "[[forces]]", 'type = "VanDerWaals"', f"dt = {EngineSettings().dt}",
                  "# collision_bias (unset)", "# spatial_hash (unset)"):
         assert line in text, line
     assert "# px, in (0, 1e6]" in text and "# s of simulated time" in text

@@ -12,7 +12,7 @@ from qdots.io.trajectory import GSDWriter  # noqa: E402
 def small_run():
     grid = np.array([(x, y) for x in range(20, 200, 20) for y in range(20, 100, 20)], float)
     scene = qdots.Scene(box=(200, 120), positions=grid, radii=np.full(len(grid), 7.0))
-    return qdots.Simulation(scene, [qdots.ThermalKicks()], seed=2)
+    return qdots.Simulation(scene, [qdots.ThermalKicks()], seed=2, dt=1e-3)
 
 
 def test_frames_round_trip(tmp_path):

@@ -88,30 +88,39 @@ def add_pair_kicks(x, y, i, j, radii, inv_mass, model, r0, offset, strength, min
     dv : ndarray, shape (N, 2)
         Velocity changes, px/s, added to in place.
     """
+    half_dt = 0.5 * dt
+    dt2 = dt * dt
     for k in range(i.size):
         a = i[k]
         b = j[k]
         dx = x[b] - x[a]
         dy = y[b] - y[a]
-        d = math.sqrt(dx * dx + dy * dy)
-        gap = d - (radii[a] + radii[b])
-        if gap >= max_gap or d <= 0.0 or (zero_inside and gap < min_gap):
+        contact = radii[a] + radii[b]
+        reach = contact + max_gap
+        d2 = dx * dx + dy * dy
+        if d2 >= reach * reach or d2 <= 0.0:
+            continue
+        d = math.sqrt(d2)
+        gap = d - contact
+        if zero_inside and gap < min_gap:
             continue
         g = max(gap, min_gap)
+        ia = inv_mass[a]
+        ib = inv_mass[b]
         if model == HAMAKER:
             impulse = hamaker_force(g, radii[a], radii[b], strength) * dt
-            speed_a = impulse * inv_mass[a]
-            speed_b = impulse * inv_mass[b]
+            speed_a = impulse * ia
+            speed_b = impulse * ib
         else:
             q = r0 / (g - offset)
             q2 = q * q
             pull = q2 * q2 * q2 * q  # (R0/(g - b))^7 for unit mass
-            linear = 0.5 * dt * pull
-            cap = 0.5 * math.sqrt(g * pull)
-            speed_a = min(linear * inv_mass[a], cap * math.sqrt(inv_mass[a]))
-            speed_b = min(linear * inv_mass[b], cap * math.sqrt(inv_mass[b]))
-        ux = dx / d
-        uy = dy / d
+            # min(dt pull / m / 2, sqrt(g pull / m) / 2): the first unless dt^2 pull / m >= g (no sqrt)
+            speed_a = half_dt * pull * ia if dt2 * pull * ia < g else 0.5 * math.sqrt(g * pull * ia)
+            speed_b = half_dt * pull * ib if dt2 * pull * ib < g else 0.5 * math.sqrt(g * pull * ib)
+        inv_d = 1.0 / d
+        ux = dx * inv_d
+        uy = dy * inv_d
         dv[a, 0] += speed_a * ux
         dv[a, 1] += speed_a * uy
         dv[b, 0] -= speed_b * ux

@@ -59,7 +59,7 @@ class Knobs:
     Parameters
     ----------
     dt : float
-        Time step, s (> 0).
+        Time step, s (> 0; the engine's default, `qdots.EngineSettings`).
     elasticity : float
         Mean dot-dot restitution, in [0, 1] (`qdots.Restitution.mean`; thesis 0.8).
     vdw_r0 : float
@@ -78,7 +78,7 @@ class Knobs:
         Acceleration, px/s^2 (>= 0; thesis 750).
     """
 
-    dt: float = 1e-3
+    dt: float = EngineSettings.dt
     elasticity: float = 0.8
     vdw_r0: float = 15.0
     thermal: float = 1.0
@@ -195,6 +195,7 @@ class LiveRun:
         old = self.sim
         sim = Simulation(board, self.knobs.forces(board.box), seed=0, engine=old.settings)
         sim.rng.bit_generator.state = old.rng.bit_generator.state
+        sim.collisions.copy_from(old.collisions)
         sim.start_time = old.time
         for writer in old.writers:
             sim.attach(writer)

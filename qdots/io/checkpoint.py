@@ -35,7 +35,7 @@ import pymunk
 from labrig.files import read_archive, write_archive
 from labrig.validate import InputError, count, flag, real, reals
 
-from ..collisions import Restitution
+from ..collisions import Restitution, stream_key
 from ..forces import force_from_dict
 from ..scene import MAX_LENGTH, Scene
 from ..settings import EngineSettings
@@ -45,8 +45,10 @@ from ..state import State
 FORMAT = "qdots-state"
 VERSION = 1
 ARRAYS = ("positions", "velocities", "radii", "masses", "segments")
-#: Keys of the saved collision counters.
-COUNTERS = ("dot_dot", "dot_wall", "sticking")
+#: Keys of the saved collision counters (`qdots.collisions.CollisionRecord`); files of 0.2 and
+#: earlier have only the first three (their draws start from a key derived from the saved generator).
+COUNTERS = ("dot_dot", "dot_wall", "sticking", "draws", "key")
+OLD_COUNTERS = COUNTERS[:3]
 
 
 def save(sim: Simulation, path: str | os.PathLike) -> Path:
@@ -79,7 +81,7 @@ def save(sim: Simulation, path: str | os.PathLike) -> Path:
         "engine": sim.settings.to_dict(),
         "forces": [force.to_dict() for force in sim.forces],
         "rng": sim.rng.bit_generator.state,
-        "collisions": {name: getattr(sim.collisions, name) for name in COUNTERS},
+        "collisions": sim.collisions.to_dict(),
     }
     arrays = {"positions": state.positions, "velocities": state.velocities, "radii": state.radii,
               "masses": state.masses, "segments": scene.segments}
@@ -159,10 +161,11 @@ def load(path: str | os.PathLike) -> Simulation:
         sim.steps_taken = metadata["steps_taken"]
         sim.start_time = metadata["start_time"]
         counters = _field(metadata, "collisions")
-        if not isinstance(counters, dict) or sorted(counters) != sorted(COUNTERS):
+        if not isinstance(counters, dict) or sorted(counters) not in (sorted(COUNTERS), sorted(OLD_COUNTERS)):
             raise InputError(f"collisions must be a table of {', '.join(COUNTERS)}, got {counters!r}")
-        for name in COUNTERS:
-            setattr(sim.collisions, name, count(f"collisions.{name}", counters[name], 0))
+        sim.collisions.key = stream_key(sim.rng)
+        for name in counters:
+            setattr(sim.collisions, name, count(f"collisions.{name}", counters[name], 0, 2**64 - 1))
     except InputError as exc:
         raise InputError(f"{path}: the saved run is invalid: {exc}") from None
     return sim

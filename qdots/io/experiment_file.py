@@ -29,7 +29,8 @@ from ..neighbours import MAX_SKIN
 from ..placement import MAX_TRIES
 from ..protocols import MAX_INTERVAL
 from ..scene import MAX_DOTS, MAX_LENGTH, MAX_MASS
-from ..settings import DT_RANGE, MAX_HASH_CELLS, MAX_ITERATIONS, MAX_SLOP, MAX_SUBSTEPS, EngineSettings
+from ..settings import (DT_RANGE, MAX_HASH_CELLS, MAX_ITERATIONS, MAX_SLOP, MAX_SUBSTEPS, TOLERANCE_RANGE,
+                        EngineSettings)
 from ..simulation import MAX_STEPS
 
 _PX = f"(0, {number(MAX_LENGTH)}]"
@@ -68,7 +69,11 @@ TABLES = {
     }),
     "engine": (EngineSettings, {
         "dt": ("float", f"s, time step, in [{number(DT_RANGE[0])}, {number(DT_RANGE[1])}]"),
-        "substeps": ("int", f"Chipmunk steps per time step, in [1, {MAX_SUBSTEPS}]"),
+        "substeps": ("int", f"fewest Chipmunk steps per time step, in [1, {MAX_SUBSTEPS}]"),
+        "overlap_tolerance": ("float?", f"radii a dot may travel into a contact in one Chipmunk step, in "
+                                        f"[{number(TOLERANCE_RANGE[0])}, {number(TOLERANCE_RANGE[1])}]; unset: "
+                                        "always `substeps`"),
+        "max_substeps": ("int", f"most Chipmunk steps per time step for overlap_tolerance, in [1, {MAX_SUBSTEPS}]"),
         "iterations": ("int", f"solver iterations per sub-step, in [1, {MAX_ITERATIONS}]"),
         "collision_slop": ("float", f"px of overlap left uncorrected, in [0, {number(MAX_SLOP)}]"),
         "collision_bias": ("float?", "overlap fraction left after 1 s, [0, 1); unset: 30 % corrected per sub-step"),

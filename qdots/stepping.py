@@ -1,0 +1,270 @@
+"""One time step of a `qdots.Simulation`: the force phase, the sub-step plan, Chipmunk's steps.
+
+Order within a step of length ``dt`` (semi-implicit Euler, as Chipmunk itself integrates):
+
+1. Read every dot's position and velocity in one bulk call.
+2. Plan the sub-steps (`substep_count`): Chipmunk sees a contact only once two discs overlap, so a
+   dot closing on another (or on a wall) at speed ``u`` can overlap by up to ``u h`` in a sub-step
+   ``h``. The step is split into the fewest equal sub-steps that keep that below
+   ``overlap_tolerance`` times the smaller radius, for every pair that can touch within the step.
+   Pairs already in contact count too (a contact solve that did not converge leaves an approach
+   speed). A sub-step may grow at most `SUBSTEP_GROWTH` times from one step to the next, because
+   Chipmunk re-applies the last sub-step's contact impulses scaled by the ratio of the sub-steps
+   (after a fast impact at a short sub-step, a long one would inject energy).
+3. Evaluate the forces at the positions the dots reach at the end of the first sub-step
+   (``x + v h``) and give Chipmunk their velocity change as a body force for that sub-step. Chipmunk
+   moves the dots with their current velocities, then adds the force's velocity change, then
+   solves the contacts: a pull or a kick into a contact is absorbed by the contact solve instead
+   of moving the dots into each other (which the order "change velocities, then step" did: it left
+   pressed contacts overlapping by the pull times ``dt``).
+4. Advance Chipmunk by the planned sub-steps.
+"""
+
+from __future__ import annotations
+
+import math
+from time import perf_counter
+
+import numpy as np
+from pymunk import batch
+from pymunk._chipmunk import lib
+
+from labrig.compiled import jit
+
+from .bulk import BodyArrays
+from .forces.base import StepContext
+from .neighbours import VerletPairs
+from .settings import EngineSettings
+
+#: Largest factor by which the sub-step may grow from one step to the next.
+SUBSTEP_GROWTH = 2
+#: Verlet skin of the pair list the plan reads, px.
+PLAN_SKIN = 3.0
+
+
+@jit
+def fastest_speed(vx, vy, dv):
+    """The largest dot speed, px/s, with or without the velocity change ``dv``."""
+    fastest = 0.0
+    for a in range(vx.size):
+        s0 = vx[a] * vx[a] + vy[a] * vy[a]
+        s1 = (vx[a] + dv[a, 0]) ** 2 + (vy[a] + dv[a, 1]) ** 2
+        fastest = max(fastest, s0, s1)
+    return math.sqrt(fastest)
+
+
+@jit
+def closing_travel(x, y, vx, vy, dv, i, j, radii, walls, dt, fastest):
+    """The largest distance a dot can travel into a contact within ``dt``, in units of the smaller radius.
+
+    A pair (or a dot and a wall segment) counts when it can touch within ``dt``: closing at speed
+    ``u`` across a gap ``g`` with ``u dt > g``; its travel is ``u dt / r_min``. Velocities are the
+    current ones (every pair, contacts included) and the current ones plus ``dv`` (pairs not in
+    contact: the force's velocity change moves the dots after the first sub-step).
+
+    Parameters
+    ----------
+    x, y, vx, vy : ndarray, shape (N,)
+        Positions (px) and velocities (px/s).
+    dv : ndarray, shape (N, 2)
+        The force phase's velocity change, px/s (zeros when there is none).
+    i, j : ndarray of int, shape (P,)
+        Candidate pairs: every pair that can touch within ``dt`` must be among them.
+    radii : ndarray, shape (N,)
+    walls : ndarray, shape (M, 4)
+        Static segments ``(x0, y0, x1, y1)``, px.
+    dt : float
+        Step length, s.
+    fastest : float
+        `fastest_speed`, px/s: pairs farther apart than ``2 fastest dt`` and dots farther than
+        ``fastest dt`` from a wall cannot touch within ``dt`` and are skipped.
+
+    Returns
+    -------
+    float
+        The largest travel, radii (0 when nothing can touch).
+    """
+    travel = 0.0
+    close = 2.0 * fastest * dt  # no pair or wall farther apart than this can touch within dt
+    for k in range(i.size):
+        a = i[k]
+        b = j[k]
+        dx = x[b] - x[a]
+        dy = y[b] - y[a]
+        contact = radii[a] + radii[b]
+        d2 = dx * dx + dy * dy
+        if d2 >= (contact + close) ** 2 or d2 <= 0.0:
+            continue
+        d = math.sqrt(d2)
+        gap = d - contact
+        u = ((vx[a] - vx[b]) * dx + (vy[a] - vy[b]) * dy) / d
+        if gap > 0.0:
+            u = max(u, ((vx[a] + dv[a, 0] - vx[b] - dv[b, 0]) * dx + (vy[a] + dv[a, 1] - vy[b] - dv[b, 1]) * dy) / d)
+        if u * dt > gap:
+            travel = max(travel, u * dt / min(radii[a], radii[b]))
+    for w in range(walls.shape[0]):
+        x0 = walls[w, 0]
+        y0 = walls[w, 1]
+        ex = walls[w, 2] - x0
+        ey = walls[w, 3] - y0
+        length2 = ex * ex + ey * ey
+        for a in range(x.size):
+            t = min(max(((x[a] - x0) * ex + (y[a] - y0) * ey) / length2, 0.0), 1.0)
+            nx = x[a] - x0 - t * ex
+            ny = y[a] - y0 - t * ey
+            d2 = nx * nx + ny * ny
+            if d2 >= (radii[a] + 0.5 * close) ** 2 or d2 <= 0.0:
+                continue
+            d = math.sqrt(d2)
+            gap = d - radii[a]
+            u = -(vx[a] * nx + vy[a] * ny) / d
+            if gap > 0.0:
+                u = max(u, -((vx[a] + dv[a, 0]) * nx + (vy[a] + dv[a, 1]) * ny) / d)
+            if u * dt > gap:
+                travel = max(travel, u * dt / radii[a])
+    return travel
+
+
+@jit
+def prepare(rows, h, x, y, vx, vy, px, py, dv):
+    """Positions and velocities from pymunk's bulk rows ``(x, y, vx, vy)``, the positions after ``h`` s
+    (``px``, ``py``), and ``dv`` zeroed."""
+    for a in range(x.size):
+        x[a] = rows[a, 0]
+        y[a] = rows[a, 1]
+        vx[a] = rows[a, 2]
+        vy[a] = rows[a, 3]
+        px[a] = x[a] + vx[a] * h
+        py[a] = y[a] + vy[a] * h
+        dv[a, 0] = 0.0
+        dv[a, 1] = 0.0
+
+
+@jit
+def impulse_forces(dv, masses, h, out):
+    """Body forces that change velocities by ``dv`` within a sub-step ``h``: ``m dv / h``."""
+    for a in range(masses.size):
+        out[a, 0] = masses[a] * dv[a, 0] / h
+        out[a, 1] = masses[a] * dv[a, 1] / h
+
+
+def substep_count(travel: float, settings: EngineSettings, previous: int) -> int:
+    """The sub-steps of the next step: enough for ``travel`` (radii) to stay within the tolerance.
+
+    At least ``settings.substeps`` and ``previous / SUBSTEP_GROWTH``; at most ``settings.max_substeps`` (or
+    ``settings.substeps`` when that is more), even when ``travel`` needs more.
+    """
+    tolerance = settings.overlap_tolerance
+    need = math.ceil(travel / tolerance) if travel > tolerance else 1
+    most = max(settings.max_substeps, settings.substeps)
+    return int(min(max(need, settings.substeps, math.ceil(previous / SUBSTEP_GROWTH)), most))
+
+
+def plan_reach(fastest: float, dt: float, radius: float) -> float:
+    """How far apart (surface to surface, px) the plan's pairs may be: ``radius`` times a power of two, at
+    least the distance two dots at ``fastest`` px/s close in ``dt`` (so the pair list is rebuilt only
+    when the fastest speed doubles)."""
+    need = 2.0 * fastest * dt
+    return radius * 2.0 ** max(0, math.ceil(math.log2(need / radius))) if need > radius else radius
+
+
+class Stepper:
+    """The per-step machinery of a simulation's dots: buffers, the plan's pair list, the force phase.
+
+    Rebuilt whenever the space or the set of dots changes (it holds pymunk's body rows).
+
+    Parameters
+    ----------
+    space : pymunk.Space
+    bodies : list of pymunk.Body
+        The dots, in the order of ``radii`` and ``masses``.
+    radii, masses : ndarray, shape (N,)
+    walls : ndarray, shape (M, 4)
+        Static segments (box edges included when the board is closed), px.
+    """
+
+    def __init__(self, space, bodies, radii: np.ndarray, masses: np.ndarray, walls: np.ndarray):
+        self.space = space
+        self.io = BodyArrays(space, bodies)
+        n = len(bodies)
+        self.radii, self.masses = radii, masses
+        self.walls = np.ascontiguousarray(walls, dtype=float).reshape(-1, 4)
+        self.x, self.y, self.vx, self.vy, self.px, self.py = (np.zeros(n) for _ in range(6))
+        self.dv = np.zeros((n, 2))
+        self._force_rows = np.zeros((self.io.rows, 2))  # static rows stay zero
+        self._force_buffer = batch.Buffer()
+        self._force_buffer.set_float_buf(self._force_rows)
+        #: Largest radius, px: the plan's pairs are those closer than twice it plus `reach`.
+        self.largest = float(radii.max(initial=0.0))
+        #: Surfaces closer than this are in the plan's pair list, px (`plan_reach`).
+        self.reach = self.largest
+        self.pairs = VerletPairs(PLAN_SKIN)
+        self.previous = 0  # sub-steps of the last step (0: none yet, no warm start to protect)
+        #: Largest travel into a contact per sub-step (radii) in a step whose sub-steps hit
+        #: ``max_substeps``, since the last `take_capped_travel`.
+        self.capped_travel = 0.0
+        self._bias_h = None
+
+    def step(self, forces, settings: EngineSettings, time: float, rng: np.random.Generator,
+             timings: dict) -> int:
+        """Advance one time step of ``settings.dt`` from ``time``; returns the Chipmunk sub-steps taken.
+
+        Adds the wall time of the force phase and of Chipmunk's steps to ``timings["forces"]`` and
+        ``timings["pymunk"]``.
+        """
+        start = perf_counter()
+        dt = settings.dt
+        adaptive = settings.overlap_tolerance is not None
+        n = self.x.size
+        k = settings.substeps
+        if n and (forces or adaptive):
+            rows = self.io.read_rows()
+            if adaptive:  # the fewest sub-steps this step may take (the plan below may add more)
+                k = max(k, math.ceil(self.previous / SUBSTEP_GROWTH))
+            prepare(rows, dt / k, self.x, self.y, self.vx, self.vy, self.px, self.py, self.dv)
+            if forces:  # they act at the end of the first sub-step
+                ctx = StepContext(time=time, dt=dt, x=self.px, y=self.py, velocity=rows[:, 2:], radii=self.radii,
+                                  masses=self.masses, rng=rng, dv=self.dv)
+                for force in forces:
+                    force.kick(ctx)
+            if adaptive:
+                k = self._plan(settings)
+            if forces:
+                impulse_forces(self.dv, self.masses, dt / k, self._force_rows)
+                batch.set_space_bodies(self.space, batch.BodyFields.FORCE, self._force_buffer)
+        h = dt / k
+        if h != self._bias_h:
+            self.space.collision_bias = settings.bias_for(h)
+            # Chipmunk re-applies the last sub-step's contact impulses scaled by h / (its h) but keeps
+            # them unscaled as the total the solver may take back: a ratio other than 1 leaves an
+            # impact's impulse partly applied twice or reversed (an elastic gas gained or lost 2-5 %
+            # of its energy). Telling it the last sub-step was h makes the ratio 1, as at a fixed step.
+            lib.cpSpaceSetCurrentTimeStep(self.space._space, h)
+            self._bias_h = h
+        middle = perf_counter()
+        for _ in range(k):
+            self.space.step(h)
+        self.previous = k
+        timings["forces"] += middle - start
+        timings["pymunk"] += perf_counter() - middle
+        return k
+
+    def _plan(self, settings: EngineSettings) -> int:
+        """Sub-steps for the current velocities and `dv` (the pair list follows the fastest dot)."""
+        dt = settings.dt
+        fastest = fastest_speed(self.vx, self.vy, self.dv)
+        reach = plan_reach(fastest, dt, self.largest)
+        if reach > self.reach or reach < self.reach / 4 or not self.pairs.i.size:
+            self.reach = reach
+        self.pairs.update(self.x, self.y, 2.0 * self.largest + self.reach)
+        travel = closing_travel(self.x, self.y, self.vx, self.vy, self.dv, self.pairs.i, self.pairs.j,
+                                self.radii, self.walls, dt, fastest)
+        k = substep_count(travel, settings, self.previous)
+        if travel / k > settings.overlap_tolerance:
+            self.capped_travel = max(self.capped_travel, travel / k)
+        return k
+
+    def take_capped_travel(self) -> float:
+        """`capped_travel`, reset to 0."""
+        travel, self.capped_travel = self.capped_travel, 0.0
+        return travel
