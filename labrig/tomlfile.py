@@ -78,9 +78,13 @@ def toml_value(v) -> str:
     raise ValueError(f"cannot write {v!r} ({type(v).__name__}) to TOML")
 
 
-def toml_line(key: str, value, comment: str | None) -> str:
-    """``key = value  # comment``; an unset (None) value is written as a comment."""
-    text = f"# {key} (unset)" if value is None else f"{key} = {toml_value(value)}"
+def toml_line(key: str, value, comment: str | None, default=None) -> str:
+    """``key = value  # comment``; an unset (None) value is written as a comment, or as ``key = false``
+    when the key's ``default`` is set (a missing key would read back as that default)."""
+    if value is None:
+        text = f"# {key} (unset)" if default is None else f"{key} = false"
+    else:
+        text = f"{key} = {toml_value(value)}"
     return f"{text:<32}  # {comment}" if comment else text
 
 

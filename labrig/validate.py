@@ -238,11 +238,12 @@ def typed(key: str, value, kind: str):
     Kinds: ``"float"``, ``"int"``, ``"str"``, ``"bool"``, ``"floats"`` (a list of numbers),
     ``"float2"`` (two numbers), ``"float2s"`` (a list of number pairs), ``"pair"`` (``[number,
     integer]``); alternatives joined by ``"|"`` (``"int|floats"``: a count or a list); a trailing
-    ``"?"`` marks a key that may be unset (None). Floats come back as float (an integer written
-    for a number is a number), lists as lists. Only the kind is checked here, not the range.
+    ``"?"`` marks a key that may be unset (None; ``false`` in a file, where a missing key would take a
+    set default). Floats come back as float (an integer written for a number is a number), lists as
+    lists. Only the kind is checked here, not the range.
     """
     optional = kind.endswith("?")
-    if value is None and optional:
+    if optional and (value is None or value is False):
         return None
     kinds = kind.rstrip("?").split("|")
     for plain in kinds:

@@ -21,7 +21,8 @@ radius); dot-wall overlap is (r - distance to the segment) / r.
 Cases marked *known failure* are limits measured here and documented, not hidden: the tests
 expect them to fail (strict xfail), so a fix shows up as an unexpected pass. Since 0.3 (forces
 handed to Chipmunk's contact solve, sub-steps that adapt to approach speeds) the five limits of
-0.2 pass at the default settings; the one kept shows what fixed sub-steps do.
+0.2 pass at the default settings; the two kept show what fixed sub-steps do and where the default
+cap on sub-steps per step (``max_substeps``) is too low.
 
 """
 
@@ -169,15 +170,21 @@ CASES = [
              fall_speed(7500 * math.sqrt(2), 300)),
     HardCase("centre gravity x30", centre_pack(30.0), 2.0, 2 * fall_speed(22500, 424, 0.01)),
     HardCase("centre gravity x100, substeps 2", centre_pack(100.0), 1.5, 2 * fall_speed(75000, 424, 0.01),
-             {"substeps": 2}),
+             {"substeps": 2}, slow=True),
     HardCase("centre gravity x100, defaults", centre_pack(100.0), 2.0, 2 * fall_speed(75000, 424, 0.01), slow=True),
     HardCase("centre gravity x100, substeps 4", centre_pack(100.0), 1.0, 2 * fall_speed(75000, 424, 0.01),
              {"substeps": 4}, slow=True),
     HardCase("size ratio 10, equal masses, vdW film", mixture("equal"), 3.0, 50.0),
     HardCase("size ratio 10, masses ~ r^3, vdW film, substeps 4", mixture("volume"), 1.5, 50.0, {"substeps": 4}),
     HardCase("size ratio 10, masses ~ r^3, vdW film, defaults", mixture("volume"), 3.0, 50.0, slow=True),
-    HardCase("size ratio 10, masses ~ r^3, centre gravity x1", mixture("volume", 1.0), 2.0,
-             2 * fall_speed(750, 424, 0.01), slow=True),
+    HardCase("size ratio 10, masses ~ r^3, centre gravity x1, max_substeps 256", mixture("volume", 1.0), 2.0,
+             2 * fall_speed(750, 424, 0.01), {"max_substeps": 256}, slow=True),
+    HardCase("size ratio 10, masses ~ r^3, centre gravity x1, defaults", mixture("volume", 1.0), 2.0,
+             2 * fall_speed(750, 424, 0.01), slow=True,
+             known_failure="the light dots (1/1000 of the large ones' mass) move ~600 px/s, one radius per "
+                           "2.5 ms step, and need ~200 sub-steps; the default cap of 64 (`max_substeps`, a bound "
+                           "on a step's cost) leaves 9 % settled overlap (below the 10 % at which a run warns). "
+                           "`max_substeps = 256` passes"),
     HardCase("elasticity 0.02, falling gas", falling_gas(0.02), 2.5, 2 * math.hypot(300, fall_speed(750, 420))),
     HardCase("elasticity 0.98, falling gas", falling_gas(0.98), 2.5, 2 * math.hypot(300, fall_speed(750, 420))),
     HardCase("head-on at 100x thermal speed (188 px/s)", head_on(100), 0.5, 200 * KICK, sample=0.002),

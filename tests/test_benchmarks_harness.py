@@ -1,5 +1,5 @@
-"""The benchmark harness keeps working: the whole ``python -m benchmarks --quick`` (~1.5 minutes),
-the report it writes, ``--only`` merging, the registration list, and the Pareto rule.
+"""The benchmark harness keeps working: the report it writes, ``--only`` merging, the registration
+list, and the Pareto rule; under ``-m slow``, the whole ``python -m benchmarks --quick`` (~3 minutes).
 """
 
 import importlib
@@ -21,33 +21,45 @@ def harness(*args, cwd=ROOT):
                           timeout=900)
 
 
-def test_quick_run_writes_the_report_and_only_keeps_other_sections(tmp_path):
-    run = harness("--quick", "--out", str(tmp_path))
-    assert run.returncode == 0, run.stderr[-3000:]
+def check_report(tmp_path: Path, names: list[str]) -> dict:
+    """The report of a quick run of ``names``: every section, headline (time and error) and figure."""
     report = (tmp_path / "performance.md").read_text()
     store = json.loads((tmp_path / "performance.json").read_text())
-    assert list(store["sections"]) == BENCHMARKS
+    assert list(store["sections"]) == names
     for name, section in store["sections"].items():
         assert f"## {name}:" in report and section["mode"] == "quick"
         for headline in section["headlines"]:  # time AND error, measured in the same run
             assert headline["time"].strip() and headline["error"].strip(), (name, headline)
         for figure in section["figures"]:
             assert (tmp_path / "figures" / f"{figure}.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    for needle in ("## Headlines", "cores",
-                   "numpy", "scipy", "pymunk", "figures/qdots_scaling.png"):
+    for needle in ("## Headlines", "cores", "numpy", "scipy", "pymunk", "figures/qdots_scaling.png"):
         assert needle in report, needle
     # every table row of the scaling section has a time and an error column
     scaling = store["sections"]["engine_overhead"]["markdown"]
     assert "total ms/step" in scaling and "worst overlap" in scaling
     assert store["sections"]["engine_overhead"]["headlines"]
-    before = store["sections"]["engine_overhead"]
+    return store
+
+
+def test_a_quick_run_writes_the_report_and_only_keeps_other_sections(tmp_path):
+    names = ["engine_overhead", "analysis", "sweeps"]
+    run = harness("--quick", "--only", "engine_overhead", "sweeps", "--out", str(tmp_path))
+    assert run.returncode == 0, run.stderr[-3000:]
+    before = check_report(tmp_path, ["engine_overhead", "sweeps"])["sections"]["engine_overhead"]
 
     again = harness("--quick", "--only", "analysis", "--out", str(tmp_path))
     assert again.returncode == 0, again.stderr[-3000:]
     store = json.loads((tmp_path / "performance.json").read_text())
-    assert list(store["sections"]) == BENCHMARKS
+    assert sorted(store["sections"]) == sorted(names)
     assert store["sections"]["engine_overhead"] == before  # kept, not re-run
     assert not list(tmp_path.glob(".*tmp*"))  # no temporary files left behind
+
+
+@pytest.mark.slow
+def test_the_whole_quick_run_writes_every_section(tmp_path):
+    run = harness("--quick", "--out", str(tmp_path))
+    assert run.returncode == 0, run.stderr[-3000:]
+    check_report(tmp_path, BENCHMARKS)
 
 
 def test_unknown_benchmark_is_a_one_line_error(tmp_path):

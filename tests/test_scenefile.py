@@ -34,6 +34,16 @@ def test_floats_and_optional_engine_settings_round_trip_exactly():
     assert back.deposition.sigma == 0.30000000000000004 and back.engine.spatial_hash == (22.5, 1000)
 
 
+def test_an_unset_setting_whose_default_is_set_round_trips_as_false():
+    """Fixed sub-steps (``overlap_tolerance=None``) would read back as the adaptive default if the key
+    were left out of the file: it is written ``overlap_tolerance = false``."""
+    exp = Experiment(engine=EngineSettings(overlap_tolerance=None))
+    text = experiment_to_toml(exp)
+    assert "\noverlap_tolerance = false " in text and "# collision_bias (unset)" in text
+    assert experiment_from_toml(text) == exp
+    assert experiment_from_toml(experiment_to_toml(Experiment())).engine.overlap_tolerance == 0.005
+
+
 def test_written_file_has_every_key_with_units():
     text = experiment_to_toml(PRESETS["fig2-2"][1])
     for line in ("sigma = 0.15", "# fraction of mean diameter, [0, 1)", "[board]", "[deposition]",

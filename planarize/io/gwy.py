@@ -22,7 +22,7 @@ from labrig import validate
 from labrig.validate import InputError, count
 
 from ..surface import MAX_POINTS, Surface
-from .heights import FILE_UNITS, MAX_COORDINATE, file_unit, given_spacing, unit_scales
+from .units import FILE_UNITS, MAX_COORDINATE, file_unit, given_spacing, unit_scales
 
 
 def _gwyfile():

@@ -37,7 +37,6 @@ spacings, and results are then as accurate as the coarser spacing allows
 
 from __future__ import annotations
 
-import math
 import re
 from pathlib import Path
 
@@ -47,65 +46,20 @@ from labrig.files import atomic_path, existing_file
 from labrig.validate import InputError, array, real
 
 from ..surface import MAX_POINTS, Surface, check_heights
+from .gwy import read_gwy, write_gwy
+from .units import MAX_COORDINATE, file_unit, given_spacing, unit_scales
 
-#: Length units, nm per unit. "A" is the ångström here (the user's word); see `FILE_UNITS`.
-LENGTH_UNITS = {"nm": 1.0, "um": 1e3, "µm": 1e3, "μm": 1e3, "mm": 1e6, "m": 1e9, "pm": 1e-3, "A": 0.1, "Å": 0.1}
-#: Length units as Gwyddion writes them (SI: "A" is the ampere, so it is not here).
-FILE_UNITS = {k: v for k, v in LENGTH_UNITS.items() if k != "A"}
 #: Formats by file suffix.
 SUFFIXES = {".xyz": "xyz", ".csv": "matrix", ".txt": "matrix", ".asc": "matrix", ".dat": "matrix",
             ".npy": "npy", ".gwy": "gwy"}
 FORMATS = ("xyz", "matrix", "npy", "gwy")
 #: Largest text height map read, bytes.
 MAX_TEXT_BYTES = 2**30
-#: Largest coordinate or size stated in a file, in its own unit.
-MAX_COORDINATE = 1e15
 #: Most elongated pixel (longer / shorter side) accepted by default.
 MAX_PIXEL_ASPECT = 8.0
 
 
-# -- units and checks --------------------------------------------------------------------------
-
-def unit_scale(unit: str, name: str = "unit") -> float:
-    """nm per ``unit`` (a key of `LENGTH_UNITS`), or a ValueError naming the allowed units."""
-    if unit not in LENGTH_UNITS:
-        raise InputError(f"{name} must be a length unit, one of {', '.join(LENGTH_UNITS)}; got {unit!r}")
-    return LENGTH_UNITS[unit]
-
-
-def file_unit(unit, what: str) -> str:
-    """A length unit stated in a file (SI spelling), or a ValueError saying what it is instead."""
-    unit = "" if unit is None else str(unit).strip()
-    if unit not in FILE_UNITS:
-        raise InputError(f"{what} are in {unit or 'no unit'!r}, not a length "
-                         f"(supported: {', '.join(FILE_UNITS)})")
-    return unit
-
-
-def _agree(stated: str | None, given: str | None, name: str, what: str) -> float:
-    """nm per unit: the file's if it states one, else the user's; the two must agree."""
-    if given is not None:
-        scale = unit_scale(given, name)
-        if stated is not None and not math.isclose(scale, FILE_UNITS[stated], rel_tol=1e-12):
-            raise InputError(f"{name}={given!r} contradicts the file, whose {what} are in {stated!r}; "
-                             f"leave {name} out")
-        return scale
-    if stated is None:
-        raise InputError(f"the file does not state the unit of its {what}: pass {name} "
-                         f"({', '.join(LENGTH_UNITS)})")
-    return FILE_UNITS[stated]
-
-
-def _pair(spacing, name: str = "spacing") -> tuple[float, float]:
-    pair = (spacing, spacing) if np.ndim(spacing) == 0 else tuple(spacing)
-    try:
-        dx, dy = (float(v) for v in pair)
-    except (TypeError, ValueError):
-        raise InputError(f"{name} must be a number or a pair (dx, dy), got {spacing!r}") from None
-    if not all(math.isfinite(v) and v > 0 for v in (dx, dy)):
-        raise InputError(f"{name} must be finite and > 0, got {spacing!r}")
-    return dx, dy
-
+# -- checks ------------------------------------------------------------------------------------
 
 def check_aspect(dx: float, dy: float, max_aspect: float = MAX_PIXEL_ASPECT) -> None:
     """ValueError unless the pixel ``dx`` x ``dy`` is at most ``max_aspect`` times longer than wide."""
@@ -179,10 +133,7 @@ def load_heights(path, *, unit: str | None = None, z_unit: str | None = None, sp
         raise InputError(f"format must be one of {FORMATS}, got {format!r}")
     existing_file(path, "height map")
     try:
-        if format == "gwy":
-            from .gwy import read_gwy as reader
-        else:
-            reader = {"xyz": _read_xyz, "matrix": _read_matrix, "npy": _read_npy}[format]
+        reader = {"xyz": _read_xyz, "matrix": _read_matrix, "npy": _read_npy, "gwy": read_gwy}[format]
         z, (dx, dy), xy_scale, z_scale = reader(path, unit, z_unit, spacing, channel)
         z = check_heights(z, "heights") * z_scale
         dx, dy = dx * xy_scale, dy * xy_scale
@@ -191,22 +142,6 @@ def load_heights(path, *, unit: str | None = None, z_unit: str | None = None, sp
     except ValueError as exc:
         raise InputError(f"{path}: {exc}") from None
     return level_plane(surface) if level else surface
-
-
-def unit_scales(stated_xy, stated_z, unit, z_unit) -> tuple[float, float]:
-    """nm per unit of the lateral coordinates and of the heights: the file's, else the user's."""
-    xy = _agree(stated_xy, unit, "unit", "lateral coordinates")
-    if z_unit is not None:
-        return xy, _agree(stated_z, z_unit, "z_unit", "heights")
-    return xy, _agree(stated_z, None if stated_z else unit, "unit", "heights")
-
-
-def given_spacing(spacing, stated: bool):
-    if spacing is not None and stated:
-        raise InputError("the file states its grid spacing: leave spacing out")
-    if spacing is None and not stated:
-        raise InputError("the file does not state its grid spacing: pass spacing (in unit)")
-    return None if spacing is None else _pair(spacing)
 
 
 def _text_table(path: Path) -> tuple[dict, np.ndarray]:
@@ -385,8 +320,6 @@ def save_heights(surface: Surface, path, *, format: str | None = None, title: st
             with open(tmp, "wb") as stream:
                 np.save(stream, np.asarray(surface.z))
         elif format == "gwy":
-            from .gwy import write_gwy
-
             write_gwy(surface, tmp, title)
         else:
             if format == "xyz":

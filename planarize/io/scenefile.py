@@ -34,7 +34,8 @@ from ..anodize import MAX_RECORD, MAX_THICKNESS, Anodization, anodize, check_ste
 from ..engines import ENGINES, Fast, engine_settings
 from ..model import K_EXP_RANGE, MAX_STEP, Model
 from ..surface import Surface
-from .heights import FORMATS, LENGTH_UNITS, load_heights
+from .heights import FORMATS, load_heights
+from .units import LENGTH_UNITS
 
 _BUMP = {
     "base": ("float", "nm, film thickness around the bump, >= 0"),

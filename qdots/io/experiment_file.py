@@ -12,6 +12,7 @@ ValueError naming the file and the full key (e.g. ``deposition.sigmaa``).
 
 from __future__ import annotations
 
+import dataclasses
 import os
 from pathlib import Path
 
@@ -71,7 +72,7 @@ TABLES = {
         "dt": ("float", f"s, time step, in [{number(DT_RANGE[0])}, {number(DT_RANGE[1])}]"),
         "substeps": ("int", f"fewest Chipmunk steps per time step, in [1, {MAX_SUBSTEPS}]"),
         "overlap_tolerance": ("float?", f"radii a dot may travel into a contact in one Chipmunk step, in "
-                                        f"[{number(TOLERANCE_RANGE[0])}, {number(TOLERANCE_RANGE[1])}]; unset: "
+                                        f"[{number(TOLERANCE_RANGE[0])}, {number(TOLERANCE_RANGE[1])}]; false: "
                                         "always `substeps`"),
         "max_substeps": ("int", f"most Chipmunk steps per time step for overlap_tolerance, in [1, {MAX_SUBSTEPS}]"),
         "iterations": ("int", f"solver iterations per sub-step, in [1, {MAX_ITERATIONS}]"),
@@ -111,7 +112,9 @@ def experiment_to_toml(exp: Experiment) -> str:
         lines.append("forces = []  # no forces")
     for table, (_, schema) in TABLES.items():
         obj = getattr(exp, table)
-        lines += ["", f"[{table}]"] + [toml_line(key, getattr(obj, key), note) for key, (_, note) in schema.items()]
+        defaults = {f.name: f.default for f in dataclasses.fields(obj)} if dataclasses.is_dataclass(obj) else {}
+        lines += ["", f"[{table}]"] + [toml_line(key, getattr(obj, key), note, defaults.get(key))
+                                       for key, (_, note) in schema.items()]
     for spec in exp.forces:
         notes = FORCE_NOTES.get(spec["type"], {})
         lines += ["", "[[forces]]"] + [toml_line(k, v, notes.get(k)) for k, v in spec.items()]
