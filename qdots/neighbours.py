@@ -22,6 +22,15 @@ from labrig.validate import real
 MAX_SKIN = 1000.0
 
 
+@jit(inline=True)
+def pair_separation(x, y, radii, a, b):
+    """``(dx, dy, d2, contact)`` of dots ``a`` and ``b``: the offset from ``a`` to ``b`` (px), its squared
+    length (px^2) and the distance at which they touch, ``r_a + r_b`` (px)."""
+    dx = x[b] - x[a]
+    dy = y[b] - y[a]
+    return dx, dy, dx * dx + dy * dy, radii[a] + radii[b]
+
+
 @jit
 def moved_beyond(x, y, anchor_x, anchor_y, reach):
     """True when some point moved farther than ``reach`` from its anchor (one pass, no temporaries)."""

@@ -33,7 +33,7 @@ from labrig.compiled import jit
 
 from .bulk import BodyArrays
 from .forces.base import StepContext
-from .neighbours import VerletPairs
+from .neighbours import VerletPairs, pair_separation
 from .settings import EngineSettings
 
 #: Largest factor by which the sub-step may grow from one step to the next.
@@ -89,10 +89,7 @@ def closing_travel(x, y, vx, vy, dv, i, j, radii, walls, dt, fastest):
     for k in range(i.size):
         a = i[k]
         b = j[k]
-        dx = x[b] - x[a]
-        dy = y[b] - y[a]
-        contact = radii[a] + radii[b]
-        d2 = dx * dx + dy * dy
+        dx, dy, d2, contact = pair_separation(x, y, radii, a, b)
         if d2 >= (contact + close) ** 2 or d2 <= 0.0:
             continue
         d = math.sqrt(d2)

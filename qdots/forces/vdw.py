@@ -9,7 +9,7 @@ import numpy as np
 from labrig.compiled import jit
 from labrig.validate import InputError, choice, real
 
-from ..neighbours import VerletPairs
+from ..neighbours import VerletPairs, pair_separation
 from .base import Force, StepContext
 
 MODELS = ("thesis", "hamaker")
@@ -93,11 +93,8 @@ def add_pair_kicks(x, y, i, j, radii, inv_mass, model, r0, offset, strength, min
     for k in range(i.size):
         a = i[k]
         b = j[k]
-        dx = x[b] - x[a]
-        dy = y[b] - y[a]
-        contact = radii[a] + radii[b]
+        dx, dy, d2, contact = pair_separation(x, y, radii, a, b)
         reach = contact + max_gap
-        d2 = dx * dx + dy * dy
         if d2 >= reach * reach or d2 <= 0.0:
             continue
         d = math.sqrt(d2)
