@@ -20,9 +20,9 @@ radius); dot-wall overlap is (r - distance to the segment) / r.
 
 Cases marked *known failure* are limits measured here and documented, not hidden: the tests
 expect them to fail (strict xfail), so a fix shows up as an unexpected pass. Since 0.3 (forces
-handed to Chipmunk's contact solve, sub-steps that adapt to approach speeds) the five limits of
-0.2 pass at the default settings; the two kept show what fixed sub-steps do and where the default
-cap on sub-steps per step (``max_substeps``) is too low.
+handed to Chipmunk's contact solve, sub-steps that adapt to approach speeds) four of the five
+limits of 0.2 pass at the default settings and the fifth with ``max_substeps = 256``; the two kept
+show what fixed sub-steps do and where the default cap on sub-steps per step is too low.
 
 """
 
