@@ -44,11 +44,14 @@ PLAN_SKIN = 3.0
 
 @jit
 def fastest_speed(vx, vy, dv):
-    """The largest dot speed, px/s, with or without the velocity change ``dv``."""
+    """The largest dot speed, px/s, with or without the velocity change ``dv`` (inf when a velocity is not
+    finite; a non-finite ``dv`` is caught once it has reached the velocities)."""
     fastest = 0.0
     for a in range(vx.size):
         s0 = vx[a] * vx[a] + vy[a] * vy[a]
         s1 = (vx[a] + dv[a, 0]) ** 2 + (vy[a] + dv[a, 1]) ** 2
+        if not s0 < math.inf:  # NaN or inf: no sub-step plan can hold it
+            return math.inf
         fastest = max(fastest, s0, s1)
     return math.sqrt(fastest)
 
@@ -193,6 +196,9 @@ class Stepper:
         self._force_buffer.set_float_buf(self._force_rows)
         #: Largest radius, px: the plan's pairs are those closer than twice it plus `reach`.
         self.largest = float(radii.max(initial=0.0))
+        #: Smallest radius, px: no dot slower than ``overlap_tolerance * smallest / (2 dt)`` px/s can travel
+        #: more than the tolerance into a contact within a step, so the plan needs no pairs then.
+        self.smallest = float(radii.min()) if radii.size else 0.0
         #: Surfaces closer than this are in the plan's pair list, px (`plan_reach`).
         self.reach = self.largest
         self.pairs = VerletPairs(PLAN_SKIN)
@@ -250,6 +256,8 @@ class Stepper:
         """Sub-steps for the current velocities and `dv` (the pair list follows the fastest dot)."""
         dt = settings.dt
         fastest = fastest_speed(self.vx, self.vy, self.dv)
+        if 2.0 * fastest * dt <= settings.overlap_tolerance * self.smallest:  # a still board: one sub-step will do
+            return substep_count(0.0, settings, self.previous)
         reach = plan_reach(fastest, dt, self.largest)
         if reach > self.reach or reach < self.reach / 4 or not self.pairs.i.size:
             self.reach = reach
