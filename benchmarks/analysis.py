@@ -18,7 +18,6 @@ Run: ``python -m benchmarks.analysis [--rings 182]``
 from __future__ import annotations
 
 import argparse
-import platform
 import time
 from types import SimpleNamespace
 
@@ -28,7 +27,7 @@ from qdots.analysis import fill_within_radius, neighbour_counts, packing_summary
 from qdots.analysis.structure import clusters, hexatic_order, radial_distribution, voronoi_coordination
 from qdots.placement import hexagonal_lattice
 
-from .report import Headline, Table, print_results
+from .report import Headline, Table, cli_with_options
 
 DIAMETER = 15.0
 
@@ -124,10 +123,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--rings", type=int, default=182, help="rings of the flake (182: 99,919 dots)")
     parser.add_argument("--seed", type=int, default=1)
-    args = parser.parse_args(argv)
-    print(f"python {platform.python_version()}, numpy {np.__version__}, {platform.machine()}\n")
-    print_results(results(args.rings, args.seed))
-    return 0
+    return cli_with_options(parser, lambda args: results(args.rings, args.seed), argv)
 
 
 if __name__ == "__main__":

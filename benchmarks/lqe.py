@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import argparse
 import math
-import platform
 import time
 from types import SimpleNamespace
 
@@ -30,7 +29,7 @@ from qdots.analysis.forster import TAU_NS, exciton_network
 from qdots.analysis.lqe import lqe_exact, lqe_monte_carlo
 from qdots.placement import hexagonal_lattice
 
-from .report import Headline, Table, print_results
+from .report import Headline, Table, cli_with_options
 
 DIAMETER = 15.0
 
@@ -136,10 +135,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sizes", type=int, nargs="+", default=[1000, 10000, 100000])
     parser.add_argument("--excitons", type=int, default=1_000_000)
-    args = parser.parse_args(argv)
-    print(f"python {platform.python_version()}, numpy {np.__version__}, {platform.machine()}\n")
-    print_results(results(args.sizes, args.excitons))
-    return 0
+    return cli_with_options(parser, lambda args: results(args.sizes, args.excitons), argv)
 
 
 if __name__ == "__main__":

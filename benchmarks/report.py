@@ -193,6 +193,18 @@ def print_results(results: Sequence[Result], file=None) -> None:
         print(file=file)
 
 
+def cli_with_options(parser: argparse.ArgumentParser, make_results: Callable[[argparse.Namespace], list[Result]],
+                     argv: list[str] | None = None) -> int:
+    """A benchmark module's ``main`` with options of its own: parse ``argv`` with ``parser``, print the Python
+    and numpy versions and the results of ``make_results(args)``."""
+    import numpy
+
+    args = parser.parse_args(argv)
+    print(f"python {platform.python_version()}, numpy {numpy.__version__}, {platform.machine()}\n")
+    print_results(make_results(args))
+    return 0
+
+
 def cli(run: Callable[[bool], list[Result]], description: str, argv: list[str] | None = None) -> int:
     """A benchmark module's ``main``: ``[--quick] [--figures DIR]``, print the results."""
     parser = argparse.ArgumentParser(description=description)

@@ -78,6 +78,72 @@ def run_main(parser: argparse.ArgumentParser, argv: Sequence[str] | None) -> int
         return 130
 
 
+def add_command(subparsers, name: str, func: Callable[[argparse.Namespace], int], help: str,
+                description: str | None = None) -> argparse.ArgumentParser:
+    """Register the subcommand ``name``, run by ``func``.
+
+    Parameters
+    ----------
+    subparsers
+        What ``add_subparsers`` returned (the argument of each entry of `command_line`'s ``commands``).
+    name : str
+        The subcommand's name.
+    func : callable
+        ``func(args)`` runs it and returns the exit status.
+    help : str
+        Its line in the list of commands.
+    description : str, optional
+        What its ``--help`` says first; default ``func``'s docstring.
+
+    Returns
+    -------
+    argparse.ArgumentParser
+        The subcommand's parser, for its arguments.
+    """
+    p = subparsers.add_parser(name, help=help, description=description or func.__doc__)
+    p.set_defaults(func=func)
+    return p
+
+
+def command_line(prog: str, description: str, commands: Sequence[Callable]) -> tuple[Callable, Callable]:
+    """The ``build_parser`` and ``main`` of a command line of subcommands, ``PROG [--version] COMMAND ...``.
+
+    Parameters
+    ----------
+    prog : str
+        The command's name.
+    description : str
+        What ``PROG --help`` says first.
+    commands : sequence of callable
+        One per subcommand, in the order ``--help`` lists them: ``add(subparsers)`` registers it
+        (with `add_command`).
+
+    Returns
+    -------
+    build_parser : callable
+        ``build_parser()``: a `Parser` with ``--version`` and one subparser per entry of ``commands``.
+    main : callable
+        ``main(argv=None)``: runs the command line (`run_main`) and returns the exit status: 0 on
+        success, 2 on bad input (a one-line ``PROG: error: ...`` on stderr).
+    """
+    def build_parser() -> Parser:
+        """The argument parser: ``--version`` and one subparser per command."""
+        from . import __version__
+
+        parser = Parser(prog=prog, description=description)
+        parser.add_argument("--version", action="version", version=f"{prog} {__version__}")
+        subparsers = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+        for add in commands:
+            add(subparsers)
+        return parser
+
+    def main(argv: Sequence[str] | None = None) -> int:
+        """Run the command line; returns the exit status (0 on success, 2 on bad input: one line on stderr)."""
+        return run_main(build_parser(), argv)
+
+    return build_parser, main
+
+
 def print_table(title: str, rows: Sequence[tuple[str, str]]) -> None:
     """Print ``title`` and aligned ``key  value`` lines."""
     width = max(len(key) for key, _ in rows)

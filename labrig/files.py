@@ -99,7 +99,27 @@ def write_text_atomic(path: str | os.PathLike, text: str) -> Path:
     return Path(path)
 
 
-class StreamedFile:
+class AllOrNothing:
+    """Base of what a ``with`` block writes whole or not at all: the block's normal end calls `finish`, an
+    exception in it calls `abort`."""
+
+    def finish(self):
+        raise NotImplementedError
+
+    def abort(self) -> None:
+        raise NotImplementedError
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        if exc_type is None:
+            self.finish()
+        else:
+            self.abort()
+
+
+class StreamedFile(AllOrNothing):
     """Base of writers that stream into a temporary file and rename it into place on `close`.
 
     Subclasses open their stream on ``self._tmp`` and implement `_close_stream`;
@@ -151,14 +171,9 @@ class StreamedFile:
             self._close_stream()
         self._tmp.unlink(missing_ok=True)
 
-    def __enter__(self):
-        return self
-
-    def __exit__(self, exc_type, exc, tb) -> None:
-        if exc_type is None:
-            self.close()
-        else:
-            self.abort()
+    def finish(self) -> Path | None:
+        """`close` (what the end of a ``with`` block calls)."""
+        return self.close()
 
 
 def write_csv(path: str | os.PathLike, rows: Sequence[dict]) -> Path:
@@ -247,7 +262,7 @@ def read_archive(path: str | os.PathLike, kind: str, version: int, names: Sequen
     return metadata, arrays
 
 
-class OutputSet:
+class OutputSet(AllOrNothing):
     """The files of one result, replacing the earlier set together or not at all.
 
     Each file is written to a staged name beside its target (`stage`), and streamed writers
@@ -320,11 +335,6 @@ class OutputSet:
             tmp.unlink(missing_ok=True)
         self._streams, self._staged = [], []
 
-    def __enter__(self) -> "OutputSet":
-        return self
-
-    def __exit__(self, exc_type, exc, tb) -> None:
-        if exc_type is None:
-            self.commit()
-        else:
-            self.abort()
+    def finish(self) -> list[Path]:
+        """`commit` (what the end of a ``with`` block calls)."""
+        return self.commit()

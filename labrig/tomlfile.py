@@ -17,12 +17,13 @@ except ModuleNotFoundError:  # Python 3.10
     import tomli as tomllib
 
 from .files import existing_file
-from .validate import InputError
+from .validate import InputError, typed
 
 #: Largest parameter file read, bytes.
 MAX_BYTES = 16 * 2**20
 
-__all__ = ["read_toml", "parse_toml", "from_source", "toml_value", "toml_line", "check_keys", "tomllib"]
+__all__ = ["read_toml", "parse_toml", "from_source", "toml_value", "toml_line", "check_keys", "top_level", "as_table",
+           "tomllib"]
 
 
 def parse_toml(text: str, source: str = "<string>") -> dict:
@@ -95,3 +96,38 @@ def check_keys(where: str, keys, allowed) -> None:
         full = f"{where}.{extra[0]}" if where else extra[0]
         raise InputError(f"unknown key {full!r} (allowed{' in [' + where + ']' if where else ''}: "
                          f"{', '.join(allowed)})")
+
+
+def top_level(data, top: dict, tables) -> dict:
+    """The top-level values of a parsed parameter file, after checking its keys.
+
+    Parameters
+    ----------
+    data : dict
+        The parsed file.
+    top : dict
+        ``{key: (kind, comment)}``: its top-level values, of the kinds `labrig.validate.typed` checks.
+    tables : sequence of str
+        The tables (and arrays of tables) it may also hold.
+
+    Returns
+    -------
+    dict
+        The values of ``top`` that ``data`` holds, typed.
+
+    Raises
+    ------
+    labrig.validate.InputError
+        If ``data`` is not a table, holds an unknown key, or a value of ``top`` of the wrong kind.
+    """
+    if not isinstance(data, dict):
+        raise InputError(f"a scene must be a table, got {type(data).__name__}")
+    check_keys("", data, [*top, *tables])
+    return {key: typed(key, data[key], kind) for key, (kind, _) in top.items() if key in data}
+
+
+def as_table(name: str, value) -> dict:
+    """``value``, the table ``name`` of a parameter file; an `InputError` if it is not a table."""
+    if not isinstance(value, dict):
+        raise InputError(f"{name} must be a table ([{name}]), got {value!r}")
+    return value

@@ -12,7 +12,9 @@ from labrig.deprecation import alias_modules, renamed_attributes
 
 from ._malloc import ALLOCATOR_TUNED
 from .collisions import Restitution
-from .forces import CentreGravity, Drag, Force, Gravity, Langevin, ThermalKicks, VanDerWaals
+from . import forces
+from .forces import (  # noqa: F401 (exported as forces.FORCE_TYPES in __all__)
+    CentreGravity, Drag, Force, Gravity, Langevin, ThermalKicks, VanDerWaals)
 from .io.checkpoint import load, read_state, save
 from .scene import Scene, grating_segments
 from .simulation import EngineSettings, Simulation
@@ -37,12 +39,7 @@ __all__ = [
     "State",
     "Restitution",
     "Force",
-    "VanDerWaals",
-    "ThermalKicks",
-    "Langevin",
-    "Drag",
-    "Gravity",
-    "CentreGravity",
+    *forces.FORCE_TYPES,  # the built-in forces
     "grating_segments",
     "ALLOCATOR_TUNED",
 ]

@@ -8,7 +8,7 @@ import qdots
 from qdots.forces import hamaker_force, thesis_offset
 from qdots.units import thesis_kick_speed
 
-from conftest import worst_overlap
+from conftest import TimeRecorder, worst_overlap
 
 BIG_BOX = (2000.0, 2000.0)
 
@@ -350,18 +350,8 @@ def test_run_rejects_negative_time_and_bad_writer():
         sim.attach(Bad(), every=3, seconds=0.1)
 
 
-class Times:
-    every = 7
-
-    def __init__(self):
-        self.times = []
-
-    def write(self, state):
-        self.times.append(state.time)
-
-
 def test_attached_writers_see_one_schedule_over_successive_runs():
-    writer = Times()
+    writer = TimeRecorder(every=7)
     sim = qdots.Simulation(lone_dot(), seed=0, dt=1e-3)
     assert sim.attach(writer) is writer and sim.writers == (writer,)
     with pytest.raises(ValueError, match="attached already"):
@@ -380,7 +370,7 @@ def test_attached_writers_see_one_schedule_over_successive_runs():
 
 
 def test_writer_in_seconds_keeps_its_interval_when_dt_changes():
-    writer = Times()
+    writer = TimeRecorder(every=7)
     sim = qdots.Simulation(lone_dot(), seed=0, dt=1e-3)
     sim.attach(writer, seconds=0.01)
     sim.run(0.02)
@@ -391,7 +381,7 @@ def test_writer_in_seconds_keeps_its_interval_when_dt_changes():
 
 
 def test_writers_given_to_run_are_attached_with_a_deprecation_warning():
-    writer = Times()
+    writer = TimeRecorder(every=7)
     sim = qdots.Simulation(lone_dot(), seed=0, dt=1e-3)
     with pytest.warns(DeprecationWarning, match="Simulation.attach"):
         sim.run(0.01, writers=[writer])

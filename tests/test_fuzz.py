@@ -12,11 +12,11 @@ import string
 
 import numpy as np
 import pytest
+from conftest import to_toml
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 import qdots
-from labrig.tomlfile import toml_value
 from labrig.validate import InputError
 from planarize.cli import main as planarize_main
 from qdots.cli import main as qdots_main
@@ -65,25 +65,23 @@ def set_key(tree: dict, key: str, value) -> None:
         node[last] = value
 
 
-def to_toml(tree: dict) -> str:
-    lines, tables = [], []
-    for key, value in tree.items():
-        if isinstance(value, dict):
-            tables.append((key, value))
-        elif isinstance(value, list) and value and all(isinstance(v, dict) for v in value):
-            tables += [(f"[{key}]", item) for item in value]
-        else:
-            lines.append(f"{key} = {toml_value(value)}")
-    for name, table in tables:
-        lines.append(f"[{name}]" if not name.startswith("[") else f"[{name}]")
-        lines += [f"{k} = {toml_value(v)}" for k, v in table.items()]
-    return "\n".join(lines) + "\n"
-
-
 def refused_in_one_line(capsys, prog: str) -> str:
     err = capsys.readouterr().err.strip().split("\r")[-1]
     assert err.startswith(f"{prog}: error:") and "\n" not in err and "Traceback" not in err, err
     return err
+
+
+def fuzz_tests(check, *examples, **strategies):
+    """Two tests of ``check(fixtures..., **drawn)`` on hypothesis draws from ``strategies``: ``FEW`` examples
+    by default and ``MANY`` under ``-m slow`` (the explicit ``examples`` in the default one)."""
+    def test(max_examples):
+        return settings(max_examples=max_examples, deadline=None,
+                        suppress_health_check=[HealthCheck.function_scoped_fixture])(given(**strategies)(check))
+
+    few = test(FEW)
+    for drawn in examples:
+        few = example(**drawn)(few)
+    return few, pytest.mark.slow(test(MANY))
 
 
 def snapshot(directory) -> dict:
@@ -134,19 +132,11 @@ def check_experiment_file(tmp_path, capsys, earlier, mutations) -> None:
 MUTATIONS = st.lists(st.tuples(st.sampled_from(EXPERIMENT_KEYS), WEIRD), min_size=1, max_size=3)
 
 
-@settings(max_examples=FEW, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
-@given(mutations=MUTATIONS)
-@example(mutations=[("forces.0.r0", False)])  # found by CI: a key inside the list of forces
-@example(mutations=[("forces", 5), ("forces.1.scale", 2.0)])  # a list made a value, then one of its tables
-def test_experiment_files(tmp_path, capsys, earlier, mutations):
-    check_experiment_file(tmp_path, capsys, earlier, mutations)
-
-
-@pytest.mark.slow
-@settings(max_examples=MANY, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
-@given(mutations=MUTATIONS)
-def test_experiment_files_many(tmp_path, capsys, earlier, mutations):
-    check_experiment_file(tmp_path, capsys, earlier, mutations)
+test_experiment_files, test_experiment_files_many = fuzz_tests(
+    check_experiment_file,
+    dict(mutations=[("forces.0.r0", False)]),  # found by CI: a key inside the list of forces
+    dict(mutations=[("forces", 5), ("forces.1.scale", 2.0)]),  # a list made a value, then one of its tables
+    mutations=MUTATIONS)
 
 
 # -- state files --------------------------------------------------------------------------------------
@@ -199,17 +189,7 @@ STATE_ARGS = dict(array_changes=st.lists(st.tuples(st.sampled_from(["positions",
                   metadata_changes=st.lists(st.tuples(st.sampled_from(METADATA_KEYS), WEIRD), max_size=2))
 
 
-@settings(max_examples=FEW, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
-@given(**STATE_ARGS)
-def test_state_files(tmp_path, capsys, state_parts, array_changes, metadata_changes):
-    check_state_file(tmp_path, capsys, state_parts, array_changes, metadata_changes)
-
-
-@pytest.mark.slow
-@settings(max_examples=MANY, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
-@given(**STATE_ARGS)
-def test_state_files_many(tmp_path, capsys, state_parts, array_changes, metadata_changes):
-    check_state_file(tmp_path, capsys, state_parts, array_changes, metadata_changes)
+test_state_files, test_state_files_many = fuzz_tests(check_state_file, **STATE_ARGS)
 
 
 # -- height maps ---------------------------------------------------------------------------------------
@@ -254,17 +234,7 @@ HEADERS = st.sampled_from(["", "# Width: 4 nm\n# Height: 4 nm\n# Value units: nm
 HEIGHT_ARGS = dict(rows=GRIDS, suffix=st.sampled_from([".csv", ".txt", ".xyz", ".npy"]), header=HEADERS)
 
 
-@settings(max_examples=FEW, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
-@given(**HEIGHT_ARGS)
-def test_height_maps(tmp_path, capsys, rows, suffix, header):
-    check_height_map(tmp_path, capsys, rows, suffix, header)
-
-
-@pytest.mark.slow
-@settings(max_examples=MANY, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
-@given(**HEIGHT_ARGS)
-def test_height_maps_many(tmp_path, capsys, rows, suffix, header):
-    check_height_map(tmp_path, capsys, rows, suffix, header)
+test_height_maps, test_height_maps_many = fuzz_tests(check_height_map, **HEIGHT_ARGS)
 
 
 # -- sweep files ---------------------------------------------------------------------------------------
@@ -299,17 +269,7 @@ def check_sweep_file(tmp_path, capsys, mutations) -> None:
 SWEEP_ARGS = dict(mutations=st.lists(st.tuples(st.sampled_from(SWEEP_KEYS), WEIRD), min_size=1, max_size=3))
 
 
-@settings(max_examples=FEW, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
-@given(**SWEEP_ARGS)
-def test_sweep_files(tmp_path, capsys, mutations):
-    check_sweep_file(tmp_path, capsys, mutations)
-
-
-@pytest.mark.slow
-@settings(max_examples=MANY, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
-@given(**SWEEP_ARGS)
-def test_sweep_files_many(tmp_path, capsys, mutations):
-    check_sweep_file(tmp_path, capsys, mutations)
+test_sweep_files, test_sweep_files_many = fuzz_tests(check_sweep_file, **SWEEP_ARGS)
 
 
 def test_the_checks_fail_on_a_traceback_or_a_long_message(tmp_path, capsys, earlier, monkeypatch):

@@ -1,9 +1,11 @@
 """Importing measured height maps: .gwy (written by gwyfile), XYZ, matrices, .npy; units; every bad input."""
 
+import io
 import sys
 
 import numpy as np
 import pytest
+from conftest import refused_file
 
 import planarize
 from planarize.io.gwy import gwy_channels
@@ -14,6 +16,13 @@ from gwyfile.objects import GwyContainer, GwyDataField  # noqa: E402
 
 AMPLITUDE_NM = 3.0
 NX, NY = 24, 16  # columns (x) and rows (y) of the AFM image
+
+
+def npy_bytes(array) -> bytes:
+    """``array`` as the bytes of a ``.npy`` file."""
+    buffer = io.BytesIO()
+    np.save(buffer, array)
+    return buffer.getvalue()
 
 
 def egg_crate(nx=NX, ny=NY, dx=5.0, dy=5.0, base=40.0):
@@ -178,38 +187,23 @@ def test_rectangular_pixels_up_to_the_limit(tmp_path):
     ("uneven.xyz", "0 0 1\n0 1 1\n1 0 1\n1 1 1\n3 0 1\n3 1 1\n", {}, r"x values are not evenly spaced"),
     ("nanz.xyz", "0 0 1\n0 1 1\n1 0 1\n1 1 nan\n", {}, r"non-finite"),
     ("nanx.xyz", "0 0 1\n0 1 1\n1 0 1\nnan 1 1\n", {}, r"x coordinates\[3\] is not finite"),
+    ("scan.jpg", b"x", {}, r"unknown height-map suffix '.jpg'"),
+    ("binary.csv", b"\xff\xfe\x00garbage", {}, "cannot read the file as UTF-8 text"),
+    ("bad.npy", b"not numpy", {}, r"cannot read the file as a \.npy array"),
+    ("line.npy", npy_bytes(np.arange(5.0)), {}, r"2-D array.*1 dimension"),
+    ("ok.npy", npy_bytes(np.ones((3, 3))), {"spacing": None}, "does not state its grid spacing"),
+    ("ok.npy", npy_bytes(np.ones((3, 3))), {"unit": "furlong"}, r"unit must be a length unit.*got 'furlong'"),
+    ("ok.npy", npy_bytes(np.ones((3, 3))), {"spacing": -1}, r"spacing must be finite and > 0"),
+    ("ok.npy", npy_bytes(np.ones((3, 3))), {"channel": 0}, "channel applies to .gwy files only"),
 ])
-def test_bad_text_files(tmp_path, name, content, kwargs, match):
-    (tmp_path / name).write_text(content)
+def test_bad_files_and_arguments(tmp_path, name, content, kwargs, match):
     options = {"unit": "nm", **({"spacing": 1.0} if not name.endswith(".xyz") else {}), **kwargs}
-    with pytest.raises(ValueError, match=match) as error:
-        load_heights(tmp_path / name, **options)
-    assert str(error.value).startswith(str(tmp_path / name))
+    refused_file(load_heights, tmp_path / name, content, match, **options)
 
 
-def test_bad_files_and_arguments(tmp_path):
+def test_a_missing_file_and_an_unknown_format(tmp_path):
     with pytest.raises(FileNotFoundError, match="does not exist"):
         load_heights(tmp_path / "absent.csv", unit="nm", spacing=1)
-    (tmp_path / "scan.jpg").write_bytes(b"x")
-    with pytest.raises(ValueError, match=r"unknown height-map suffix '.jpg'"):
-        load_heights(tmp_path / "scan.jpg")
-    (tmp_path / "binary.csv").write_bytes(b"\xff\xfe\x00garbage")
-    with pytest.raises(ValueError, match="cannot read the file as UTF-8 text"):
-        load_heights(tmp_path / "binary.csv", unit="nm", spacing=1)
-    (tmp_path / "bad.npy").write_bytes(b"not numpy")
-    with pytest.raises(ValueError, match=r"cannot read the file as a \.npy array"):
-        load_heights(tmp_path / "bad.npy", unit="nm", spacing=1)
-    np.save(tmp_path / "line.npy", np.arange(5.0))
-    with pytest.raises(ValueError, match=r"2-D array.*1 dimension"):
-        load_heights(tmp_path / "line.npy", unit="nm", spacing=1)
     np.save(tmp_path / "ok.npy", np.ones((3, 3)))
-    with pytest.raises(ValueError, match="does not state its grid spacing"):
-        load_heights(tmp_path / "ok.npy", unit="nm")
-    with pytest.raises(ValueError, match=r"unit must be a length unit.*got 'furlong'"):
-        load_heights(tmp_path / "ok.npy", unit="furlong", spacing=1)
-    with pytest.raises(ValueError, match=r"spacing must be finite and > 0"):
-        load_heights(tmp_path / "ok.npy", unit="nm", spacing=-1)
-    with pytest.raises(ValueError, match="channel applies to .gwy files only"):
-        load_heights(tmp_path / "ok.npy", unit="nm", spacing=1, channel=0)
     with pytest.raises(ValueError, match="format must be one of"):
         load_heights(tmp_path / "ok.npy", format="tiff")

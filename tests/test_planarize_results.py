@@ -5,6 +5,7 @@ import json
 
 import numpy as np
 import pytest
+from conftest import refused_file
 
 import planarize
 from planarize.io.results import history_json, load_run, save_history_csv, save_history_json, save_run
@@ -73,9 +74,7 @@ def test_failed_write_keeps_the_previous_file(run, tmp_path, monkeypatch):
 def test_bad_run_files(tmp_path):
     with pytest.raises(FileNotFoundError):
         load_run(tmp_path / "absent.npz")
-    (tmp_path / "junk.npz").write_bytes(b"junk")
-    with pytest.raises(ValueError, match="junk.npz is not a readable planarize run file"):
-        load_run(tmp_path / "junk.npz")
+    refused_file(load_run, tmp_path / "junk.npz", b"junk", "junk.npz is not a readable planarize run file")
     np.savez(tmp_path / "other.npz", metadata=np.array(json.dumps({"format": "qdots-state"})))
     with pytest.raises(ValueError, match="not a planarize run file"):
         load_run(tmp_path / "other.npz")

@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+from conftest import refused_file
 
 import planarize
 from planarize import Fast, Model, Reference
@@ -113,18 +114,12 @@ def test_scene_runs_with_overrides():
     ("[run\n", r"invalid TOML"),
 ])
 def test_bad_scene_files_name_the_key(tmp_path, text, match):
-    path = tmp_path / "bad.toml"
-    path.write_text(text)
-    with pytest.raises(ValueError, match=match) as error:
-        load_scene(path)
-    assert str(error.value).startswith(str(path))
+    refused_file(load_scene, tmp_path / "bad.toml", text, match)
 
 
 def test_missing_and_unreadable_scene_files(tmp_path):
     with pytest.raises(FileNotFoundError):
         load_scene(tmp_path / "absent.toml")
-    (tmp_path / "binary.toml").write_bytes(b"\xff\xfe")
-    with pytest.raises(ValueError, match="cannot read the scene file"):
-        load_scene(tmp_path / "binary.toml")
+    refused_file(load_scene, tmp_path / "binary.toml", b"\xff\xfe", "cannot read the scene file")
     with pytest.raises(ValueError, match="unknown scene 'mountain'; built-in scenes: hill, depression, ta, tilted"):
         get_scene("mountain")

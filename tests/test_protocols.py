@@ -4,7 +4,7 @@ import math
 
 import numpy as np
 import pytest
-from conftest import worst_overlap
+from conftest import TimeRecorder, worst_overlap
 
 import qdots
 from qdots.experiment import Board, Deposition, Experiment, run_experiment
@@ -106,16 +106,7 @@ def test_deposit_rejects_bad_arguments():
 
 
 def test_writers_see_one_continuous_run():
-    class Recorder:
-        every = 10
-
-        def __init__(self):
-            self.times = []
-
-        def write(self, state):
-            self.times.append(state.time)
-
-    sim, rec = empty_sim(), Recorder()
+    sim, rec = empty_sim(), TimeRecorder(every=10)
     sim.attach(rec)
     deposit(sim, 3, interval=0.05, rng=2)
     steps = round(0.15 / sim.dt)  # steps 0, 10, 20, ... to the end, no repeats

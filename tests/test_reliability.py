@@ -6,6 +6,7 @@ failed is here, each with what it does now.
 
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -15,6 +16,7 @@ import zipfile
 
 import numpy as np
 import pytest
+from conftest import to_toml
 
 import qdots
 from planarize.cli import main as planarize_main
@@ -47,6 +49,14 @@ def run_ok(main, argv, capsys):
     return capsys.readouterr()
 
 
+def refused_run(main, path, text, capsys, prog="qdots"):
+    """``PROG run`` of a file holding ``text`` (results into ``out`` beside it): exit status 2 and a one-line
+    error, returned."""
+    path.write_text(text)
+    assert main(["run", str(path), "--out", str(path.parent / "out")]) == 2
+    return one_line_error(capsys, prog)
+
+
 # -- runs that finished are saved and load back ----------------------------------------------------
 
 def test_a_board_overlapping_a_wall_after_a_run_saves_loads_renders_and_resumes_in_place(tmp_path, capsys):
@@ -70,22 +80,10 @@ def test_large_overlap_at_a_coarse_time_step_is_measured_and_warned_not_refused(
     # 60 dots under the thesis's centre gravity at its 20 ms frame, fixed sub-steps (false: the default
     # adaptive sub-steps would split the impacts): they overlap by ~30 % of a radius (measured)
     path = tmp_path / "coarse.toml"
-    path.write_text(textwrap.dedent("""
-        name = "coarse"
-        [board]
-        width = 200.0
-        height = 200.0
-        [deposition]
-        n_dots = 60
-        interval = 0.0
-        settle = 1.0
-        [engine]
-        dt = 0.02
-        overlap_tolerance = false
-        [[forces]]
-        type = "CentreGravity"
-        centre = [100.0, 100.0]
-        """))
+    path.write_text(to_toml({"name": "coarse", "board": {"width": 200.0, "height": 200.0},
+                             "deposition": {"n_dots": 60, "interval": 0.0, "settle": 1.0},
+                             "engine": {"dt": 0.02, "overlap_tolerance": False},
+                             "forces": [{"type": "CentreGravity", "centre": [100.0, 100.0]}]}))
     assert qdots_main(["run", str(path), "--out", str(tmp_path / "out")]) == 0
     captured = capsys.readouterr()
     state = qdots.read_state(tmp_path / "out" / "coarse.npz")
@@ -100,20 +98,9 @@ def test_large_overlap_at_a_coarse_time_step_is_measured_and_warned_not_refused(
 
 def test_dots_that_leave_an_open_board_are_counted_and_the_board_loads(tmp_path, capsys):
     path = tmp_path / "open.toml"
-    path.write_text(textwrap.dedent("""
-        name = "open"
-        [board]
-        width = 100.0
-        height = 100.0
-        closed = false
-        [deposition]
-        n_dots = 10
-        interval = 0.0
-        settle = 20.0
-        [[forces]]
-        type = "Gravity"
-        acceleration = [0.0, -200.0]
-    """))
+    path.write_text(to_toml({"name": "open", "board": {"width": 100.0, "height": 100.0, "closed": False},
+                             "deposition": {"n_dots": 10, "interval": 0.0, "settle": 20.0},
+                             "forces": [{"type": "Gravity", "acceleration": [0.0, -200.0]}]}))
     assert qdots_main(["run", str(path), "--out", str(tmp_path / "out")]) == 0
     err = capsys.readouterr().err
     state = qdots.read_state(tmp_path / "out" / "open.npz")
@@ -184,11 +171,7 @@ def test_stale_temporary_files_are_cleared_by_the_next_run(tmp_path, capsys):
     ("name = ''", r"name must be a non-empty string"),
 ])
 def test_experiment_files_out_of_range_are_one_line_errors(tmp_path, capsys, text, message):
-    path = tmp_path / "bad.toml"
-    path.write_text(text)
-    assert qdots_main(["run", str(path), "--out", str(tmp_path / "out")]) == 2
-    import re
-    assert re.search(message, one_line_error(capsys))
+    assert re.search(message, refused_run(qdots_main, tmp_path / "bad.toml", text, capsys))
     assert not (tmp_path / "out").exists() or not any((tmp_path / "out").iterdir())
 
 
@@ -209,11 +192,8 @@ def test_a_huge_seed_count_is_refused_before_anything_is_allocated(tmp_path, cap
     ("engine = 'reference'\ntolerance = 0.1", r"settings of the fast engine"),
 ])
 def test_planarize_parameters_out_of_range_are_one_line_errors(tmp_path, capsys, run_table, message):
-    path = tmp_path / "bad.toml"
-    path.write_text(f"[run]\n{run_table}\n")
-    assert planarize_main(["run", str(path), "--out", str(tmp_path / "out")]) == 2
-    import re
-    assert re.search(message, one_line_error(capsys, "planarize"))
+    error = refused_run(planarize_main, tmp_path / "bad.toml", f"[run]\n{run_table}\n", capsys, "planarize")
+    assert re.search(message, error)
 
 
 def test_an_empty_snapshot_list_runs_and_writes_its_files(tmp_path, capsys):
@@ -224,20 +204,9 @@ def test_an_empty_snapshot_list_runs_and_writes_its_files(tmp_path, capsys):
 
 
 def test_runaway_dots_are_reported_physically(tmp_path, capsys):
-    path = tmp_path / "fast.toml"
-    path.write_text(textwrap.dedent("""
-        [deposition]
-        n_dots = 5
-        interval = 0.0
-        settle = 1.0
-        [engine]
-        dt = 0.1
-        [[forces]]
-        type = "Gravity"
-        acceleration = [0.0, -1e8]
-    """))
-    assert qdots_main(["run", str(path), "--out", str(tmp_path / "out")]) == 2
-    assert "the dots left the model's range" in one_line_error(capsys)
+    text = to_toml({"deposition": {"n_dots": 5, "interval": 0.0, "settle": 1.0}, "engine": {"dt": 0.1},
+                    "forces": [{"type": "Gravity", "acceleration": [0.0, -1e8]}]})
+    assert "the dots left the model's range" in refused_run(qdots_main, tmp_path / "fast.toml", text, capsys)
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="parent-death signal is Linux's")

@@ -3,9 +3,10 @@
 ``planarize run SCENE.toml`` runs a scene file, ``planarize scene NAME``
 runs (or saves) a built-in scene and ``planarize import FILE`` runs a
 measured height map. Each subcommand is a ``_add_<name>`` function that
-registers its parser and sets ``func`` to the function that runs it; add a
-command by writing one and listing it in `COMMANDS`. `main` dispatches and
-turns bad input into a one-line error with exit code 2.
+registers its parser and the function that runs it (`labrig.cli.add_command`;
+the run function's docstring is the command's description); add a command by
+writing one and listing it in `COMMANDS`. `main` dispatches and turns bad input
+into a one-line error with exit code 2.
 """
 
 from __future__ import annotations
@@ -14,9 +15,8 @@ import argparse
 import math
 import sys
 from pathlib import Path
-from typing import Sequence
 
-from labrig.cli import Parser, UsageError, float_in, fraction, run_main
+from labrig.cli import UsageError, add_command, command_line, float_in, fraction
 
 from ..engines import ENGINES
 from ..io.scenefile import SCENES
@@ -37,31 +37,23 @@ def _add_outputs(p, out_default: str) -> None:
 
 
 def _add_run(subparsers) -> None:
-    p = subparsers.add_parser("run", help="run a TOML scene file",
-                              description="Run a scene file (see `planarize scene NAME --save FILE` for examples) "
-                                          "and write the run (.npz), its history (CSV), Figs 3-8 and 3-9, the "
-                                          "3-D surfaces at the snapshots, the scene file and optionally a movie.")
+    p = add_command(subparsers, "run", _run_file, "run a TOML scene file")
     p.add_argument("scene", type=Path, metavar="SCENE.toml", help="scene file")
     _add_outputs(p, "planarize-run")
-    p.set_defaults(func=_run_file)
 
 
 def _add_scene(subparsers) -> None:
-    p = subparsers.add_parser("scene", help="run or save a built-in scene",
-                              description="The built-in scenes: " + ", ".join(SCENES) + " (hill and depression: "
-                                          "thesis Figs 3-8/3-9; ta: the Ta film of Figs 3-11/3-12).")
+    p = add_command(subparsers, "scene", _run_named, "run or save a built-in scene",
+                    description="The built-in scenes: " + ", ".join(SCENES) + " (hill and depression: "
+                                "thesis Figs 3-8/3-9; ta: the Ta film of Figs 3-11/3-12).")
     p.add_argument("name", choices=list(SCENES), metavar="NAME", help=f"one of: {', '.join(SCENES)}")
     p.add_argument("--save", type=Path, default=None, metavar="FILE.toml",
                    help="only write the scene file to edit, do not run")
     _add_outputs(p, "planarize-run")
-    p.set_defaults(func=_run_named)
 
 
 def _add_import(subparsers) -> None:
-    p = subparsers.add_parser("import", help="anodize a measured height map (AFM)",
-                              description="Import a height map (.xyz, .csv/.txt/.asc/.dat matrix, .npy, .gwy) and "
-                                          "anodize it. Units and sizes stated in the file are used; give the "
-                                          "others with --unit and --spacing.")
+    p = add_command(subparsers, "import", _run_import, "anodize a measured height map (AFM)")
     p.add_argument("file", type=Path, metavar="FILE", help="height map")
     p.add_argument("--thickness", type=float_in(0.0, math.inf), required=True, metavar="NM",
                    help="oxide thickness to grow, nm")
@@ -79,7 +71,6 @@ def _add_import(subparsers) -> None:
     p.add_argument("--save", type=Path, default=None, metavar="FILE.toml",
                    help="only write the scene file for this import, do not run")
     _add_outputs(p, "planarize-import")
-    p.set_defaults(func=_run_import)
 
 
 def _add_sweep(subparsers) -> None:
@@ -96,18 +87,7 @@ def _add_sweep_plot(subparsers) -> None:
 
 #: The subcommands, in the order `--help` lists them.
 COMMANDS = [_add_run, _add_scene, _add_import, _add_sweep, _add_sweep_plot]
-
-
-def build_parser() -> argparse.ArgumentParser:
-    """The ``planarize`` argument parser, one subparser per entry of `COMMANDS`."""
-    from .. import __version__
-
-    parser = Parser(prog="planarize", description="Anodization planarization of rough metal surfaces.")
-    parser.add_argument("--version", action="version", version=f"planarize {__version__}")
-    subparsers = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
-    for add in COMMANDS:
-        add(subparsers)
-    return parser
+build_parser, main = command_line("planarize", "Anodization planarization of rough metal surfaces.", COMMANDS)
 
 
 def _prepare(scene, args):
@@ -121,6 +101,9 @@ def _prepare(scene, args):
 
 
 def _run_file(args: argparse.Namespace) -> int:
+    """Run a scene file (see `planarize scene NAME --save FILE` for examples) and write the run (.npz),
+    its history (CSV), Figs 3-8 and 3-9, the 3-D surfaces at the snapshots, the scene file and
+    optionally a movie."""
     from ..io.scenefile import load_scene
     from .commands import run_scene
 
@@ -141,6 +124,8 @@ def _run_named(args: argparse.Namespace) -> int:
 
 
 def _run_import(args: argparse.Namespace) -> int:
+    """Import a height map (.xyz, .csv/.txt/.asc/.dat matrix, .npy, .gwy) and anodize it. Units and
+    sizes stated in the file are used; give the others with --unit and --spacing."""
     from ..io.scenefile import save_scene
     from .commands import import_scene, run_scene
 
@@ -157,14 +142,6 @@ def _run_import(args: argparse.Namespace) -> int:
         return 0
     run_scene(scene, args.out, movie=args.movie)
     return 0
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    """Run the ``planarize`` command line; returns the exit status.
-
-    0 on success, 2 on bad input (a one-line ``planarize: error: ...`` on stderr).
-    """
-    return run_main(build_parser(), argv)
 
 
 if __name__ == "__main__":

@@ -53,30 +53,31 @@ def nearest_image(di, dj, nx, ny, periodic):
 
 
 @jit(inline=True)
-def _own_segments(seg, zm, m, t):
-    """The 4 grid segments at metal point ``m``, relative to it, as `_segments` orients them: row ``e`` of
-    ``seg`` holds the start, direction and squared length (or a negative length: no segment there). They are
-    the same for every anchor paired with ``m``, so they are set up once per metal point."""
-    zref = zm[m]
+def _grid_segments(seg, z, k, di, dj, zref, t):
+    """The 4 grid segments at point ``k`` (offset ``di, dj``, heights ``z`` less ``zref``), each from its
+    -x/-y end to its +x/+y end: row ``e`` of ``seg`` holds the start, direction and squared length (or a
+    negative length: no segment there, past an open edge). A metal point's own segments (``di = dj = 0``,
+    ``zref`` its height) are the same for every anchor paired with it, so they are set up once per point."""
+    hx, hy, hz = di * t.dx, dj * t.dy, z[k] - zref
     for e in range(4):
-        u = t.edge_nb[m, e]
+        u = t.edge_nb[k, e]
         if u < 0:
             seg[e, 6] = -1.0
             continue
-        tx, ty, tz = t.step_i[e] * t.dx, t.step_j[e] * t.dy, zm[u] - zref
-        if t.step_i[e] + t.step_j[e] > 0:  # from m to u
-            ax, ay, az, bx, by, bz = 0.0, 0.0, 0.0, tx, ty, tz
+        tx, ty, tz = (di + t.step_i[e]) * t.dx, (dj + t.step_j[e]) * t.dy, z[u] - zref
+        if t.step_i[e] + t.step_j[e] > 0:  # from k to u
+            ax, ay, az, bx, by, bz = hx, hy, hz, tx, ty, tz
         else:
-            ax, ay, az, bx, by, bz = tx, ty, tz, 0.0, 0.0, 0.0
+            ax, ay, az, bx, by, bz = tx, ty, tz, hx, hy, hz
         ux, uy, uz = bx - ax, by - ay, bz - az
         seg[e, 0], seg[e, 1], seg[e, 2], seg[e, 3], seg[e, 4], seg[e, 5] = ax, ay, az, ux, uy, uz
         seg[e, 6] = ux * ux + uy * uy + uz * uz
 
 
 @jit(inline=True)
-def _own_feet(out, r, first, px, py, pz, seg):
+def _segment_feet(out, r, first, px, py, pz, seg):
     """Slots ``out[r, first .. first + 3]``: `segment_foot_inside` of point p on the 4 segments set up by
-    `_own_segments` (the same arithmetic, on the kept start and direction)."""
+    `_grid_segments` (the same arithmetic, on the kept start and direction)."""
     for e in range(4):
         length2 = seg[e, 6]
         if length2 < 0:
@@ -89,22 +90,6 @@ def _own_feet(out, r, first, px, py, pz, seg):
         inside = (0 < along) & (along < length2) & (0 < t) & (t < 1)
         value = math.sqrt(max(wx * wx + wy * wy + wz * wz - t * along, 0.0))
         out[r, first + e] = value if inside else _INF
-
-
-@jit(inline=True)
-def _segments(out, r, first, px, py, pz, z, k, di, dj, zref, t):
-    """Slots ``out[r, first .. first + 3]``: the 4 grid segments at point ``k`` (offset ``di, dj``), seen from p."""
-    hx, hy, hz = di * t.dx, dj * t.dy, z[k] - zref
-    for e in range(4):
-        u = t.edge_nb[k, e]
-        if u < 0:
-            out[r, first + e] = _INF
-            continue
-        tx, ty, tz = (di + t.step_i[e]) * t.dx, (dj + t.step_j[e]) * t.dy, z[u] - zref
-        if t.step_i[e] + t.step_j[e] > 0:  # always from the -x/-y end to the +x/+y end
-            out[r, first + e] = segment_foot_inside(px, py, pz, hx, hy, hz, tx, ty, tz)
-        else:
-            out[r, first + e] = segment_foot_inside(px, py, pz, tx, ty, tz, hx, hy, hz)
 
 
 @jit(inline=True)
@@ -142,21 +127,23 @@ def _facets(out, r, first, px, py, pz, z, k, di, dj, zref, t):
 
 
 @jit(inline=True)
-def _pair_slots(out, r, zm, zo, m, v, do_oxide, do_metal, exact, t, own, mi, mj):
+def _pair_slots(out, r, zm, zo, m, v, do_oxide, do_metal, exact, t, own, seg, mi, mj):
     """Every slot of one (metal ``m`` at row ``mi``, column ``mj``, anchor ``v``) pair, into row ``r`` of
-    ``out`` (filled with inf). (Rows are passed as (array, index), not as views: a view per pair costs
-    more than the pair.)"""
+    ``out`` (filled with inf); ``own`` holds the metal point's segments (`_grid_segments`), ``seg`` is room
+    for the anchor's. (Rows are passed as (array, index), not as views: a view per pair costs more than
+    the pair.)"""
     vi = v // t.ny
     di, dj = nearest_image(vi - mi, v - vi * t.ny - mj, t.nx, t.ny, t.periodic)
     zref = zm[m]
     vx, vy, vz = di * t.dx, dj * t.dy, zo[v] - zref
     if do_oxide:
         out[r, POINT] = math.sqrt(vx * vx + vy * vy + vz * vz)
-        _segments(out, r, OXIDE_SEGMENTS, 0.0, 0.0, 0.0, zo, v, di, dj, zref, t)
+        _grid_segments(seg, zo, v, di, dj, zref, t)
+        _segment_feet(out, r, OXIDE_SEGMENTS, 0.0, 0.0, 0.0, seg)
         if exact:
             _facets(out, r, OXIDE_HALF_DIAGONALS, 0.0, 0.0, 0.0, zo, v, di, dj, zref, t)
     if do_metal:
-        _own_feet(out, r, METAL_SEGMENTS, vx, vy, vz, own)  # = _segments(out, r, METAL_SEGMENTS, vx, vy, vz, zm, m, ...)
+        _segment_feet(out, r, METAL_SEGMENTS, vx, vy, vz, own)
         if exact:
             _facets(out, r, METAL_HALF_DIAGONALS, vx, vy, vz, zm, m, 0, 0, zref, t)
 
@@ -216,6 +203,7 @@ def _closest_sets(zm, zo, m, v, tie, do_oxide, do_metal, n_slots, exact, t):
     found = np.empty(64, dtype=np.intp)
     dist = np.empty((16, n_slots))  # one group's pairs at a time: stays in cache
     own = np.empty((4, 7))
+    seg = np.empty((4, 7))
     n_out = 0
     start = 0
     for g in range(n_groups):
@@ -224,14 +212,14 @@ def _closest_sets(zm, zo, m, v, tie, do_oxide, do_metal, n_slots, exact, t):
             stop += 1
         if stop - start > len(dist):
             dist = np.empty((2 * (stop - start), n_slots))
-        _own_segments(own, zm, m[start], t)
+        _grid_segments(own, zm, m[start], 0, 0, zm[m[start]], t)
         mi = m[start] // t.ny
         mj = m[start] - mi * t.ny
         low = _INF
         for r in range(start, stop):
             row = r - start
             dist[row, :] = _INF
-            _pair_slots(dist, row, zm, zo, m[r], v[r], do_oxide[r], do_metal[r], exact, t, own, mi, mj)
+            _pair_slots(dist, row, zm, zo, m[r], v[r], do_oxide[r], do_metal[r], exact, t, own, seg, mi, mj)
             for s in range(n_slots):
                 low = min(low, dist[row, s])
         points[g] = m[start]
@@ -313,11 +301,11 @@ def closest_sets(tables: FeatureTables, zm, zo, m, v, tie: float, oxide=None, me
 
 @jit
 def _all_slots(zm, zo, m, v, oxide, metal, t, out):
-    own = np.empty((4, 7))
+    own, seg = np.empty((4, 7)), np.empty((4, 7))
     for r in range(len(m)):
-        _own_segments(own, zm, m[r], t)
+        _grid_segments(own, zm, m[r], 0, 0, zm[m[r]], t)
         mi = m[r] // t.ny
-        _pair_slots(out, r, zm, zo, m[r], v[r], oxide[r], metal[r], t.exact, t, own, mi, m[r] - mi * t.ny)
+        _pair_slots(out, r, zm, zo, m[r], v[r], oxide[r], metal[r], t.exact, t, own, seg, mi, m[r] - mi * t.ny)
 
 
 def pair_slots(tables: FeatureTables, zm, zo, m, v, oxide=None, metal=None) -> np.ndarray:

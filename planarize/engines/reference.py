@@ -198,24 +198,20 @@ class Reference:
     """The thesis's sequential algorithm (`ReferenceEngine`): ``anodize(..., engine=Reference())``. No settings."""
 
     name = "reference"
+    #: The engine class `build` makes.
+    engine = ReferenceEngine
 
     def build(self, metal, oxide, model) -> ReferenceEngine:
         """The engine for ``metal`` (and ``oxide``) under ``model``."""
-        return ReferenceEngine(metal, oxide, model)
+        return self.engine(metal, oxide, model)
 
     def options(self) -> dict:
         return {}
 
 
 @dataclass(frozen=True)
-class Matlab:
+class Matlab(Reference):
     """The reference with the Matlab listings' shortcuts (`MatlabEngine`), to measure what they cost. No settings."""
 
     name = "matlab"
-
-    def build(self, metal, oxide, model) -> MatlabEngine:
-        """The engine for ``metal`` (and ``oxide``) under ``model``."""
-        return MatlabEngine(metal, oxide, model)
-
-    def options(self) -> dict:
-        return {}
+    engine = MatlabEngine

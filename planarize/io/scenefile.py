@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from labrig.files import write_text_atomic
-from labrig.tomlfile import check_keys, from_source, parse_toml, read_toml, toml_line
+from labrig.tomlfile import as_table, check_keys, from_source, parse_toml, read_toml, toml_line, top_level
 from labrig.validate import MAX_SEED, InputError, number, real, seed, text, typed
 
 from .. import surfaces
@@ -37,13 +37,15 @@ from ..surface import Surface
 from .heights import FORMATS, load_heights
 from .units import LENGTH_UNITS
 
+#: The boundary key, as the surface kinds that take one have it.
+_BOUNDARY = {"boundary": ("str", '"open" | "periodic"')}
 _BUMP = {
     "base": ("float", "nm, film thickness around the bump, >= 0"),
     "points": ("int", "grid points per side before refinement, odd integer >= 3"),
     "spacing": ("float", "nm, grid spacing before refinement, > 0"),
     "refine": ("int", "refinement factor, integer >= 1 (thesis 4: 17 x 17 points)"),
     "method": ("str", '"linear" (the thesis) | "cubic" refinement'),
-    "boundary": ("str", '"open" | "periodic"'),
+    **_BOUNDARY,
 }
 #: Surface kinds: kind -> (builder, {parameter: (type, comment)}).
 SURFACES = {
@@ -63,7 +65,7 @@ SURFACES = {
         "scales": ("float2s", "[[width, height], ...] nm, widest first, each width dividing the previous"),
         "refine": ("int", "final refinement factor, integer >= 1"),
         "method": ("str", '"linear" | "cubic" final refinement'),
-        "boundary": ("str", '"open" | "periodic"'),
+        **_BOUNDARY,
     }),
     "file": (load_heights, {
         "path": ("str", "height map: .xyz, .csv/.txt/.asc/.dat matrix, .npy or .gwy; relative to this file"),
@@ -74,7 +76,7 @@ SURFACES = {
         "level": ("bool", "remove the least-squares plane's tilt"),
         "channel": ("int|str?", ".gwy channel number or title; unset: the first height channel"),
         "format": ("str?", f"{' | '.join(repr(f) for f in FORMATS)}; unset: from the suffix"),
-        "boundary": ("str", '"open" | "periodic"'),
+        **_BOUNDARY,
         "max_aspect": ("float", "largest pixel aspect ratio accepted, >= 1"),
     }),
 }
@@ -299,15 +301,9 @@ def scene_from_dict(data: dict, base_dir: str | os.PathLike | None = None) -> Pl
     ValueError
         Naming the full key of an unknown key, a wrong type or an out-of-range value.
     """
-    if not isinstance(data, dict):
-        raise InputError(f"a scene must be a table, got {type(data).__name__}")
-    check_keys("", data, [*TOP, "surface", "run"])
-    top = {key: typed(key, data[key], kind) for key, (kind, _) in TOP.items() if key in data}
-    surface = data.get("surface", {})
-    run = data.get("run", {})
-    for name, table in (("surface", surface), ("run", run)):
-        if not isinstance(table, dict):
-            raise InputError(f"{name} must be a table ([{name}]), got {table!r}")
+    top = top_level(data, TOP, ["surface", "run"])
+    surface = as_table("surface", data.get("surface", {}))
+    run = as_table("run", data.get("run", {}))
     params = {k: v for k, v in surface.items() if k != "kind"}
     kind = typed("surface.kind", surface.get("kind", "hill"), "str")
     if kind not in SURFACES:

@@ -35,7 +35,7 @@ from tqdm.auto import tqdm
 from labrig.validate import InputError
 
 from .forster import KB_EV, TRAP_FRACTION, ExcitonNetwork, draw_traps, exciton_network
-from .lqe_thesis import step_probabilities, thesis_walks
+from .lqe_thesis import drop_trapped, step_probabilities, thesis_walks
 
 #: The thesis's Monte Carlo time step, in units of the radiative lifetime.
 THESIS_DT_FRACTION = 0.01
@@ -197,9 +197,7 @@ def gillespie_walks(network: ExcitonNetwork, starts: np.ndarray, rng: np.random.
     site = np.asarray(starts).copy()
     bar = tqdm(total=len(starts), desc="Gillespie", unit="exciton", disable=not progress)
     while alive.size:
-        living = ~network.traps[site]
-        bar.update(int((~living).sum()))
-        alive, site = alive[living], site[living]
+        alive, site = drop_trapped(network, alive, site, bar)
         if not alive.size:
             break
         u = rng.random(len(site)) * total[site]

@@ -39,6 +39,20 @@ _LOG_LOW = -23.0   # t >= e^-23 / (sum of weights): the part below is added anal
 _LOG_HIGH = 4.0    # t <= e^4 / (smallest weight) (the integrand is below exp(-54) there)
 
 
+def drop_trapped(network: ExcitonNetwork, alive: np.ndarray, site: np.ndarray, bar) -> tuple[np.ndarray, np.ndarray]:
+    """The walking excitons ``alive`` (at ``site``) that are not on a trap (a trap takes an exciton without
+    emission); ``bar`` (a tqdm bar) counts those that end there.
+
+    Returns
+    -------
+    alive, site : ndarray
+        The excitons still walking, and their sites.
+    """
+    living = ~network.traps[site]
+    bar.update(int((~living).sum()))
+    return alive[living], site[living]
+
+
 def _event_table(network: ExcitonNetwork, dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per dot, the weights ``dt * rate`` of its events, padded: hops first, then non-radiative, radiative.
 
@@ -142,9 +156,7 @@ def thesis_walks(network: ExcitonNetwork, starts: np.ndarray, dt: float, rng: np
         alive = np.arange(first, min(first + chunk, len(starts)))
         site = starts[alive].copy()
         while alive.size:
-            living = ~network.traps[site]
-            bar.update(int((~living).sum()))
-            alive, site = alive[living], site[living]
+            alive, site = drop_trapped(network, alive, site, bar)
             if not alive.size:
                 break
             steps[alive] += 1

@@ -3,8 +3,9 @@
 ``qdots demo`` runs a small deposition-like board (dots placed at random,
 then van der Waals attraction and thermal kicks) and writes a picture, a
 movie and a one-row CSV summary. Each subcommand is a ``_add_<name>``
-function that registers its parser and sets ``func`` to the function that
-runs it; `main` dispatches and turns bad input into a one-line error.
+function that registers its parser and the function that runs it
+(`labrig.cli.add_command`; the run function's docstring is the command's
+description); `main` dispatches and turns bad input into a one-line error.
 """
 
 from __future__ import annotations
@@ -14,11 +15,10 @@ import math
 import sys
 import time
 from pathlib import Path
-from typing import Sequence
 
 import numpy as np
 
-from labrig.cli import Parser, float_in, fraction, int_in, run_main
+from labrig.cli import add_command, command_line, float_in, fraction, int_in
 from labrig.validate import MAX_SEED
 
 #: Demo board, px, and mean dot diameter, px (the thesis's diameter on a quarter of its board).
@@ -33,12 +33,7 @@ MAX_DRAWS = 10_000
 
 
 def _add_demo(subparsers) -> None:
-    p = subparsers.add_parser(
-        "demo", help="run a small demo board and write demo.png, demo.mp4, summary.csv",
-        description="Place dots at random on a 300 x 300 px board (mean diameter 15 px), let them "
-                    "attract (van der Waals) and jiggle (thermal kicks), and write the final "
-                    "picture, a movie and a summary.",
-    )
+    p = add_command(subparsers, "demo", _run_demo, "run a small demo board and write demo.png, demo.mp4, summary.csv")
     p.add_argument("--out", type=Path, default=Path("qdots-demo"), metavar="DIR",
                    help="output directory, created if missing (default ./qdots-demo)")
     p.add_argument("--seed", type=int_in(0, MAX_SEED), default=1, help="random seed (default 1)")
@@ -49,7 +44,6 @@ def _add_demo(subparsers) -> None:
     p.add_argument("--sigma", type=float_in(0.0, 1.0), default=0.05, metavar="F",
                    help="diameter spread as a fraction of the mean (default 0.05)")
     p.add_argument("--no-movie", action="store_true", help="skip demo.mp4 (faster)")
-    p.set_defaults(func=_run_demo)
 
 
 def _add_outputs(p, out_default: str | None) -> None:
@@ -60,25 +54,27 @@ def _add_outputs(p, out_default: str | None) -> None:
     p.add_argument("--gsd", action="store_true", help="also write a GSD trajectory (needs the gsd package)")
 
 
+def _add_state_command(subparsers, name: str, func, help: str):
+    """A subcommand whose argument is a state file (``STATE.npz``)."""
+    p = add_command(subparsers, name, func, help)
+    p.add_argument("state", type=Path, metavar="STATE.npz", help="state file")
+    return p
+
+
 def _add_run(subparsers) -> None:
-    p = subparsers.add_parser("run", help="run the experiment described by a TOML experiment file",
-                              description="Run an experiment file (see `qdots preset NAME --save DIR` "
-                                          "for examples): deposit, settle, then write the final state "
-                                          "(.npz, resumable), a picture, a summary row and optionally a movie.")
+    p = add_command(subparsers, "run", _run_scene, "run the experiment described by a TOML experiment file")
     p.add_argument("experiment", type=Path, metavar="EXPERIMENT.toml", help="experiment file")
     _add_outputs(p, "qdots-run")
     p.add_argument("--seed", type=int_in(0, MAX_SEED), default=None, help="override the file's seed")
     p.add_argument("--quick", type=fraction, default=None,
                    metavar="F", help="scale the run down by F (fewer dots, shorter times) for a first look")
-    p.set_defaults(func=_run_scene)
 
 
 def _add_preset(subparsers) -> None:
     from ..presets import PRESETS
 
-    p = subparsers.add_parser("preset", help="run one of the thesis's experiments",
-                              description="Run the experiments that reproduce a thesis figure: "
-                                          + ", ".join(PRESETS) + ".")
+    p = add_command(subparsers, "preset", _run_preset, "run one of the thesis's experiments",
+                    description="Run the experiments that reproduce a thesis figure: " + ", ".join(PRESETS) + ".")
     p.add_argument("name", choices=list(PRESETS), metavar="NAME", help=f"one of: {', '.join(PRESETS)}")
     _add_outputs(p, "qdots-preset")
     p.add_argument("--quick", type=fraction, default=None,
@@ -86,36 +82,24 @@ def _add_preset(subparsers) -> None:
     p.add_argument("--save", "--save-scenes", dest="save", type=Path, default=None, metavar="DIR",
                    help="only write the preset's experiment files (TOML) into DIR, do not run "
                         "(--save-scenes: the name of 0.1)")
-    p.set_defaults(func=_run_preset)
 
 
 def _add_resume(subparsers) -> None:
-    p = subparsers.add_parser("resume", help="continue a saved run",
-                              description="Load a state file written by run/preset/resume and continue it; "
-                                          "the continuation is bit-identical to never having stopped.")
-    p.add_argument("state", type=Path, metavar="STATE.npz", help="state file")
+    p = _add_state_command(subparsers, "resume", _run_resume, "continue a saved run")
     p.add_argument("--seconds", type=float_in(0.0, math.inf, low_open=True), required=True, metavar="T",
                    help="simulated time to add, s")
     _add_outputs(p, None)
     p.add_argument("--out", type=Path, default=None, metavar="DIR",
                    help="write the new state here (default: replace STATE in place, atomically)")
-    p.set_defaults(func=_run_resume)
 
 
 def _add_render(subparsers) -> None:
-    p = subparsers.add_parser("render", help="draw a saved state as PNG",
-                              description="Draw a state file: dots coloured by size, walls, time stamp.")
-    p.add_argument("state", type=Path, metavar="STATE.npz", help="state file")
+    p = _add_state_command(subparsers, "render", _run_render, "draw a saved state as PNG")
     p.add_argument("--out", type=Path, default=None, metavar="FILE.png", help="default: STATE with .png")
-    p.set_defaults(func=_run_render)
 
 
 def _add_analyze(subparsers) -> None:
-    p = subparsers.add_parser("analyze", help="packing table and LQE of a saved state",
-                              description="Measure a state file: interior dots, neighbours, spacing, psi6, "
-                                          "clusters, Voronoi coordination, and the film's luminescence quantum "
-                                          "efficiency (exact, averaged over random trap draws).")
-    p.add_argument("state", type=Path, metavar="STATE.npz", help="state file")
+    p = _add_state_command(subparsers, "analyze", _run_analyze, "packing table and LQE of a saved state")
     p.add_argument("--json", action="store_true", help="print one JSON object instead of the table")
     p.add_argument("--plot", nargs="?", type=Path, const=True, default=None, metavar="FILE.png",
                    help="also write the figure (default: STATE with _analysis.png)")
@@ -130,7 +114,6 @@ def _add_analyze(subparsers) -> None:
                    help="fraction of trap dots (default 1/3)")
     p.add_argument("--draws", type=int_in(1, MAX_DRAWS), default=8, help="trap draws to average (default 8)")
     p.add_argument("--seed", type=int_in(0, MAX_SEED), default=0, help="seed of the trap draws (default 0)")
-    p.set_defaults(func=_run_analyze)
 
 
 def _add_sweep(subparsers) -> None:
@@ -146,6 +129,8 @@ def _add_sweep_plot(subparsers) -> None:
 
 
 def _run_analyze(args: argparse.Namespace) -> int:
+    """Measure a state file: interior dots, neighbours, spacing, psi6, clusters, Voronoi coordination,
+    and the film's luminescence quantum efficiency (exact, averaged over random trap draws)."""
     from .commands import analyze
 
     plot = args.state.with_name(f"{args.state.stem}_analysis.png") if args.plot is True else args.plot
@@ -156,6 +141,8 @@ def _run_analyze(args: argparse.Namespace) -> int:
 
 
 def _run_scene(args: argparse.Namespace) -> int:
+    """Run an experiment file (see `qdots preset NAME --save DIR` for examples): deposit, settle, then
+    write the final state (.npz, resumable), a picture, a summary row and optionally a movie."""
     from ..io.experiment_file import load_experiment
     from .commands import run_experiments
 
@@ -188,6 +175,8 @@ def _run_preset(args: argparse.Namespace) -> int:
 
 
 def _run_resume(args: argparse.Namespace) -> int:
+    """Load a state file written by run/preset/resume and continue it; the continuation is
+    bit-identical to never having stopped."""
     from .commands import resume
 
     resume(args.state, args.seconds, args.out, movie=args.movie, gsd=args.gsd)
@@ -195,26 +184,21 @@ def _run_resume(args: argparse.Namespace) -> int:
 
 
 def _run_render(args: argparse.Namespace) -> int:
+    """Draw a state file: dots coloured by size, walls, time stamp."""
     from .commands import render
 
     render(args.state, args.out)
     return 0
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The ``qdots`` argument parser, one subparser per command."""
-    parser = Parser(prog="qdots", description="Quantum-dot monolayer packing simulator (pymunk).")
-    from .. import __version__
-
-    parser.add_argument("--version", action="version", version=f"qdots {__version__}")
-    subparsers = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
-    for add in (_add_demo, _add_run, _add_preset, _add_resume, _add_render, _add_analyze, _add_sweep,
-                _add_sweep_plot):
-        add(subparsers)
-    return parser
+#: The subcommands, in the order `--help` lists them.
+COMMANDS = [_add_demo, _add_run, _add_preset, _add_resume, _add_render, _add_analyze, _add_sweep, _add_sweep_plot]
+build_parser, main = command_line("qdots", "Quantum-dot monolayer packing simulator (pymunk).", COMMANDS)
 
 
 def _run_demo(args: argparse.Namespace) -> int:
+    """Place dots at random on a 300 x 300 px board (mean diameter 15 px), let them attract (van der
+    Waals) and jiggle (thermal kicks), and write the final picture, a movie and a summary."""
     import qdots
     from labrig.cli import print_table
     from labrig.files import OutputSet, write_csv
@@ -265,14 +249,6 @@ def _run_demo(args: argparse.Namespace) -> int:
         ("files", ", ".join(str(f) for f in files.written)),
     ])
     return 0
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    """Run the ``qdots`` command line; returns the exit status.
-
-    0 on success, 2 on bad input (a one-line ``qdots: error: ...`` on stderr).
-    """
-    return run_main(build_parser(), argv)
 
 
 if __name__ == "__main__":

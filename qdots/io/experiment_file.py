@@ -17,7 +17,7 @@ import os
 from pathlib import Path
 
 from labrig.files import write_text_atomic
-from labrig.tomlfile import check_keys, from_source, parse_toml, read_toml, toml_line
+from labrig.tomlfile import as_table, check_keys, from_source, parse_toml, read_toml, toml_line, top_level
 from labrig.validate import MAX_SEED, InputError, number, typed
 
 from ..collisions import MAX_STICKING_SPEED, Restitution
@@ -130,9 +130,7 @@ def save_experiment(exp: Experiment, path: str | os.PathLike) -> Path:
 
 def _table(name: str, data) -> object:
     cls, schema = TABLES[name]
-    if not isinstance(data, dict):
-        raise InputError(f"{name} must be a table ([{name}]), got {data!r}")
-    check_keys(name, data, schema)
+    check_keys(name, as_table(name, data), schema)
     values = {key: typed(f"{name}.{key}", value, schema[key][0]) for key, value in data.items()}
     try:
         return cls(**values)
@@ -151,10 +149,7 @@ def experiment_from_dict(data: dict) -> Experiment:
     ValueError
         Naming the full key of an unknown key, a wrong type or an out-of-range value.
     """
-    if not isinstance(data, dict):
-        raise InputError(f"a scene must be a table, got {type(data).__name__}")
-    check_keys("", data, [*TOP, *TABLES, "forces"])
-    kwargs = {key: typed(key, data[key], kind) for key, (kind, _) in TOP.items() if key in data}
+    kwargs = top_level(data, TOP, [*TABLES, "forces"])
     kwargs.update({name: _table(name, data[name]) for name in TABLES if name in data})
     if "forces" in data:
         forces = data["forces"]
