@@ -39,6 +39,8 @@ from pymunk._chipmunk import ffi, lib
 from labrig.compiled import c_callback, jit, pointer
 from labrig.validate import real
 
+from .bulk import VELOCITY, body_offsets
+
 #: Largest sticking speed, px/s.
 MAX_STICKING_SPEED = 1e6
 #: pymunk collision types of the two kinds of shape.
@@ -161,23 +163,16 @@ def chipmunk_layout() -> dict | None:
     """Where Chipmunk keeps what the callbacks read, as word indices into a ``cpArbiter`` and the byte
     offset of a body's velocity; None when pymunk's memory is not laid out as expected.
 
-    The arbiter's fields come from pymunk's own C declarations; the body is opaque to them, so its
-    velocity is found by writing two bodies' velocities and reading them back from memory.
+    The arbiter's fields come from pymunk's own C declarations; the body's velocity from
+    `qdots.bulk.body_offsets`.
     """
     arbiter = ffi.typeof("struct cpArbiter")
     offsets = {name: ffi.offsetof(arbiter, name) for name in ("e", "n", "body_a", "body_b")}
-    if any(offset % 8 for offset in offsets.values()) or ffi.sizeof(arbiter) % 8:
-        return None
-    found = set()
-    for velocity in ((1.25e-3, -7.5e4), (-3.5e2, 6.0625)):
-        body = pymunk.Body(1.0, math.inf)
-        body.velocity = velocity
-        memory = np.frombuffer(ffi.buffer(ffi.cast("char *", body._body), 256), dtype=np.float64)
-        found.add(tuple(8 * k for k in range(len(memory) - 1) if (memory[k], memory[k + 1]) == velocity))
-    if len(found) != 1 or len(offsets_v := found.pop()) != 1:
+    body = body_offsets()
+    if any(offset % 8 for offset in offsets.values()) or ffi.sizeof(arbiter) % 8 or body is None:
         return None
     return {"arbiter_words": ffi.sizeof(arbiter) // 8, "e": offsets["e"] // 8, "normal": offsets["n"] // 8,
-            "body_a": offsets["body_a"] // 8, "body_b": offsets["body_b"] // 8, "body_velocity": offsets_v[0]}
+            "body_a": offsets["body_a"] // 8, "body_b": offsets["body_b"] // 8, "body_velocity": int(body[VELOCITY])}
 
 
 _LAYOUT = chipmunk_layout()

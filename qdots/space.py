@@ -9,6 +9,7 @@ from __future__ import annotations
 import math
 
 import pymunk
+from pymunk._chipmunk import lib
 
 from .collisions import DOT, WALL
 from .scene import Scene
@@ -61,3 +62,22 @@ def add_discs(space: pymunk.Space, positions, velocities, radii, masses) -> list
         space.add(body, circle)
         bodies.append(body)
     return bodies
+
+
+def advance(space: pymunk.Space, h: float, k: int) -> None:
+    """Advance ``space`` by ``k`` Chipmunk steps of ``h`` s.
+
+    pymunk's ``Space.step`` wraps each C step in Python bookkeeping for what Python callbacks may
+    have asked during it (bodies to check, additions and removals, post-step callbacks): about
+    20 us a step at 300 dots, a third of the C step on a settled film (measured on this 2-core
+    machine). The steps go straight to Chipmunk unless some of that is pending; the C step is the
+    same either way.
+    """
+    if space._bodies_to_check or space._add_later or space._remove_later or space._post_step_callbacks:
+        for _ in range(k):
+            space.step(h)
+        return
+    step = lib.cpHastySpaceStep if space.threaded else lib.cpSpaceStep
+    handle = space._space
+    for _ in range(k):
+        step(handle, h)

@@ -26,7 +26,6 @@ import math
 from time import perf_counter
 
 import numpy as np
-from pymunk import batch
 from pymunk._chipmunk import lib
 
 from labrig.compiled import jit
@@ -35,6 +34,7 @@ from .bulk import BodyArrays
 from .forces.base import StepContext
 from .neighbours import VerletPairs, pair_separation
 from .settings import EngineSettings
+from .space import advance
 
 #: Largest factor by which the sub-step may grow from one step to the next.
 SUBSTEP_GROWTH = 2
@@ -191,9 +191,9 @@ class Stepper:
         self.walls = np.ascontiguousarray(walls, dtype=float).reshape(-1, 4)
         self.x, self.y, self.vx, self.vy, self.px, self.py = (np.zeros(n) for _ in range(6))
         self.dv = np.zeros((n, 2))
-        self._force_rows = np.zeros((self.io.rows, 2))  # static rows stay zero
-        self._force_buffer = batch.Buffer()
-        self._force_buffer.set_float_buf(self._force_rows)
+        self._forces = np.zeros((n, 2))
+        self._context = StepContext(time=0.0, dt=0.0, x=self.px, y=self.py, velocity=np.zeros((n, 2)), radii=radii,
+                                    masses=masses, rng=None, dv=self.dv)
         #: Largest radius, px: the plan's pairs are those closer than twice it plus `reach`.
         self.largest = float(radii.max(initial=0.0))
         #: Smallest radius, px: no dot slower than ``overlap_tolerance * smallest / (2 dt)`` px/s can travel
@@ -226,15 +226,15 @@ class Stepper:
                 k = max(k, math.ceil(self.previous / SUBSTEP_GROWTH))
             prepare(rows, dt / k, self.x, self.y, self.vx, self.vy, self.px, self.py, self.dv)
             if forces:  # they act at the end of the first sub-step
-                ctx = StepContext(time=time, dt=dt, x=self.px, y=self.py, velocity=rows[:, 2:], radii=self.radii,
-                                  masses=self.masses, rng=rng, dv=self.dv)
+                ctx = self._context
+                ctx.time, ctx.dt, ctx.velocity, ctx.rng = time, dt, rows[:, 2:], rng
                 for force in forces:
                     force.kick(ctx)
             if adaptive:
                 k = self._plan(settings)
             if forces:
-                impulse_forces(self.dv, self.masses, dt / k, self._force_rows)
-                batch.set_space_bodies(self.space, batch.BodyFields.FORCE, self._force_buffer)
+                impulse_forces(self.dv, self.masses, dt / k, self._forces)
+                self.io.write_forces(self._forces)
         h = dt / k
         if h != self._bias_h:
             self.space.collision_bias = settings.bias_for(h)
@@ -245,8 +245,7 @@ class Stepper:
             lib.cpSpaceSetCurrentTimeStep(self.space._space, h)
             self._bias_h = h
         middle = perf_counter()
-        for _ in range(k):
-            self.space.step(h)
+        advance(self.space, h, k)
         self.previous = k
         timings["forces"] += middle - start
         timings["pymunk"] += perf_counter() - middle

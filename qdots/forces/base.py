@@ -12,6 +12,9 @@ import numpy as np
 class StepContext:
     """What a force sees at the start of one time step.
 
+    The simulation fills one context again at every step (its arrays are the step's own buffers):
+    a force reads it within `Force.kick` and keeps nothing of it.
+
     Attributes
     ----------
     time : float
