@@ -64,16 +64,20 @@ def add_discs(space: pymunk.Space, positions, velocities, radii, masses) -> list
     return bodies
 
 
+#: pymunk's records of work its ``Space.step`` does in Python after the C step (pymunk 7.3).
+_PYMUNK_PENDING = ("_bodies_to_check", "_add_later", "_remove_later", "_post_step_callbacks")
+
+
 def advance(space: pymunk.Space, h: float, k: int) -> None:
     """Advance ``space`` by ``k`` Chipmunk steps of ``h`` s.
 
     pymunk's ``Space.step`` wraps each C step in Python bookkeeping for what Python callbacks may
     have asked during it (bodies to check, additions and removals, post-step callbacks): about
-    20 us a step at 300 dots, a third of the C step on a settled film (measured on this 2-core
-    machine). The steps go straight to Chipmunk unless some of that is pending; the C step is the
-    same either way.
+    20 us a step, against ~60 us for the C step of a settled 300-dot film without forces and
+    ~500 us with van der Waals pressing its ~700 contacts (measured on this 2-core machine). The steps go straight to Chipmunk unless some of that is pending; the C step is the
+    same either way (and pymunk's own step is used when it keeps that bookkeeping elsewhere).
     """
-    if space._bodies_to_check or space._add_later or space._remove_later or space._post_step_callbacks:
+    if any(getattr(space, name, True) for name in _PYMUNK_PENDING):
         for _ in range(k):
             space.step(h)
         return
