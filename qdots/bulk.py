@@ -3,7 +3,7 @@
 Reading or writing bodies one by one costs ~12 ms per direction at 3,000 dots. The step's own
 reads (positions and velocities) and writes (forces) go straight to Chipmunk's body memory from
 compiled code, at offsets found once by writing known values through pymunk (`body_offsets`):
-at 300 dots that is ~1 us a direction, against ~15 us for a `pymunk.batch` call and its Python
+at 300 dots that is ~3 us a direction, against ~15 us for a `pymunk.batch` call and its Python
 wrapping (measured on this 2-core machine). When the offsets are not found (another pymunk
 layout), the same reads and writes go through `pymunk.batch`, with the same numbers.
 

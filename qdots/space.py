@@ -74,8 +74,9 @@ def advance(space: pymunk.Space, h: float, k: int) -> None:
     pymunk's ``Space.step`` wraps each C step in Python bookkeeping for what Python callbacks may
     have asked during it (bodies to check, additions and removals, post-step callbacks): about
     20 us a step, against ~60 us for the C step of a settled 300-dot film without forces and
-    ~500 us with van der Waals pressing its ~700 contacts (measured on this 2-core machine). The steps go straight to Chipmunk unless some of that is pending; the C step is the
-    same either way (and pymunk's own step is used when it keeps that bookkeeping elsewhere).
+    ~500 us with van der Waals pressing its ~700 contacts (measured on this 2-core machine). The
+    steps go straight to Chipmunk unless some of that is pending; the C step is the same either
+    way (and pymunk's own step is used when it keeps that bookkeeping elsewhere).
     """
     if any(getattr(space, name, True) for name in _PYMUNK_PENDING):
         for _ in range(k):
