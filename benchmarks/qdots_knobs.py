@@ -55,7 +55,7 @@ KNOBS = {
         ("1", {}, True, True), ("2", {"substeps": 2}, True, True), ("4", {"substeps": 4}, True, True),
         ("8", {"substeps": 8}, True, False)], ["restitution", "gas_energy", "pack_g1", "pack_g10"]),
     "iterations": ("solver iterations per sub-step", [
-        ("3", {"iterations": 3}, True, False), ("5", {"iterations": 5}, True, True), ("10", {}, True, True),
+        ("3", {"iterations": 3}, True, False), ("5", {}, True, True), ("10", {"iterations": 10}, True, True),
         ("20", {"iterations": 20}, True, True), ("40", {"iterations": 40}, True, False)],
         ["gas_energy", "pack_g1", "pack_g10"]),
     "collision_slop": ("overlap left uncorrected (px)", [

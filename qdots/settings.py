@@ -51,9 +51,12 @@ class EngineSettings:
         under thermal kicks move ~600 px/s (1 radius of 1.5 px per 2.5 ms step) and need ~200
         (capped at 64 they overlapped by 9 %, at 256 by 0.6 %; `qdots.hard_cases`).
     iterations : int
-        Solver iterations per sub-step, in [1, `MAX_ITERATIONS`] (pymunk's default 10). Two-body
+        Solver iterations per sub-step, in [1, `MAX_ITERATIONS`] (pymunk's default is 10). Two-body
         impacts are exact with any count; simultaneous impacts of three or more dots converge with
-        more (an elastic gas loses ~1e-5 of its energy per such event at 10, none at 30).
+        more: an elastic gas of 100 dots lost up to 1.7e-3 of its energy over 2,000 impacts at 5,
+        round-off at 10 and 30 (`tests/test_engine_collisions.py`); set 10 or more where energy
+        must be conserved. 5 gives the thesis's films the packing metrics and overlaps of 10,
+        ~1.1x faster (``python -m benchmarks --only qdots_knobs fig2_2_realtime``).
     collision_slop : float
         Overlap Chipmunk tolerates without correcting, px, in [0, `MAX_SLOP`] (pymunk's default
         0.1 px is 1.3 % of a mean radius, ours 0.01 px).
@@ -71,7 +74,7 @@ class EngineSettings:
     substeps: int = 1
     overlap_tolerance: float | None = 0.005
     max_substeps: int = 64
-    iterations: int = 10
+    iterations: int = 5
     collision_slop: float = 0.01
     collision_bias: float | None = None
     spatial_hash: tuple[float, int] | None = None

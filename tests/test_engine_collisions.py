@@ -191,14 +191,16 @@ def test_wall_restitution_is_configurable():
     assert sim.state().velocities[0, 1] == pytest.approx(25.0, abs=TOL)
 
 
-@pytest.mark.parametrize("iterations, bound", [(10, 2e-4), (30, 1e-12)])
+@pytest.mark.parametrize("iterations, bound", [(5, 5e-3), (10, 2e-4), (30, 1e-12)])
 def test_elastic_gas_conserves_energy(rng, iterations, bound):
     """e = 1, no forces, 10^4 steps, ~2,000 impacts.
 
     A two-body impact conserves energy to round-off. A simultaneous impact of
-    three dots is solved iteratively (Gauss-Seidel): at the default 10 solver
-    iterations it can lose a little (measured: 2 such events, 6.7e-5 relative
-    in total); at 30 iterations it converges and the drift is round-off.
+    three dots is solved iteratively (Gauss-Seidel) and can lose a little when
+    the solver stops early: over this gas and four other velocity draws
+    (seeds 0-3), the default 5 iterations lost at most 1.7e-3 of the energy
+    (one draw; the others 7e-11 or less), 10 iterations round-off; at 30 the
+    solver converges and the drift is round-off.
     """
     n, side = 100, 400
     grid = np.array([(x, y) for x in range(20, side, 38) for y in range(20, side, 38)], float)[:n]
