@@ -44,6 +44,23 @@ def moved_beyond(x, y, anchor_x, anchor_y, reach):
 
 
 @jit
+def extent(x, y):
+    """``(x0, y0, x1, y1, finite)``: the bounding box of the points, px, and whether every coordinate is
+    finite, in one pass (four numpy reductions and two finiteness checks cost ~10 us at 300 dots)."""
+    x0 = y0 = math.inf
+    x1 = y1 = -math.inf
+    finite = True
+    for k in range(x.size):
+        if not (abs(x[k]) < math.inf and abs(y[k]) < math.inf):
+            finite = False
+        x0 = min(x0, x[k])
+        x1 = max(x1, x[k])
+        y0 = min(y0, y[k])
+        y1 = max(y1, y[k])
+    return x0, y0, x1, y1, finite
+
+
+@jit
 def _cell_pairs(x, y, cutoff, cell, nx, ny, x0, y0, out_i, out_j):
     """Pairs ``i < j`` closer than ``cutoff`` found through a grid of ``nx`` x ``ny`` cells of side ``cell``
     from ``(x0, y0)``; written to ``out_i``, ``out_j`` when they are long enough. Returns how many there are."""
@@ -99,10 +116,10 @@ def pairs_within(x: np.ndarray, y: np.ndarray, cutoff: float, expected: int = 0)
     """
     if len(x) < 2:
         return np.zeros(0, dtype=np.intp), np.zeros(0, dtype=np.intp)
-    if not (np.isfinite(x).all() and np.isfinite(y).all()):
+    x0, y0, x1, y1, finite = extent(x, y)
+    if not finite:
         raise ValueError("pair search: the positions are not all finite")
-    x0, y0 = float(x.min()), float(y.min())
-    width, height = float(x.max()) - x0, float(y.max()) - y0
+    width, height = x1 - x0, y1 - y0
     cell = max(cutoff / 2.0, math.sqrt(max(width * height, 1.0) / (2.0 * len(x))))
     nx, ny = int(width / cell) + 1, int(height / cell) + 1
     room = int(1.25 * expected) + 16

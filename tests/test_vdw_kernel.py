@@ -6,7 +6,7 @@ import pytest
 import qdots
 from qdots.forces.base import StepContext
 from qdots.forces.vdw import hamaker_force
-from qdots.neighbours import VerletPairs
+from qdots.neighbours import VerletPairs, extent
 
 
 def numpy_kicks(force: qdots.VanDerWaals, x, y, radii, masses, dt):
@@ -111,9 +111,18 @@ def test_the_verlet_list_never_misses_a_pair_and_rebuilds_only_when_needed(skin)
     assert (rebuilds == 200) if skin == 0 else (1 < rebuilds < 100)
 
 
-def test_a_non_finite_position_forces_a_rebuild():
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
+@pytest.mark.parametrize("axis", [0, 1])
+def test_a_non_finite_position_forces_a_rebuild(bad, axis):
     pairs = VerletPairs(3.0)
-    x, y = np.array([0.0, 10.0]), np.array([0.0, 0.0])
+    x, y = np.array([0.0, 10.0, 30.0]), np.array([0.0, 0.0, 5.0])
     assert pairs.update(x, y, 20.0) and not pairs.update(x, y, 20.0)
-    with pytest.raises(ValueError):
-        pairs.update(np.array([np.nan, 10.0]), y, 20.0)  # the tree refuses it: the run says what happened
+    moved = [x.copy(), y.copy()]
+    moved[axis][1] = bad
+    with pytest.raises(ValueError, match="not all finite"):
+        pairs.update(*moved, 20.0)  # the search refuses it: the run says what happened
+
+
+def test_extent_is_the_bounding_box(rng):
+    x, y = rng.normal(0, 50, 257), rng.uniform(-3, 900, 257)
+    assert extent(x, y) == (x.min(), y.min(), x.max(), y.max(), True)
