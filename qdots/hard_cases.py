@@ -20,9 +20,11 @@ radius); dot-wall overlap is (r - distance to the segment) / r.
 
 Cases marked *known failure* are limits measured here and documented, not hidden: the tests
 expect them to fail (strict xfail), so a fix shows up as an unexpected pass. Since 0.3 (forces
-handed to Chipmunk's contact solve, sub-steps that adapt to approach speeds) four of the five
-limits of 0.2 pass at the default settings and the fifth with ``max_substeps = 256``; the two kept
-show what fixed sub-steps do and where the default cap on sub-steps per step is too low.
+handed to Chipmunk's contact solve, sub-steps that adapt to approach speeds) all five limits of
+0.2 pass at the default settings. The last of them, a 1000:1 mass mixture under centre gravity
+whose light dots move ~600 px/s and would need ~200 sub-steps, passes at the default cap of 64
+since the default became 5 solver iterations (settled overlap 0.7 %; 9.4 % at 10 iterations) and
+with ``max_substeps = 256`` at either. The one kept shows what fixed sub-steps do.
 
 """
 
@@ -180,11 +182,7 @@ CASES = [
     HardCase("size ratio 10, masses ~ r^3, centre gravity x1, max_substeps 256", mixture("volume", 1.0), 2.0,
              2 * fall_speed(750, 424, 0.01), {"max_substeps": 256}, slow=True),
     HardCase("size ratio 10, masses ~ r^3, centre gravity x1, defaults", mixture("volume", 1.0), 2.0,
-             2 * fall_speed(750, 424, 0.01), slow=True,
-             known_failure="the light dots (1/1000 of the large ones' mass) move ~600 px/s, one radius per "
-                           "2.5 ms step, and need ~200 sub-steps; the default cap of 64 (`max_substeps`, a bound "
-                           "on a step's cost) leaves 9 % settled overlap (below the 10 % at which a run warns). "
-                           "`max_substeps = 256` passes"),
+             2 * fall_speed(750, 424, 0.01), slow=True),
     HardCase("elasticity 0.02, falling gas", falling_gas(0.02), 2.5, 2 * math.hypot(300, fall_speed(750, 420))),
     HardCase("elasticity 0.98, falling gas", falling_gas(0.98), 2.5, 2 * math.hypot(300, fall_speed(750, 420))),
     HardCase("head-on at 100x thermal speed (188 px/s)", head_on(100), 0.5, 200 * KICK, sample=0.002),
