@@ -211,7 +211,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     rows = [measure(n, kind, args.steps) for kind in args.scenes for n in args.sizes]
     print(machine())
-    print(f"dt = {DT_MS:g} ms, defaults: VanDerWaals(thesis, skin 3 px) + ThermalKicks + Drag\n")
+    print(f"dt = {DT_MS:g} ms, defaults: {qdots.VanDerWaals()!r} + ThermalKicks + Drag\n")
     print(table(rows).markdown())
     print("\n" + fit_lines(rows))
     return 0

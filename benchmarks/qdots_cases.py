@@ -1,7 +1,7 @@
 """Test problems of the qdots engine with exact or converged answers, each timed as it runs.
 
-Every case takes engine settings (`Simulation` keywords plus ``skin``, the van der Waals pair
-list's Verlet skin) and returns a `Measured`: the error against the exact answer and the wall
+Every case takes engine settings (`Simulation` keywords plus the van der Waals force's numerical
+knobs, `VDW_KNOBS`) and returns a `Measured`: the error against the exact answer and the wall
 time per simulated second of the same run.
 
 * `restitution`: an oblique impact (70 px/s, 9 px offset) from 6-12 start offsets; exact answer:
@@ -13,7 +13,8 @@ time per simulated second of the same run.
   between seeds).
 * `vdw_pair`: two dots pulled together by the thesis's van der Waals proxy from an 8 px gap to
   0.8 of the contact time; reference: `scipy.integrate.solve_ivp` (DOP853, rtol 1e-10) of the
-  dt -> 0 law. Error: largest position difference, px.
+  dt -> 0 law. Error: largest position difference, px. `vdw_far`: the same from a 20 px gap, a
+  pair that stays beyond the force's ``near_gap`` (its far pass alone).
 * `dense_pack`: a polydisperse pack compressed by centre gravity (x1 or x10 the thesis's
   750 px/s^2) with vdW, kicks and drag, settled once at the defaults and then run at the given
   settings. Error: worst overlap (r_i + r_j - d) / mean radius of the pair (exact: 0).
@@ -36,8 +37,10 @@ from qdots.analysis import overlaps
 from qdots.forces import StepContext
 from qdots.hard_cases import loose_film
 
+#: The van der Waals force's numerical knobs (the rest of a case's settings go to the `Simulation`).
+VDW_KNOBS = ("skin", "near_gap", "far_interval")
 #: The engine's defaults (the knob values marked on every plot).
-DEFAULTS = {**qdots.EngineSettings().to_dict(), "skin": qdots.VanDerWaals().skin}
+DEFAULTS = {**qdots.EngineSettings().to_dict(), **{k: getattr(qdots.VanDerWaals(), k) for k in VDW_KNOBS}}
 
 
 @dataclass
@@ -53,12 +56,13 @@ class Measured:
 
 
 def engine(settings: dict) -> dict:
-    """The `Simulation` keywords of ``settings`` (everything but ``skin``)."""
-    return {k: v for k, v in {**DEFAULTS, **settings}.items() if k != "skin"}
+    """The `Simulation` keywords of ``settings`` (everything but `VDW_KNOBS`)."""
+    return {k: v for k, v in {**DEFAULTS, **settings}.items() if k not in VDW_KNOBS}
 
 
-def skin(settings: dict) -> float:
-    return float(settings.get("skin", DEFAULTS["skin"]))
+def vdw(settings: dict) -> qdots.VanDerWaals:
+    """The thesis's van der Waals force with the `VDW_KNOBS` of ``settings``."""
+    return qdots.VanDerWaals(**{k: v for k, v in {**DEFAULTS, **settings}.items() if k in VDW_KNOBS})
 
 
 def timed_run(sim: qdots.Simulation, seconds: float) -> float:
@@ -145,19 +149,19 @@ def vdw_reference(gap0: float = 8.0) -> tuple[float, float, float]:
     return t_end, float(x1), float(x2)
 
 
-def vdw_pair(settings: dict, quick: bool) -> Measured:
-    t_end, x1, x2 = vdw_reference()
-    scene = qdots.Scene(box=(200, 100), positions=[[80, 50], [103, 50]], radii=[7.5, 7.5], closed=False)
-    sim = qdots.Simulation(scene, [qdots.VanDerWaals(skin=skin(settings))], seed=0, **engine(settings))
+def vdw_pair(settings: dict, quick: bool, gap0: float = 8.0) -> Measured:
+    t_end, x1, x2 = vdw_reference(gap0)
+    scene = qdots.Scene(box=(200, 100), positions=[[80, 50], [95 + gap0, 50]], radii=[7.5, 7.5], closed=False)
+    sim = qdots.Simulation(scene, [vdw(settings)], seed=0, **engine(settings))
     wall = timed_run(sim, t_end)
     got = sim.state().positions[:, 0] - 80.0
     return Measured(max(abs(got[0] - x1), abs(got[1] - x2)), wall / t_end)
 
 
 # ---------------------------------------------------------------- dense pack under centre gravity
-def pack_forces(centre: float, gravity: float, skin_px: float) -> list[qdots.Force]:
-    return [qdots.CentreGravity((centre, centre), 750.0 * gravity), qdots.VanDerWaals(skin=skin_px),
-            qdots.ThermalKicks(), qdots.Drag(1.0, 0.01)]
+def pack_forces(centre: float, gravity: float, settings: dict) -> list[qdots.Force]:
+    return [qdots.CentreGravity((centre, centre), 750.0 * gravity), vdw(settings), qdots.ThermalKicks(),
+            qdots.Drag(1.0, 0.01)]
 
 
 @functools.lru_cache(maxsize=None)
@@ -168,14 +172,14 @@ def settled_pack(gravity: float, quick: bool) -> qdots.Scene:
     grid = np.array([(x, y) for x in range(20, side - 15, 25) for y in range(20, side - 15, 25)], float)
     grid = grid[rng.permutation(len(grid))[:n]]
     scene = qdots.Scene(box=(side, side), positions=grid, radii=rng.normal(7.5, 0.75, n).clip(5, 9.5))
-    sim = qdots.Simulation(scene, pack_forces(side / 2, gravity, DEFAULTS["skin"]), seed=1)
+    sim = qdots.Simulation(scene, pack_forces(side / 2, gravity, {}), seed=1)
     sim.run(settle)
     return sim.current_scene()
 
 
 def pack_simulation(settings: dict, gravity: float, quick: bool) -> qdots.Simulation:
     scene = settled_pack(gravity, quick)
-    return qdots.Simulation(scene, pack_forces(scene.box[0] / 2, gravity, skin(settings)), seed=2,
+    return qdots.Simulation(scene, pack_forces(scene.box[0] / 2, gravity, settings), seed=2,
                             **engine(settings))
 
 
@@ -223,7 +227,7 @@ def list_error(settings: dict, quick: bool, scene: str) -> Measured:
         seconds = 0.25 if quick else 0.5
     else:
         sim = qdots.Simulation(loose_film(300 if quick else 2000),
-                               [qdots.VanDerWaals(skin=skin(settings)), qdots.ThermalKicks(), qdots.Drag()],
+                               [vdw(settings), qdots.ThermalKicks(), qdots.Drag()],
                                seed=3, **engine(settings))
         seconds = 0.3 if quick else 1.0
     wall = timed_run(sim, seconds)
@@ -235,6 +239,8 @@ CASES = {
     "restitution": ("isolated oblique impact", "|v - v_exact| / |v_rel|", 1e-12, restitution),
     "gas_energy": ("elastic gas, 50 % area fraction", "|dE| / E", 1e-12, gas_energy),
     "vdw_pair": ("two-body vdW vs solve_ivp", "position error (px)", 1e-9, vdw_pair),
+    "vdw_far": ("two-body vdW from a 20 px gap vs solve_ivp", "position error (px)", 1e-9,
+                functools.partial(vdw_pair, gap0=20.0)),
     "pack_g1": ("dense pack, centre gravity x1", "worst overlap / r", 1e-6,
                 functools.partial(dense_pack, gravity=1.0)),
     "pack_g10": ("dense pack, centre gravity x10", "worst overlap / r", 1e-6,

@@ -3,7 +3,8 @@
 Knobs: time step ``dt``, the sub-steps' ``overlap_tolerance`` (and fixed sub-steps), Chipmunk
 ``substeps`` and solver ``iterations``, ``collision_slop``,
 overlap correction per step (``collision_bias``), the van der Waals pair list's Verlet ``skin``,
-and Chipmunk's spatial hash against its default bounding-box tree. Each knob is swept over the
+the van der Waals split between pairs pulled every step (``near_gap``) and the far pass
+(``far_interval``), and Chipmunk's spatial hash against its default bounding-box tree. Each knob is swept over the
 test problems it can affect (`benchmarks.qdots_cases`: isolated restitution, elastic-gas energy,
 two-body vdW against solve_ivp, worst overlap in a dense pack, pair list against brute force),
 every other setting at its default. Settings are run in turn, ``repeats`` times (cost: the
@@ -67,9 +68,18 @@ KNOBS = {
         ("30 %", {}, True, True), ("50 %", {"collision_bias": _bias(0.5)}, True, True)],
         ["pack_g1", "pack_g10"]),
     "skin": ("Verlet skin of the vdW pair list (px)", [
-        ("0", {"skin": 0.0}, True, True), ("1", {"skin": 1.0}, True, False), ("3", {}, True, True),
-        ("6", {"skin": 6.0}, True, True), ("12", {"skin": 12.0}, True, False)],
+        ("0", {"skin": 0.0}, True, True), ("1", {"skin": 1.0}, True, False), ("3", {"skin": 3.0}, True, True),
+        ("6", {}, True, True), ("12", {"skin": 12.0}, True, False)],
         ["list_pack", "list_film", "vdw_pair"]),
+    "near_gap": ("vdW pairs pulled every step: surface gap below (px)", [
+        ("1", {"near_gap": 1.0}, True, False), ("2", {"near_gap": 2.0}, True, True), ("4", {}, True, True),
+        ("8", {"near_gap": 8.0}, True, True), ("all", {"near_gap": 1000.0}, True, False)],
+        ["vdw_pair", "vdw_far", "list_pack", "list_film"]),
+    "far_interval": ("seconds between the vdW far passes", [
+        ("every step", {"far_interval": None}, True, True), ("10 ms", {"far_interval": 0.01}, True, False),
+        ("20 ms", {}, True, True), ("50 ms", {"far_interval": 0.05}, True, True),
+        ("100 ms", {"far_interval": 0.1}, True, False)],
+        ["vdw_pair", "vdw_far", "list_pack", "list_film"]),
     "spatial_index": ("Chipmunk's bounding-box tree against its spatial hash (cell px, count 10 N)", [
         ("tree", {}, True, True), ("hash 8", {"spatial_hash": (8.0, 10000)}, True, False),
         ("hash 16", {"spatial_hash": (16.0, 10000)}, True, True), ("hash 32", {"spatial_hash": (32.0, 10000)}, True, False)],

@@ -131,6 +131,28 @@ def pairs_within(x: np.ndarray, y: np.ndarray, cutoff: float, expected: int = 0)
     return i[:m].copy(), j[:m].copy()
 
 
+@jit
+def pairs_closer(x, y, radii, i, j, extra):
+    """The pairs ``(i[k], j[k])`` whose surfaces are closer than ``extra`` px (centre distance below
+    ``r_i + r_j + extra``), in their order: two new int arrays (a sub-list of a longer pair list)."""
+    keep = np.empty(i.size, np.bool_)
+    m = 0
+    for k in range(i.size):
+        dx, dy, d2, contact = pair_separation(x, y, radii, i[k], j[k])
+        reach = contact + extra
+        keep[k] = d2 < reach * reach
+        m += keep[k]
+    out_i = np.empty(m, i.dtype)
+    out_j = np.empty(m, j.dtype)
+    m = 0
+    for k in range(i.size):
+        if keep[k]:
+            out_i[m] = i[k]
+            out_j[m] = j[k]
+            m += 1
+    return out_i, out_j
+
+
 class VerletPairs:
     """Pairs of dots within a cutoff distance, with a Verlet skin.
 

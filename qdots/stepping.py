@@ -107,9 +107,16 @@ def closing_travel(x, y, vx, vy, dv, i, j, radii, walls, dt, fastest):
         y0 = walls[w, 1]
         ex = walls[w, 2] - x0
         ey = walls[w, 3] - y0
-        length2 = ex * ex + ey * ey
+        inv_length2 = 1.0 / (ex * ex + ey * ey)
+        left = min(x0, x0 + ex) - 0.5 * close  # the segment's box, widened by the closing distance
+        right = max(x0, x0 + ex) + 0.5 * close
+        bottom = min(y0, y0 + ey) - 0.5 * close
+        top = max(y0, y0 + ey) + 0.5 * close
         for a in range(x.size):
-            t = min(max(((x[a] - x0) * ex + (y[a] - y0) * ey) / length2, 0.0), 1.0)
+            r = radii[a]
+            if x[a] + r <= left or x[a] - r >= right or y[a] + r <= bottom or y[a] - r >= top:
+                continue  # too far from the segment to touch it within dt
+            t = min(max(((x[a] - x0) * ex + (y[a] - y0) * ey) * inv_length2, 0.0), 1.0)
             nx = x[a] - x0 - t * ex
             ny = y[a] - y0 - t * ey
             d2 = nx * nx + ny * ny

@@ -54,9 +54,21 @@ def contact_time(model, gap0, masses, force):
     return sol.t_events[0][0]
 
 
+def pair_error(force, gap0, masses, t_end, dt, reference):
+    """Largest position error (px) of two 7.5 px dots pulled together by ``force`` from ``gap0`` over ``t_end``."""
+    scene = qdots.Scene(box=(200, 100), positions=[[80, 50], [80 + 15 + gap0, 50]], radii=[7.5, 7.5],
+                        masses=list(masses), closed=False)
+    sim = qdots.Simulation(scene, [force], seed=0, dt=dt)
+    sim.run(t_end)
+    assert sim.collisions.dot_dot == 0
+    x1, x2 = sim.state().positions[:, 0] - 80
+    return max(abs(x1 - reference[0]), abs(x2 - reference[1]))
+
+
 @pytest.mark.parametrize("model, masses", [("thesis", (1.0, 1.0)), ("thesis", (1.0, 2.0)), ("hamaker", (1.0, 1.0))])
 def test_vdw_pair_matches_solve_ivp_first_order(model, masses):
-    force = qdots.VanDerWaals(model)
+    """Every pair pulled every step (no far pass): first order in dt from the start's half-step lag."""
+    force = qdots.VanDerWaals(model, far_interval=None)
     gap0 = 8.0
     t_end = 0.8 * contact_time(model, gap0, masses, force)
     t_end = round(t_end / 0.004) * 0.004  # a whole number of steps for every dt below
@@ -64,17 +76,29 @@ def test_vdw_pair_matches_solve_ivp_first_order(model, masses):
     errors = []
     dts = (4e-3, 2e-3, 1e-3, 5e-4)
     for dt in dts:
-        scene = qdots.Scene(box=(200, 100), positions=[[80, 50], [80 + 15 + gap0, 50]], radii=[7.5, 7.5],
-                            masses=list(masses), closed=False)
-        sim = qdots.Simulation(scene, [qdots.VanDerWaals(model)], seed=0, dt=dt)
-        sim.run(t_end)
-        assert sim.collisions.dot_dot == 0
-        x1, x2 = sim.state().positions[:, 0] - 80
-        errors.append(max(abs(x1 - reference[0]), abs(x2 - reference[1])))
+        errors.append(pair_error(qdots.VanDerWaals(model, far_interval=None), gap0, masses, t_end, dt, reference))
     orders = np.log2(np.array(errors[:-1]) / np.array(errors[1:]))
     # symplectic Euler (kick, then Chipmunk's drift) is first order in dt
     assert np.all((orders > 0.85) & (orders < 1.15)), (errors, orders)
     assert errors[-1] < 0.02  # px, at dt = 0.5 ms over ~0.8 of the approach
+
+
+@pytest.mark.parametrize("model, masses", [("thesis", (1.0, 1.0)), ("thesis", (1.0, 2.0)), ("hamaker", (1.0, 1.0))])
+def test_far_pass_is_second_order_in_its_interval(model, masses):
+    """A pair beyond near_gap throughout gets its pull at the middle of each far interval (position Verlet):
+    second order in the interval, and at the default interval closer to the dt -> 0 path than the every-step pass."""
+    force = qdots.VanDerWaals(model)
+    gap0 = 20.0
+    t_end = round(0.8 * contact_time(model, gap0, masses, force) / 0.04) * 0.04
+    reference = vdw_pair_reference(model, gap0, masses, t_end, force).sol(t_end)
+    assert reference[1] - reference[0] - 15.0 > 2 * force.near_gap  # far all along
+    intervals = (0.04, 0.02, 0.01)
+    errors = [pair_error(qdots.VanDerWaals(model, far_interval=i), gap0, masses, t_end, 5e-3, reference)
+              for i in intervals]
+    orders = np.log2(np.array(errors[:-1]) / np.array(errors[1:]))
+    assert np.all((orders > 1.8) & (orders < 2.2)), (errors, orders)
+    every_step = pair_error(qdots.VanDerWaals(model, far_interval=None), gap0, masses, t_end, 2.5e-3, reference)
+    assert errors[1] < every_step / 10  # the default 20 ms interval against every 2.5 ms step
 
 
 def test_thesis_proxy_constants():
@@ -84,14 +108,14 @@ def test_thesis_proxy_constants():
     assert force.max_gap == 30.0
 
 
-def kick_speed(force, gap, dt=1e-3, masses=(1.0, 1.0)):
-    """Speed change of dot 0 toward dot 1 in one step, two 7.5 px dots at surface gap `gap`."""
+def kick_speed(force, gap, dt=1e-3, masses=(1.0, 1.0), time=0.0):
+    """Speed change of dot 0 toward dot 1 in one step from ``time``, two 7.5 px dots at surface gap `gap`."""
     from qdots.forces import StepContext
 
     radii, masses = np.array([7.5, 7.5]), np.array(masses)
     force.bind(radii, masses)
     x = np.array([0.0, 15.0 + gap])
-    ctx = StepContext(time=0.0, dt=dt, x=x, y=np.zeros(2), velocity=np.zeros((2, 2)), radii=radii,
+    ctx = StepContext(time=time, dt=dt, x=x, y=np.zeros(2), velocity=np.zeros((2, 2)), radii=radii,
                       masses=masses, rng=np.random.default_rng(0), dv=np.zeros((2, 2)))
     force.kick(ctx)
     assert ctx.dv[0, 1] == 0 and ctx.dv[1, 1] == 0
@@ -102,7 +126,7 @@ def kick_speed(force, gap, dt=1e-3, masses=(1.0, 1.0)):
 @pytest.mark.parametrize("gap, dt", [(0.5, 1e-3), (0.5, 0.2), (5.0, 1e-3), (29.0, 1e-2)])
 def test_thesis_proxy_one_step(gap, dt):
     """min(a dt/2, sqrt(g a)/2) with a = (R0/(g - b))^7 / m; the cap binds at large dt."""
-    force = qdots.VanDerWaals()
+    force = qdots.VanDerWaals(far_interval=None)
     a = (15.0 / (gap - force.offset)) ** 7
     assert kick_speed(force, gap, dt) == pytest.approx(min(a * dt / 2, np.sqrt(gap * a) / 2), rel=1e-12)
 
@@ -114,7 +138,7 @@ def test_thesis_proxy_mass_dependence():
 
 
 def test_vdw_range_and_contact_rules():
-    hold, zero = qdots.VanDerWaals(contact="hold"), qdots.VanDerWaals(contact="zero")
+    hold, zero = qdots.VanDerWaals(contact="hold", far_interval=None), qdots.VanDerWaals(contact="zero", far_interval=None)
     assert kick_speed(hold, 31.0) == 0.0  # beyond 2 R0
     assert kick_speed(hold, 29.0) > 0.0
     at_min_gap = kick_speed(hold, 0.1)
@@ -123,6 +147,19 @@ def test_vdw_range_and_contact_rules():
     assert kick_speed(zero, 0.02) == 0.0 and kick_speed(zero, -0.05) == 0.0
     assert kick_speed(hold, 0.2) > 0
     assert kick_speed(zero, 0.2) == pytest.approx(kick_speed(hold, 0.2))
+
+
+@pytest.mark.parametrize("model", ["thesis", "hamaker"])
+def test_far_pairs_get_the_pull_of_their_interval_at_its_middle(model):
+    split, every = qdots.VanDerWaals(model), qdots.VanDerWaals(model, far_interval=None)
+    far, near = 10.0, 2.0  # surface gaps, px, beyond and within near_gap
+    assert split.near_gap == 4.0 and split.far_interval == 0.02
+    assert kick_speed(split, far, 1e-3, time=0.0) == 0.0  # no interval's middle in (0, 1 ms]
+    assert kick_speed(split, far, 1e-3, time=0.0095) == pytest.approx(kick_speed(every, far, 0.02), rel=1e-12)
+    assert kick_speed(split, far, 0.05, time=0.0) == pytest.approx(kick_speed(every, far, 0.06), rel=1e-12)  # 3 middles
+    assert kick_speed(split, near, 1e-3, time=0.0) == kick_speed(every, near, 1e-3)
+    assert kick_speed(split, 31.0, 1e-3, time=0.0095) == 0.0  # beyond max_gap either way
+    assert kick_speed(qdots.VanDerWaals(model, near_gap=40.0), far, 1e-3) == kick_speed(every, far, 1e-3)
 
 
 def test_default_hamaker_strength_matches_proxy_at_one_px():

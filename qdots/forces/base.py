@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import inspect
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -42,6 +43,16 @@ class StepContext:
     masses: np.ndarray
     rng: np.random.Generator
     dv: np.ndarray
+
+
+def instants_in_step(time: float, dt: float, interval: float) -> int:
+    """How many of the instants ``interval, 2 interval, ...`` (s) fall in the step ``(time, time + dt]``.
+
+    A schedule on the clock, not on a step counter: it does not depend on ``dt`` and needs no state to
+    resume. The tolerance absorbs the round-off of a time that is a sum of steps.
+    """
+    tol = 1e-9
+    return math.floor((time + dt) / interval + tol) - math.floor(time / interval + tol)
 
 
 class Force:

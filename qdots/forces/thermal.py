@@ -9,7 +9,7 @@ import numpy as np
 from labrig.validate import real
 
 from ..units import THESIS_KICK_INTERVAL, thesis_kick_speed
-from .base import Force, StepContext
+from .base import Force, StepContext, instants_in_step
 
 #: Longest interval between kicks, s.
 MAX_INTERVAL = 1e4
@@ -50,10 +50,8 @@ class ThermalKicks(Force):
         self._speed = self.scale * thesis_kick_speed(masses)
 
     def kicks_in_step(self, time: float, dt: float) -> int:
-        """How many kick instants fall in ``(time, time + dt]``."""
-        # The tolerance absorbs round-off in time = sum of dt's.
-        tol = 1e-9
-        return math.floor((time + dt) / self.interval + tol) - math.floor(time / self.interval + tol)
+        """How many kick instants fall in ``(time, time + dt]`` (`instants_in_step`)."""
+        return instants_in_step(time, dt, self.interval)
 
     def kick(self, ctx: StepContext) -> None:
         for _ in range(self.kicks_in_step(ctx.time, ctx.dt)):
