@@ -148,7 +148,7 @@ class VanDerWaals(Force):
     field: second order in the interval (two dots approaching from a 20 px gap stay within 1e-6 px of
     the dt -> 0 path at 20 ms, against 6e-4 px for a pull every 2.5 ms step, which lags by half a
     step), and it cut the force phase of the thesis's 300-dot film by about a third on this 2-core
-    machine (``python -m benchmarks --only qdots_knobs``).
+    machine (the error and cost of both knobs: ``python -m benchmarks --only qdots_knobs``).
 
     Parameters
     ----------
@@ -188,8 +188,10 @@ class VanDerWaals(Force):
         ``max_gap``) every ``far_interval``.
     far_interval : float, optional
         Seconds between the passes over the far pairs: each gives the far pairs' pull over the
-        interval at once, at the end of it (multiple time stepping, in the impulse form of r-RESPA;
-        the thesis gave every pair's pull once per 20 ms frame). On a schedule of the clock
+        interval at once, in the step that holds the interval's middle (multiple time stepping, in the
+        impulse form of r-RESPA; the thesis gave every pair's pull once per 20 ms frame). The thesis
+        proxy's cap then applies to the interval's pull, as it did to the thesis's frame (it binds
+        only for dots lighter than ~1/400 of the mean mass). On a schedule of the clock
         (`qdots.forces.base.instants_in_step`), so a resumed run keeps it. None: every pair every step.
     """
 
