@@ -2,7 +2,7 @@
 
 `LoopForces` applies the thesis's van der Waals proxy, thermal kicks and drag the way a
 straightforward pymunk program would: read each body's position and velocity, loop over the
-pairs of a KD-tree query (built every step, no Verlet list) and over the bodies in Python, and
+pairs of a KD-tree query (built every step, no Verlet list, every pair every step) and over the bodies in Python, and
 write each body's velocity back. It follows the formulas of `qdots.VanDerWaals` (thesis model,
 ``contact="hold"``), `qdots.ThermalKicks` and `qdots.Drag` term for term and draws its random
 numbers in the same order, so from the same state and generator it gives the same velocity
@@ -24,8 +24,9 @@ class LoopForces:
     """van der Waals (thesis proxy) + thermal kicks + drag on a pymunk space, one body at a time."""
 
     def __init__(self, space: pymunk.Space, vdw: qdots.VanDerWaals, kicks: qdots.ThermalKicks, drag: qdots.Drag):
-        if vdw.model != "thesis" or vdw.contact != "hold":
-            raise ValueError("the loop version implements VanDerWaals('thesis', contact='hold') only")
+        if vdw.model != "thesis" or vdw.contact != "hold" or vdw.split:
+            raise ValueError("the loop version implements VanDerWaals('thesis', contact='hold', "
+                             "far_interval=None) only")
         self.bodies = [b for b in space.bodies if b.body_type == pymunk.Body.DYNAMIC]
         self.radii = [next(iter(b.shapes)).radius for b in self.bodies]
         self.vdw, self.kicks, self.drag = vdw, kicks, drag

@@ -20,6 +20,9 @@ time per simulated second of the same run.
   settings. Error: worst overlap (r_i + r_j - d) / mean radius of the pair (exact: 0).
 * `list_error`: the dense pack and a loose thermal film, the van der Waals velocity change from the
   Verlet pair list against a brute-force pair search at the same instants (exact: equal).
+* `split_error`: the same scenes, the van der Waals impulse each dot receives over 0.2 s (far pairs
+  pulled once per ``far_interval``, near pairs every step) against every pair pulled at every step
+  along the same trajectory (exact: equal).
 """
 
 from __future__ import annotations
@@ -198,30 +201,42 @@ def dense_pack(settings: dict, quick: bool, gravity: float) -> Measured:
     return Measured(worst, wall / window)
 
 
-# ---------------------------------------------------------------- Verlet pair list against brute force
-def list_force_error(sim: qdots.Simulation, steps: int) -> float:
-    """Largest |dv(list) - dv(brute force)| / max |dv| of the vdW force over ``steps`` further steps."""
-    listed = next(f for f in sim.forces if isinstance(f, qdots.VanDerWaals))
-    brute = qdots.VanDerWaals(**{**listed.params(), "skin": 0.0})
-    brute.bind(sim.radii, sim.masses)
-    worst = 0.0
+# ---------------------------------------------------------------- the vdW force against a plain pair search
+def vdw_change(sim: qdots.Simulation, force: qdots.VanDerWaals) -> np.ndarray:
+    """The velocity change ``force`` gives in the simulation's next step, from its present state."""
+    state = sim.state()
+    ctx = StepContext(time=sim.time, dt=sim.dt, x=state.positions[:, 0].copy(), y=state.positions[:, 1].copy(),
+                      velocity=state.velocities, radii=sim.radii, masses=sim.masses,
+                      rng=np.random.default_rng(0), dv=np.zeros_like(state.velocities))
+    force.kick(ctx)
+    return ctx.dv
+
+
+def vdw_against(sim: qdots.Simulation, changes: dict, steps: int, summed: bool) -> float:
+    """The simulation's vdW velocity changes against those of the same force with ``changes``, over ``steps``.
+
+    ``summed=False``: the largest |dv - dv_other| / max |dv_other| of any one step; ``summed=True``:
+    the same of the changes summed over the steps (the impulse each dot received).
+    """
+    own = next(f for f in sim.forces if isinstance(f, qdots.VanDerWaals))
+    other = qdots.VanDerWaals(**{**own.params(), **changes})
+    other.bind(sim.radii, sim.masses)
+    worst, totals = 0.0, 0.0
     for _ in range(steps):
-        state = sim.state()
-        out = []
-        for force in (listed, brute):
-            ctx = StepContext(time=sim.time, dt=sim.dt, x=state.positions[:, 0].copy(),
-                              y=state.positions[:, 1].copy(), velocity=state.velocities, radii=sim.radii,
-                              masses=sim.masses, rng=np.random.default_rng(0), dv=np.zeros_like(state.velocities))
-            force.kick(ctx)
-            out.append(ctx.dv)
-        scale = float(np.abs(out[1]).max()) or 1.0
-        worst = max(worst, float(np.abs(out[0] - out[1]).max()) / scale)
+        dv, dv_other = vdw_change(sim, own), vdw_change(sim, other)
+        if summed:
+            totals = totals + np.stack([dv, dv_other])
+        else:
+            worst = max(worst, float(np.abs(dv - dv_other).max()) / (float(np.abs(dv_other).max()) or 1.0))
         sim.step()
+    if summed:
+        return float(np.abs(totals[0] - totals[1]).max()) / (float(np.abs(totals[1]).max()) or 1.0)
     return worst
 
 
-def list_error(settings: dict, quick: bool, scene: str) -> Measured:
-    """Time a run of the pack (x10 gravity) or the loose film, then check the pair list on 10 more steps."""
+def many_body_run(settings: dict, quick: bool, scene: str) -> tuple[qdots.Simulation, float]:
+    """The pack (x10 gravity) run for 0.5 s or the loose film for 1 s (quick: less); (simulation, wall s per
+    simulated s)."""
     if scene == "pack":
         sim = pack_simulation(settings, 10.0, quick)
         seconds = 0.25 if quick else 0.5
@@ -230,8 +245,22 @@ def list_error(settings: dict, quick: bool, scene: str) -> Measured:
                                [vdw(settings), qdots.ThermalKicks(), qdots.Drag()],
                                seed=3, **engine(settings))
         seconds = 0.3 if quick else 1.0
-    wall = timed_run(sim, seconds)
-    return Measured(list_force_error(sim, 10), wall / seconds)
+    return sim, timed_run(sim, seconds) / seconds
+
+
+def list_error(settings: dict, quick: bool, scene: str) -> Measured:
+    """Time a run of the pack (x10 gravity) or the loose film, then check the pair list on 10 more steps:
+    the vdW change of every step against a brute-force pair search (skin 0) at the same instants."""
+    sim, cost = many_body_run(settings, quick, scene)
+    return Measured(vdw_against(sim, {"skin": 0.0}, 10, summed=False), cost)
+
+
+def split_error(settings: dict, quick: bool, scene: str) -> Measured:
+    """Time a run of the pack (x10 gravity) or the loose film, then, over the next 0.2 s (a whole number of
+    every far interval swept), the vdW impulse each dot received against that of every pair pulled at every
+    step along the same trajectory."""
+    sim, cost = many_body_run(settings, quick, scene)
+    return Measured(vdw_against(sim, {"skin": 0.0, "far_interval": None}, round(0.2 / sim.dt), summed=True), cost)
 
 
 #: name -> (title, error axis label, round-off floor of the error, measure(settings, quick))
@@ -249,4 +278,8 @@ CASES = {
                   functools.partial(list_error, scene="pack")),
     "list_film": ("pair list vs brute force, loose film", "max |dv error| / max |dv|", 1e-15,
                   functools.partial(list_error, scene="film")),
+    "split_pack": ("vdW impulse over 0.2 s vs every pair every step, dense pack x10", "max |impulse error| / max",
+                   1e-15, functools.partial(split_error, scene="pack")),
+    "split_film": ("vdW impulse over 0.2 s vs every pair every step, loose film", "max |impulse error| / max",
+                   1e-15, functools.partial(split_error, scene="film")),
 }

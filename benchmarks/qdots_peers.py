@@ -133,7 +133,9 @@ def peer_table(rows: list[dict]) -> Table:
 # ---------------------------------------------------------------- vectorized against a Python loop
 def loop_row(n: int, rounds: int) -> dict:
     scene = loose_film(n)
-    forces = [qdots.VanDerWaals(), qdots.ThermalKicks(), qdots.Drag()]
+    # every vdW pair every step on both sides: the loop writes out that model (the far-pair split is
+    # an approximation of its own, measured in qdots_knobs)
+    forces = [qdots.VanDerWaals(far_interval=None), qdots.ThermalKicks(), qdots.Drag()]
     vector = qdots.Simulation(scene, forces, seed=1)
     plain = qdots.Simulation(scene, [], seed=1)
     loop = LoopForces(plain.space, *[type(f)(**f.params()) for f in forces])
@@ -209,7 +211,7 @@ def run(quick: bool) -> list:
         "leaves under sustained pressure. qdots draws each impact's restitution from N(0.8, 0.1) (the thesis's "
         "rule) where LAMMPS uses 0.8 for all; both conserve momentum in contacts. `kT measured / target` checks "
         "the two thermostats: mean v_x^2 (m = 1) over 10 samples of the run, divided by kT."))
-    results.append(Table("Forces (vdW + thermal kicks + drag) on a loose film: vectorized against a per-body Python loop",
+    results.append(Table("Forces (vdW + thermal kicks + drag) on a loose film, every vdW pair every step: vectorized against a per-body Python loop",
                          ["N", "vectorized ms/step", "Python loop ms/step", "speed-up",
                           "error: max |dv_loop - dv_vec| / max |dv|"],
                          [[r["N"], r["vector_ms"], r["loop_ms"], f"{r['loop_ms'] / r['vector_ms']:.0f}x",
