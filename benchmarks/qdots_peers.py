@@ -57,7 +57,7 @@ T_CONTACT = lammps_scene.contact_time(KN, 0.5, RESTITUTION)
 
 def initial_board(n: int, fraction: float, seed: int = 0) -> tuple[np.ndarray, np.ndarray, float]:
     """Jittered square lattice at area ``fraction``, Maxwell velocities at `KT`: positions, velocities, box side."""
-    side = int(math.ceil(math.sqrt(n)))
+    side = math.ceil(math.sqrt(n))
     pitch = math.sqrt(math.pi * RADIUS**2 / fraction)
     rng = np.random.default_rng(seed)
     ij = np.argwhere(np.ones((side, side)))[:n].astype(float)
@@ -151,9 +151,8 @@ def peer_table(rows: list[dict]) -> Table:
     out = []
     for r in rows:
         q = base[r["N"], r["phi"]]
-        per_s = r["ms_step"] / r["dt"] / 1e3
-        out.append([r["engine"], r["N"], f"{100 * r['phi']:.0f} %", r["dt"] * 1e3, r["ms_step"], per_s,
-                    f"{r['ms_step'] / q['ms_step']:.2f}", f"{per_s / (q['ms_step'] / q['dt'] / 1e3):.2f}",
+        out.append([r["engine"], r["N"], f"{100 * r['phi']:.0f} %", r["dt"] * 1e3, r["ms_step"], per_second(r),
+                    f"{r['ms_step'] / q['ms_step']:.2f}", f"{per_second(r) / per_second(q):.2f}",
                     100 * r["overlap"], f"{r['restitution']:.1e}", f"{r['kT'] / KT:.3f}"])
     return Table("Same disc scene, one core each: cost against what each engine violates",
                  ["engine", "N", "area fraction", "dt (ms)", "ms/step", "wall s per simulated s", "per-step cost / qdots",
