@@ -10,8 +10,9 @@ from qdots.neighbours import VerletPairs, extent
 
 
 def numpy_kicks(force: qdots.VanDerWaals, x, y, radii, masses, dt, time=0.0):
-    """Velocity changes of one step from ``time``, written array-wise (bincount over the pair list): pairs
-    closer than ``near_gap`` pulled for ``dt``, the others for the far intervals whose middle is in the step."""
+    """Velocity changes of one step from ``time``, written array-wise (bincount over the pair list): with the
+    split, the pull of each pair for ``dt`` times ``w(g)`` (1 below ``near_gap / 2``, smoothstep down to 0 at
+    ``near_gap``) plus its pull for the far intervals whose middle is in the step times ``1 - w(g)``."""
     pairs = VerletPairs(force.skin)
     pairs.update(x, y, force.max_gap + 2.0 * radii.max())
     i, j = pairs.i, pairs.j
@@ -19,22 +20,28 @@ def numpy_kicks(force: qdots.VanDerWaals, x, y, radii, masses, dt, time=0.0):
     dx, dy = x[j] - x[i], y[j] - y[i]
     d = np.sqrt(dx * dx + dy * dy)
     gap = d - ri - rj
-    if force.far_interval is not None:
-        middles = np.floor((time + dt) / force.far_interval + 0.5 + 1e-9) - np.floor(time / force.far_interval + 0.5 + 1e-9)
-        dt = np.where(gap < force.near_gap, dt, middles * force.far_interval)
     active = gap < force.max_gap
     if force.contact == "zero":
         active &= gap >= force.min_gap
     weight = np.divide(active, d, out=np.zeros_like(d), where=d > 0)
     g = np.maximum(gap, force.min_gap)
-    if force.model == "hamaker":
-        impulse = hamaker_force(g, ri, rj, force.strength) * dt
-        speed_i, speed_j = impulse * inv_mi, impulse * inv_mj
-    else:
+
+    def speeds(seconds):
+        if force.model == "hamaker":
+            impulse = hamaker_force(g, ri, rj, force.strength) * seconds
+            return impulse * inv_mi, impulse * inv_mj
         pull = (force.r0 / (g - force.offset)) ** 7
         capped = 0.5 * np.sqrt(g * pull)
-        speed_i = np.minimum(0.5 * dt * pull * inv_mi, capped * np.sqrt(inv_mi))
-        speed_j = np.minimum(0.5 * dt * pull * inv_mj, capped * np.sqrt(inv_mj))
+        return (np.minimum(0.5 * seconds * pull * inv_mi, capped * np.sqrt(inv_mi)),
+                np.minimum(0.5 * seconds * pull * inv_mj, capped * np.sqrt(inv_mj)))
+
+    speed_i, speed_j = speeds(dt)
+    if force.split:
+        middles = np.floor((time + dt) / force.far_interval + 0.5 + 1e-9) - np.floor(time / force.far_interval + 0.5 + 1e-9)
+        s = np.clip((gap - force.near_gap / 2) / (force.near_gap / 2), 0.0, 1.0)
+        near = 1.0 - s * s * (3.0 - 2.0 * s)
+        far_i, far_j = speeds(middles * force.far_interval)
+        speed_i, speed_j = near * speed_i + (1 - near) * far_i, near * speed_j + (1 - near) * far_j
     n = len(x)
     dv = np.zeros((n, 2))
     dv[:, 0] = np.bincount(i, speed_i * weight * dx, n) - np.bincount(j, speed_j * weight * dx, n)
