@@ -97,3 +97,16 @@ def test_pareto_rule():
     assert verdict([noisy, Point("o", 1.0, 2e-6, error_se=1e-6)]) == "on the front"
     assert verdict([noisy, Point("o", 1.0, 1e-8, error_se=1e-9)]) == "on the front"  # 2e-5 - 1e-8 < 2 SE
     assert verdict([Point("d", 1.0, 2e-5, True, error_se=2e-6), Point("o", 1.0, 1e-8)]).startswith("dominated")
+
+
+def test_packing_differences_pair_runs_by_seed():
+    """A setting run on fewer seeds than the reference is compared on the seeds both ran, seed by seed."""
+    from benchmarks.fig2_2_realtime import METRICS, metric_differences
+
+    def record(seed, value):
+        return {"seed": seed, **{key: value for key, _ in METRICS}}
+
+    reference = [record(seed, 10.0 * seed) for seed in range(1, 9)]
+    setting = [record(seed, 10.0 * seed + offset) for seed, offset in [(3, 1.0), (1, 3.0), (2, 2.0)]]
+    for mean, se in metric_differences(setting, reference):  # differences 3, 2, 1 after pairing by seed
+        assert mean == pytest.approx(2.0) and se == pytest.approx(1.0 / 3.0 ** 0.5)
