@@ -108,18 +108,23 @@ run_sweep(SWEEP, Toy({log!r}, sleep=0.3), {out!r}, workers=1, progress=False)
 """
 
 
+def run_records(out: Path) -> list[Path]:
+    """The run records a sweep has finished in ``out``: not the hidden temporary of a write the kill cut short."""
+    return [p for p in (out / "runs").glob("*.json") if not p.name.startswith(".")]
+
+
 def test_killed_sweep_resumes_without_rerunning_finished_runs(tmp_path, log):
     out = tmp_path / "out"
     script = KILLED.format(tests=str(Path(__file__).parent), log=str(log), out=str(out))
     proc = subprocess.Popen([sys.executable, "-c", script])
     deadline = time.monotonic() + 60
-    while len(list((out / "runs").glob("*.json"))) < 3 and time.monotonic() < deadline and proc.poll() is None:
+    while len(run_records(out)) < 3 and time.monotonic() < deadline and proc.poll() is None:
         time.sleep(0.02)
     proc.send_signal(signal.SIGKILL)
     proc.wait()
-    finished = {p.stem for p in (out / "runs").glob("*.json")}
+    finished = {p.stem for p in run_records(out)}
     assert 3 <= len(finished) < 8, "the sweep should have been killed part way"
-    for path in (out / "runs").glob("*.json"):  # every record is whole
+    for path in run_records(out):  # every record is whole
         assert json.loads(path.read_text())["status"] == "ok"
     before = calls(log)
     result = run_sweep(SWEEP, Toy(str(log)), out, workers=2, progress=False)
