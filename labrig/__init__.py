@@ -4,7 +4,8 @@ One module per job, no physics, no knowledge of either package:
 
 * `labrig.validate` -- checks of values people give, errors that name the key and the range
   (`InputError`);
-* `labrig.files` -- atomic writes, streamed writers, CSV tables, safe file names;
+* `labrig.files` -- atomic writes, streamed writers, output sets, CSV tables, safe file names;
+* `labrig.archive` -- ``.npz`` archives of arrays and JSON metadata, checked before they are loaded;
 * `labrig.tomlfile` -- TOML parameter files: read, write exactly, check keys;
 * `labrig.cli` -- the command-line contract (one-line errors, exit status 2) and argument types;
 * `labrig.sweeps` -- parameter sweeps on local cores or a Dask cluster, resumable, one table;

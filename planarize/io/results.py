@@ -23,7 +23,8 @@ from pathlib import Path
 
 import numpy as np
 
-from labrig.files import read_archive, write_archive, write_csv, write_text_atomic
+from labrig.archive import read_archive, write_archive
+from labrig.files import write_csv, write_text_atomic
 from labrig.validate import InputError, choice, reals
 
 from ..anodize import Anodization, Snapshot

@@ -32,7 +32,7 @@ from pathlib import Path
 
 import pymunk
 
-from labrig.files import read_archive, write_archive
+from labrig.archive import read_archive, write_archive
 from labrig.validate import InputError, count, flag, real, reals
 
 from ..collisions import Restitution, stream_key
