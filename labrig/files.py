@@ -18,7 +18,6 @@ import time
 from pathlib import Path
 from typing import Iterator, Sequence
 
-import numpy as np
 
 from .validate import InputError
 
