@@ -20,4 +20,5 @@ BENCHMARKS = [
     "planarize_fast",
     "planarize_accuracy",
     "sweeps",
+    "cold_start",
 ]

@@ -12,7 +12,7 @@ import argparse
 import sys
 from typing import Callable, Sequence
 
-from .validate import InputError, count, real
+from .validate import InputError, count, printable, real
 
 
 class UsageError(Exception):
@@ -71,11 +71,31 @@ def run_main(parser: argparse.ArgumentParser, argv: Sequence[str] | None) -> int
     except SystemExit as exc:  # --help and --version
         return exc.code if isinstance(exc.code, int) else 0
     except (UsageError, InputError, OSError) as exc:
-        print(f"{parser.prog}: error: {exc}", file=sys.stderr)
+        print(f"{parser.prog}: error: {printable(exc)}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print(f"{parser.prog}: interrupted", file=sys.stderr)
         return 130
+    except Exception as exc:  # e.g. numba's SystemError "... returned a result with an exception set" on Ctrl-C
+        if not interrupted(exc):
+            raise
+        print(f"{parser.prog}: interrupted", file=sys.stderr)
+        return 130
+
+
+def interrupted(exc: BaseException) -> bool:
+    """Whether ``exc`` is a KeyboardInterrupt or was raised while one was handled (its ``__cause__`` /
+    ``__context__`` chain holds one): compiled code interrupted by Ctrl-C raises such wrappers."""
+    seen, pending = set(), [exc]
+    while pending:
+        exc = pending.pop()
+        if exc is None or id(exc) in seen:
+            continue
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        seen.add(id(exc))
+        pending += [exc.__cause__, exc.__context__]
+    return False
 
 
 def add_command(subparsers, name: str, func: Callable[[argparse.Namespace], int], help: str,
@@ -145,7 +165,8 @@ def command_line(prog: str, description: str, commands: Sequence[Callable]) -> t
 
 
 def print_table(title: str, rows: Sequence[tuple[str, str]]) -> None:
-    """Print ``title`` and aligned ``key  value`` lines."""
+    """Print ``title`` and aligned ``key  value`` lines, control characters escaped (`labrig.validate.printable`)."""
+    rows = [(printable(key), printable(value)) for key, value in rows]
     width = max(len(key) for key, _ in rows)
-    print(title)
+    print(printable(title))
     print("\n".join(f"  {key:<{width}}  {value}" for key, value in rows))

@@ -3,6 +3,12 @@
 Read errors start with the file's path, key errors name the full dotted key and the allowed keys
 (the values themselves are checked by `labrig.validate`), and values are written so that they read
 back exactly.
+
+Every parameter file goes through `parse_toml`, which refuses hostile text in one line before the
+parser builds it: more than `MAX_BYTES`, tables and arrays nested deeper than `MAX_DEPTH` (the parser
+recurses once per level of brackets) or more than `MAX_CONTAINERS` of them (a megabyte of table
+headers would build hundreds of megabytes of tables), and, once parsed, integers outside TOML's 64
+bits. A UTF-8 byte order mark at the start is skipped.
 """
 
 from __future__ import annotations
@@ -10,6 +16,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import re
 
 try:
     import tomllib
@@ -19,19 +26,125 @@ except ModuleNotFoundError:  # Python 3.10
 from .files import existing_file
 from .validate import InputError, typed
 
-#: Largest parameter file read, bytes.
-MAX_BYTES = 16 * 2**20
+#: Largest parameter file read, bytes (a scene file is about 1 kB, a sweep of a thousand explicit points
+#: about 100 kB; parsing a megabyte of TOML takes about a second).
+MAX_BYTES = 2**20
+#: Deepest nesting of tables and arrays in a parameter file, the top-level table counting as one
+#: (a scene file reaches 4, a sweep file 5).
+MAX_DEPTH = 64
+#: Most tables and arrays a parameter file may open, counting one per part of a table header or a dotted
+#: key (at most about 20 MB once parsed).
+MAX_CONTAINERS = 20_000
+#: The integers TOML holds (64-bit, signed).
+INT_RANGE = (-2**63, 2**63 - 1)
 
 __all__ = ["read_toml", "parse_toml", "from_source", "toml_value", "toml_line", "check_keys", "top_level", "as_table",
-           "tomllib"]
+           "tomllib", "MAX_BYTES", "MAX_DEPTH", "MAX_CONTAINERS", "INT_RANGE"]
+
+
+# where the structure scan stops: the openings of strings and comments, brackets, and what joins or ends a key
+_MARK = re.compile(r'"""|\'\'\'|["\'#\[\]{}.=,\n]')
+# the rest of a string after its opening quotes, to its closing ones (or where it is left unterminated);
+# none of them can fail or backtrack
+_STRING_REST = {
+    '"""': re.compile(r'[^"\\]*(?:(?:\\.|"(?!""))[^"\\]*)*(?:""""{0,2})?', re.DOTALL),
+    "'''": re.compile(r"[^']*(?:'(?!'')[^']*)*(?:''''{0,2})?"),
+    '"': re.compile(r'[^"\\\n]*(?:\\.[^"\\\n]*)*"?'),
+    "'": re.compile(r"[^'\n]*'?"),
+}
+
+
+def _structure_problem(text: str) -> str | None:
+    """What makes ``text`` too deep or too big to parse (None if nothing does), from its brackets and dotted
+    keys alone (strings and comments skipped): more than `MAX_DEPTH` levels of brackets plus dotted key
+    parts in one statement, or more than `MAX_CONTAINERS` of them in all."""
+    brackets: list[str] = []  # "[" array, "{" inline table, "h" a bracket of a table header
+    in_key = True  # reading a key: at the start of a top-level line, after "{" or "," in an inline table
+    dots = opened = pos = 0
+    while (mark := _MARK.search(text, pos)) is not None:
+        char, pos = mark.group(), mark.end()
+        if char in _STRING_REST:
+            pos = _STRING_REST[char].match(text, pos).end()
+        elif char == "#":
+            end = text.find("\n", pos)
+            pos = len(text) if end < 0 else end
+        elif char == "\n":
+            if not brackets:
+                in_key, dots = True, 0
+        elif char == "=":
+            in_key, dots = False, 0
+        elif char == ",":
+            if brackets and brackets[-1] == "{":
+                in_key, dots = True, 0
+        elif char == ".":
+            if in_key:
+                dots, opened = dots + 1, opened + 1
+        elif char in "[{":
+            header = char == "[" and in_key and (not brackets or brackets[-1] == "h")
+            brackets.append("h" if header else char)
+            if not header:
+                in_key, dots = char == "{", 0
+            opened += 1
+        else:  # "]" or "}": a value or a header ends
+            if brackets:
+                brackets.pop()
+            in_key = False
+        if len(brackets) + dots > MAX_DEPTH:
+            return f"tables and arrays nested more than {MAX_DEPTH} deep (at line {text.count(chr(10), 0, pos) + 1})"
+        if opened > MAX_CONTAINERS:
+            return f"more than {MAX_CONTAINERS:,} tables and arrays (at line {text.count(chr(10), 0, pos) + 1})"
+    return None
+
+
+def _value_problem(data: dict) -> str | None:
+    """What in parsed TOML is out of bounds (None if nothing is): nesting deeper than `MAX_DEPTH` (the
+    top-level table is 1) or an integer outside `INT_RANGE`."""
+    pending = [(data, 1, "")]
+    while pending:
+        node, depth, where = pending.pop()
+        if depth > MAX_DEPTH:
+            return f"tables and arrays nested more than {MAX_DEPTH} deep (at {where[:60]}{'...' * (len(where) > 60)})"
+        items = node.items() if isinstance(node, dict) else ((f"[{i}]", v) for i, v in enumerate(node))
+        for key, value in items:
+            name = f"{where}{key}" if isinstance(node, list) else f"{where}.{key}" if where else str(key)
+            if isinstance(value, (dict, list)):
+                pending.append((value, depth + 1, name))
+            elif isinstance(value, int) and not isinstance(value, bool) and \
+                    not INT_RANGE[0] <= value <= INT_RANGE[1]:
+                digits = len(str(abs(value)))
+                shown = str(value) if digits <= 30 else f"an integer of {digits} digits"
+                return f"{name} = {shown} is outside the 64-bit integers TOML holds"
+    return None
 
 
 def parse_toml(text: str, source: str = "<string>") -> dict:
-    """Parse TOML text; a ValueError starting with ``source`` if it is not valid TOML."""
-    try:
-        return tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise InputError(f"{source}: invalid TOML: {exc}") from None
+    """Parse TOML text (a leading byte order mark skipped).
+
+    Raises
+    ------
+    labrig.validate.InputError
+        Starting with ``source``, if the text is longer than `MAX_BYTES` characters, not valid TOML,
+        nests tables and arrays deeper than `MAX_DEPTH`, opens more than `MAX_CONTAINERS` of them or
+        holds an integer outside `INT_RANGE`.
+    """
+    if len(text) > MAX_BYTES:
+        raise InputError(f"{source}: the TOML text is {len(text):,} characters, more than the {MAX_BYTES:,} "
+                         "a parameter file may have")
+    text = text.removeprefix("\ufeff")
+    problem = _structure_problem(text)
+    if problem is None:
+        try:
+            data = tomllib.loads(text)
+        except tomllib.TOMLDecodeError as exc:
+            raise InputError(f"{source}: invalid TOML: {exc}") from None
+        except ValueError as exc:  # an integer of thousands of digits: Python's limit on int("...")
+            raise InputError(f"{source}: invalid TOML: {str(exc).split(';')[0]}") from None
+        except RecursionError:  # the scan bounds the parser's recursion; this is the last resort
+            raise InputError(f"{source}: invalid TOML: tables and arrays nested too deep") from None
+        problem = _value_problem(data)
+    if problem is not None:
+        raise InputError(f"{source}: invalid TOML: {problem}")
+    return data
 
 
 def from_source(build, data: dict, source: str, *args):

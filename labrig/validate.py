@@ -28,7 +28,7 @@ import numbers
 import numpy as np
 
 __all__ = ["InputError", "number", "interval", "is_real", "real", "count", "seed", "generator", "choice", "flag", "text", "reals",
-           "array", "typed", "within_memory", "MAX_SEED"]
+           "array", "typed", "within_memory", "printable", "MAX_SEED"]
 
 #: Largest seed accepted (numpy's generators take any integer >= 0; this keeps seeds within 64 bits).
 MAX_SEED = 2**63 - 1
@@ -191,6 +191,24 @@ def within_memory(name: str, n_bytes: float, limit_bytes: float) -> None:
     if n_bytes > limit_bytes:
         raise InputError(f"{name} would need about {n_bytes / 2**30:.3g} GiB of memory, more than the "
                          f"{limit_bytes / 2**30:.3g} GiB allowed")
+
+
+#: Control characters (C0, DEL, C1) and how `printable` writes them.
+_ESCAPES = {code: {9: "\\t", 10: "\\n", 13: "\\r"}.get(code, f"\\x{code:02x}")
+            for code in [*range(32), *range(127, 160)]}
+
+
+def printable(text) -> str:
+    """``text`` (``str(text)``) with its control characters written as escapes (``\\x1b``, ``\\x07``, ``\\n``, ...).
+
+    Names and messages from files are data and may hold any character; printed raw, an ESC or a CR
+    would drive the terminal (colours, cursor moves, an overwritten line). Whatever repeats such text
+    on a terminal prints ``printable(text)`` instead::
+
+        >>> printable("dots\\x1b[2J\\r")
+        'dots\\\\x1b[2J\\\\r'
+    """
+    return str(text).translate(_ESCAPES)
 
 
 # -- value kinds of files (TOML) -------------------------------------------------------------

@@ -17,9 +17,10 @@ from typing import Callable
 import numpy as np
 
 from labrig.deprecation import warn as warn_renamed
-from labrig.validate import InputError, count, real, reals, within_memory
+from labrig.validate import InputError, count, flag, real, reals, within_memory
 
 from .engines import Fast, engine_settings
+from .engines.base import check_oxide
 from .metrics import history_row
 from .model import Model
 from .surface import Surface
@@ -30,6 +31,8 @@ MAX_THICKNESS = 1e6
 MAX_STEPS_PER_RUN = 1_000_000
 #: Most history rows or snapshots of a run.
 MAX_RECORD = 100_000
+#: Memory a history row takes until the run ends, bytes (a dict of 15 floats, ~1.3 kB, then its table entries).
+HISTORY_ROW_BYTES = 2048
 #: Memory an engine needs per grid point, bytes (measured: the fast engine 0.89 GB at 1025 x 1025;
 #: the reference engine's sets are Python objects, about twice that).
 ENGINE_BYTES_PER_POINT = 2000
@@ -105,6 +108,13 @@ def check_steps(thickness: float, step: float) -> None:
     if thickness / step > MAX_STEPS_PER_RUN:
         raise InputError(f"thickness / step = {thickness / step:.3g} steps per grid point, more than the "
                          f"{MAX_STEPS_PER_RUN:,} a run may take: use a larger step")
+
+
+def run_bytes(points: int, rows: int, snapshots: int) -> int:
+    """Memory a run of ``points`` grid points needs, bytes: the engine, ``snapshots`` snapshots (metal, oxide
+    and distances: 3 floats per point each) and ``rows`` history rows (one more of each where a wall-time
+    budget stops the run)."""
+    return points * (ENGINE_BYTES_PER_POINT + 3 * 8 * (snapshots + 1)) + HISTORY_ROW_BYTES * (rows + 1)
 
 
 def thickness_targets(spec, thickness: float, name: str, limit: int = MAX_RECORD, empty: bool = False) -> np.ndarray:
@@ -213,6 +223,10 @@ def anodize(metal: Surface, thickness: float, model: Model | None = None, engine
     model, settings = _model_and_engine(model, engine, deprecated)
     if not isinstance(metal, Surface):
         raise InputError(f"metal must be a planarize.Surface, got {type(metal).__name__}")
+    check_oxide(metal, oxide)
+    progress = flag("progress", progress)
+    if observer is not None and not callable(observer):
+        raise InputError(f"observer must be a function observer(engine) or None, got {type(observer).__name__}")
     thickness = real("thickness", thickness, 0.0, MAX_THICKNESS, unit="nm")
     check_steps(thickness, model.step)
     if max_seconds is not None:
@@ -221,7 +235,7 @@ def anodize(metal: Surface, thickness: float, model: Model | None = None, engine
     shots_at = thickness_targets([0.0, thickness] if snapshots is None else snapshots, thickness, "snapshots",
                                  MAX_RECORD, empty=True)
     n = metal.z.size
-    within_memory("the run", n * (ENGINE_BYTES_PER_POINT + 3 * 8 * len(shots_at)), _available_memory())
+    within_memory("the run", run_bytes(n, len(rows_at), len(shots_at)), _available_memory())
     sim = settings.build(metal, oxide, model)
     parameters = {"engine": settings.name, "thickness": thickness, "step": model.step, "k_exp": model.k_exp,
                   "distance": model.distance, "volume": model.volume, "boundary": metal.boundary,
@@ -276,7 +290,7 @@ def anodize(metal: Surface, thickness: float, model: Model | None = None, engine
 
 
 def _progress(total: float):
-    from tqdm.auto import tqdm
+    from labrig.progress import progress_bar
 
-    return tqdm(total=total, unit="nm", desc="oxide", bar_format="{l_bar}{bar}| {n:.3g}/{total:.3g} nm "
-                                                                 "[{elapsed}<{remaining}]")
+    return progress_bar(total, unit="nm", desc="oxide", bar_format="{l_bar}{bar}| {n:.3g}/{total:.3g} nm "
+                                                                   "[{elapsed}<{remaining}]")

@@ -12,6 +12,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from labrig.validate import InputError, count, flag, real, reals
+
+from .surface import MAX_POINTS
+
 #: The four grid directions of the thesis's line segments: +x, -x, +y, -y.
 EDGE_DIRECTIONS = ((1, 0), (-1, 0), (0, 1), (0, -1))
 #: The four cells around a point, by the signs of their far corner: (sx, sy).
@@ -30,9 +34,15 @@ class Grid:
     """
 
     def __init__(self, shape: tuple[int, int], spacing: tuple[float, float], periodic: bool):
-        self.nx, self.ny = (int(n) for n in shape)
-        self.dx, self.dy = (float(d) for d in spacing)
-        self.periodic = bool(periodic)
+        if isinstance(shape, (str, bytes)) or not hasattr(shape, "__len__") or len(shape) != 2:
+            raise InputError(f"grid shape must be two counts (nx, ny), got {shape!r}")
+        self.nx, self.ny = (count(f"grid shape {name}", n, 1, MAX_POINTS) for name, n in zip(("nx", "ny"), shape))
+        if self.nx * self.ny > MAX_POINTS:  # the tables below take ~200 bytes per point
+            raise InputError(f"grid shape is {self.nx} x {self.ny} points, more than the {MAX_POINTS:,} a surface "
+                             "may have")
+        self.dx, self.dy = (real(f"grid spacing {name}", d, 0.0, low_open=True, unit="nm")
+                            for name, d in zip(("dx", "dy"), reals("grid spacing", spacing, 2)))
+        self.periodic = flag("periodic", periodic)
         self.n = self.nx * self.ny
         k = np.arange(self.n)
         self.i, self.j = k // self.ny, k % self.ny

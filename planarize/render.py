@@ -18,9 +18,9 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.colors import LightSource, Normalize
 from matplotlib.figure import Figure
 
-from labrig.files import atomic_path
+from labrig.figures import save_figure  # noqa: F401 (planarize.render.save_figure: its public name)
 from labrig.movies import FigureMovie
-from labrig.validate import InputError
+from labrig.validate import InputError, count
 
 from .anodize import Anodization
 from .surface import Surface
@@ -251,6 +251,10 @@ def draw_surface(surface: Surface, ax=None, *, half_range: float | None = None, 
     return ax
 
 
+#: Most panels of `snapshots_figure` (each a 3-D surface of 4 x 3.4 in).
+MAX_PANELS = 100
+
+
 def snapshots_figure(run: Anodization, which: str = "oxide", *, cmap: str = "viridis", columns: int = 3) -> Figure:
     """Thesis Fig 3-11: the surfaces at each snapshot, fixed colour and z scale, window shifted with the mean.
 
@@ -268,6 +272,10 @@ def snapshots_figure(run: Anodization, which: str = "oxide", *, cmap: str = "vir
     panels = [(getattr(shot, kind), thickness_label(kind, shot.thickness)) for shot in run.snapshots for kind in kinds]
     if not panels:
         raise InputError("the run has no snapshots")
+    if len(panels) > MAX_PANELS:
+        raise InputError(f"the run has {len(run.snapshots):,} snapshots: {len(panels):,} panels, more than the "
+                         f"{MAX_PANELS} a figure takes (draw a selection of them)")
+    columns = count("columns", columns, 1, MAX_PANELS)
     half = surface_scale([s for s, _ in panels])
     columns = len(kinds) * max(1, columns // len(kinds))
     rows = math.ceil(len(panels) / columns)
@@ -302,16 +310,6 @@ def history_figure(run: Anodization, title: str | None = None, *, log: bool = Fa
         fig.suptitle(title)
     fig.tight_layout()
     return fig
-
-
-def save_figure(fig: Figure, path, dpi: int = 100) -> Path:
-    """Write ``fig`` to ``path`` (format from the suffix, e.g. PNG), atomically."""
-    if not (isinstance(dpi, numbers.Real) and dpi > 0):
-        raise InputError(f"dpi must be > 0, got {dpi!r}")
-    path = Path(path)
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=dpi)
-    return path
 
 
 class SurfaceMovie(FigureMovie):

@@ -139,7 +139,7 @@ class Surface:
 
     def volume(self, base: float = 0.0) -> float:
         """Volume between the surface and the plane ``z = base``, nm^3 (exact for this surface)."""
-        return float(np.sum(self.weights * (self._z - base)))
+        return float(np.sum(self.weights * (self._z - real("base", base, unit="nm"))))
 
     def with_heights(self, z) -> "Surface":
         """The same grid with new heights."""
@@ -147,7 +147,7 @@ class Surface:
 
     def shifted(self, dz: float) -> "Surface":
         """The surface moved up by ``dz`` nm."""
-        return self.with_heights(self._z + float(dz))
+        return self.with_heights(self._z + real("dz", dz, -2 * MAX_HEIGHT, 2 * MAX_HEIGHT, unit="nm"))
 
     def transposed(self) -> "Surface":
         """The surface mirrored across the line x = y (axes and spacings swapped)."""

@@ -8,12 +8,16 @@ from __future__ import annotations
 
 import numpy as np
 
-from labrig.validate import InputError, count, real, reals
+from labrig.validate import InputError, count, generator, real, reals
 
 from .surface import BOUNDARIES, MAX_HEIGHT, Surface
 
 #: Most grid points per side a builder lays out before refinement.
 MAX_SIDE = 4097
+#: Most roughness scales of `random_roughness` (the thesis has 2), each a pass of random heights over the whole
+#: grid: widths that shrink from one scale to the next (by 2 or more) fit at most 39 times between the largest
+#: width (1e9 nm) and twice the smallest grid spacing (1e-3 nm).
+MAX_SCALES = 64
 
 
 def _check(name: str, value, low: float = 0.0, low_open: bool = True) -> float:
@@ -112,13 +116,17 @@ def random_roughness(size: float = 500.0, *, thickness: float = 1000.0, scales=T
     if boundary not in BOUNDARIES:
         raise InputError(f"boundary must be one of {BOUNDARIES}, got {boundary!r}")
     size = _check("size", size)
+    if isinstance(scales, (str, bytes, dict)) or not hasattr(scales, "__len__"):
+        raise InputError(f"scales must be a list of (width, height) pairs in nm, widest first, got {scales!r}")
+    if len(scales) == 0:
+        raise InputError("scales must hold at least one (width, height) pair")
+    if len(scales) > MAX_SCALES:
+        raise InputError(f"scales must hold at most {MAX_SCALES} (width, height) pairs, got {len(scales):,}")
     try:
         scales = [(_check("scale width", w), _check("scale height", h, low_open=False)) for w, h in scales]
     except (TypeError, ValueError) as exc:
         raise InputError(f"scales must be (width, height) pairs in nm, widest first: {exc}") from None
-    if not scales:
-        raise InputError("scales must hold at least one (width, height) pair")
-    rng = np.random.default_rng(seed)
+    rng = generator("seed", seed)
     spacing = scales[0][0] / 2.0
     cells = size / spacing
     if abs(cells - round(cells)) > 1e-9 * cells or round(cells) < 1:

@@ -196,6 +196,11 @@ class Experiment:
             raise InputError(f"deposition.n_dots x deposition.interval + deposition.settle = "
                              f"{dep.n_dots * dep.interval + dep.settle:g} s at engine.dt = {self.engine.dt:g} s is "
                              f"{steps:,.0f} steps, more than the {MAX_STEPS:,} a run may take")
+        for k, force in enumerate(self.build_forces()):
+            try:
+                force.check_run(self.engine.dt, math.ceil(steps))
+            except InputError as exc:
+                raise InputError(f"forces[{k}]: {exc}") from None
         if dep.mean_diameter > min(b.width, b.height):
             raise InputError(f"deposition.mean_diameter ({dep.mean_diameter:g} px) must fit in the "
                              f"{b.width:g} x {b.height:g} px board")
@@ -286,6 +291,7 @@ def populate(sim: Simulation, exp: Experiment, progress: bool = False) -> Simula
     """Deposit the dots of ``exp`` on ``sim`` (from `build_simulation`) and let them settle; returns ``sim``."""
     _, deposit_seed = np.random.SeedSequence(exp.seed).spawn(2)
     dep = exp.deposition
+    sim.check_run(dep.n_dots * dep.interval + dep.settle)  # the whole deposition, before the first dot
     common = dict(mean_diameter=dep.mean_diameter, sigma=dep.sigma, mass_model=dep.mass_model,
                   heavy_mass=dep.heavy_mass, interval=dep.interval, max_tries=dep.max_tries,
                   rng=np.random.default_rng(deposit_seed), progress=progress)

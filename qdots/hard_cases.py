@@ -39,9 +39,11 @@ from typing import Callable
 import numpy as np
 from scipy.spatial import cKDTree
 
+from labrig.validate import InputError, choice, count, real
+
 from .collisions import Restitution
 from .forces import CentreGravity, Drag, Gravity, ThermalKicks, VanDerWaals
-from .scene import Scene, grating_segments, segment_distances
+from .scene import MAX_DOTS, Scene, grating_segments, segment_distances
 from .simulation import OVERLAP_WARNING, Simulation
 from .units import thesis_kick_speed
 
@@ -49,11 +51,16 @@ from .units import thesis_kick_speed
 SAMPLE = 0.05
 #: Largest settled overlap a case may keep, in mean radii of the pair.
 SETTLED_TOLERANCE = 0.05
+#: Most samples of one case (each a pair search and a dot-wall distance table; the cases take 20-250).
+MAX_SAMPLES = 100_000
+#: Sites of `centre_pack`'s 25 px grid on its 600 px board: the most dots it places.
+CENTRE_PACK_SITES = 23 * 23
 
 
 @dataclass(frozen=True)
 class HardCase:
-    """A scene, its forces and engine settings, how long to run it, and whether it is a known failure."""
+    """A scene, its forces and engine settings, how long to run it (s, sampled every ``sample`` s: at most
+    `MAX_SAMPLES` samples), and whether it is a known failure."""
 
     name: str
     build: Callable[[], tuple[Scene, list]]
@@ -63,6 +70,14 @@ class HardCase:
     slow: bool = False
     sample: float = SAMPLE
     known_failure: str = ""
+
+    def __post_init__(self) -> None:
+        real("seconds", self.seconds, 0.0, low_open=True, unit="s")
+        real("sample", self.sample, 0.0, low_open=True, unit="s")
+        samples = self.seconds / self.sample
+        if samples > MAX_SAMPLES:
+            raise InputError(f"sample = {self.sample:g} s takes {samples:.3g} samples of a {self.seconds:g} s run, "
+                             f"more than the {MAX_SAMPLES:,} allowed")
 
 
 def _channels(positions: np.ndarray, segments: np.ndarray) -> np.ndarray:
@@ -84,7 +99,10 @@ def grating_corners(gravity: float) -> Callable:
 
 
 def centre_pack(gravity: float, n: int = 400) -> Callable:
-    """400 polydisperse dots (radii N(7.5, 0.75)) pulled to the centre at ``gravity`` x 750 px/s^2."""
+    """``n`` (at most `CENTRE_PACK_SITES`) polydisperse dots (radii N(7.5, 0.75)) pulled to the centre at
+    ``gravity`` x 750 px/s^2."""
+    n = count("n", n, 0, CENTRE_PACK_SITES)
+
     def build():
         rng = np.random.default_rng(0)
         grid = np.array([(x, y) for x in range(20, 585, 25) for y in range(20, 585, 25)], float)
@@ -97,6 +115,8 @@ def centre_pack(gravity: float, n: int = 400) -> Callable:
 
 def mixture(masses: str, centre_gravity: float = 0.0) -> Callable:
     """60 dots of radius 15 px and 500 of 1.5 px (size ratio 10), vdW + kicks (+ centre gravity)."""
+    choice("masses", masses, ("equal", "volume"))
+
     def build():
         rng = np.random.default_rng(0)
         positions, radii = [], []
@@ -142,7 +162,9 @@ def head_on(multiple: float) -> Callable:
 
 
 def loose_film(n: int) -> Scene:
-    """``n`` dots of 7.5 px on a jittered 17 px square lattice, thermal velocities (seeded)."""
+    """``n`` dots (at most `qdots.scene.MAX_DOTS`) of 7.5 px on a jittered 17 px square lattice, thermal
+    velocities (seeded)."""
+    n = count("n", n, 0, MAX_DOTS)
     side = int(math.ceil(math.sqrt(n)))
     rng = np.random.default_rng(5)
     ij = np.argwhere(np.ones((side, side)))[:n].astype(float)
@@ -217,6 +239,7 @@ def check(case: HardCase) -> dict:
     sim = Simulation(scene, forces, seed=1, **case.settings)
     walls, channels = scene.wall_segments(), _channels(scene.positions, scene.segments)
     samples = max(1, round(case.seconds / case.sample))
+    sim.check_run(samples * round(case.seconds / samples / sim.dt) * sim.dt)  # the whole case, as one run
     pair, wall, finite, lost, crossed, wall_time = [], [], True, False, False, 0.0
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", RuntimeWarning)

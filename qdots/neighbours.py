@@ -16,10 +16,18 @@ import math
 import numpy as np
 
 from labrig.compiled import jit
-from labrig.validate import real
+from labrig.validate import InputError, real
 
 #: Largest Verlet skin, px.
 MAX_SKIN = 1000.0
+#: Most pairs of dots one pair search lists (the engine's Verlet lists, `pair_bound` for the analysis and the
+#: scene checks): about 40 bytes a pair in indices, distances and offsets, 4 GB. The largest boards measured
+#: have far fewer: 4e6 pairs for g(r) to 5 mean diameters on 10^5 dots, about 1e7 within 2 diameters on 10^6.
+MAX_PAIRS = 100_000_000
+#: Most cells of the grid of one pair search (8 bytes each: 512 MiB). A board gets about 2 cells a dot,
+#: 2e6 for the largest (`qdots.scene.MAX_DOTS`); only dots strung along a line with a cutoff far below their
+#: spacing asked for more, and now get wider cells (the same pairs).
+MAX_GRID_CELLS = 2**26
 
 
 @jit(inline=True)
@@ -106,13 +114,15 @@ def pairs_within(x: np.ndarray, y: np.ndarray, cutoff: float, expected: int = 0)
     """Every pair ``(i, j)``, ``i < j``, of points closer than ``cutoff`` (two int arrays).
 
     Cells are at least ``cutoff / 2`` wide and at most ~2 per point (a sparse board does not
-    allocate an empty grid). With ``expected`` near the number of pairs (a Verlet list's last
-    count) one pass over the grid suffices; otherwise a second pass fills arrays of the size counted.
+    allocate an empty grid), `MAX_GRID_CELLS` in all. With ``expected`` near the number of pairs (a
+    Verlet list's last count) one pass over the grid suffices; otherwise a second pass fills arrays of
+    the size counted.
 
     Raises
     ------
     ValueError
-        On non-finite coordinates.
+        On non-finite coordinates; `labrig.validate.InputError` when there are more than `MAX_PAIRS`
+        pairs (counted before anything of their size is allocated).
     """
     if len(x) < 2:
         return np.zeros(0, dtype=np.intp), np.zeros(0, dtype=np.intp)
@@ -121,14 +131,61 @@ def pairs_within(x: np.ndarray, y: np.ndarray, cutoff: float, expected: int = 0)
         raise ValueError("pair search: the positions are not all finite")
     width, height = x1 - x0, y1 - y0
     cell = max(cutoff / 2.0, math.sqrt(max(width * height, 1.0) / (2.0 * len(x))))
+    if (width / cell + 1.0) * (height / cell + 1.0) > MAX_GRID_CELLS:  # dots along a line, a tiny cutoff
+        cell = (width + height) / (math.sqrt(MAX_GRID_CELLS) - 1.0)
     nx, ny = int(width / cell) + 1, int(height / cell) + 1
-    room = int(1.25 * expected) + 16
+    room = int(1.25 * min(expected, MAX_PAIRS, len(x) * (len(x) - 1) // 2)) + 16  # a hint: never more than can be
     i, j = np.empty(room, dtype=np.intp), np.empty(room, dtype=np.intp)
     m = _cell_pairs(x, y, cutoff, cell, nx, ny, x0, y0, i, j)
+    if m > MAX_PAIRS:
+        raise InputError(f"pair search: {m:,} pairs of dots closer than {cutoff:g} px, more than the "
+                         f"{MAX_PAIRS:,} allowed (the largest dot and the forces' range set this distance)")
     if m > room:
         i, j = np.empty(m, dtype=np.intp), np.empty(m, dtype=np.intp)
         _cell_pairs(x, y, cutoff, cell, nx, ny, x0, y0, i, j)
     return i[:m].copy(), j[:m].copy()
+
+
+def pair_bound(x: np.ndarray, y: np.ndarray, reach: float) -> int:
+    """An upper bound on the number of pairs of points at most ``reach`` apart (px), without listing them.
+
+    The points are binned in square cells at least ``reach / 2`` wide (and about 3 per point at most): two
+    points within ``reach`` lie in cells at most 2 apart along x and along y, so the bound counts, for each
+    point, the points in the 5 x 5 cells around its own (a summed-area table). O(N) time and memory; about
+    twice the true count on a uniform board (25 cells of side ``reach / 2`` against a disc of radius
+    ``reach``), ``N (N - 1) / 2`` when every point is within ``reach`` of every other.
+
+    Parameters
+    ----------
+    x, y : ndarray, shape (N,)
+        Coordinates, px; non-finite ones give the largest bound, ``N (N - 1) / 2``.
+    reach : float
+        Distance, px (>= 0).
+    """
+    x, y = np.asarray(x, dtype=float).ravel(), np.asarray(y, dtype=float).ravel()
+    n = x.size
+    every = n * (n - 1) // 2
+    if n < 2:
+        return 0
+    if not (math.isfinite(reach) and np.isfinite(x).all() and np.isfinite(y).all()):
+        return every
+    x0, y0 = float(x.min()), float(y.min())
+    width, height = float(x.max()) - x0, float(y.max()) - y0
+    # 1e-6: a pair within reach is less than 2 cells apart even after the round-off of (x - x0) / cell
+    cell = max(0.5 * max(reach, 0.0) * (1.0 + 1e-6), math.sqrt(width * height / n), max(width, height) / n)
+    if not cell > 0:  # every point at one place
+        return every
+    k = math.ceil(max(reach, 0.0) / cell + 1e-6)  # how many cells apart two points within reach may be
+    ix = np.floor((x - x0) / cell).astype(np.int64)
+    iy = np.floor((y - y0) / cell).astype(np.int64)
+    nx, ny = int(ix.max()) + 1, int(iy.max()) + 1
+    counts = np.bincount(ix * ny + iy, minlength=nx * ny).reshape(nx, ny)
+    table = np.zeros((nx + 1, ny + 1), dtype=np.int64)
+    table[1:, 1:] = counts.cumsum(axis=0).cumsum(axis=1)
+    lo_x, hi_x = np.clip(np.arange(nx) - k, 0, nx), np.clip(np.arange(nx) + k + 1, 0, nx)
+    lo_y, hi_y = np.clip(np.arange(ny) - k, 0, ny), np.clip(np.arange(ny) + k + 1, 0, ny)
+    around = (table[hi_x][:, hi_y] - table[lo_x][:, hi_y] - table[hi_x][:, lo_y] + table[lo_x][:, lo_y])
+    return min(every, (int((counts * around).sum()) - n) // 2)
 
 
 @jit

@@ -29,6 +29,8 @@ from .scene import MAX_DOTS, MAX_LENGTH
 BATCH = 256
 #: Most consecutive rejected candidates for one dot.
 MAX_TRIES = 10_000_000
+#: Most candidates of one `draw_candidates` call (the batches here hold 256, a deposition's 32).
+MAX_CANDIDATES = 1_000_000
 
 
 def _check_args(n, box, mean_diameter, sigma, max_tries, margin) -> tuple[float, float]:
@@ -56,6 +58,8 @@ def draw_candidates(rng: np.random.Generator, m: int, region: tuple[float, float
     ``sigma == 0``); centres are uniform over the positions where the dot,
     grown by ``margin``, lies inside ``region = (x0, y0, x1, y1)`` px.
 
+    ``m`` is in [0, `MAX_CANDIDATES`].
+
     Returns
     -------
     centres : ndarray, shape (m, 2)
@@ -64,6 +68,7 @@ def draw_candidates(rng: np.random.Generator, m: int, region: tuple[float, float
         False for a non-positive diameter or a dot too big for the region
         (such candidates must be rejected, which redraws both).
     """
+    count("m", m, 0, MAX_CANDIDATES)
     x0, y0, x1, y1 = region
     d = mean_diameter * (1.0 + sigma * rng.standard_normal(m)) if sigma > 0 else np.full(m, mean_diameter)
     u = rng.random((m, 2))
@@ -225,6 +230,9 @@ def _too_full(n, placed, box, mean_diameter, sigma, max_tries, placed_radii) -> 
 
 #: Layouts of `hexagonal_lattice`.
 LATTICE_LAYOUTS = ("rectangle", "parallelogram", "flake")
+#: Largest ``m`` of `hexagonal_lattice` by layout: at most `qdots.scene.MAX_DOTS` points (``m * m``, and
+#: ``3 m (m + 1) + 1`` for a flake: 997,057 at 576 rings; the benchmark's flake has 182).
+MAX_LATTICE_SIZE = {"rectangle": 1000, "parallelogram": 1000, "flake": 576}
 
 
 def hexagonal_lattice(m: int, pitch: float, layout: str = "rectangle", origin=(0.0, 0.0)) -> np.ndarray:
@@ -234,7 +242,8 @@ def hexagonal_lattice(m: int, pitch: float, layout: str = "rectangle", origin=(0
     ----------
     m : int
         Size: points per side (``"rectangle"``, ``"parallelogram"``: ``m * m`` points), or rings around
-        the centre point (``"flake"``: ``3 m (m + 1) + 1`` points, the centre at ``origin``).
+        the centre point (``"flake"``: ``3 m (m + 1) + 1`` points, the centre at ``origin``); at most
+        `MAX_LATTICE_SIZE` of the layout (`qdots.scene.MAX_DOTS` points).
     pitch : float
         Nearest-neighbour distance, px (> 0).
     layout : {"rectangle", "parallelogram", "flake"}
@@ -249,9 +258,9 @@ def hexagonal_lattice(m: int, pitch: float, layout: str = "rectangle", origin=(0
     ndarray, shape (N, 2)
         In the order of ``i`` then ``j`` (C order of the ``(i, j)`` grid).
     """
-    m = count("m", m, 0, 10_000)
-    pitch = real("pitch", pitch, 0.0, MAX_LENGTH, low_open=True, unit="px")
     choice("layout", layout, LATTICE_LAYOUTS)
+    m = count("m", m, 0, MAX_LATTICE_SIZE[layout])
+    pitch = real("pitch", pitch, 0.0, MAX_LENGTH, low_open=True, unit="px")
     low = -m if layout == "flake" else 0
     high = m + 1 if layout == "flake" else m
     i, j = (a.ravel() for a in np.meshgrid(np.arange(low, high), np.arange(low, high), indexing="ij"))

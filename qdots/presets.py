@@ -24,7 +24,7 @@ from __future__ import annotations
 import math
 
 from labrig.deprecation import warn as warn_renamed
-from labrig.validate import InputError
+from labrig.validate import InputError, real
 
 from .experiment import Board, Deposition, Experiment, default_forces
 from .forces import CentreGravity, Drag
@@ -105,5 +105,5 @@ def get_preset(name: str, quick: bool | float = False) -> list[Experiment]:
         raise InputError(f"unknown preset {name!r} (known: {', '.join(PRESETS)})")
     if quick is False:
         return list(PRESETS[name])
-    factor = QUICK_FACTOR if quick is True else quick
+    factor = QUICK_FACTOR if quick is True else real("quick", quick, 0.0, 1.0, low_open=True)
     return [exp.quick(factor) for exp in PRESETS[name]]

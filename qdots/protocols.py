@@ -22,6 +22,7 @@ import numpy as np
 
 from labrig.deprecation import renamed_attributes
 from labrig.deprecation import warn as warn_renamed
+from labrig.progress import progress_bar
 from labrig.validate import InputError, count, generator, real
 
 from .placement import MAX_TRIES, draw_candidates
@@ -134,18 +135,25 @@ def _clear(pos: np.ndarray, r: np.ndarray, board, segments: np.ndarray) -> np.nd
 
 def _sequential(sim, n, mean_diameter, mass_model, heavy_mass, interval, max_tries, rng, progress,
                 draw, where, area) -> np.ndarray:
-    """Place, add, advance, ``n`` times; ``draw(i, m)`` gives ``m`` candidates for dot ``i``."""
+    """Place, add, advance, ``n`` times; ``draw(i, m)`` gives ``m`` candidates for dot ``i``.
+
+    The whole deposition is checked first: at most `qdots.scene.MAX_DOTS` dots on the board at the end,
+    and its ``n`` runs of ``interval`` s checked as one run (`qdots.Simulation.check_run`: steps, forces,
+    writers).
+    """
     n, max_tries = count("n_dots", n, 0, MAX_DOTS), count("max_tries", max_tries, 1, MAX_TRIES)
     interval = real("interval", interval, 0.0, MAX_INTERVAL, unit="s")
     if mass_model not in MASS_MODELS:
         raise InputError(f"mass_model must be one of {MASS_MODELS}, got {mass_model!r}")
-    bar = None
-    if progress:
-        from tqdm.auto import tqdm
-
-        bar = tqdm(total=n, unit="dot", desc="qdots deposit", leave=False)
-    diameters = np.empty(n)
+    if sim.n_dots + n > MAX_DOTS:
+        raise InputError(f"n_dots = {n:,} would bring the board to {sim.n_dots + n:,} dots ({sim.n_dots:,} on it), "
+                         f"more than the {MAX_DOTS:,} allowed")
     try:
+        sim.check_run(n * round(interval / sim.dt) * sim.dt)
+    except InputError as exc:
+        raise InputError(f"n_dots = {n:,} dots {interval:g} s apart: {exc}") from None
+    diameters = np.empty(n)
+    with progress_bar(n, unit="dot", desc="qdots deposit", show=progress, leave=False) as bar:
         for i in range(n):
             board, tries, hit = sim.state(), 0, None
             while hit is None and tries < max_tries:
@@ -161,11 +169,7 @@ def _sequential(sim, n, mean_diameter, mass_model, heavy_mass, interval, max_tri
             mass = dot_masses(diameters[i : i + 1], mean_diameter, mass_model, heavy_mass, rng)
             sim.add_dots(pos[hit][None, :], r[hit : hit + 1], masses=mass)
             sim.run(interval)
-            if bar is not None:
-                bar.update(1)
-    finally:
-        if bar is not None:
-            bar.close()
+            bar.update(1)
     return diameters
 
 
@@ -209,7 +213,8 @@ def deposit(sim, n_dots: int, mean_diameter: float = 15.0, sigma: float = 0.0, r
     sim : Simulation
         The running board; advanced by ``n_dots * interval`` s.
     n_dots : int
-        Dots to add (>= 0).
+        Dots to add (>= 0; the board holds at most `qdots.scene.MAX_DOTS`). The ``n_dots`` runs of
+        ``interval`` s are checked as one run before the first dot (`qdots.Simulation.check_run`).
     mean_diameter : float
         Mean diameter, px (> 0; thesis 15).
     sigma : float

@@ -21,10 +21,9 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Rectangle
 from matplotlib.transforms import ScaledTranslation
 
-from labrig.files import atomic_path
+from labrig.figures import save_figure
 from labrig.movies import FigureMovie
 from labrig.validate import InputError
-
 
 def size_colours(radii, mean: float | None = None, sigma: float | None = None) -> np.ndarray:
     """RGB colour of each dot by size: large red, mean green, small blue.
@@ -249,7 +248,7 @@ def draw_state(state, ax=None, colours=None, show_time: bool = True, key: bool =
 
 
 def save_png(state, path, dpi: int = 100) -> Path:
-    """Write a picture of the board to ``path`` (PNG, 6 x 6 in at ``dpi``), atomically.
+    """Write a picture of the board to ``path`` (PNG, 6 x 6 in at ``dpi``, at most `labrig.figures.MAX_DPI`), atomically.
 
     Axes in px, with the key of the size colours and of the heavy dots below the board.
 
@@ -258,16 +257,11 @@ def save_png(state, path, dpi: int = 100) -> Path:
     pathlib.Path
         The path written.
     """
-    if not (isinstance(dpi, numbers.Real) and dpi > 0):
-        raise InputError(f"dpi must be > 0, got {dpi!r}")
     fig = Figure(figsize=(6, 6))
     FigureCanvasAgg(fig)
     ax = fig.add_axes((0.14, 0.27, 0.76, 0.66))
     draw_state(state, ax, key=True)
-    path = Path(path)
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png", dpi=dpi)
-    return path
+    return save_figure(fig, path, dpi, format="png")
 
 
 class MovieWriter(FigureMovie):
@@ -299,6 +293,10 @@ class MovieWriter(FigureMovie):
     ...     sim.attach(movie)
     ...     sim.run(20.0)
     """
+
+    #: Most frames a movie takes (over an hour at 25 frames/s; matplotlib draws each in ~20 ms): a run that
+    #: would give it more is refused before it starts (`qdots.writers`).
+    max_records = 100_000
 
     def __init__(self, path, every: int = 50, fps: float = 25, size_px: int = 600):
         if not (isinstance(every, numbers.Integral) and every >= 1):

@@ -9,14 +9,16 @@ velocities), plus the collision rule. It holds no engine state; a
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.spatial import cKDTree
 
-from labrig.validate import InputError, array, flag, number, real
+from labrig.validate import InputError, array, flag, is_real, number, real, reals
 
 from .collisions import Restitution
+from .neighbours import MAX_PAIRS, pair_bound
 
 #: Most dots a scene holds (Chipmunk needs about 1 kB per dot).
 MAX_DOTS = 1_000_000
@@ -28,6 +30,9 @@ MAX_LENGTH = 1e6
 MAX_MASS = 1e6
 #: Largest speed given as input, px/s (a mean dot crosses the thesis's board in 0.6 ms).
 MAX_SPEED = 1e6
+#: Most (point, segment) distances of one `segment_distances` call: about 60 bytes each in its
+#: temporaries, 1.2 GB (the hard cases take 30,000 dots x 4 walls, a deposition 32 candidates x the lines).
+MAX_DISTANCES = 20_000_000
 
 
 def _positive(name: str, arr: np.ndarray, high: float) -> None:
@@ -75,7 +80,8 @@ class Scene:
         On a non-finite or out-of-range value (sizes up to `MAX_LENGTH` px, `MAX_DOTS` dots,
         masses in (1/`MAX_MASS`, `MAX_MASS`], speeds up to `MAX_SPEED` px/s), a dot outside the
         box, two overlapping dots or a zero-length segment; the message names the field and the
-        index.
+        index. Also when the overlap check (pairs within twice the largest radius) would list more
+        than `qdots.neighbours.MAX_PAIRS` pairs: a few huge dots among very many small ones.
     """
 
     box: tuple[float, float]
@@ -140,8 +146,14 @@ class Scene:
             )
 
     def _check_no_overlap(self) -> None:
-        if self.n_dots < 2:
+        n = self.n_dots
+        if n < 2:
             return
+        if n * (n - 1) // 2 > MAX_PAIRS:
+            bound = pair_bound(self.positions[:, 0], self.positions[:, 1], 2.0 * float(self.radii.max()))
+            if bound > MAX_PAIRS:
+                raise InputError(f"radii: the largest, {float(self.radii.max()):g} px, makes the overlap check of the "
+                                 f"{n:,} dots take up to {bound:.3g} pairs, more than the {MAX_PAIRS:,} allowed")
         pairs = cKDTree(self.positions).query_pairs(2.0 * self.radii.max(), output_type="ndarray")
         if not len(pairs):
             return
@@ -180,10 +192,13 @@ def segment_distances(points: np.ndarray, segments: np.ndarray) -> np.ndarray:
     ----------
     points : ndarray, shape (P, 2)
     segments : ndarray, shape (M, 4)
-        ``(x0, y0, x1, y1)`` with nonzero length.
+        ``(x0, y0, x1, y1)`` with nonzero length. ``P * M`` is at most `MAX_DISTANCES`.
     """
     points = np.asarray(points, dtype=float).reshape(-1, 2)
     segments = np.asarray(segments, dtype=float).reshape(-1, 4)
+    if len(points) * len(segments) > MAX_DISTANCES:
+        raise InputError(f"{len(points):,} points x {len(segments):,} segments make {len(points) * len(segments):,} "
+                         f"distances, more than the {MAX_DISTANCES:,} allowed")
     start, along = segments[None, :, :2], segments[None, :, 2:] - segments[None, :, :2]
     offset = points[:, None, :] - start
     t = np.clip(np.einsum("pmk,pmk->pm", offset, along) / np.einsum("pmk,pmk->pm", along, along), 0.0, 1.0)
@@ -217,10 +232,16 @@ def grating_segments(box: tuple[float, float], pitch: float, offset: float = 0.0
     -------
     ndarray, shape (M, 4)
         Segments ``(0, y, width, y)`` for ``y = offset + pitch, offset + 2 pitch, ...`` below the
-        top edge.
+        top edge: at most `MAX_SEGMENTS`.
     """
+    reals("box", box, 2, 0.0, MAX_LENGTH, unit="px")
     width, height = box
-    if not pitch > 0:
+    real("offset", offset, -MAX_LENGTH, MAX_LENGTH, unit="px")
+    if not (is_real(pitch) and math.isfinite(pitch) and pitch > 0):
         raise InputError(f"grating pitch must be > 0 px, got {pitch!r}")
+    lines = (height - offset) / pitch - 1.0
+    if lines > MAX_SEGMENTS:
+        raise InputError(f"grating pitch = {pitch:g} px gives {lines:.3g} lines on a board {height:g} px high, "
+                         f"more than the {MAX_SEGMENTS:,} allowed")
     ys = np.arange(offset + pitch, height, pitch)
     return np.column_stack([np.zeros_like(ys), ys, np.full_like(ys, width), ys])

@@ -17,6 +17,7 @@ from typing import Iterable, Sequence
 import numpy as np
 
 from labrig.deprecation import warn as warn_renamed
+from labrig.progress import progress_bar
 from labrig.validate import InputError, real
 from labrig.validate import seed as valid_seed
 
@@ -118,6 +119,8 @@ class Simulation:
             if not isinstance(force, Force):
                 raise InputError(f"forces must be qdots.forces.Force instances, got {type(force).__name__}")
         for force in forces:
+            force.check_run(self.dt)
+        for force in forces:
             force.bind(self.radii, self.masses)
         self._forces = forces
 
@@ -134,6 +137,8 @@ class Simulation:
     def settings(self, settings: EngineSettings) -> None:
         if not isinstance(settings, EngineSettings):
             raise InputError(f"settings must be a qdots.EngineSettings, got {type(settings).__name__}")
+        for force in self._forces:
+            force.check_run(settings.dt)
         time_now = self.time
         old, self._settings = self._settings, settings
         if settings.dt != old.dt:  # the time so far is kept; steps count from here with the new step
@@ -299,9 +304,10 @@ class Simulation:
         Parameters
         ----------
         seconds : float
-            Simulated time to advance, s (>= 0; at most `MAX_STEPS` steps).
+            Simulated time to advance, s (>= 0; checked by `check_run` before the first step).
         progress : bool
-            Show a progress bar in simulated seconds with an ETA (needs ``tqdm``).
+            Show a progress bar in steps with an ETA (`labrig.progress.progress_bar`: it says when numba compiles
+            and leaves that time out of its ETA).
         writers : sequence of Writer
             Deprecated: attach writers with `attach`. Writers given here are attached (with their
             own ``every``) if they are not already.
@@ -324,23 +330,14 @@ class Simulation:
             Once per simulation, when a dot moves more than `SAFE_TRAVEL`
             radii in one sub-step (contacts can then be missed).
         """
-        seconds = real("seconds", seconds, 0.0)
-        n_steps = round(seconds / self.dt)
-        if n_steps > MAX_STEPS:
-            raise InputError(f"a run of {seconds:g} s at dt = {self.dt:g} s is {n_steps:,} steps, more than the "
-                             f"{MAX_STEPS:,} one run may take")
+        n_steps = self.check_run(seconds)
         for writer in writers:
             if writer not in self.writers:
                 warn_renamed("Simulation.run(writers=...)", "Simulation.attach(writer)")
                 self.attach(writer)
-        bar = None
-        if progress:
-            from tqdm.auto import tqdm
-
-            bar = tqdm(total=n_steps, unit="step", desc="qdots run", leave=False)
         chunk = max(CHECK_EVERY, n_steps // 200)
         end = self.steps_taken + n_steps
-        try:
+        with progress_bar(n_steps, unit="step", desc="qdots run", show=progress, leave=False) as bar:
             while True:
                 self._schedule.write_due(self.steps_taken, self.state)
                 if self.steps_taken >= end:
@@ -349,13 +346,25 @@ class Simulation:
                 done = stop - self.steps_taken
                 self.step(done)
                 self._check_motion()
-                if bar is not None:
-                    bar.update(done)
-                    bar.set_postfix_str(f"t = {self.time:.2f} s", refresh=False)
-        finally:
-            if bar is not None:
-                bar.close()
+                bar.update(done)
+                bar.set_postfix_str(f"t = {self.time:.2f} s", refresh=False)
         return self.state()
+
+    def check_run(self, seconds: float) -> int:
+        """The steps a run of ``seconds`` s takes; `InputError` if it would take more than `MAX_STEPS`, make a force
+        act more often than it may (`qdots.forces.Force.check_run`), or give a writer more states than it takes.
+
+        `run` calls it before it starts; call it yourself to check a series of runs (a deposition) as one.
+        """
+        seconds = real("seconds", seconds, 0.0)
+        n_steps = round(seconds / self.dt)
+        if n_steps > MAX_STEPS:
+            raise InputError(f"a run of {seconds:g} s at dt = {self.dt:g} s is {n_steps:,} steps, more than the "
+                             f"{MAX_STEPS:,} one run may take")
+        for force in self._forces:
+            force.check_run(self.dt, n_steps)
+        self._schedule.check_run(self.steps_taken, n_steps)
+        return n_steps
 
     def _check_motion(self) -> None:
         """Stop when the dots leave the model's range; warn (once) when contacts can be missed at this speed."""

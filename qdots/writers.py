@@ -17,8 +17,17 @@ from labrig.validate import InputError, count, real
 from .state import State
 
 
+#: Most states one writer may be given over a simulation's life, unless it states its own ``max_records``
+#: (a trajectory of 1,000,000 frames of 300 dots holds about 5 GB).
+MAX_RECORDS = 1_000_000
+
+
 class Writer(Protocol):
-    """Anything that records states during a run (movie, trajectory, table)."""
+    """Anything that records states during a run (movie, trajectory, table).
+
+    A writer may state ``max_records``, the most states it takes (default `MAX_RECORDS`): a run that would
+    give it more is refused before it starts.
+    """
 
     def write(self, state: State) -> None: ...
 
@@ -31,6 +40,7 @@ class Attached:
     period: int
     seconds: float | None = None  # given in seconds: the period follows the time step
     last: int = -1  # the step last written
+    records: int = 0  # states given so far
 
 
 def steps_in(seconds: float, dt: float) -> int:
@@ -83,6 +93,16 @@ class WriterSchedule:
             if attached.seconds is not None:
                 attached.period = steps_in(attached.seconds, dt)
 
+    def check_run(self, step: int, n_steps: int) -> None:
+        """`InputError` when a run of ``n_steps`` steps from ``step`` would give a writer more states than its
+        ``max_records`` (default `MAX_RECORDS`), counting those it has had."""
+        for a in self._attached:
+            due = (step + n_steps) // a.period - step // a.period + (step % a.period == 0 and a.last != step)
+            limit = getattr(a.writer, "max_records", MAX_RECORDS)
+            if a.records + due > limit:
+                raise InputError(f"{type(a.writer).__name__} would get {a.records + due:,} states (one every {a.period:,} "
+                                 f"steps over {n_steps:,} steps), more than the {limit:,} it takes: write less often")
+
     def next_due(self, step: int, end: int) -> int:
         """The first step after ``step`` at which a writer writes, or ``end`` if none comes before it."""
         return min([end, *(step + a.period - step % a.period for a in self._attached)])
@@ -93,3 +113,4 @@ class WriterSchedule:
             if step % attached.period == 0 and attached.last != step:
                 attached.writer.write(state())
                 attached.last = step
+                attached.records += 1

@@ -27,7 +27,7 @@ def top_level_boxes(path: Path) -> list[str]:
 def probe(path: Path) -> dict:
     """Codec, pixel format, width, height, fps (as ffmpeg reads the file), frame count and box order."""
     ffmpeg = imageio_ffmpeg.get_ffmpeg_exe()
-    info = subprocess.run([ffmpeg, "-hide_banner", "-i", str(path)], capture_output=True, text=True).stderr
+    info = subprocess.run([ffmpeg, "-hide_banner", "-i", str(path)], capture_output=True, text=True, timeout=120).stderr
     video = next(line for line in info.splitlines() if "Video:" in line)
     codec = re.search(r"Video: (\w+)", video).group(1)
     pix_fmt = re.search(r"Video: \w+[^,]*, (\w+)", video).group(1)

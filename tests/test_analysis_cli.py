@@ -1,6 +1,7 @@
 """``qdots analyze``: table, JSON and figure of a saved state; bad input exits 2."""
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -44,6 +45,10 @@ def test_analyze_table_and_plot(state_file, tmp_path, capsys):
                  "--forster-radius", "20", "--draws", "1"]) == 0
     text = capsys.readouterr().out
     assert "interior fraction" in text and "film LQE (exact)" in text and f"wrote {png}" in text
+    # equal sizes: the correlation is said to be undefined, not printed as a bare nan
+    assert re.search(r"size-separation correlation +undefined for equal sizes\n", text) and "nan" not in text
+    assert re.search(r"size spread \(SD / mean diameter\) +0.0 %\n", text)
+    assert re.search(r"film LQE \(exact\) +0.\d{4} for one trap draw \(no standard error\)", text)
     assert png.stat().st_size > 10_000
     assert main(["analyze", str(state_file), "--plot", "--draws", "1"]) == 0
     assert state_file.with_name("flake_analysis.png").exists()
@@ -53,6 +58,7 @@ def test_analyze_table_and_plot(state_file, tmp_path, capsys):
     (["--traps", "1.5"], "--traps"),
     (["--rule", "java"], "--rule"),
     (["--forster-radius", "-3"], "--forster-radius"),
+    (["--forster-radius", "1e300"], "--forster-radius: must be in (0, 1e9]"),
     (["--forster-radius", "1"], "forster_radii=1"),
     (["--forster-radius", "15", "--forster-radii", "2"], "not allowed with"),
     (["--forster-radii", "0"], "--forster-radii"),

@@ -6,7 +6,7 @@ import zipfile
 import numpy as np
 import pytest
 
-import labrig.files
+import labrig.archive
 import qdots
 from qdots.io import checkpoint
 
@@ -84,7 +84,7 @@ def test_crash_mid_write_keeps_the_old_file(tmp_path, monkeypatch):
         stream.write(b"PK\x03\x04 partial")
         raise OSError("disk full")
 
-    monkeypatch.setattr(labrig.files.np, "savez", crash)
+    monkeypatch.setattr(labrig.archive.np, "savez", crash)
     with pytest.raises(OSError, match="disk full"):
         qdots.save(sim, path)
     assert path.read_bytes() == before

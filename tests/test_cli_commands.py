@@ -32,7 +32,7 @@ def test_preset_writes_every_file(preset_run):
             assert stem + suffix in names
     table = rows(preset_run / "summary.csv")
     assert [r["sigma"] for r in table] == ["0.0", "0.15"]
-    assert all(0 <= float(r["max_overlap"]) < 0.05 for r in table)
+    assert all(0 <= float(r["max_overlap_pct_radius"]) < 5 for r in table)  # percent of a radius
     # the movie has one frame per 0.5 s of simulated time, from t = 0 to the end
     state = qdots.read_state(preset_run / f"{stems[0]}.npz")
     reader = imageio.get_reader(preset_run / f"{stems[0]}.mp4")

@@ -7,13 +7,16 @@ never a traceback, a hang, or a changed earlier file. A few examples per kind ru
 runs many more.
 """
 
+import contextlib
+import functools
 import json
+import signal
 import string
 
 import numpy as np
 import pytest
 from conftest import to_toml
-from hypothesis import HealthCheck, example, given, settings
+from hypothesis import HealthCheck, Phase, example, given, settings
 from hypothesis import strategies as st
 
 import qdots
@@ -23,6 +26,8 @@ from qdots.cli import main as qdots_main
 from qdots.io.experiment_file import experiment_from_dict
 
 FEW, MANY = 12, 60
+#: CPU seconds one example may take: a file that makes a run loop for ever fails its test instead of stalling it.
+EXAMPLE_CPU_SECONDS = 60
 
 WEIRD = st.one_of(
     st.booleans(),
@@ -71,17 +76,45 @@ def refused_in_one_line(capsys, prog: str) -> str:
     return err
 
 
+class ExampleTooLong(Exception):
+    """An example used more than `EXAMPLE_CPU_SECONDS` of CPU time."""
+
+
+@contextlib.contextmanager
+def cpu_time_limit(seconds: float):
+    """Raise `ExampleTooLong` in the block once the process has used ``seconds`` more CPU time (a virtual timer:
+    the wall-clock alarm stays free for the per-test timeout)."""
+    def stop(signum, frame):
+        raise ExampleTooLong(f"the example used more than {seconds:g} s of CPU time: a run that does not end?")
+
+    previous = signal.signal(signal.SIGVTALRM, stop)
+    signal.setitimer(signal.ITIMER_VIRTUAL, seconds)
+    try:
+        yield
+    finally:
+        signal.setitimer(signal.ITIMER_VIRTUAL, 0)
+        signal.signal(signal.SIGVTALRM, previous)
+
+
 def fuzz_tests(check, *examples, **strategies):
     """Two tests of ``check(fixtures..., **drawn)`` on hypothesis draws from ``strategies``: ``FEW`` examples
-    by default and ``MANY`` under ``-m slow`` (the explicit ``examples`` in the default one)."""
-    def test(max_examples):
-        return settings(max_examples=max_examples, deadline=None,
-                        suppress_health_check=[HealthCheck.function_scoped_fixture])(given(**strategies)(check))
+    by default (drawn the same way every time) and ``MANY`` random ones under ``-m slow`` (the explicit
+    ``examples`` in the default one). Each example gets `EXAMPLE_CPU_SECONDS`; a failure is reported as found,
+    not shrunk (shrinking would re-run an example that does not end)."""
+    @functools.wraps(check)
+    def limited(*args, **kwargs):
+        with cpu_time_limit(EXAMPLE_CPU_SECONDS):
+            return check(*args, **kwargs)
 
-    few = test(FEW)
+    def test(max_examples, derandomize):
+        return settings(max_examples=max_examples, deadline=None, derandomize=derandomize,
+                        phases=(Phase.explicit, Phase.generate),
+                        suppress_health_check=[HealthCheck.function_scoped_fixture])(given(**strategies)(limited))
+
+    few = test(FEW, True)
     for drawn in examples:
         few = example(**drawn)(few)
-    return few, pytest.mark.slow(test(MANY))
+    return few, pytest.mark.slow(test(MANY, False))
 
 
 def snapshot(directory) -> dict:
@@ -136,6 +169,7 @@ test_experiment_files, test_experiment_files_many = fuzz_tests(
     check_experiment_file,
     dict(mutations=[("forces.0.r0", False)]),  # found by CI: a key inside the list of forces
     dict(mutations=[("forces", 5), ("forces.1.scale", 2.0)]),  # a list made a value, then one of its tables
+    dict(mutations=[("forces.1.interval", 1e-300)]),  # found by a user's run: a kick per 1e-300 s looped for ever
     mutations=MUTATIONS)
 
 
@@ -270,6 +304,14 @@ SWEEP_ARGS = dict(mutations=st.lists(st.tuples(st.sampled_from(SWEEP_KEYS), WEIR
 
 
 test_sweep_files, test_sweep_files_many = fuzz_tests(check_sweep_file, **SWEEP_ARGS)
+
+
+def test_an_example_that_does_not_end_fails_in_bounded_time():
+    with pytest.raises(ExampleTooLong, match="more than 0.2 s of CPU time"):
+        with cpu_time_limit(0.2):
+            while True:
+                pass
+    assert signal.getitimer(signal.ITIMER_VIRTUAL) == (0.0, 0.0)  # disarmed after the example
 
 
 def test_the_checks_fail_on_a_traceback_or_a_long_message(tmp_path, capsys, earlier, monkeypatch):

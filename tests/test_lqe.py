@@ -219,6 +219,23 @@ def test_forster_radius_unit_cannot_be_mistaken():
     assert by_radii.mean > film_lqe(b, draws=2, seed=0).mean  # shorter R_F, fewer hops to traps
 
 
+def test_forster_radius_is_bounded_by_what_the_rates_can_hold():
+    """R_F**6 overflowed a float (OverflowError) for R_F = 1e300: R_F is bounded in mean radii as forster_radii
+    is, and in px on any board; the cutoff and its bound are inf where they exceed a float; no hop may be
+    faster than the computation holds."""
+    b = board(hex_lattice(4))
+    for radius, match in ((1e300, r"forster_radius must be at most 1e9 px, got 1e\+300"),
+                          (1001 * R, r"forster_radius must be at most 1000 mean radii \(7500 px on this board\)")):
+        with pytest.raises(ValueError, match=match):
+            exciton_network(b, forster_radius=radius)
+    widest = exciton_network(b, forster_radius=1000 * R, seed=0)
+    assert widest.truncation_bound == 0.0 and widest.rates.nnz == 16 * 15  # every pair
+    assert cutoff_for(1e300, 1.0, 1e-3) == math.inf and truncation_bound(1e300, 10.0, 1.0) == math.inf
+    assert cutoff_for(15.0, 1e-200, 1e-3) == math.inf  # (h * h underflowed to 0)
+    with pytest.raises(ValueError, match=r"would hop at 1e\d+ per ns, more than the 1e200 the computation holds"):
+        exciton_network(b, tau=1e-300)
+
+
 def test_film_lqe_averages_trap_draws():
     b = board(hex_lattice(10))
     avg = film_lqe(b, draws=4, seed=3)

@@ -91,7 +91,8 @@ def test_large_overlap_at_a_coarse_time_step_is_measured_and_warned_not_refused(
     overlap = qdots.analysis.overlaps(state)[0]
     assert overlap > qdots.simulation.OVERLAP_WARNING  # measured and kept ...
     header, row = (tmp_path / "out" / "summary.csv").read_text().splitlines()[:2]
-    assert float(row.split(",")[header.split(",").index("max_overlap")]) == pytest.approx(overlap, rel=1e-6)
+    assert float(row.split(",")[header.split(",").index("max_overlap_pct_radius")]) == pytest.approx(100 * overlap,
+                                                                                                     rel=1e-6)
     assert "warning: coarse: dots overlap" in captured.err  # ... and said
     run_ok(qdots_main, ["render", str(tmp_path / "out" / "coarse.npz")], capsys)
 
@@ -227,18 +228,20 @@ def test_sweep_workers_exit_when_the_sweep_is_killed(tmp_path):
     children = []
     for _ in range(100):
         time.sleep(0.1)
-        children = subprocess.run(["pgrep", "-P", str(parent.pid)], capture_output=True, text=True).stdout.split()
+        children = subprocess.run(["pgrep", "-P", str(parent.pid)], capture_output=True, text=True,
+                                  timeout=30).stdout.split()
         if len(children) >= 2:
             break
     assert len(children) >= 2, "the pool did not start"
     parent.send_signal(signal.SIGKILL)
-    parent.wait()
+    parent.wait(timeout=30)
     deadline = time.time() + 10
     alive = children
     while alive and time.time() < deadline:
         time.sleep(0.2)
-        alive = [c for c in alive if subprocess.run(["kill", "-0", c], capture_output=True).returncode == 0
-                 and "Z" not in subprocess.run(["ps", "-o", "stat=", "-p", c], capture_output=True, text=True).stdout]
+        alive = [c for c in alive if subprocess.run(["kill", "-0", c], capture_output=True, timeout=30).returncode == 0
+                 and "Z" not in subprocess.run(["ps", "-o", "stat=", "-p", c], capture_output=True, text=True,
+                                               timeout=30).stdout]
     assert not alive, f"orphaned workers still running: {alive}"
 
 

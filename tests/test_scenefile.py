@@ -45,6 +45,16 @@ def test_an_unset_setting_whose_default_is_set_round_trips_as_false():
     assert experiment_from_toml(experiment_to_toml(Experiment())).engine.overlap_tolerance == 0.005
 
 
+def test_a_force_parameter_unset_from_a_set_default_round_trips_as_false():
+    """Every vdW pair every step (``far_interval=None``) was written as a comment and read back as the 20 ms
+    default: a saved experiment ran another model."""
+    exp = Experiment(forces=(qdots.VanDerWaals(far_interval=None), qdots.ThermalKicks()))
+    text = experiment_to_toml(exp)
+    assert "\nfar_interval = false " in text and "# strength (unset)" in text
+    back = experiment_from_toml(text)
+    assert back == exp and back.forces[0]["far_interval"] is None
+
+
 def test_written_file_has_every_key_with_units():
     text = experiment_to_toml(PRESETS["fig2-2"][1])
     for line in ("sigma = 0.15", "# fraction of mean diameter, [0, 1)", "[board]", "[deposition]",

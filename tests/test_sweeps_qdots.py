@@ -57,6 +57,7 @@ def test_local_sweep_rows_are_the_runs(local):
     exp = TINY.replace(seed=155, deposition=dataclasses.replace(TINY.deposition, sigma=0.15))
     sim = run_experiment(exp)
     expected = packing_summary(sim.state())
+    expected["max_overlap_pct_radius"] = 100 * expected.pop("max_overlap")  # the table's column: percent
     assert all(same(row[key], value) for key, value in expected.items())
     assert row["steps"] == sim.steps_taken
     saved = qdots.read_state(out / row["state_file"])
@@ -99,7 +100,11 @@ def test_command_line_sweep_and_plot(tmp_path, capsys):
     rows = read_table(table)
     assert len(rows) == 8 and {r["deposition.n_dots"] for r in rows} == {3}  # quick: half the dots
     assert [r["label"] for r in rows[::2]] == ["free", "free", "grating", "grating"]
-    assert "already done" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert "already done" in printed
+    # said before anything ran: the count, what is left, the workers, a time estimate, the resolved directory
+    assert "sweep: 8 runs (2 points x 2 deposition.sigma x 2 seeds): 0 finished before, 8 to run on 2 workers, " \
+           "about " in printed and f"; output: {(tmp_path / 'sweep').resolve()}\n" in printed
     assert main(["sweep", str(path), "--quick", "0.5", "--workers", "1"]) == 0
     assert "already done  8" in capsys.readouterr().out
     assert main(["sweep-plot", str(table), "--metric", "mean_neighbours", "--x", "deposition.sigma",
@@ -125,6 +130,31 @@ def test_command_line_bad_sweep_files(tmp_path, capsys, extra, words):
     err = capsys.readouterr().err
     assert err.startswith("qdots: error: ") and words in err and err.count("\n") == 1
     assert not (tmp_path / "sweep" / "table.csv").exists()
+
+
+def test_a_sweep_larger_than_its_bound_is_refused_before_anything_runs(tmp_path, capsys):
+    """300 x 300 = 90,000 runs used to start without a word."""
+    path = write_sweep(tmp_path, '[axes.board]\nwidth = {start = 300, stop = 599, num = 300}\n'
+                                 'height = {start = 300, stop = 599, num = 300}\n')
+    assert main(["sweep", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert "the sweep has 720,000 runs (points x axes x seeds), more than the 100,000 a sweep may have" in err
+    path = write_sweep(tmp_path, '[axes.board]\nwidth = {start = 300, stop = 599, num = 300}\n')
+    assert main(["sweep", str(path), "--workers", "1"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("qdots: error: the sweep has 2,400 runs (2 points x 2 deposition.sigma x 300 board.width x "
+                          "2 seeds), more than the 1,000 it may start: raise max_runs (--max-runs") and err.count("\n") == 1
+    assert not (tmp_path / "sweep").exists()
+    assert main(["sweep", str(path), "--max-runs", "100001"]) == 2
+    assert "--max-runs: must be an integer in [1, 100,000]" in capsys.readouterr().err
+
+
+def test_an_output_directory_that_is_a_dangling_link_is_named(tmp_path, capsys):
+    path = write_sweep(tmp_path)
+    (tmp_path / "sweep").symlink_to(tmp_path / "gone")
+    assert main(["sweep", str(path), "--workers", "1"]) == 2
+    err = capsys.readouterr().err
+    assert "is a symbolic link to" in err and "which does not exist" in err and "Errno" not in err
 
 
 def test_failed_runs_give_exit_status_1(tmp_path, capsys, monkeypatch):

@@ -121,7 +121,7 @@ def test_killed_sweep_resumes_without_rerunning_finished_runs(tmp_path, log):
     while len(run_records(out)) < 3 and time.monotonic() < deadline and proc.poll() is None:
         time.sleep(0.02)
     proc.send_signal(signal.SIGKILL)
-    proc.wait()
+    proc.wait(timeout=30)
     finished = {p.stem for p in run_records(out)}
     assert 3 <= len(finished) < 8, "the sweep should have been killed part way"
     for path in run_records(out):  # every record is whole

@@ -12,7 +12,9 @@ from ..cli import fraction, int_in, print_table
 from ..files import slug
 from .backends import MAX_WORKERS
 from .execute import MAX_RETRIES, run_sweep
+from ..validate import printable
 from .files import SweepFile
+from .spec import DEFAULT_MAX_RUNS, MAX_RUNS
 from .plot import save_sweep_plot, summarize, summary_lines
 
 
@@ -25,9 +27,14 @@ def add_sweep_parser(subparsers, package: str, what: str) -> argparse.ArgumentPa
                     "finished runs. The table of all runs goes to DIR/table.csv (and table.parquet with "
                     f"pyarrow). Exit status 1 if some run failed (its error is in the table). "
                     f"Plot it with '{package} sweep-plot'.")
-    p.add_argument("sweep", type=Path, metavar="SWEEP.toml", help="sweep file")
+    p.add_argument("sweep", type=Path, metavar="SWEEP.toml", help="sweep file; the paths in it (base, output.dir) "
+                   "are relative to the sweep file's folder")
     p.add_argument("--out", type=Path, default=None, metavar="DIR",
-                   help="output directory (default: the file's output.dir, else its name beside it)")
+                   help="output directory (default: the file's output.dir, relative to the sweep file, else the "
+                        "file's name beside it); printed, resolved, when the sweep starts")
+    p.add_argument("--max-runs", type=int_in(1, MAX_RUNS), default=DEFAULT_MAX_RUNS, metavar="N",
+                   help=f"refuse a sweep of more runs than this (default {DEFAULT_MAX_RUNS:,}, at most {MAX_RUNS:,}); "
+                        "the run count is printed before anything runs")
     p.add_argument("--workers", type=int_in(1, MAX_WORKERS), default=None, metavar="N",
                    help="local worker processes (default: all cores; 1 runs in this process)")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
@@ -56,7 +63,7 @@ def run_sweep_command(args: argparse.Namespace, sweep_file: SweepFile, runner) -
     """Run a parsed sweep file with the command's options; print what happened."""
     out = sweep_file.out if args.out is None else args.out
     result = run_sweep(sweep_file.sweep, runner, out, workers=args.workers, scheduler=args.scheduler,
-                       retries=args.retries, state=sweep_file.state)
+                       retries=args.retries, state=sweep_file.state, max_runs=args.max_runs)
     rows = [("runs", str(len(result.rows))), ("ran now", str(result.ran)),
             ("already done", str(result.skipped)), ("failed", str(result.failed)), ("table", str(result.table))]
     if result.parquet is not None:
@@ -64,7 +71,7 @@ def run_sweep_command(args: argparse.Namespace, sweep_file: SweepFile, runner) -
     print_table(f"{sweep_file.source}:", rows)
     failed = [row for row in result.rows if row["status"] != "ok"]
     for row in failed[:5]:
-        print(f"run {row['run']} failed: {row['error']} (details: {Path(out) / 'runs' / row['run']}.json)",
+        print(f"run {row['run']} failed: {printable(str(row['error']))} (details: {Path(out) / 'runs' / row['run']}.json)",
               file=sys.stderr)
     if len(failed) > 5:
         print(f"... and {len(failed) - 5} more failed runs (see the table's error column)", file=sys.stderr)

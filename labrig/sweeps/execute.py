@@ -36,7 +36,7 @@ from typing import Callable
 from ..files import write_text_atomic
 from ..validate import InputError, count
 from .backends import LocalPool, make_backend
-from .spec import Run, Sweep
+from .spec import DEFAULT_MAX_RUNS, Run, Sweep
 from .table import table_rows, write_table
 
 #: Format tag and version of the per-run record files.
@@ -130,10 +130,13 @@ def record_path(out: Path, run: Run) -> Path:
 
 
 def read_record(out: Path, run: Run) -> dict | None:
-    """The record of ``run`` in ``out``, or None if there is none (or it is unreadable or another run's)."""
+    """The record of ``run`` in ``out``, or None if there is none (or it is unreadable, refused by
+    `labrig.jsonfile.read_json`, e.g. nested too deep, or another run's)."""
+    from ..jsonfile import read_json
+
     try:
-        record = json.loads(record_path(out, run).read_text(encoding="utf-8"))
-    except (OSError, ValueError):
+        record = read_json(record_path(out, run), "sweep record")
+    except (OSError, ValueError):  # InputError among them
         return None
     ok = isinstance(record, dict) and record.get("format") in RECORD_FORMATS and record.get("id") == run.id
     return record if ok else None
@@ -168,8 +171,41 @@ def _progress(total: int, done: int, show: bool):
     return tqdm(total=total, initial=done, unit="run", desc="sweep", disable=not show, dynamic_ncols=True)
 
 
+def output_directory(out: str | os.PathLike) -> Path:
+    """``out`` as an absolute, normalised directory path, created if missing; `InputError` when something else is
+    there (a file, or a symbolic link to nothing)."""
+    out = Path(os.path.abspath(out))
+    if out.is_symlink() and not out.exists():
+        raise InputError(f"output directory {str(out)!r} is a symbolic link to {os.readlink(out)!r}, which does not exist")
+    if out.exists() and not out.is_dir():
+        raise InputError(f"output directory {str(out)!r} is a file, not a directory")
+    out.mkdir(parents=True, exist_ok=True)
+    return out
+
+
+def describe_plan(sweep: Sweep, runs: list, todo: int, capacity: int, estimate) -> str:
+    """One line saying what a sweep is about to do: its runs, how many are left, on how many workers, and about
+    how long that takes when the runner can estimate a run (``estimate(params) -> seconds``)."""
+    factors = " x ".join(f"{n:,} {key}" for key, n in sweep.shape().items() if n > 1) or "1 run"
+    line = (f"{len(runs):,} runs ({factors}): {len(runs) - todo:,} finished before, {todo:,} to run "
+            f"on {capacity} worker{'s' if capacity > 1 else ''}")
+    if todo and estimate is not None:
+        seconds = sum(estimate(run.params) for run in runs) * todo / len(runs) / capacity
+        line += f", about {_duration(seconds)} (a rough estimate; the progress bar's ETA follows the runs)"
+    return line
+
+
+def _duration(seconds: float) -> str:
+    if seconds < 90:
+        return f"{seconds:.0f} s"
+    if seconds < 5400:
+        return f"{seconds / 60:.0f} min"
+    return f"{seconds / 3600:.1f} h" if seconds < 48 * 3600 else f"{seconds / 86400:.1f} days"
+
+
 def run_sweep(sweep: Sweep, run_one, out: str | os.PathLike, *, workers: int | None = None, scheduler=None,
-              retries: int = 1, state: bool = False, progress: bool = True) -> SweepResult:
+              retries: int = 1, state: bool = False, progress: bool = True,
+              max_runs: int = DEFAULT_MAX_RUNS) -> SweepResult:
     """Run every unfinished run of ``sweep``, then write the table of all of them.
 
     Parameters
@@ -197,7 +233,11 @@ def run_sweep(sweep: Sweep, run_one, out: str | os.PathLike, *, workers: int | N
     state : bool
         Keep each run's final state in ``out/states``.
     progress : bool
-        One progress bar over the runs (done / total, ETA).
+        Say what is about to run (runs, workers, output directory, an estimate of the time when the runner has an
+        ``estimate(params) -> seconds``), then one progress bar over the runs (done / total, ETA).
+    max_runs : int
+        Most runs the sweep may have (default `DEFAULT_MAX_RUNS`, at most `MAX_RUNS`): a larger sweep is refused
+        before anything runs.
 
     Returns
     -------
@@ -210,9 +250,10 @@ def run_sweep(sweep: Sweep, run_one, out: str | os.PathLike, *, workers: int | N
     """
     runner = as_runner(run_one)
     retries = count("retries", retries, 0, MAX_RETRIES)
+    sweep.check_size(max_runs)
+    out = output_directory(out)
     runs = sweep.runs(runner.canonical, runner.kind)
-    out = Path(out)
-    (out / "runs").mkdir(parents=True, exist_ok=True)
+    (out / "runs").mkdir(exist_ok=True)
     suffix = getattr(runner, "state_suffix", ".npz") if state else None
     if state:
         (out / "states").mkdir(exist_ok=True)
@@ -229,6 +270,9 @@ def run_sweep(sweep: Sweep, run_one, out: str | os.PathLike, *, workers: int | N
         except Exception as exc:
             raise InputError(f"run_one must be picklable to run in worker processes (define it at module "
                              f"level), or use workers=1: {exc}") from None
+    if progress:
+        print(f"sweep: {describe_plan(sweep, runs, len(todo), backend.capacity, getattr(runner, 'estimate', None))}; "
+              f"output: {out}", flush=True)
     bar = _progress(len(runs), skipped, progress)
     try:
         _drive(backend, runner, out, suffix, todo, records, retries, bar)

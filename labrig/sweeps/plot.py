@@ -16,21 +16,38 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from ..files import atomic_path
+from ..jsonfile import read_json
 from ..validate import InputError
 from .table import is_number, parse_cell, read_table
+
+
+def _swept_columns(path: str | os.PathLike) -> list[str]:
+    """The swept columns other than the seed that the ``sweep.json`` at ``path`` records (none if it is missing).
+
+    Raises
+    ------
+    labrig.validate.InputError
+        If the file is there but unreadable (`labrig.jsonfile.read_json`) or not an object whose ``swept``
+        is a list of column names and ``seed_key`` a name or null; the message starts with the path.
+    """
+    try:
+        meta = read_json(path, "sweep description")
+    except FileNotFoundError:
+        return []
+    swept = meta.get("swept") if isinstance(meta, dict) else None
+    seed_key = meta.get("seed_key") if isinstance(meta, dict) else None
+    if not (isinstance(swept, list) and all(isinstance(c, str) for c in swept)):
+        raise InputError(f"{path}: swept must be a list of column names, got {swept!r:.200}")
+    if seed_key is not None and not isinstance(seed_key, str):
+        raise InputError(f"{path}: seed_key must be a column name or null, got {seed_key!r:.200}")
+    return [c for c in swept if c != seed_key]  # the seeds are averaged over
 
 
 def _rows(table) -> tuple[list[dict], list[str]]:
     """Rows of ``table`` (a path or a list of dicts) and the swept columns recorded beside a path."""
     if isinstance(table, (str, os.PathLike)):
         path = Path(table)
-        rows = read_table(path)
-        try:
-            meta = json.loads((path.parent / "sweep.json").read_text(encoding="utf-8"))
-            swept = [c for c in meta["swept"] if c != meta.get("seed_key")]  # the seeds are averaged over
-        except (OSError, ValueError, KeyError, TypeError):
-            swept = []
-        return rows, swept
+        return read_table(path), _swept_columns(path.parent / "sweep.json")
     return list(table), []
 
 
@@ -73,7 +90,8 @@ def summarize(table, metric: str, x: str, group: str | None = None, where: Mappi
         If a column is missing, if no row remains, or, for a table read from a
         sweep's output directory (beside its ``sweep.json``), if a swept
         column other than the seed varies among the runs averaged together
-        (name it as ``group`` or fix it with ``where``).
+        (name it as ``group`` or fix it with ``where``), or if that
+        ``sweep.json`` is unreadable or malformed.
     """
     rows, swept = _rows(table)
     where = dict(where or {})

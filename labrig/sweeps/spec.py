@@ -32,6 +32,9 @@ RANGE_KEYS = ("start", "stop", "num", "step")
 MAX_RANGE = 100_000
 #: Most runs in one sweep (points x axes x seeds), checked before any run is expanded.
 MAX_RUNS = 100_000
+#: Most runs a sweep starts unless the caller raises its ``max_runs`` (up to `MAX_RUNS`): a typo in a range
+#: should not start a week of runs.
+DEFAULT_MAX_RUNS = 1_000
 #: Significant digits kept by range values (0.1 * 3 is 0.3, not 0.30000000000000004).
 RANGE_DIGITS = 12
 
@@ -277,8 +280,21 @@ class Sweep:
         return list(dict.fromkeys(keys))
 
     def __len__(self) -> int:
+        return math.prod(self.shape().values())
+
+    def shape(self) -> dict:
+        """How many values each factor of the run count has: ``points``, each axis, ``seeds``."""
         seeds = 1 if self.seeds is None else (self.seeds if isinstance(self.seeds, int) else len(self.seeds))
-        return len(self.points) * math.prod(len(v) for v in self.axes.values()) * seeds
+        return {"points": len(self.points), **{key: len(v) for key, v in self.axes.items()}, "seeds": seeds}
+
+    def check_size(self, max_runs: int = DEFAULT_MAX_RUNS) -> int:
+        """The number of runs; `InputError` when it exceeds ``max_runs`` (in [1, `MAX_RUNS`])."""
+        max_runs = count("max_runs", max_runs, 1, MAX_RUNS)
+        if len(self) > max_runs:
+            factors = " x ".join(f"{n:,} {key}" for key, n in self.shape().items())
+            raise InputError(f"the sweep has {len(self):,} runs ({factors}), more than the {max_runs:,} it may start: "
+                             f"raise max_runs (--max-runs, at most {MAX_RUNS:,}) if that many are meant")
+        return len(self)
 
     def runs(self, canonical: Callable[[dict], dict] | None = None, kind: str = "") -> list[Run]:
         """Every run, in order, with canonical parameters and ids.

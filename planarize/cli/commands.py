@@ -5,12 +5,15 @@
 `planarize.io.results`), ``NAME_history.csv``, ``NAME_fig3-8.png`` (centre
 slice before/after), ``NAME_fig3-9.png`` (RMS and z-range against oxide
 thickness), ``NAME_surfaces.png`` (3-D oxide at the snapshots, Fig 3-11) and
-optionally ``NAME.mp4`` (the oxide growing); every file atomically.
+optionally ``NAME.mp4`` (the oxide growing): one `labrig.files.OutputSet`, switched in all at once.
+Runs of different names may share a directory; nothing in it is shared between them (no summary
+table), so concurrent runs of different names never touch each other's files.
 """
 
 from __future__ import annotations
 
 import math
+import os
 from pathlib import Path
 
 import numpy as np
@@ -35,9 +38,12 @@ def run_scene(scene: PlanarizeScene, out: Path, *, movie: bool = False, progress
               source: Path | None = None) -> dict:
     """Run ``scene`` and write its files into ``out``; returns the summary (also printed as a table).
 
-    The files are one `labrig.files.OutputSet`, written when the run has finished (the scene file last), so
-    a failed or killed run leaves earlier files of the same name as they were; ``source``, the scene file
-    the scene was read from, is never written over (its provenance copy is then ``NAME.ran.toml``).
+    The files are one `labrig.files.OutputSet`, locked before the run starts (a second run of the same name
+    into the same directory is refused) and switched in all at once when it has finished, so a failed or
+    killed run leaves earlier files of the same name as they were; ``source``, the scene file the scene was
+    read from, is never written over (its provenance copy is then ``NAME.ran.toml``). An earlier
+    ``NAME.mp4`` or ``NAME_surfaces.png`` that this run does not write is removed in the same switch (it
+    showed the run this one replaces), and a line says so.
     """
     out = Path(out)
     stem = slug(scene.name)
@@ -46,8 +52,8 @@ def run_scene(scene: PlanarizeScene, out: Path, *, movie: bool = False, progress
     snapshots = shown
     if movie:
         snapshots = sorted({*shown, *np.linspace(0.0, settings.thickness, MOVIE_FRAMES + 1).tolist()})
-    run = scene.anodize(progress=progress, snapshots=snapshots)
-    with OutputSet(out) as files:
+    with OutputSet(out, stem) as files:  # locks the set before anything is computed
+        run = scene.anodize(progress=progress, snapshots=snapshots)
         save_run(run, files.stage(f"{stem}.npz"))
         save_history_csv(run, files.stage(f"{stem}_history.csv"))
         render.save_figure(render.slice_figure(run, scene.name), files.stage(f"{stem}_fig3-8.png"))
@@ -55,9 +61,16 @@ def run_scene(scene: PlanarizeScene, out: Path, *, movie: bool = False, progress
         panels = _panels(run, shown)
         if panels.snapshots:  # (a scene may keep none)
             render.save_figure(render.snapshots_figure(panels), files.stage(f"{stem}_surfaces.png"))
+        else:
+            files.drop(f"{stem}_surfaces.png")
         if movie:
             render.save_movie(run, files.stage(f"{stem}.mp4"))
+        else:
+            files.drop(f"{stem}.mp4")
         save_scene(scene, files.stage(files.name_beside(f"{stem}.toml", source), last=True))
+    for path in files.removed:
+        print(f"removed the earlier {path.name}: it showed the run that this one replaces"
+              + (" (add --movie to make one)" if path.suffix == ".mp4" else ""))
     files = files.written
     summary = summarize(scene, run)
     print_table(f"{scene.name}: {summary['grid']}, k_exp {summary['k_exp']:g}, step {summary['step_nm']:g} nm, "
@@ -114,7 +127,7 @@ def import_scene(path: Path, *, thickness: float, step: float | None = None, nam
     choice for its Ta film (0.5 nm steps for a ~50 nm z-range).
     """
     surface_keys = ("unit", "z_unit", "spacing", "level", "channel", "format", "boundary", "max_aspect")
-    params = {"path": str(Path(path).resolve()),
+    params = {"path": os.path.abspath(path),  # not resolve(): a symbolic link loop is for load_heights to name
               **{k: v for k, v in options.items() if k in surface_keys and v is not None}}
     run = {k: v for k, v in options.items() if k not in surface_keys and v is not None}
     spec = SurfaceSpec("file", params)

@@ -36,6 +36,19 @@ from .features import feature_tables
 from .kernels import max_feature_length
 
 
+def check_oxide(metal: Surface, oxide: Surface | None) -> Surface | None:
+    """``oxide`` if it is None or a `Surface` on ``metal``'s grid lying nowhere below it; `InputError` otherwise."""
+    if oxide is None:
+        return None
+    if not isinstance(oxide, Surface):
+        raise InputError(f"oxide must be a planarize.Surface or None, got {type(oxide).__name__}")
+    if (oxide.shape, oxide.spacing, oxide.boundary) != (metal.shape, metal.spacing, metal.boundary):
+        raise InputError(f"oxide must be on the metal's grid: {oxide!r} vs {metal!r}")
+    if np.any(oxide.z < metal.z):
+        raise InputError("oxide must lie nowhere below the metal")
+    return oxide
+
+
 class Engine:
     """Base of the engines: the two surfaces, distances, sets and the Eq 3.9 step.
 
@@ -58,12 +71,7 @@ class Engine:
         self.model = Model() if model is None else model
         if not isinstance(self.model, Model):
             raise InputError(f"model must be a planarize.Model, got {type(self.model).__name__}")
-        if oxide is None:
-            oxide = metal
-        elif (oxide.shape, oxide.spacing, oxide.boundary) != (metal.shape, metal.spacing, metal.boundary):
-            raise InputError(f"oxide must be on the metal's grid: {oxide!r} vs {metal!r}")
-        elif np.any(oxide.z < metal.z):
-            raise InputError("oxide must lie nowhere below the metal")
+        oxide = metal if oxide is None else check_oxide(metal, oxide)
         self.k_exp, self.step = self.model.k_exp, self.model.step
         self.distance, self.volume_rule = self.model.distance, self.model.volume
         self.surface = metal

@@ -12,6 +12,7 @@ the format details.
 
 from __future__ import annotations
 
+import io
 import os
 import re
 from pathlib import Path
@@ -22,6 +23,7 @@ from labrig import validate
 from labrig.validate import InputError, count
 
 from ..surface import MAX_POINTS, Surface
+from .limits import MAX_FILE_BYTES, checked_file
 from .units import FILE_UNITS, MAX_COORDINATE, file_unit, given_spacing, unit_scales
 
 
@@ -36,13 +38,28 @@ def _gwyfile():
 
 def gwy_channels(path) -> list[dict]:
     """The data channels of a ``.gwy`` file: number, title, lateral and value units, shape (rows, columns)."""
-    return [{k: v for k, v in c.items() if k != "field"} for c in _channels(_load_gwy(Path(path)))]
+    try:
+        channels = _channels(_load_gwy(Path(path)))
+    except InputError as exc:
+        raise InputError(f"{path}: {exc}") from None
+    return [{k: v for k, v in c.items() if k != "field"} for c in channels]
 
 
 def _load_gwy(path: Path):
+    """The file's GwyContainer. gwyfile decodes a whole file at once (holding several copies of it), so the
+    file's size is checked first and no more than `MAX_FILE_BYTES` ``["gwy"]`` bytes are ever read."""
     gwyfile = _gwyfile()
+    limit = MAX_FILE_BYTES["gwy"]
+    checked_file(path, "gwy")
     try:
-        return gwyfile.load(str(path))
+        with open(path, "rb") as stream:
+            data = stream.read(limit + 1)  # (the file may have grown since it was checked)
+    except OSError as exc:
+        raise InputError(f"cannot read the file: {exc.strerror or exc}") from None
+    if len(data) > limit:
+        raise InputError(f"the file has more than the {limit:,} bytes a gwy height map may have")
+    try:
+        return gwyfile.load(io.BytesIO(data))  # (BytesIO hands gwyfile these bytes without a copy)
     except Exception as exc:  # gwyfile asserts on a bad magic number and fails on truncated data
         raise InputError(f"not a readable Gwyddion file: {type(exc).__name__} {exc}".rstrip()) from None
 
@@ -98,11 +115,14 @@ def read_gwy(path, unit, z_unit, spacing, channel):
     xy_scale, z_scale = unit_scales(stated_xy, stated_z, unit, z_unit)
     field = chosen["field"]
     ny, nx = chosen["shape"]
-    if field.get("data") is None:
+    raw = field.get("data")
+    if raw is None:
         raise InputError(f"{label} holds no data")
-    data = np.asarray(field["data"], dtype=float)
-    if data.size != nx * ny:
-        raise InputError(f"{label}: {data.size} values for {nx} x {ny} pixels")
+    if not isinstance(raw, np.ndarray) or raw.dtype.kind not in "iuf":
+        raise InputError(f"{label}: the data is not an array of numbers")
+    if raw.size != nx * ny:
+        raise InputError(f"{label}: {raw.size} values for {nx} x {ny} pixels")
+    data = np.asarray(raw, dtype=float)  # (xres * yres, checked by _channels, bounds what this allocates)
     real = (field.get("xreal"), field.get("yreal"))
     stated = all(v is not None for v in real)
     given = given_spacing(spacing, stated)

@@ -33,28 +33,38 @@ spacings, and results are then as accurate as the coarser spacing allows
 (measured: a Gaussian hill on 0.5 x 0.125 nm pixels planarizes between the
 0.25 and 0.5 nm square grids). Pixels more elongated than ``max_aspect``
 (default 8: e.g. a 512 x 32 line scan of a square area) are refused.
+
+Sizes: a surface has at most `planarize.surface.MAX_POINTS` points, and nothing larger is read.
+A file larger than such a surface could need is refused from its size before it is opened
+(`planarize.io.limits.MAX_FILE_BYTES`); text is read piece by piece into floats and refused as
+soon as it holds more numbers than that (`planarize.io.texttable`); the grid an XYZ file's
+coordinates imply, a ``.npy`` array's shape and a ``.gwy`` channel's ``xres`` x ``yres`` are
+checked before the heights are laid out.
 """
 
 from __future__ import annotations
 
+import os
 import re
 from pathlib import Path
 
 import numpy as np
 
-from labrig.files import atomic_path, existing_file
-from labrig.validate import InputError, array, real
+from labrig.files import atomic_path
+from labrig.validate import InputError, array, choice, flag, real
 
-from ..surface import MAX_POINTS, Surface, check_heights
+from ..surface import BOUNDARIES, MAX_POINTS, Surface, check_heights
 from .gwy import read_gwy, write_gwy
-from .units import MAX_COORDINATE, file_unit, given_spacing, unit_scales
+from .limits import checked_file
+from .texttable import read_table
+from .units import MAX_COORDINATE, file_unit, given_spacing, spacing_pair, unit_scale, unit_scales
 
 #: Formats by file suffix.
 SUFFIXES = {".xyz": "xyz", ".csv": "matrix", ".txt": "matrix", ".asc": "matrix", ".dat": "matrix",
             ".npy": "npy", ".gwy": "gwy"}
 FORMATS = ("xyz", "matrix", "npy", "gwy")
-#: Largest text height map read, bytes.
-MAX_TEXT_BYTES = 2**30
+#: Header entries of text height maps that are read (Gwyddion's text export; keys in lower case).
+HEADER_KEYS = ("xy units", "value units", "width", "height")
 #: Most elongated pixel (longer / shorter side) accepted by default.
 MAX_PIXEL_ASPECT = 8.0
 
@@ -123,16 +133,19 @@ def load_heights(path, *, unit: str | None = None, z_unit: str | None = None, sp
         missing units or spacing, a channel that is not a height or does not
         exist (listing the available ones), too elongated pixels.
     """
+    if not isinstance(path, (str, os.PathLike)):
+        raise InputError(f"path must be a file name (str or Path), got {type(path).__name__}")
     path = Path(path)
     if format is None:
         format = SUFFIXES.get(path.suffix.lower())
         if format is None:
             raise InputError(f"{path}: unknown height-map suffix {path.suffix!r}; use one of "
                              f"{', '.join(SUFFIXES)} or pass format= ({', '.join(FORMATS)})")
-    elif format not in FORMATS:
-        raise InputError(f"format must be one of {FORMATS}, got {format!r}")
-    existing_file(path, "height map")
+    else:
+        choice("format", format, FORMATS)
     try:
+        _check_options(unit, z_unit, spacing, level, channel, boundary, max_aspect)
+        checked_file(path, format)  # a regular file within the format's size cap: nothing read yet
         reader = {"xyz": _read_xyz, "matrix": _read_matrix, "npy": _read_npy, "gwy": read_gwy}[format]
         z, (dx, dy), xy_scale, z_scale = reader(path, unit, z_unit, spacing, channel)
         z = check_heights(z, "heights") * z_scale
@@ -144,47 +157,25 @@ def load_heights(path, *, unit: str | None = None, z_unit: str | None = None, sp
     return level_plane(surface) if level else surface
 
 
-def _text_table(path: Path) -> tuple[dict, np.ndarray]:
-    """Header (``# key: value`` lines, keys lower-case) and the numeric table of a text file."""
-    size = path.stat().st_size
-    if size > MAX_TEXT_BYTES:
-        raise InputError(f"the file has {size:,} bytes, more than the {MAX_TEXT_BYTES:,} a text height map may have")
-    try:
-        text = path.read_bytes().decode("utf-8-sig")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"cannot read the file as UTF-8 text: {exc}") from None
-    header, rows, lengths = {}, [], []
-    delimiter, first = None, True
-    for number, line in enumerate(text.splitlines(), start=1):
-        line = line.strip()
-        if not line:
-            continue
-        if line.startswith("#"):
-            key, sep, value = line[1:].partition(":")
-            if sep:
-                header[key.strip().lower()] = value.strip()
-            continue
-        if delimiter is None:
-            delimiter = "," if "," in line else (";" if ";" in line else None)
-        fields = line.split(delimiter)
-        try:
-            values = [float(f) for f in fields]
-        except ValueError:
-            if first and not any(_is_number(f) for f in fields):
-                first = False
-                continue  # a first line of column names
-            bad = next(f for f in fields if not _is_number(f))
-            raise InputError(f"line {number}: cannot read {bad.strip()!r} as a number") from None
-        first = False
-        rows.append(values)
-        lengths.append(len(values))
-    if not rows:
-        raise InputError("no numbers in the file")
-    if min(lengths) != max(lengths):
-        odd = next(k for k, n in enumerate(lengths) if n != lengths[0])
-        raise InputError(f"wrong shape: rows have different numbers of values ({lengths[0]} in the first "
-                         f"data row, {lengths[odd]} in data row {odd + 1})")
-    return header, np.array(rows, dtype=float)
+def _check_options(unit, z_unit, spacing, level, channel, boundary, max_aspect) -> None:
+    """`InputError` naming the first bad argument of `load_heights` (before the file is opened)."""
+    for name, value in (("unit", unit), ("z_unit", z_unit)):
+        if value is not None:
+            unit_scale(value, name)
+    if spacing is not None:
+        spacing_pair(spacing)
+    flag("level", level)
+    if not (channel is None or isinstance(channel, str) or isinstance(channel, int) and not isinstance(channel, bool)):
+        raise InputError(f"channel must be a channel number or title, got {channel!r}")
+    choice("boundary", boundary, BOUNDARIES)
+    real("max_aspect", max_aspect, 1.0)
+
+
+def _text_table(path: Path, columns: int) -> tuple[dict, np.ndarray]:
+    """Header and numeric table of a text height map with ``columns`` numbers per grid point, read in memory
+    bounded by the most points a surface may have (`planarize.io.texttable`)."""
+    note = f": a surface has at most {MAX_POINTS:,} points" + (f" ({columns} numbers each)" if columns > 1 else "")
+    return read_table(path, columns * MAX_POINTS, HEADER_KEYS, note)
 
 
 def _is_number(text: str) -> bool:
@@ -212,19 +203,22 @@ def _quantity(header: dict, key: str) -> tuple[float, str] | None:
 def _read_xyz(path, unit, z_unit, spacing, channel):
     if channel is not None:
         raise InputError("channel applies to .gwy files only")
-    header, table = _text_table(path)
+    given_spacing(spacing, stated=True)  # (the coordinates state it)
+    header, table = _text_table(path, 3)
     if table.shape[1] != 3:
         raise InputError(f"wrong shape: an XYZ file has 3 columns (x y z), this one has {table.shape[1]}")
     stated_xy = file_unit(header["xy units"], "header 'XY units'") if "xy units" in header else None
     stated_z = file_unit(header["value units"], "header 'Value units'") if "value units" in header else None
     xy_scale, z_scale = unit_scales(stated_xy, stated_z, unit, z_unit)
-    given_spacing(spacing, stated=True)
     x = array("x coordinates", table[:, 0], (None,), limit=MAX_COORDINATE)
     y = array("y coordinates", table[:, 1], (None,), limit=MAX_COORDINATE)
     z = table[:, 2]
     i, x0, dx = _axis(x, "x")
     j, y0, dy = _axis(y, "y")
     nx, ny = int(i.max()) + 1, int(j.max()) + 1
+    if nx * ny > MAX_POINTS:  # before any array of the grid's size is made
+        raise InputError(f"the x and y values span a grid of {nx:,} x {ny:,} points, more than the {MAX_POINTS:,} a "
+                         f"surface may have ({len(z):,} points in the file)")
     counts = np.bincount(i * ny + j, minlength=nx * ny)
     if (counts != 1).any():
         k = int(np.flatnonzero(counts != 1)[0])
@@ -247,6 +241,9 @@ def _axis(values: np.ndarray, name: str) -> tuple[np.ndarray, float, float]:
     tol = 1e-4 * span
     starts = np.concatenate([[0], np.flatnonzero(np.diff(ordered) > tol) + 1])
     levels = np.add.reduceat(ordered, starts) / np.diff(np.append(starts, len(ordered)))
+    if len(levels) < 2:
+        raise InputError(f"irregular grid: the {name} values form no grid lines (values closer than 1e-4 of their span "
+                         f"count as one line, so an axis has at most 10,001 lines); resample onto a regular grid first")
     step = (levels[-1] - levels[0]) / (len(levels) - 1)
     gaps = np.diff(levels)
     if np.abs(gaps - step).max() > 1e-3 * step:
@@ -261,7 +258,7 @@ def _axis(values: np.ndarray, name: str) -> tuple[np.ndarray, float, float]:
 def _read_matrix(path, unit, z_unit, spacing, channel):
     if channel is not None:
         raise InputError("channel applies to .gwy files only")
-    header, z = _text_table(path)
+    header, z = _text_table(path, 1)
     width, height = _quantity(header, "width"), _quantity(header, "height")
     stated_z = file_unit(header["value units"], "header 'Value units'") if "value units" in header else None
     if (width is None) != (height is None):

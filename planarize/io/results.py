@@ -23,18 +23,28 @@ from pathlib import Path
 
 import numpy as np
 
-from labrig.archive import read_archive, write_archive
-from labrig.files import write_csv, write_text_atomic
+from labrig.archive import MAX_ARCHIVE_BYTES, read_archive, write_archive
+from labrig.files import recover_beside, write_csv, write_text_atomic
 from labrig.validate import InputError, choice, reals
 
-from ..anodize import Anodization, Snapshot
-from ..surface import BOUNDARIES, Surface
+from ..anodize import MAX_RECORD, Anodization, Snapshot
+from ..surface import BOUNDARIES, MAX_POINTS, Surface
 
 FORMAT = "planarize-run"
 VERSION = 1
 #: Arrays every run file holds.
 ARRAYS = ("initial", "metal", "oxide", "distances", "snapshot_target", "snapshot_thickness", "snapshot_metal",
           "snapshot_oxide", "snapshot_distances")
+#: Largest size of each saved array, bytes (float64 or int64 values): a grid of at most
+#: `planarize.surface.MAX_POINTS` points, a history column or snapshot list of at most
+#: `planarize.anodize.MAX_RECORD` rows plus the first and the last, and the snapshots' grids (bounded by the
+#: archive's total and the memory available; `labrig.archive.read_archive` refuses a file that declares more).
+GRID_BYTES = MAX_POINTS * 8
+SERIES_BYTES = (MAX_RECORD + 2) * 8
+MAX_ARRAY_BYTES = {"initial": GRID_BYTES, "metal": GRID_BYTES, "oxide": GRID_BYTES, "distances": GRID_BYTES,
+                   "history_*": SERIES_BYTES, "snapshot_target": SERIES_BYTES, "snapshot_thickness": SERIES_BYTES,
+                   "snapshot_metal": MAX_ARCHIVE_BYTES, "snapshot_oxide": MAX_ARCHIVE_BYTES,
+                   "snapshot_distances": MAX_ARCHIVE_BYTES}
 
 
 def save_run(run: Anodization, path: str | os.PathLike) -> Path:
@@ -70,7 +80,8 @@ def load_run(path: str | os.PathLike) -> Anodization:
         If it is not a readable planarize run file (truncated, corrupted, another format or version,
         arrays of the wrong shape, bad metadata); the message starts with the path.
     """
-    metadata, arrays = read_archive(path, FORMAT, VERSION, ARRAYS, "planarize run")
+    recover_beside(path)  # finish a switch of its output set that a kill interrupted (labrig.staging)
+    metadata, arrays = read_archive(path, FORMAT, VERSION, ARRAYS, "planarize run", max_bytes=MAX_ARRAY_BYTES)
     try:
         spacing = reals("spacing", metadata.get("spacing"), 2)
         boundary = choice("boundary", metadata.get("boundary"), BOUNDARIES)

@@ -145,8 +145,7 @@ class SurfaceSpec:
                     raise InputError(f"surface.{key} must be one of {', '.join(LENGTH_UNITS)}, got {full[key]!r}")
             if full.get("format") is not None and full["format"] not in FORMATS:
                 raise InputError(f"surface.format must be one of {FORMATS}, got {full['format']!r}")
-            if not full["max_aspect"] >= 1:
-                raise InputError(f"surface.max_aspect must be >= 1, got {full['max_aspect']!r}")
+            real("surface.max_aspect", full["max_aspect"], 1.0)
         else:
             self.build()  # the builders check every value
 
@@ -262,8 +261,7 @@ class PlanarizeScene:
         """A cheaper version for a first look: ``step / fraction``, refinement ``refine * fraction``
         (rounded, at least 1); thickness, records and snapshots unchanged.
         """
-        if not (isinstance(fraction, (int, float)) and 0 < fraction <= 1):
-            raise InputError(f"quick fraction must be in (0, 1], got {fraction!r}")
+        fraction = real("quick fraction", fraction, 0.0, 1.0, low_open=True)
         params = dict(self.surface.params)
         if "refine" in params:
             params["refine"] = max(1, round(params["refine"] * fraction))

@@ -48,8 +48,9 @@ import numpy as np
 from scipy import sparse
 from scipy.spatial import cKDTree
 
-from labrig.validate import InputError
+from labrig.validate import InputError, number
 
+from ..scene import MAX_LENGTH
 from ..units import THESIS_TEMPERATURE, PhysicalScale
 from .packing import state_arrays
 
@@ -65,8 +66,15 @@ CUTOFF_TOLERANCE = 1e-3
 #: diameters was most likely given as px (hops to a neighbour at one diameter would be < 1/4096 of
 #: the radiative rate). Such radii can still be asked for as ``forster_radii``.
 MIN_PX_FORSTER_RADII = 0.5
-#: Largest ``forster_radii`` (mean radii): far beyond any dot film (the thesis uses 2).
+#: Largest Förster radius, in mean radii (as ``forster_radii``, and for ``forster_radius`` in px): far
+#: beyond any dot film (the thesis uses 2).
 MAX_FORSTER_RADII = 1000.0
+#: Largest ``forster_radius`` on any board, px: `MAX_FORSTER_RADII` radii of the largest dot a scene may
+#: hold (`qdots.scene.MAX_LENGTH`). Its sixth power (1e54) is far within a float.
+MAX_FORSTER_PX = MAX_FORSTER_RADII * MAX_LENGTH
+#: Fastest hop rate the computation holds, 1/ns: rates are summed over a dot's partners and inverted, so
+#: they must stay far from the float limit (1.8e308). Real films: below 1e18 (R_F 1000x the closest gap).
+MAX_HOP_RATE = 1e200
 
 #: CdSe constants of the effective-mass (Brus) model of `dot_energies`: bulk gap (eV, 300 K),
 #: electron and hole effective masses (units of the free electron mass), relative permittivity.
@@ -124,13 +132,19 @@ def truncation_bound(forster_radius: float, cutoff: float, spacing: float, effic
     h = 0.5 * spacing
     if cutoff <= h:
         return math.inf
-    return efficiency * forster_radius**6 / (2.0 * h * h * (cutoff - h) ** 4)
+    try:
+        return efficiency * forster_radius**6 / (2.0 * h * h * (cutoff - h) ** 4)
+    except (OverflowError, ZeroDivisionError):  # beyond a float: no bound
+        return math.inf
 
 
 def cutoff_for(forster_radius: float, spacing: float, tolerance: float, efficiency: float = 1.0) -> float:
     """Smallest cutoff, px, whose `truncation_bound` is at most ``tolerance``."""
     h = 0.5 * spacing
-    return h + (efficiency * forster_radius**6 / (2.0 * h * h * tolerance)) ** 0.25
+    try:
+        return h + (efficiency * forster_radius**6 / (2.0 * h * h * tolerance)) ** 0.25
+    except (OverflowError, ZeroDivisionError):  # beyond a float: every pair is within the cutoff
+        return math.inf
 
 
 @dataclass(frozen=True, eq=False)
@@ -240,9 +254,14 @@ def resolve_forster_radius(radii, forster_radius: float | None = None, forster_r
     if not (isinstance(forster_radius, (int, float, np.floating, np.integer)) and not isinstance(forster_radius, bool)
             and math.isfinite(forster_radius) and forster_radius > 0):
         raise InputError(f"forster_radius must be > 0 px, got {forster_radius!r}")
+    if forster_radius > MAX_FORSTER_PX:
+        raise InputError(f"forster_radius must be at most {number(MAX_FORSTER_PX)} px, got {forster_radius!r}")
     if radii.size and forster_radius < MIN_PX_FORSTER_RADII * mean:
         raise InputError(f"forster_radius is in px: {forster_radius:g} px is {forster_radius / mean:.3g} mean radii "
                          f"(< {MIN_PX_FORSTER_RADII:g}); for R_F in mean radii pass forster_radii={forster_radius:g}")
+    if radii.size and forster_radius > MAX_FORSTER_RADII * mean:
+        raise InputError(f"forster_radius must be at most {MAX_FORSTER_RADII:g} mean radii "
+                         f"({MAX_FORSTER_RADII * mean:g} px on this board), got {forster_radius:g} px")
     return float(forster_radius)
 
 
@@ -320,6 +339,11 @@ def exciton_network(state, forster_radius: float | None = None, trap_fraction: f
     spacing = float(tree.query(positions, k=2)[0][:, 1].min())
     if spacing <= 0:
         raise InputError("two dots share a centre: their Förster rate is infinite")
+    fastest = math.log10(k_r) + 6.0 * math.log10(forster_radius / spacing)  # of the closest pair, 1/ns
+    if fastest > math.log10(MAX_HOP_RATE):
+        rate = f"1e{fastest:.0f}" if math.isfinite(fastest) else "inf"
+        raise InputError(f"the closest dots ({spacing:.3g} px apart, R_F {forster_radius:.4g} px, tau {tau:g} ns) "
+                         f"would hop at {rate} per ns, more than the {number(MAX_HOP_RATE)} the computation holds")
     extent = math.inf if periodic else float(np.sqrt((np.ptp(positions, axis=0) ** 2).sum()))
     if cutoff is None:
         cutoff = cutoff_for(forster_radius, spacing, tolerance, efficiency)

@@ -32,13 +32,18 @@ from scipy import sparse
 from scipy.sparse.linalg import LinearOperator, cg, spsolve
 from tqdm.auto import tqdm
 
-from labrig.validate import InputError
+from labrig.validate import InputError, count
 
 from .forster import KB_EV, TRAP_FRACTION, ExcitonNetwork, draw_traps, exciton_network
-from .lqe_thesis import drop_trapped, step_probabilities, thesis_walks
+from .lqe_thesis import check_dt, check_walks, drop_trapped, step_probabilities, thesis_walks
 
 #: The thesis's Monte Carlo time step, in units of the radiative lifetime.
 THESIS_DT_FRACTION = 0.01
+#: Most excitons of one Monte Carlo run: about 100 bytes each in the walk's arrays (1 GB), a standard
+#: error of 1.6e-4 at most (the tests take 2e5, the benchmark 1e6).
+MAX_EXCITONS = 10_000_000
+#: Most trap draws `film_lqe` averages (as ``qdots analyze --draws``).
+MAX_DRAWS = 10_000
 METHODS = ("gillespie", "thesis")
 SCHEMES = ("continuous", "thesis")
 
@@ -76,11 +81,8 @@ class LQEResult:
 
 
 def _thesis_dt(network: ExcitonNetwork, dt) -> float:
-    if dt is None:
-        return THESIS_DT_FRACTION / network.radiative_rate
-    if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
-        raise InputError(f"dt must be > 0 ns, got {dt!r}")
-    return float(dt)
+    """The thesis scheme's time step, ns: ``dt`` (`qdots.analysis.lqe_thesis.check_dt`), or the thesis's tau / 100."""
+    return THESIS_DT_FRACTION / network.radiative_rate if dt is None else check_dt(network, dt)
 
 
 def _check_network(network) -> ExcitonNetwork:
@@ -222,13 +224,16 @@ def lqe_monte_carlo(network: ExcitonNetwork, n_excitons: int = 100_000, method: 
     ----------
     network : ExcitonNetwork
     n_excitons : int
-        Excitons to create (>= 1), each on a dot drawn uniformly.
+        Excitons to create, in [1, `MAX_EXCITONS`], each on a dot drawn uniformly (the thesis method
+        also takes at most `qdots.analysis.lqe_thesis.MAX_THESIS_STEPS` exciton steps,
+        ``n_excitons * tau / dt``).
     method : {"gillespie", "thesis"}
         ``"gillespie"``: continuous-time kinetic MC (no time-step bias).
         ``"thesis"``: the Java's fixed-step algorithm (see `qdots.analysis.lqe_thesis`);
         biased by O(dt), see ``lqe_exact(network, scheme="thesis")``.
     dt : float, optional
-        Thesis method only: time step, ns (default ``tau / 100``).
+        Thesis method only: time step, ns (default ``tau / 100``; within
+        `qdots.analysis.lqe_thesis.DT_FRACTION_RANGE` radiative lifetimes).
     seed : int, Generator or SeedSequence, optional
     progress : bool
         tqdm progress bar.
@@ -236,16 +241,17 @@ def lqe_monte_carlo(network: ExcitonNetwork, n_excitons: int = 100_000, method: 
     network = _check_network(network)
     if method not in METHODS:
         raise InputError(f"method must be one of {METHODS}, got {method!r}")
-    if not (isinstance(n_excitons, (int, np.integer)) and not isinstance(n_excitons, bool) and n_excitons >= 1):
-        raise InputError(f"n_excitons must be an integer >= 1, got {n_excitons!r}")
+    n_excitons = count("n_excitons", n_excitons, 1, MAX_EXCITONS)
     if network.n_dots == 0:
         raise InputError("the board has no dots")
+    step = None if method == "gillespie" else _thesis_dt(network, dt)
+    if step is not None:
+        check_walks(network, n_excitons, step)
     rng = np.random.default_rng(seed)
     starts = rng.integers(network.n_dots, size=int(n_excitons))
     if method == "gillespie":
-        radiated, step = gillespie_walks(network, starts, rng, progress), None
+        radiated = gillespie_walks(network, starts, rng, progress)
     else:
-        step = _thesis_dt(network, dt)
         radiated, _ = thesis_walks(network, starts, step, rng, progress=progress)
     p = float(radiated.mean())
     return LQEResult(p, math.sqrt(p * (1 - p) / n_excitons), network.truncation_bound, method,
@@ -285,14 +291,13 @@ class TrapAverage:
 
 
 def film_lqe(state, draws: int = 8, seed=0, **network_options) -> TrapAverage:
-    """Exact LQE of a board averaged over ``draws`` random trap assignments.
+    """Exact LQE of a board averaged over ``draws`` random trap assignments (at most `MAX_DRAWS`).
 
     The pairs and rates are built once (`qdots.analysis.forster.exciton_network`,
     which takes ``network_options``) and only the traps are redrawn, each
     from its own child of ``numpy.random.SeedSequence(seed)``.
     """
-    if not (isinstance(draws, (int, np.integer)) and draws >= 1):
-        raise InputError(f"draws must be an integer >= 1, got {draws!r}")
+    draws = count("draws", draws, 1, MAX_DRAWS)
     if "traps" in network_options:
         raise InputError("film_lqe draws its own traps: pass trap_fraction, not traps")
     children = np.random.SeedSequence(seed).spawn(int(draws))

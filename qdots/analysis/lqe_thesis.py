@@ -25,11 +25,13 @@ dt bias against the continuous-time chain follows with no sampling noise.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from scipy import sparse
 from tqdm.auto import tqdm
 
-from labrig.validate import InputError
+from labrig.validate import InputError, count, is_real, number, real
 
 from .forster import ExcitonNetwork
 
@@ -37,6 +39,34 @@ from .forster import ExcitonNetwork
 _LOG_STEP = 0.08
 _LOG_LOW = -23.0   # t >= e^-23 / (sum of weights): the part below is added analytically
 _LOG_HIGH = 4.0    # t <= e^4 / (smallest weight) (the integrand is below exp(-54) there)
+#: Range of the time step of the Monte Carlo, in radiative lifetimes: from 10^4 times finer than the
+#: thesis's tau / 100 (10^6 steps a lifetime) to 1000 lifetimes (every weight far above 1; the tests go to 1).
+DT_FRACTION_RANGE = (1e-6, 1e3)
+#: Most exciton steps of one Monte Carlo run, counted as excitons x radiative lifetime / ``dt``: 10^8
+#: excitons at the thesis's tau / 100 (the method runs ~10^7 exciton steps a second).
+MAX_THESIS_STEPS = 10_000_000_000
+#: Largest ``block`` of `step_probabilities` and `thesis_walks`, values per chunk: 8 bytes each in about six
+#: temporaries, 1 GB (the defaults are 1e6 and 2e6).
+MAX_BLOCK = 20_000_000
+
+
+def check_dt(network: ExcitonNetwork, dt) -> float:
+    """``dt`` (ns) as a float if it is within `DT_FRACTION_RANGE` radiative lifetimes of ``network``;
+    `InputError` naming it otherwise."""
+    if not (is_real(dt) and math.isfinite(dt) and dt > 0):
+        raise InputError(f"dt must be > 0 ns, got {dt!r}")
+    low, high = (fraction / network.radiative_rate for fraction in DT_FRACTION_RANGE)
+    return real("dt", dt, low, high, unit=f"ns ({number(DT_FRACTION_RANGE[0])} to {number(DT_FRACTION_RANGE[1])} "
+                                         f"radiative lifetimes)")
+
+
+def check_walks(network: ExcitonNetwork, n_excitons: int, dt: float, name: str = "n_excitons") -> None:
+    """`InputError` when ``n_excitons`` walks at step ``dt`` ns come to more than `MAX_THESIS_STEPS` exciton
+    steps of a radiative lifetime."""
+    steps = n_excitons / (dt * network.radiative_rate)
+    if steps > MAX_THESIS_STEPS:
+        raise InputError(f"{name} = {n_excitons:,} at dt = {dt:g} ns is {steps:.3g} exciton steps of a radiative "
+                         f"lifetime, more than the {MAX_THESIS_STEPS:,} allowed: use fewer excitons or a longer dt")
 
 
 def drop_trapped(network: ExcitonNetwork, alive: np.ndarray, site: np.ndarray, bar) -> tuple[np.ndarray, np.ndarray]:
@@ -88,7 +118,7 @@ def step_probabilities(network: ExcitonNetwork, dt: float, block: int = 1_000_00
     dt : float
         Time step, ns (> 0).
     block : int
-        Work per chunk of rows (nodes x rows x events), bounds memory.
+        Work per chunk of rows (nodes x rows x events), bounds memory; at most `MAX_BLOCK`.
 
     Returns
     -------
@@ -97,8 +127,9 @@ def step_probabilities(network: ExcitonNetwork, dt: float, block: int = 1_000_00
     nonradiative, radiative : ndarray, shape (N,)
         Probability that one step ends the exciton without / with light.
     """
-    if not (isinstance(dt, (int, float)) and dt > 0):
+    if not (is_real(dt) and math.isfinite(dt) and dt > 0):
         raise InputError(f"dt must be > 0 ns, got {dt!r}")
+    block = count("block", block, 1, MAX_BLOCK)
     weights, _, _ = _event_table(network, dt)
     n, width = weights.shape
     if n == 0:
@@ -137,7 +168,9 @@ def thesis_walks(network: ExcitonNetwork, starts: np.ndarray, dt: float, rng: np
     """Run the thesis's algorithm, literally, for excitons starting on ``starts``.
 
     Vectorized over excitons: each step draws one uniform number per event of
-    every living exciton, as the Java does per exciton.
+    every living exciton, as the Java does per exciton. ``dt`` (ns) must be within
+    `DT_FRACTION_RANGE` radiative lifetimes, the walks at most `MAX_THESIS_STEPS` exciton steps of a
+    lifetime, ``block`` (values per chunk of excitons) at most `MAX_BLOCK`.
 
     Returns
     -------
@@ -146,6 +179,9 @@ def thesis_walks(network: ExcitonNetwork, starts: np.ndarray, dt: float, rng: np
     steps : ndarray of int
         Steps each exciton lived (its lifetime in units of ``dt``).
     """
+    dt = check_dt(network, dt)
+    check_walks(network, len(starts), dt, "starts")
+    block = count("block", block, 1, MAX_BLOCK)
     weights, targets, _ = _event_table(network, dt)
     width = targets.shape[1]
     radiated = np.zeros(len(starts), dtype=bool)

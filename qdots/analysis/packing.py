@@ -16,10 +16,19 @@ from scipy.spatial import cKDTree
 from labrig.deprecation import warn as warn_renamed
 from labrig.validate import InputError
 
+from ..neighbours import MAX_PAIRS, pair_bound
+
 #: Neighbour rules: "text" is the thesis's prose (section 2.4), "code" its Java (Appendix A).
 RULES = ("text", "code")
 #: A dot with at least this many neighbours is "interior" (thesis Fig 2-4).
 INTERIOR_MIN_NEIGHBOURS = 5
+#: Most circles of one `fill_within_radius` call (the Java draws 20, ``qdots analyze`` 30), and most (dot,
+#: circle) areas: 24 bytes each in `_disc_in_circle_area`, 82 if all are lenses (4 GB); ``qdots analyze``'s
+#: 30 circles over the largest board (`qdots.scene.MAX_DOTS` dots) take 2.4e7.
+MAX_CIRCLES, MAX_FILL_TERMS = 10_000, 50_000_000
+#: Most pairs ``size_separation_correlation(pairs="all")`` visits: N (N - 1) / 2 for N = 10^5 dots, about a
+#: minute at ~1 s per 10^8 pairs (the thesis's boards have 300-500 dots).
+MAX_ALL_PAIRS = 5_000_000_000
 
 
 def state_arrays(state) -> tuple[np.ndarray, np.ndarray]:
@@ -40,11 +49,19 @@ def state_arrays(state) -> tuple[np.ndarray, np.ndarray]:
     return positions, radii
 
 
-def pairs_within(positions: np.ndarray, reach: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """All pairs ``i < j`` with centre distance <= ``reach`` px, and their distances."""
-    if len(positions) < 2:
+def pairs_within(positions: np.ndarray, reach: float, what: str | None = None
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """All pairs ``i < j`` with centre distance <= ``reach`` px, and their distances; `InputError` naming
+    ``what`` asked for ``reach`` if they could be more than `qdots.neighbours.MAX_PAIRS` (`pair_bound`)."""
+    n = len(positions)
+    if n < 2:
         empty = np.zeros(0, dtype=np.intp)
         return empty, empty, np.zeros(0)
+    if n * (n - 1) // 2 > MAX_PAIRS:
+        bound = pair_bound(positions[:, 0], positions[:, 1], reach)
+        if bound > MAX_PAIRS:
+            raise InputError(f"{what or f'a reach of {reach:g} px'} takes up to {bound:.3g} pairs of the {n:,} dots "
+                             f"(within {reach:g} px), more than the {MAX_PAIRS:,} allowed")
     pairs = cKDTree(positions).query_pairs(reach, output_type="ndarray")
     i, j = pairs[:, 0], pairs[:, 1]
     delta = positions[i] - positions[j]
@@ -69,7 +86,7 @@ def overlaps(state) -> tuple[float, tuple[int, int]]:
     positions, radii = state_arrays(state)
     if len(radii) < 2:
         return 0.0, (-1, -1)
-    i, j, d = pairs_within(positions, 2.0 * float(radii.max()))
+    i, j, d = pairs_within(positions, 2.0 * float(radii.max()), _overlap_search(radii))
     if not len(d):
         return 0.0, (-1, -1)
     rsum = radii[i] + radii[j]
@@ -78,6 +95,11 @@ def overlaps(state) -> tuple[float, tuple[int, int]]:
     if relative[k] <= 0:
         return 0.0, (-1, -1)
     return float(relative[k]), (int(i[k]), int(j[k]))
+
+
+def _overlap_search(radii: np.ndarray) -> str:
+    """What sets the reach of an overlap search, for `pairs_within`'s message."""
+    return f"the overlap search (2 x the largest radius, {float(radii.max(initial=0.0)):g} px)"
 
 
 def escaped(state) -> int:
@@ -131,11 +153,12 @@ def neighbour_edges(state, rule: str = "text", mean_radius: float | None = None
             mean_radius = float(radii.mean())
         elif not (isinstance(mean_radius, (int, float)) and math.isfinite(mean_radius) and mean_radius > 0):
             raise InputError(f"mean_radius must be > 0 px, got {mean_radius!r}")
-        i, j, d = pairs_within(positions, 2.0 * rmax + mean_radius)
+        i, j, d = pairs_within(positions, 2.0 * rmax + mean_radius,
+                               f"mean_radius = {mean_radius:g} px (with the largest radius, {rmax:g} px)")
         near = d - radii[i] - radii[j] < mean_radius
         i_sees_j = j_sees_i = near
     else:
-        i, j, d = pairs_within(positions, 3.0 * rmax)
+        i, j, d = pairs_within(positions, 3.0 * rmax, f"rule 'code' (3 x the largest radius, {rmax:g} px)")
         i_sees_j = d <= radii[i] + 2.0 * radii[j]
         j_sees_i = d <= radii[j] + 2.0 * radii[i]
     src = np.concatenate([i[i_sees_j], j[j_sees_i]])
@@ -272,6 +295,8 @@ def fill_within_radius(state, radius, centre=None, **deprecated) -> FillCurve:
     big = np.atleast_1d(np.asarray(radius, dtype=float))
     if big.ndim != 1 or not big.size or not np.all(np.isfinite(big) & (big > 0)):
         raise InputError(f"radius must be finite circle radii > 0 px, got {radius!r}")
+    if big.size > MAX_CIRCLES:
+        raise InputError(f"radius must hold at most {MAX_CIRCLES:,} circles, got {big.size:,}")
     if "center" in deprecated:  # the spelling of 0.1
         warn_renamed("fill_within_radius(center=...)", "fill_within_radius(centre=...)")
         centre = deprecated.pop("center")
@@ -286,8 +311,11 @@ def fill_within_radius(state, radius, centre=None, **deprecated) -> FillCurve:
         raise InputError(f"center must be two finite coordinates, px, got {centre!r}")
     d = np.sqrt(((positions - c) ** 2).sum(axis=1))
     reach = d - radii < big.max()
+    if int(reach.sum()) * big.size > MAX_FILL_TERMS:
+        raise InputError(f"radius: {big.size:,} circles reached by {int(reach.sum()):,} dots make "
+                         f"{int(reach.sum()) * big.size:,} areas, more than the {MAX_FILL_TERMS:,} allowed")
     covered = _disc_in_circle_area(radii[reach, None], d[reach, None], big[None, :]).sum(axis=0)
-    i, j, dij = pairs_within(positions, 2.0 * float(radii.max()) if len(radii) else 0.0)
+    i, j, dij = pairs_within(positions, 2.0 * float(radii.max()) if len(radii) else 0.0, _overlap_search(radii))
     hit = dij < radii[i] + radii[j]
     i, j, dij = i[hit], j[hit], dij[hit]
     lens = _disc_in_circle_area(radii[i], dij, radii[j])  # common area of each overlapping pair
@@ -333,6 +361,10 @@ def size_separation_correlation(state, pairs: str = "neighbours", rule: str = "t
         i, j, d = lo[first], hi[first], d[first]
         add(d - radii[i] - radii[j], np.abs(radii[i] - radii[j]))
     else:
+        n = len(radii)
+        if n * (n - 1) // 2 > MAX_ALL_PAIRS:
+            raise InputError(f"pairs='all' visits {n * (n - 1) // 2:,} pairs of the {n:,} dots, more than the "
+                             f"{MAX_ALL_PAIRS:,} allowed (use pairs='neighbours')")
         block = max(1, 4_000_000 // max(len(radii), 1))
         for start in range(0, len(radii), block):
             rows = slice(start, min(start + block, len(radii)))

@@ -11,10 +11,11 @@ from matplotlib import colormaps
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from labrig.files import atomic_path
+from labrig.figures import check_dpi, save_figure
+from labrig.validate import count
 
 from .forster import TRAP_FRACTION, resolve_forster_radius
-from .lqe import TrapAverage, film_lqe
+from .lqe import MAX_DRAWS, TrapAverage, film_lqe
 from .packing import fill_within_radius, packing_summary
 from .structure import Hexatic, RadialDistribution, clusters, hexatic_order, radial_distribution, voronoi_coordination
 
@@ -46,12 +47,14 @@ def board_report(state, rule: str = "text", forster_radius: float | None = None,
     trap_fraction : float
         Fraction of trap dots (thesis 1/3).
     draws : int
-        Trap draws the LQE is averaged over (`qdots.analysis.lqe.film_lqe`).
+        Trap draws the LQE is averaged over (`qdots.analysis.lqe.film_lqe`), in [1, `qdots.analysis.lqe.MAX_DRAWS`].
     seed : int
         Seed of the trap draws.
     lqe : bool
         Compute the LQE (the costliest part on large boards).
     """
+    if lqe:
+        count("draws", draws, 1, MAX_DRAWS)  # before the costly parts
     summary = packing_summary(state, rule=rule)
     hexatic = hexatic_order(state, rule=rule)
     _, sizes = clusters(state, rule=rule)
@@ -64,6 +67,7 @@ def board_report(state, rule: str = "text", forster_radius: float | None = None,
         clusters=int(len(sizes)),
         largest_cluster_fraction=float(sizes[0] / n) if n else math.nan,
         voronoi_coordination=float(coordination[bounded].mean()) if bounded.any() else math.nan,
+        size_spread=float(np.std(state.radii) / np.mean(state.radii)) if n else math.nan,
     )
     rdf = None
     box = getattr(state, "box", None)
@@ -83,16 +87,27 @@ def board_report(state, rule: str = "text", forster_radius: float | None = None,
     return BoardReport(summary, hexatic, rdf, average)
 
 
+def _correlation_text(summary: dict) -> str:
+    """The size-separation correlation, or why it has no value (nan: equal sizes, or fewer than two pairs)."""
+    value = summary["size_separation_correlation"]
+    if math.isfinite(value):
+        return f"{value:.3f}"
+    if summary.get("size_spread") == 0:
+        return "undefined for equal sizes"
+    return "undefined (fewer than two neighbouring pairs)"
+
+
 def table_rows(summary: dict) -> list[tuple[str, str]]:
     """The summary as (label, text) rows for `qdots.cli.commands.print_table`."""
     s = summary
     rows = [
         ("dots", f"{s['n_dots']}"),
+        ("size spread (SD / mean diameter)", f"{100 * s['size_spread']:.1f} %"),
         ("interior fraction (>= 5 neighbours)", f"{s['interior_fraction']:.3f}"),
         ("mean neighbours (interior / all)", f"{s['mean_neighbours_interior']:.2f} / {s['mean_neighbours']:.2f}"),
         ("RMS excess separation (interior)", f"{s['rms_excess_separation']:.3f} px"),
         ("mean spacing (interior)", f"{s['mean_spacing']:.3f} px"),
-        ("size-separation correlation", f"{s['size_separation_correlation']:.3f}"),
+        ("size-separation correlation", _correlation_text(s)),
         ("psi6 global / local", f"{s['psi6_global']:.3f} / {s['psi6_local']:.3f}"),
         ("clusters (largest)", f"{s['clusters']} ({100 * s['largest_cluster_fraction']:.1f} % of dots)"),
         ("Voronoi coordination", f"{s['voronoi_coordination']:.2f}"),
@@ -100,8 +115,9 @@ def table_rows(summary: dict) -> list[tuple[str, str]]:
     ]
     if "lqe" in s:
         rows += [
-            ("film LQE (exact)", f"{s['lqe']:.4f} +- {s['lqe_standard_error']:.4f} over {s['trap_draws']} trap "
-                                 f"draws (cutoff error <= {s['lqe_error_bound']:.1e})"),
+            ("film LQE (exact)", (f"{s['lqe']:.4f} +- {s['lqe_standard_error']:.4f} over {s['trap_draws']} trap draws"
+                                  if s["trap_draws"] > 1 else f"{s['lqe']:.4f} for one trap draw (no standard error)")
+             + f" (cutoff error <= {s['lqe_error_bound']:.1e})"),
             ("solution LQE", f"{s['solution_lqe']:.4f} (R_F {s['forster_radius_px']:g} px, "
                              f"traps {s['trap_fraction']:.3g}, cutoff {s['lqe_cutoff_px']:.1f} px)"),
         ]
@@ -109,9 +125,11 @@ def table_rows(summary: dict) -> list[tuple[str, str]]:
 
 
 def save_report_png(state, report: BoardReport, path, dpi: int = 100) -> Path:
-    """Four panels: |psi6| per dot, g(r), fill within radius, exciton yield per dot; written atomically."""
+    """Four panels: |psi6| per dot, g(r), fill within radius, exciton yield per dot; 12 x 10.5 in at ``dpi``
+    (at most `labrig.figures.MAX_DPI`), written atomically."""
     from ..render import draw_state
 
+    check_dpi(dpi)  # before the drawing
     fig = Figure(figsize=(12, 10.5))
     FigureCanvasAgg(fig)
     ax = fig.subplots(2, 2)
@@ -135,7 +153,4 @@ def save_report_png(state, report: BoardReport, path, dpi: int = 100) -> Path:
     else:
         ax[1, 1].set_axis_off()
     fig.tight_layout()
-    path = Path(path)
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png", dpi=dpi)
-    return path
+    return save_figure(fig, path, dpi, format="png")

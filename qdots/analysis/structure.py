@@ -16,9 +16,12 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import Delaunay, cKDTree
 
-from labrig.validate import InputError
+from labrig.validate import InputError, count
 
 from .packing import neighbour_edges, pairs_within, state_arrays
+
+#: Most bins of `radial_distribution` (8 MB an array; ``qdots analyze`` uses 80, the default is 100).
+MAX_BINS = 1_000_000
 
 
 @dataclass(frozen=True)
@@ -117,7 +120,12 @@ def radial_distribution(state, r_max: float | None = None, bins: int = 100) -> R
         Default: 5 mean diameters, capped by the window (the cost grows as
         ``r_max^2``: ~0.6 s for 10^5 dots at 5 diameters).
     bins : int
-        Number of equal bins in ``[0, r_max]``.
+        Number of equal bins in ``[0, r_max]``, in [1, `MAX_BINS`].
+
+    Raises
+    ------
+    labrig.validate.InputError
+        On a bad argument, or an ``r_max`` that takes more than `qdots.neighbours.MAX_PAIRS` pairs.
 
     Notes
     -----
@@ -141,10 +149,9 @@ def radial_distribution(state, r_max: float | None = None, bins: int = 100) -> R
         r_max = min(10.0 * float(radii.mean()) if len(radii) else width, width, height)
     if not (isinstance(r_max, (int, float)) and 0 < r_max <= min(width, height)):
         raise InputError(f"r_max must be in (0, {min(width, height):g}] px (the window's smaller side), got {r_max!r}")
-    if not (isinstance(bins, (int, np.integer)) and bins >= 1):
-        raise InputError(f"bins must be an integer >= 1, got {bins!r}")
-    edges = np.linspace(0.0, float(r_max), int(bins) + 1)
-    _, _, d = pairs_within(positions, float(r_max))
+    bins = count("bins", bins, 1, MAX_BINS)
+    edges = np.linspace(0.0, float(r_max), bins + 1)
+    _, _, d = pairs_within(positions, float(r_max), f"r_max = {r_max:g} px")
     counts = np.histogram(d, bins=edges)[0]
     ideal = _ideal_pairs(edges, len(radii), width, height)
     with np.errstate(invalid="ignore", divide="ignore"):

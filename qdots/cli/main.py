@@ -28,8 +28,6 @@ DEMO_DIAMETER = 15.0
 DEMO_FRAME_INTERVAL = 0.2
 #: Most dots the demo board takes (a 300 x 300 px board holds about 460 close-packed 15 px dots).
 DEMO_MAX_DOTS = 460
-#: Most trap draws `qdots analyze` averages.
-MAX_DRAWS = 10_000
 
 
 def _add_demo(subparsers) -> None:
@@ -54,9 +52,9 @@ def _add_outputs(p, out_default: str | None) -> None:
     p.add_argument("--gsd", action="store_true", help="also write a GSD trajectory (needs the gsd package)")
 
 
-def _add_state_command(subparsers, name: str, func, help: str):
+def _add_state_command(subparsers, name: str, func, help: str, description: str | None = None):
     """A subcommand whose argument is a state file (``STATE.npz``)."""
-    p = add_command(subparsers, name, func, help)
+    p = add_command(subparsers, name, func, help, description)
     p.add_argument("state", type=Path, metavar="STATE.npz", help="state file")
     return p
 
@@ -85,20 +83,28 @@ def _add_preset(subparsers) -> None:
 
 
 def _add_resume(subparsers) -> None:
-    p = _add_state_command(subparsers, "resume", _run_resume, "continue a saved run")
+    from .commands import RESUME_RULE
+
+    p = _add_state_command(subparsers, "resume", _run_resume, "continue a saved run",
+                           description=f"{_run_resume.__doc__} {RESUME_RULE}")
     p.add_argument("--seconds", type=float_in(0.0, math.inf, low_open=True), required=True, metavar="T",
                    help="simulated time to add, s")
     _add_outputs(p, None)
     p.add_argument("--out", type=Path, default=None, metavar="DIR",
-                   help="write the new state here (default: replace STATE in place, atomically)")
+                   help="write the new set here (default: replace STATE's set in place, all at once)")
 
 
 def _add_render(subparsers) -> None:
     p = _add_state_command(subparsers, "render", _run_render, "draw a saved state as PNG")
-    p.add_argument("--out", type=Path, default=None, metavar="FILE.png", help="default: STATE with .png")
+    p.add_argument("--out", type=Path, default=None, metavar="FILE.png",
+                   help="default: STATE with .png, which replaces the run's own picture of that state "
+                        "(the same drawing; the command says so)")
 
 
 def _add_analyze(subparsers) -> None:
+    from ..analysis.forster import MAX_FORSTER_PX, MAX_FORSTER_RADII
+    from ..analysis.lqe import MAX_DRAWS
+
     p = _add_state_command(subparsers, "analyze", _run_analyze, "packing table and LQE of a saved state")
     p.add_argument("--json", action="store_true", help="print one JSON object instead of the table")
     p.add_argument("--plot", nargs="?", type=Path, const=True, default=None, metavar="FILE.png",
@@ -106,9 +112,10 @@ def _add_analyze(subparsers) -> None:
     p.add_argument("--rule", choices=["text", "code"], default="text",
                    help="neighbours: surface gap < one mean radius (text, default) or d <= r_i + 2 r_j (code)")
     radius = p.add_mutually_exclusive_group()
-    radius.add_argument("--forster-radius", type=float_in(0.0, math.inf, low_open=True), default=None, metavar="PX",
-                        help="Förster radius, px (default: the mean diameter)")
-    radius.add_argument("--forster-radii", type=float_in(0.0, 1000.0, low_open=True), default=None, metavar="R",
+    radius.add_argument("--forster-radius", type=float_in(0.0, MAX_FORSTER_PX, low_open=True, high_open=False),
+                        default=None, metavar="PX", help="Förster radius, px (default: the mean diameter)")
+    radius.add_argument("--forster-radii", type=float_in(0.0, MAX_FORSTER_RADII, low_open=True), default=None,
+                        metavar="R",
                         help="Förster radius in mean dot radii, as the thesis's Fig 2-5 c (2 = the default)")
     p.add_argument("--traps", type=float_in(0.0, 1.0, high_open=False), default=1 / 3, metavar="F",
                    help="fraction of trap dots (default 1/3)")
@@ -206,19 +213,23 @@ def _run_demo(args: argparse.Namespace) -> int:
     from ..analysis.packing import packing_summary
     from ..placement import random_sequential
     from ..render import MovieWriter, save_png
+    from .commands import OVERLAP_COLUMN, say_replaced
 
     out: Path = args.out
-    # Independent streams for placement and dynamics, both from the one seed.
+    movie = None
+    # Independent streams for placement and dynamics, both from the one seed (a board too full is an error
+    # before the output directory is made).
     place_seed, sim_seed = np.random.SeedSequence(args.seed).spawn(2)
     positions, radii = random_sequential(args.dots, DEMO_BOX, DEMO_DIAMETER, args.sigma,
                                          rng=np.random.default_rng(place_seed))
     scene = qdots.Scene(box=DEMO_BOX, positions=positions, radii=radii)
     sim = qdots.Simulation(scene, [qdots.VanDerWaals(), qdots.ThermalKicks()], seed=sim_seed)
-    movie = None
     start = time.perf_counter()
-    with OutputSet(out) as files:
-        if not args.no_movie:
-            movie = sim.attach(files.adopt(MovieWriter(files.target("demo.mp4"),
+    with OutputSet(out, "demo") as files:  # locks the set before the run
+        if args.no_movie:
+            files.drop("demo.mp4")
+        else:
+            movie = sim.attach(files.adopt(MovieWriter(files.stage("demo.mp4"),
                                                        every=max(1, round(DEMO_FRAME_INTERVAL / sim.dt)))))
         state = sim.run(args.seconds, progress=True)
         wall = time.perf_counter() - start
@@ -232,9 +243,10 @@ def _run_demo(args: argparse.Namespace) -> int:
             "steps": sim.steps_taken, "wall_s": round(wall, 3), "movie_wall_s": round(movie_wall, 3),
             "steps_per_s": round(steps_per_s, 1), "interior_fraction": summary["interior_fraction"],
             "mean_neighbours_interior": summary["mean_neighbours_interior"],
-            "max_overlap": summary["max_overlap"], "kinetic_energy": summary["kinetic_energy"],
+            OVERLAP_COLUMN: 100 * summary["max_overlap"], "kinetic_energy": summary["kinetic_energy"],
         }
         write_csv(files.stage("summary.csv"), [row])
+    say_replaced(files, hints=False)
     movie_note = f" (movie {movie_wall:.1f} s, {movie.frames} frames)" if movie is not None else ""
     print_table(f"qdots demo: {args.dots} dots on a {DEMO_BOX[0]:g} x {DEMO_BOX[1]:g} px board, "
                 f"sigma {args.sigma:g}, seed {args.seed}", [

@@ -42,6 +42,12 @@ from ..experiment import Experiment, run_experiment
 from ..io.experiment_file import TABLES, TOP, experiment_from_dict
 
 
+#: Wall seconds per time step and per dot and time step of a run, at the default engine settings (from fig2-2:
+#: 160,000 steps, 3.0e7 dot-steps, 34 s), for `ExperimentRunner.estimate`.
+STEP_SECONDS = 3e-5
+DOT_STEP_SECONDS = 1e-6
+
+
 def experiment_to_dict(exp: Experiment) -> dict:
     """Every parameter of ``exp`` as nested plain data (the experiment file's tables; unset values left out).
 
@@ -89,13 +95,26 @@ class ExperimentRunner:
         exp = experiment_from_dict(params)
         return experiment_to_dict(exp if self.quick is None else exp.quick(self.quick))
 
+    def estimate(self, params: dict) -> float:
+        """About how many wall seconds the run of ``params`` takes on one core: `STEP_SECONDS` per time step
+        plus `DOT_STEP_SECONDS` per dot and step, the dots arriving one by one (fig2-2, 300 dots and 400 s,
+        took 34 s on one of 2 cores; the scenes that differ most from it may take 2-3x more or less)."""
+        exp = experiment_from_dict(params)
+        dep = exp.deposition
+        n = dep.n_dots
+        dot_seconds = dep.interval * n * (n - 1) / 2 + n * dep.settle
+        return ((n * dep.interval + dep.settle) * STEP_SECONDS + dot_seconds * DOT_STEP_SECONDS) / exp.engine.dt
+
     def __call__(self, params: dict, state_path: Path | None = None) -> dict:
         from ..analysis.packing import packing_summary
         from ..io import checkpoint
 
+        from .commands import OVERLAP_COLUMN
+
         sim = run_experiment(experiment_from_dict(params))
         state = sim.state()
         row = {**packing_summary(state, self.rule), "time_s": state.time, "steps": sim.steps_taken}
+        row[OVERLAP_COLUMN] = 100 * row.pop("max_overlap")  # percent of a radius, as in summary.csv
         if state_path is not None:
             checkpoint.save(sim, state_path)
         return row

@@ -73,6 +73,11 @@ class Force:
         """Add this force's velocity change for one step to ``ctx.dv``."""
         raise NotImplementedError
 
+    def check_run(self, dt: float, steps: int | None = None) -> None:
+        """`InputError` when a step of ``dt`` s (or a run of ``steps`` such steps) would make this force do
+        more work than a run may; called before a run starts. A force that acts once per step has
+        nothing to check; a force on its own clock (`instants_in_step`) bounds how often it acts."""
+
     def params(self) -> dict:
         """The constructor arguments that rebuild this force (plain data, JSON/TOML friendly).
 

@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from labrig.validate import real
+from labrig.validate import InputError, number, real
 
 from ..units import THESIS_KICK_INTERVAL, thesis_kick_speed
 from .base import Force, StepContext, instants_in_step
@@ -18,6 +18,11 @@ MAX_SCALE = 1e4
 #: Largest Langevin friction rate, 1/s, and thermal energy, mean-dot mass px^2/s^2 (the default is ~1.8).
 MAX_GAMMA = 1e6
 MAX_KT = 1e8
+#: Most kicks within one time step: a kick interval shorter than the step repeats the kick (one random
+#: draw per dot each time) this many times at most.
+MAX_KICKS_PER_STEP = 1000
+#: Most kicks in one run (the thesis's 400 s film takes 20,000).
+MAX_KICKS_PER_RUN = 1_000_000_000
 
 
 class ThermalKicks(Force):
@@ -36,7 +41,8 @@ class ThermalKicks(Force):
     Parameters
     ----------
     interval : float
-        Time between kicks, s (> 0). Thesis: 1/50 s.
+        Time between kicks, s (> 0; a simulation refuses an interval that gives more than
+        `MAX_KICKS_PER_STEP` kicks per time step or `MAX_KICKS_PER_RUN` per run). Thesis: 1/50 s.
     scale : float
         Multiplier on the thesis magnitude (>= 0).
     """
@@ -52,6 +58,19 @@ class ThermalKicks(Force):
     def kicks_in_step(self, time: float, dt: float) -> int:
         """How many kick instants fall in ``(time, time + dt]`` (`instants_in_step`)."""
         return instants_in_step(time, dt, self.interval)
+
+    def check_run(self, dt: float, steps: int | None = None) -> None:
+        """`InputError` when ``interval`` gives more than `MAX_KICKS_PER_STEP` kicks in a step of ``dt`` s, or
+        more than `MAX_KICKS_PER_RUN` in ``steps`` steps."""
+        per_step = dt / self.interval
+        if per_step > MAX_KICKS_PER_STEP:
+            raise InputError(f"ThermalKicks.interval = {self.interval:g} s gives {per_step:.3g} kicks per time step of "
+                             f"{dt:g} s, more than the {MAX_KICKS_PER_STEP:,} allowed: use an interval >= "
+                             f"{number(dt / MAX_KICKS_PER_STEP)} s (thesis: 0.02 s)")
+        if steps is not None and per_step * steps > MAX_KICKS_PER_RUN:
+            raise InputError(f"ThermalKicks.interval = {self.interval:g} s gives {per_step * steps:.3g} kicks in a run of "
+                             f"{steps * dt:g} s, more than the {MAX_KICKS_PER_RUN:,} a run may take: use an interval >= "
+                             f"{number(steps * dt / MAX_KICKS_PER_RUN)} s")
 
     def kick(self, ctx: StepContext) -> None:
         for _ in range(self.kicks_in_step(ctx.time, ctx.dt)):

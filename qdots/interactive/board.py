@@ -25,12 +25,18 @@ from __future__ import annotations
 import asyncio
 import html
 
-from labrig.validate import InputError
+from labrig.validate import real
 from labrig.widgets import require_widgets, widget_figure
 
 from ..presets import GRATING_WIDTH
 from ..render import BoardArtists
 from .live import GRAVITY_MODES, LiveRun
+
+#: Largest canvas, inches a side: 2,000 px at matplotlib's 100 dpi, wider than a notebook's page (every
+#: frame redraws all of it).
+MAX_SIZE = 20.0
+#: Longest pause after a frame, s: beyond it the board looks stopped.
+MAX_FRAME_PAUSE = 60.0
 
 
 def _error(text: str) -> str:
@@ -50,11 +56,11 @@ class LiveBoard:
     live : qdots.interactive.live.LiveRun, optional
         The board to run; default ``LiveRun(**kwargs)``.
     frame_pause : float
-        Wall-clock pause after each frame, s (>= 0): time left to the kernel
+        Wall-clock pause after each frame, s (in [0, `MAX_FRAME_PAUSE`]): time left to the kernel
         for clicks and cells.
     size : float
-        Width and height of the canvas, inches (4.8: 480 px, room for the controls beside it in a
-        notebook next to JupyterLab's file browser; on a narrower page the controls go below).
+        Width and height of the canvas, inches (in (0, `MAX_SIZE`]; 4.8: 480 px, room for the controls
+        beside it in a notebook next to JupyterLab's file browser; on a narrower page the controls go below).
     **kwargs
         Passed to `qdots.interactive.live.LiveRun` when ``live`` is not given (``scene``,
         ``knobs``, ``seed``, ``frame_steps``, engine settings).
@@ -79,13 +85,12 @@ class LiveBoard:
     """
 
     def __init__(self, live: LiveRun | None = None, *, frame_pause: float = 0.02, size: float = 4.8, **kwargs):
+        self.frame_pause = real("frame_pause", frame_pause, 0.0, MAX_FRAME_PAUSE, unit="s")
+        size = real("size", size, 0.0, MAX_SIZE, low_open=True, unit="in")
         w = require_widgets("qdots.interactive")
         self.live = LiveRun(**kwargs) if live is None else live
         if not isinstance(self.live, LiveRun):
             raise TypeError(f"live must be a qdots.interactive.live.LiveRun, got {type(self.live).__name__}")
-        if not frame_pause >= 0:
-            raise InputError(f"frame_pause must be >= 0 s, got {frame_pause!r}")
-        self.frame_pause = float(frame_pause)
         self._task: asyncio.Task | None = None
         self._restoring = False
         knobs, (width, height) = self.live.knobs, self.live.sim.scene.box

@@ -39,7 +39,7 @@ from ..forces.thermal import MAX_SCALE
 from ..forces.vdw import MAX_RANGE
 from ..io import checkpoint
 from ..protocols import deposit
-from ..scene import Scene, grating_segments, segment_distances
+from ..scene import MAX_DOTS, Scene, grating_segments, segment_distances
 from ..settings import DT_RANGE, EngineSettings
 from ..simulation import Simulation
 from ..state import State
@@ -244,9 +244,14 @@ class LiveRun:
         """Queue ``n_dots`` dots for deposition by `qdots.protocols.deposit`, ``interval`` s apart.
 
         They are placed during the next `advance` calls, as the board time
-        reaches each one's turn (the first at once). Arguments as `deposit`.
+        reaches each one's turn (the first at once). Arguments as `deposit`; the board, with the
+        dots on it and those queued, holds at most `qdots.scene.MAX_DOTS`.
         """
-        n_dots = count("n_dots", n_dots, 0)
+        n_dots = count("n_dots", n_dots, 0, MAX_DOTS)
+        total = self.sim.n_dots + self.pending + n_dots
+        if total > MAX_DOTS:
+            raise InputError(f"n_dots = {n_dots:,} would bring the board to {total:,} dots ({self.sim.n_dots:,} on it, "
+                             f"{self.pending:,} queued), more than the {MAX_DOTS:,} allowed")
         # validate now, not at the first frame: a dry run places nothing
         deposit(self.sim, 0, mean_diameter, sigma, interval=interval, mass_model=mass_model, rng=self._drop_rng)
         if n_dots:

@@ -33,11 +33,12 @@ from pathlib import Path
 import pymunk
 
 from labrig.archive import read_archive, write_archive
+from labrig.files import recover_beside
 from labrig.validate import InputError, count, flag, real, reals
 
 from ..collisions import Restitution, stream_key
 from ..forces import force_from_dict
-from ..scene import MAX_LENGTH, Scene
+from ..scene import MAX_DOTS, MAX_LENGTH, MAX_SEGMENTS, Scene
 from ..settings import EngineSettings
 from ..simulation import Simulation
 from ..state import State
@@ -49,6 +50,10 @@ ARRAYS = ("positions", "velocities", "radii", "masses", "segments")
 #: earlier have only the first three (their draws start from a key derived from the saved generator).
 COUNTERS = ("dot_dot", "dot_wall", "sticking", "draws", "key")
 OLD_COUNTERS = COUNTERS[:3]
+#: Largest size of each saved array, bytes: float64 values of at most `qdots.scene.MAX_DOTS` dots and
+#: `qdots.scene.MAX_SEGMENTS` walls (`labrig.archive.read_archive` refuses a file that declares more).
+MAX_ARRAY_BYTES = {"positions": MAX_DOTS * 2 * 8, "velocities": MAX_DOTS * 2 * 8, "radii": MAX_DOTS * 8,
+                   "masses": MAX_DOTS * 8, "segments": MAX_SEGMENTS * 4 * 8}
 
 
 def save(sim: Simulation, path: str | os.PathLike) -> Path:
@@ -98,7 +103,8 @@ def _field(metadata: dict, key: str):
 
 def _read(path: str | os.PathLike) -> tuple[dict, Scene]:
     """The checked metadata and the board of a state file, or an InputError that says what is wrong with it."""
-    metadata, arrays = read_archive(path, FORMAT, VERSION, ARRAYS, "qdots state")
+    recover_beside(path)  # finish a switch of its output set that a kill interrupted (labrig.staging)
+    metadata, arrays = read_archive(path, FORMAT, VERSION, ARRAYS, "qdots state", max_bytes=MAX_ARRAY_BYTES)
     try:
         time = real("time", _field(metadata, "time"), unit="s")
         start = real("start_time", _field(metadata, "start_time"), unit="s")
@@ -156,7 +162,7 @@ def load(path: str | os.PathLike) -> Simulation:
         rng = _field(metadata, "rng")
         try:
             sim.rng.bit_generator.state = rng
-        except (TypeError, ValueError, KeyError) as exc:
+        except (TypeError, ValueError, KeyError, OverflowError) as exc:
             raise InputError(f"rng is not a state of numpy's {type(sim.rng.bit_generator).__name__}: {exc}") from None
         sim.steps_taken = metadata["steps_taken"]
         sim.start_time = metadata["start_time"]

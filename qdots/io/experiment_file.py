@@ -13,6 +13,7 @@ ValueError naming the file and the full key (e.g. ``deposition.sigmaa``).
 from __future__ import annotations
 
 import dataclasses
+import inspect
 import os
 from pathlib import Path
 
@@ -22,10 +23,11 @@ from labrig.validate import MAX_SEED, InputError, number, typed
 
 from ..collisions import MAX_STICKING_SPEED, Restitution
 from ..experiment import MAX_SETTLE, Board, Deposition, Experiment
+from ..forces import FORCE_TYPES
 from ..forces.fields import MAX_ACCELERATION, MAX_DRAG
-from ..forces.thermal import MAX_GAMMA, MAX_KT, MAX_SCALE
+from ..forces.thermal import MAX_GAMMA, MAX_KICKS_PER_RUN, MAX_KICKS_PER_STEP, MAX_KT, MAX_SCALE
 from ..forces.thermal import MAX_INTERVAL as MAX_KICK_INTERVAL
-from ..forces.vdw import MAX_RANGE, MAX_STRENGTH
+from ..forces.vdw import MAX_FAR_INTERVAL, MAX_RANGE, MAX_STRENGTH
 from ..neighbours import MAX_SKIN
 from ..placement import MAX_TRIES
 from ..protocols import MAX_INTERVAL
@@ -91,8 +93,12 @@ FORCE_NOTES = {
                     "min_gap": "px, closer counts as contact", "max_gap": "px, no force beyond",
                     "contact": '"hold" | "zero" (force below min_gap)',
                     "sticking_speed": "px/s, enters the proxy offset b",
-                    "skin": f"px, Verlet skin of the pair list, in [0, {number(MAX_SKIN)}]"},
-    "ThermalKicks": {"interval": f"s between kicks, in (0, {number(MAX_KICK_INTERVAL)}]",
+                    "skin": f"px, Verlet skin of the pair list, in [0, {number(MAX_SKIN)}]",
+                    "near_gap": f"px, pairs closer than this are pulled every step, in (0, {number(2 * MAX_RANGE)}]",
+                    "far_interval": f"s between passes over the farther pairs, in (0, {number(MAX_FAR_INTERVAL)}]; "
+                                    "false: every pair every step"},
+    "ThermalKicks": {"interval": f"s between kicks, in (0, {number(MAX_KICK_INTERVAL)}]; at most "
+                                 f"{MAX_KICKS_PER_STEP:,} kicks per engine.dt and {MAX_KICKS_PER_RUN:,} per run",
                      "scale": f"multiple of the thesis kick speed, in [0, {number(MAX_SCALE)}]"},
     "Langevin": {"gamma": f"1/s, friction rate, in [0, {number(MAX_GAMMA)}]",
                  "kT": f"mean-dot mass px^2/s^2, in [0, {number(MAX_KT)}]"},
@@ -117,8 +123,25 @@ def experiment_to_toml(exp: Experiment) -> str:
                                        for key, (_, note) in schema.items()]
     for spec in exp.forces:
         notes = FORCE_NOTES.get(spec["type"], {})
-        lines += ["", "[[forces]]"] + [toml_line(k, v, notes.get(k)) for k, v in spec.items()]
+        defaults = force_defaults(spec["type"])
+        lines += ["", "[[forces]]"] + [toml_line(k, v, notes.get(k), defaults.get(k)) for k, v in spec.items()]
     return "\n".join(lines) + "\n"
+
+
+def force_defaults(name: str) -> dict:
+    """The constructor defaults of the force type ``name`` ({} for an unknown type)."""
+    cls = FORCE_TYPES.get(name)
+    if cls is None:
+        return {}
+    return {key: p.default for key, p in inspect.signature(cls.__init__).parameters.items()
+            if p.default is not inspect.Parameter.empty}
+
+
+def _force_table(spec: dict) -> dict:
+    """A ``[[forces]]`` table as constructor arguments: ``false`` unsets (None) a parameter whose default is set
+    (the way `experiment_to_toml` writes such a parameter; no force takes a true/false parameter)."""
+    defaults = force_defaults(spec.get("type"))
+    return {key: None if value is False and defaults.get(key) is not None else value for key, value in spec.items()}
 
 
 def save_experiment(exp: Experiment, path: str | os.PathLike) -> Path:
@@ -155,7 +178,7 @@ def experiment_from_dict(data: dict) -> Experiment:
         forces = data["forces"]
         if not isinstance(forces, list) or not all(isinstance(f, dict) for f in forces):
             raise InputError(f"forces must be an array of tables ([[forces]]), got {forces!r}")
-        kwargs["forces"] = tuple(forces)
+        kwargs["forces"] = tuple(_force_table(f) for f in forces)
     return Experiment(**kwargs)
 
 

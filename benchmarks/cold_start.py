@@ -1,0 +1,100 @@
+"""Cold start: the first run after installing (numba compiles every kernel it reaches) against later runs.
+
+Each command runs twice in a fresh process with its own empty numba cache directory (``NUMBA_CACHE_DIR``):
+first cold, as on a fresh install, then warm, loading what the first run cached. ``compile`` is the cold wall
+time less the warm one. ``error`` compares the two runs' results (the summary table's numbers): compiling or
+loading a kernel must not change what it computes, so 0 is expected.
+
+Run: ``python -m benchmarks.cold_start [--quick]``
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import math
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from .report import Headline, Note, Table, print_results
+
+#: The commands timed: name -> (arguments of ``python -m``, a table it writes into its --out).
+COMMANDS = {
+    "qdots demo": (["qdots", "demo", "--no-movie"], "summary.csv"),
+    "planarize scene hill": (["planarize", "scene", "hill"], "hill_history.csv"),
+}
+#: Longest a command may take, s.
+TIMEOUT = 1800
+
+
+def timed_run(argv: list[str], out: Path, cache: Path) -> float:
+    """Wall seconds of ``python -m ARGV --out OUT`` with numba's cache in ``cache``."""
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(cache)}
+    start = time.perf_counter()
+    subprocess.run([sys.executable, "-m", *argv, "--out", str(out)], env=env, check=True, capture_output=True,
+                   timeout=TIMEOUT)
+    return time.perf_counter() - start
+
+
+def numbers(table: Path) -> dict[tuple[int, str], float]:
+    """The numeric cells of a table, by (row, column); timing columns left out."""
+    with open(table, newline="", encoding="utf-8") as stream:
+        rows = list(csv.DictReader(stream))
+    out = {}
+    for k, row in enumerate(rows):
+        for key, text in row.items():
+            if "wall" in key or "per_s" in key or "real_time" in key:
+                continue
+            try:
+                out[k, key] = float(text)
+            except (TypeError, ValueError):
+                continue
+    return out
+
+
+def difference(a: dict, b: dict) -> float:
+    """Largest |a - b| over the cells both have (nan equal to nan); inf when they hold different cells."""
+    if a.keys() != b.keys():
+        return math.inf
+    worst = 0.0
+    for key in a.keys() & b.keys():
+        x, y = a[key], b[key]
+        if not (math.isnan(x) and math.isnan(y)):
+            worst = max(worst, abs(x - y))
+    return worst
+
+
+def run(quick: bool) -> list:
+    rows, headlines = [], []
+    for name, (argv, table) in COMMANDS.items():
+        argv = argv + (["--seconds", "2"] if quick and argv[0] == "qdots" else [])
+        argv = argv + (["--quick", "0.25"] if quick and argv[0] == "planarize" else [])
+        with tempfile.TemporaryDirectory() as tmp:
+            tmp = Path(tmp)
+            cold = timed_run(argv, tmp / "cold", tmp / "cache")
+            warm = timed_run(argv, tmp / "warm", tmp / "cache")
+            error = difference(numbers(tmp / "cold" / table), numbers(tmp / "warm" / table))
+        rows.append([" ".join(argv), cold, warm, cold - warm, error])
+        headlines.append(Headline(f"cold start: `{' '.join(argv)}`", f"{cold:.1f} s first run, {warm:.1f} s later",
+                                  f"{error:.3g} (cold vs warm results)"))
+    return [Table("Cold and warm runs (s, whole process)", ["command", "cold", "warm", "compile", "error"], rows,
+                  note="cold: a fresh numba cache, as after installing; warm: the same command again. The bars "
+                       "say when they compile and leave it out of their ETA."),
+            Note("The first run of each command compiles its kernels once per machine (and again after an "
+                 "upgrade of numba or of the package); every later run loads them."), *headlines]
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="shorter runs")
+    args = parser.parse_args(argv)
+    print_results(run(args.quick))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
