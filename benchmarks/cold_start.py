@@ -22,10 +22,10 @@ from pathlib import Path
 
 from .report import Headline, Note, Table, print_results
 
-#: The commands timed: name -> (arguments of ``python -m``, a table it writes into its --out).
+#: The commands timed: name -> (arguments of ``python -m``, the name pattern of a table it writes into its --out).
 COMMANDS = {
     "qdots demo": (["qdots", "demo", "--no-movie"], "summary.csv"),
-    "planarize scene hill": (["planarize", "scene", "hill"], "hill_history.csv"),
+    "planarize scene hill": (["planarize", "scene", "hill"], "*_history.csv"),
 }
 #: Longest a command may take, s.
 TIMEOUT = 1800
@@ -40,8 +40,10 @@ def timed_run(argv: list[str], out: Path, cache: Path) -> float:
     return time.perf_counter() - start
 
 
-def numbers(table: Path) -> dict[tuple[int, str], float]:
-    """The numeric cells of a table, by (row, column); timing columns left out."""
+def numbers(directory: Path, pattern: str) -> dict[tuple[int, str], float]:
+    """The numeric cells of the one table matching ``pattern`` in ``directory``, by (row, column); timing columns
+    left out."""
+    (table,) = directory.glob(pattern)
     with open(table, newline="", encoding="utf-8") as stream:
         rows = list(csv.DictReader(stream))
     out = {}
@@ -77,7 +79,7 @@ def run(quick: bool) -> list:
             tmp = Path(tmp)
             cold = timed_run(argv, tmp / "cold", tmp / "cache")
             warm = timed_run(argv, tmp / "warm", tmp / "cache")
-            error = difference(numbers(tmp / "cold" / table), numbers(tmp / "warm" / table))
+            error = difference(numbers(tmp / "cold", table), numbers(tmp / "warm", table))
         rows.append([" ".join(argv), cold, warm, cold - warm, error])
         headlines.append(Headline(f"cold start: `{' '.join(argv)}`", f"{cold:.1f} s first run, {warm:.1f} s later",
                                   f"{error:.3g} (cold vs warm results)"))
