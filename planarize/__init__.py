@@ -7,7 +7,6 @@
 """
 
 from labrig import __version__  # noqa: F401 (one version for the distribution)
-from labrig.deprecation import alias_modules, renamed_attributes
 
 from . import engines, surfaces
 from .anodize import Anodization, Snapshot, anodize
@@ -18,12 +17,3 @@ from .surface import Surface
 
 __all__ = ["Surface", "Model", "anodize", "Anodization", "Snapshot", "Fast", "Reference", "Matlab", "rms", "z_range",
            "surfaces", "engines"]
-
-# modules that moved in 0.2 (their old names warn, and go in the next release)
-alias_modules({f"planarize.{old}": new for old, new in {
-    "scenes": "planarize.surfaces", "engine": "planarize.engines.base", "bookkeeping": "planarize.engines.sets", "reference": "planarize.engines.reference",
-    "fast": "planarize.engines.fast", "features": "planarize.engines.features",
-    "compiled": "planarize.engines.kernels", "gwy": "planarize.io.gwy", "results": "planarize.io.results",
-    "scenefile": "planarize.io.scenefile", "commands": "planarize.cli.commands",
-    "sweep": "planarize.cli.sweep"}.items()})
-__getattr__ = renamed_attributes(__name__, {"scenes": "surfaces"})

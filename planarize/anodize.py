@@ -7,7 +7,6 @@
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import os
 import time
@@ -16,10 +15,9 @@ from typing import Callable
 
 import numpy as np
 
-from labrig.deprecation import warn as warn_renamed
 from labrig.validate import InputError, count, flag, real, reals, within_memory
 
-from .engines import Fast, engine_settings
+from .engines import engine_settings
 from .engines.base import check_oxide
 from .metrics import history_row
 from .model import Model
@@ -36,9 +34,6 @@ HISTORY_ROW_BYTES = 2048
 #: Memory an engine needs per grid point, bytes (measured: the fast engine 0.89 GB at 1025 x 1025;
 #: the reference engine's sets are Python objects, about twice that).
 ENGINE_BYTES_PER_POINT = 2000
-#: The keywords of 0.1's flat signature, by where they went.
-MODEL_KEYWORDS = ("step", "k_exp", "distance", "volume")
-ENGINE_KEYWORDS = ("tolerance", "interacting", "threads", "jit")
 
 
 @dataclass(frozen=True)
@@ -149,35 +144,17 @@ def _available_memory() -> float:
         return math.inf
 
 
-def _model_and_engine(model, engine, deprecated: dict):
-    """The `Model` and engine settings of a call, with the flat keywords of 0.1 folded in (with a warning)."""
-    model_keys = {k: deprecated.pop(k) for k in MODEL_KEYWORDS if k in deprecated}
-    engine_keys = {k: deprecated.pop(k) for k in ENGINE_KEYWORDS if k in deprecated}
-    if deprecated:
-        raise TypeError(f"anodize() got an unexpected keyword argument {sorted(deprecated)[0]!r}")
-    if model_keys:
-        warn_renamed(f"anodize({', '.join(f'{k}=' for k in model_keys)}...)",
-                     f"anodize(..., model=planarize.Model({', '.join(f'{k}=' for k in model_keys)}...))")
-        if model is not None:
-            raise InputError(f"give model=Model(...) or {', '.join(model_keys)}, not both")
-        model = Model(**model_keys)
+def _model_and_engine(model, engine):
+    """The `Model` (default ``Model()``) and the engine settings of a call."""
     model = Model() if model is None else model
     if not isinstance(model, Model):
         raise InputError(f"model must be a planarize.Model, got {type(model).__name__}")
-    settings = engine_settings(engine)
-    engine_keys.pop("jit", None)  # 0.1's jit=: the engine is always compiled now
-    if engine_keys:
-        warn_renamed(f"anodize({', '.join(f'{k}=' for k in engine_keys)}...)",
-                     f"anodize(..., engine=planarize.engines.Fast({', '.join(f'{k}=' for k in engine_keys)}...))")
-        if not isinstance(settings, Fast):
-            raise InputError(f"{', '.join(engine_keys)} apply to the fast engine only, not {settings.name!r}")
-        settings = dataclasses.replace(settings, **engine_keys)
-    return model, settings
+    return model, engine_settings(engine)
 
 
 def anodize(metal: Surface, thickness: float, model: Model | None = None, engine: str | object = "fast", *,
             record=50, snapshots=None, oxide: Surface | None = None, progress: bool = False,
-            observer: Callable | None = None, max_seconds: float | None = None, **deprecated) -> Anodization:
+            observer: Callable | None = None, max_seconds: float | None = None) -> Anodization:
     """Oxidize ``metal`` until the oxide is ``thickness`` nm thick everywhere (thesis section 3.3).
 
     Parameters
@@ -212,15 +189,12 @@ def anodize(metal: Surface, thickness: float, model: Model | None = None, engine
     max_seconds : float, optional
         Wall-time budget, s: the run stops after the first sweep past it, with ``complete`` False
         and a last history row and snapshot at the thickness reached.
-    **deprecated
-        The keywords of 0.1 (``step``, ``k_exp``, ``distance``, ``volume``; ``tolerance``,
-        ``interacting``, ``threads``, ``jit``) still work for one release, with a DeprecationWarning.
 
     Returns
     -------
     Anodization
     """
-    model, settings = _model_and_engine(model, engine, deprecated)
+    model, settings = _model_and_engine(model, engine)
     if not isinstance(metal, Surface):
         raise InputError(f"metal must be a planarize.Surface, got {type(metal).__name__}")
     check_oxide(metal, oxide)

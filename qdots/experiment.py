@@ -18,7 +18,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from labrig.deprecation import warn as warn_renamed
 from labrig.validate import InputError, choice, count, flag, real, seed, text
 
 from .collisions import Restitution
@@ -100,9 +99,6 @@ class Deposition:
     max_tries: int = 10_000
 
     def __post_init__(self) -> None:
-        if self.protocol == "center":  # the spelling of 0.1 (files keep loading)
-            warn_renamed("deposition.protocol 'center'", "'centre'")
-            _set(self, "protocol", "centre")
         choice("deposition.protocol", self.protocol, PROTOCOLS)
         choice("deposition.mass_model", self.mass_model, MASS_MODELS)
         _set(self, "n_dots", count("deposition.n_dots", self.n_dots, 0, MAX_DOTS))

@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import math
 
-from labrig.deprecation import warn as warn_renamed
 from labrig.validate import InputError, real
 
 from .experiment import Board, Deposition, Experiment, default_forces
@@ -98,9 +97,6 @@ def get_preset(name: str, quick: bool | float = False) -> list[Experiment]:
     ValueError
         On an unknown name (the message lists the known ones) or a bad ``quick``.
     """
-    if name == "center-gravity":  # the name of 0.1
-        warn_renamed("preset 'center-gravity'", "'centre-gravity'")
-        name = "centre-gravity"
     if name not in PRESETS:
         raise InputError(f"unknown preset {name!r} (known: {', '.join(PRESETS)})")
     if quick is False:

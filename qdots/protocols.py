@@ -16,12 +16,9 @@ batch size part of the random stream.
 from __future__ import annotations
 
 import math
-from typing import Sequence
 
 import numpy as np
 
-from labrig.deprecation import renamed_attributes
-from labrig.deprecation import warn as warn_renamed
 from labrig.progress import progress_bar
 from labrig.validate import InputError, count, generator, real
 
@@ -173,16 +170,6 @@ def _sequential(sim, n, mean_diameter, mass_model, heavy_mass, interval, max_tri
     return diameters
 
 
-__getattr__ = renamed_attributes(__name__, {"deposit_around_center": "deposit_around_centre"})
-
-
-def _attach_deprecated(sim, writers) -> None:
-    for writer in writers:
-        if writer not in sim.writers:
-            warn_renamed("deposit(..., writers=...)", "Simulation.attach(writer)", stacklevel=4)
-            sim.attach(writer)
-
-
 def _check_region(region, box) -> tuple[float, float, float, float]:
     w, h = box
     if region is None:
@@ -199,7 +186,7 @@ def _check_region(region, box) -> tuple[float, float, float, float]:
 
 def deposit(sim, n_dots: int, mean_diameter: float = 15.0, sigma: float = 0.0, region=None,
             mass_model: str = "equal", heavy_mass: float = 2.0, interval: float = 1.0,
-            max_tries: int = 10_000, rng=None, progress: bool = False, writers: Sequence = ()) -> np.ndarray:
+            max_tries: int = 10_000, rng=None, progress: bool = False) -> np.ndarray:
     """Deposit dots one at a time at random positions (thesis ``runRandomAttraction*``).
 
     For each dot: draw ``d = mean_diameter (1 + sigma N(0, 1))`` (`qdots.placement.draw_candidates`)
@@ -231,10 +218,8 @@ def deposit(sim, n_dots: int, mean_diameter: float = 15.0, sigma: float = 0.0, r
     rng : numpy.random.Generator, SeedSequence, int or None
         Source of the placement randomness. Default: a child of ``sim.rng``.
     progress : bool
-        Show a progress bar over the dots.
-    writers : sequence of Writer
-        Deprecated: attach writers to ``sim`` (`qdots.Simulation.attach`); they then record the
-        deposition as one continuous run.
+        Show a progress bar over the dots. To record the deposition, attach writers to ``sim``
+        (`qdots.Simulation.attach`) first: they see it as one continuous run.
 
     Returns
     -------
@@ -250,7 +235,6 @@ def deposit(sim, n_dots: int, mean_diameter: float = 15.0, sigma: float = 0.0, r
     """
     mean_diameter = real("mean_diameter", mean_diameter, 0.0, MAX_LENGTH, low_open=True, unit="px")
     sigma = real("sigma", sigma, 0.0, 1.0, high_open=True)
-    _attach_deprecated(sim, writers)
     x0, y0, x1, y1 = _check_region(region, sim.scene.box)
     if mean_diameter + 2 * GAP > min(x1 - x0, y1 - y0):
         raise InputError(f"mean_diameter {mean_diameter:g} px does not fit in region ({x0:g}, {y0:g}, "
@@ -266,8 +250,7 @@ def deposit(sim, n_dots: int, mean_diameter: float = 15.0, sigma: float = 0.0, r
 
 def deposit_around_centre(sim, n_dots: int, centre, mean_diameter: float = 15.0, sigma: float = 0.0,
                           interval: float = 0.5, mass_model: str = "equal", heavy_mass: float = 2.0,
-                          max_tries: int = 10_000, rng=None, progress: bool = False,
-                          writers: Sequence = ()) -> np.ndarray:
+                          max_tries: int = 10_000, rng=None, progress: bool = False) -> np.ndarray:
     """Deposit dots on a growing ring around ``centre`` (thesis ``runRandomCenter``).
 
     The i-th dot (0-based) is dropped at distance `ring_radius` ``(i)`` from
@@ -282,7 +265,7 @@ def deposit_around_centre(sim, n_dots: int, centre, mean_diameter: float = 15.0,
         Centre of the ring, px.
     interval : float
         Simulated time between two dots, s (>= 0; thesis 0.5).
-    sim, n_dots, mean_diameter, sigma, mass_model, heavy_mass, max_tries, rng, progress, writers
+    sim, n_dots, mean_diameter, sigma, mass_model, heavy_mass, max_tries, rng, progress
         As in `deposit`.
 
     Returns
@@ -298,11 +281,10 @@ def deposit_around_centre(sim, n_dots: int, centre, mean_diameter: float = 15.0,
     """
     mean_diameter = real("mean_diameter", mean_diameter, 0.0, MAX_LENGTH, low_open=True, unit="px")
     sigma, n = real("sigma", sigma, 0.0, 1.0, high_open=True), count("n_dots", n_dots, 0, MAX_DOTS)
-    _attach_deprecated(sim, writers)
     try:
         cx, cy = (float(v) for v in centre)
     except (TypeError, ValueError):
-        raise InputError(f"center must be (x, y) in px, got {centre!r}") from None
+        raise InputError(f"centre must be (x, y) in px, got {centre!r}") from None
     w, h = sim.scene.box
     room, reach = min(cx, cy, w - cx, h - cy), ring_radius(max(n - 1, 0), mean_diameter, sigma)
     if n and reach + mean_diameter / 2 > room:

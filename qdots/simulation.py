@@ -16,7 +16,6 @@ from typing import Iterable, Sequence
 
 import numpy as np
 
-from labrig.deprecation import warn as warn_renamed
 from labrig.progress import progress_bar
 from labrig.validate import InputError, real
 from labrig.validate import seed as valid_seed
@@ -29,7 +28,7 @@ from .settings import OVERLAP_CORRECTION, EngineSettings  # noqa: F401 (public h
 from .space import add_discs, new_space, tune_space
 from .state import State
 from .stepping import Stepper
-from .writers import Writer, WriterSchedule
+from .writers import WriterSchedule
 
 #: Relative overlap above which a finished run warns (and says so in its summary). Soft contacts
 #: overlap by < 1 % of a radius at the default settings; 10 % means the time step is too large.
@@ -250,11 +249,6 @@ class Simulation:
         return self.scene.replace(positions=state.positions, velocities=state.velocities,
                                   radii=state.radii, masses=state.masses, from_engine=True)
 
-    def board(self) -> Scene:
-        """Deprecated name of `current_scene`."""
-        warn_renamed("Simulation.board()", "Simulation.current_scene()")
-        return self.current_scene()
-
     def reseat(self) -> None:
         """Rebuild Chipmunk's space from the current board.
 
@@ -298,7 +292,7 @@ class Simulation:
             self.substeps_taken += k
             self.steps_taken += 1
 
-    def run(self, seconds: float, *, progress: bool = False, writers: Sequence[Writer] = ()) -> State:
+    def run(self, seconds: float, *, progress: bool = False) -> State:
         """Advance by ``seconds`` of simulated time (rounded to whole steps), writing on the attached writers' schedules.
 
         Parameters
@@ -308,9 +302,6 @@ class Simulation:
         progress : bool
             Show a progress bar in steps with an ETA (`labrig.progress.progress_bar`: it says when numba compiles
             and leaves that time out of its ETA).
-        writers : sequence of Writer
-            Deprecated: attach writers with `attach`. Writers given here are attached (with their
-            own ``every``) if they are not already.
 
         Returns
         -------
@@ -331,10 +322,6 @@ class Simulation:
             radii in one sub-step (contacts can then be missed).
         """
         n_steps = self.check_run(seconds)
-        for writer in writers:
-            if writer not in self.writers:
-                warn_renamed("Simulation.run(writers=...)", "Simulation.attach(writer)")
-                self.attach(writer)
         chunk = max(CHECK_EVERY, n_steps // 200)
         end = self.steps_taken + n_steps
         with progress_bar(n_steps, unit="step", desc="qdots run", show=progress, leave=False) as bar:

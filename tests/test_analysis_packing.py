@@ -152,7 +152,7 @@ def test_bad_fill_arguments():
     b = board(hexagon(1), R)
     with pytest.raises(ValueError, match="radius must be"):
         fill_within_radius(b, [-1.0])
-    with pytest.raises(ValueError, match="center must be"):
+    with pytest.raises(ValueError, match="centre must be"):
         fill_within_radius(b, [5.0], centre=(1.0, float("nan")))
 
 

@@ -1,6 +1,7 @@
 """Save, load, resume: bit-identical continuation, atomic writes, clear errors on bad files."""
 
 import json
+import warnings
 import zipfile
 
 import numpy as np
@@ -197,3 +198,31 @@ def test_scene_file_keeps_derived_vdw_defaults_unset():
     assert spec["strength"] is None and spec["max_gap"] is None
     assert qdots.forces.force_from_dict(spec).max_gap == 20.0
     assert qdots.VanDerWaals(max_gap=12.0).to_dict()["max_gap"] == 12.0
+
+
+def test_a_state_file_of_0_1_with_center_gravity_resumes_the_same_run(tmp_path):
+    # 0.1 wrote the force as "CenterGravity" with key "center": read as today's CentreGravity, no warning
+    sim = busy_simulation(n=20)
+    sim.forces = [*sim.forces, qdots.CentreGravity((110.0, 130.0), 40.0)]
+    sim.run(0.02)
+    path = qdots.save(sim, tmp_path / "today.npz")
+    with np.load(path) as f:
+        arrays = {k: f[k] for k in f.files}
+    meta = json.loads(str(arrays.pop("metadata")))
+    assert meta["forces"][-1] == {"type": "CentreGravity", "centre": [110.0, 130.0], "magnitude": 40.0}
+    meta["forces"][-1] = {"type": "CenterGravity", "center": [110.0, 130.0], "magnitude": 40.0}
+    old = tmp_path / "written_by_0_1.npz"
+    np.savez(old, metadata=np.array(json.dumps(meta)), **arrays)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        resumed, expected = checkpoint.load(old), checkpoint.load(path)
+    assert resumed.forces[-1].to_dict() == expected.forces[-1].to_dict()
+    resumed.run(0.05)
+    expected.run(0.05)
+    assert_same_run(resumed, expected)
+
+
+def test_the_python_api_takes_todays_force_names_only():
+    with pytest.raises(ValueError, match="unknown force type 'CenterGravity'"):
+        qdots.forces.force_from_dict({"type": "CenterGravity", "center": [1.0, 2.0], "magnitude": 1.0})
+    assert not hasattr(qdots, "CenterGravity") and not hasattr(qdots.forces, "CenterGravity")

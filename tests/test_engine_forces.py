@@ -443,15 +443,6 @@ def test_writer_in_seconds_keeps_its_interval_when_dt_changes():
     np.testing.assert_allclose(writer.times, [0.0, 0.01, 0.02, 0.03, 0.04])
 
 
-def test_writers_given_to_run_are_attached_with_a_deprecation_warning():
-    writer = TimeRecorder(every=7)
-    sim = qdots.Simulation(lone_dot(), seed=0, dt=1e-3)
-    with pytest.warns(DeprecationWarning, match="Simulation.attach"):
-        sim.run(0.01, writers=[writer])
-    sim.run(0.01, writers=[writer])  # already attached: no second attachment, no step twice
-    np.testing.assert_allclose(writer.times, [0.0, 0.007, 0.014])
-
-
 def test_substeps_and_spatial_hash_give_the_same_free_flight():
     a = qdots.Simulation(lone_dot(velocity=(10.0, 5.0)), seed=0, substeps=3, spatial_hash=(20.0, 1000))
     a.run(0.1)

@@ -32,3 +32,31 @@ def test_planarize_imports_and_runs_with_qdots_and_pymunk_unavailable(code):
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr[-2000:]
     assert done.stdout.strip().endswith("ok")
+
+
+NO_SIDE_EFFECTS = textwrap.dedent("""
+    import importlib, sys
+
+    before = list(sys.meta_path)
+    import qdots, planarize
+    assert sys.meta_path == before, [type(finder).__name__ for finder in sys.meta_path]
+    # the module names and attribute names of 0.1 are gone, not served by a hook
+    for old in ("qdots.structure", "qdots.neighbors", "qdots.scenefile", "planarize.scenes", "planarize.fast",
+                "planarize.scenefile"):
+        try:
+            importlib.import_module(old)
+        except ModuleNotFoundError:
+            pass
+        else:
+            raise AssertionError(f"{old} still imports")
+    for module, old in ((qdots, "CenterGravity"), (qdots.forces, "CenterGravity"), (planarize, "scenes")):
+        assert not hasattr(module, old), (module.__name__, old)
+    print("ok")
+""")
+
+
+def test_importing_the_packages_installs_no_import_hooks():
+    done = subprocess.run([sys.executable, "-W", "error::DeprecationWarning", "-c", NO_SIDE_EFFECTS],
+                          capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.strip().endswith("ok")

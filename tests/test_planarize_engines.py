@@ -248,7 +248,6 @@ def test_cliffs_and_spikes_stay_finite(kind, distance):
     (lambda hill: anodize(hill, 0.1, snapshots="all"), "snapshots"),
     (lambda hill: anodize(hill, 0.1, engine=Fast(tolerance=-1)), "tolerance"),
     (lambda hill: anodize(hill, 0.1, engine=Fast(interacting="first")), "interacting"),
-    (lambda hill: anodize(hill, 0.1, engine="reference", tolerance=0.1), "fast engine only"),
     (lambda hill: anodize(hill.z, 0.1), "Surface"),
 ])
 def test_bad_run_parameters(call, message):
@@ -256,12 +255,12 @@ def test_bad_run_parameters(call, message):
         call(surfaces.hill(points=3, refine=1))
 
 
-def test_flat_keywords_of_0_1_still_work_with_a_warning():
-    hill = surfaces.hill(points=3, refine=1)
-    with pytest.warns(DeprecationWarning, match="model=planarize.Model"):
-        old = anodize(hill, 0.1, step=0.01, k_exp=2.3, tolerance=0.0)
-    new = anodize(hill, 0.1, Model(step=0.01, k_exp=2.3), Fast(tolerance=0.0))
-    np.testing.assert_array_equal(old.oxide.z, new.oxide.z)
+@pytest.mark.parametrize("keyword", ["step", "k_exp", "distance", "volume", "tolerance", "interacting", "threads",
+                                     "jit"])
+def test_flat_keywords_of_0_1_are_not_taken(keyword):
+    # the physics is model=Model(...), the engine's settings engine=Fast(...): no second spelling
+    with pytest.raises(TypeError, match=f"unexpected keyword argument '{keyword}'"):
+        anodize(surfaces.hill(points=3, refine=1), 0.1, **{keyword: 0.01})
 
 
 def test_observer_sees_every_sweep_and_a_budget_stops_the_run():

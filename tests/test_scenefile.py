@@ -1,9 +1,12 @@
 """TOML scene files: round trips, defaults and every error path."""
 
+import warnings
+
 import pytest
 from conftest import refused_file
 
 import qdots
+from qdots.cli.sweep import ExperimentRunner
 from qdots.experiment import Board, Deposition, Experiment
 from qdots.presets import PRESETS, get_preset
 from qdots.io.experiment_file import experiment_from_toml, experiment_to_toml, load_experiment, save_experiment
@@ -124,3 +127,71 @@ def test_failed_save_keeps_the_previous_file(tmp_path, monkeypatch):
     assert path.read_text() == before and sorted(p.name for p in tmp_path.iterdir()) == ["scene.toml"]
     with pytest.raises(TypeError, match="exp must be a qdots.experiment.Experiment"):
         save_experiment({"seed": 1}, path)
+
+
+OLD_CENTRAL_FILE = """# an experiment file as qdots 0.1 wrote it: American spellings
+name = "central sigma=0"
+seed = 154
+[board]
+width = 600.0
+height = 600.0
+[deposition]
+protocol = "center"
+n_dots = 500
+interval = 0.5
+settle = 15.0
+[[forces]]
+type = "VanDerWaals"
+[[forces]]
+type = "CenterGravity"
+center = [310.0, 290.0]
+magnitude = 750.0
+[[forces]]
+type = "Drag"
+linear = 0.1
+"""
+
+
+def test_an_experiment_file_of_0_1_loads_with_the_same_meaning(tmp_path):
+    path = tmp_path / "central.toml"
+    path.write_text(OLD_CENTRAL_FILE)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # data translation, not a deprecated API: no warning
+        exp = load_experiment(path)
+    today = OLD_CENTRAL_FILE.replace('"center"', '"centre"').replace("CenterGravity", "CentreGravity") \
+        .replace("center =", "centre =")
+    assert exp == experiment_from_toml(today)
+    assert exp.deposition.protocol == "centre" and exp.centre() == (310.0, 290.0)
+    assert exp.forces[1] == qdots.CentreGravity((310.0, 290.0), 750.0).to_dict()
+    # saved again, it is written in today's spelling
+    text = experiment_to_toml(exp)
+    assert 'protocol = "centre"' in text and 'type = "CentreGravity"' in text and "center" not in text
+
+
+def test_a_sweep_over_0_1_spellings_runs_the_same_experiments():
+    # a sweep's runs are read like experiment files: the same canonical parameters, hence the same run hashes
+    runner = ExperimentRunner()
+    old = {"deposition": {"protocol": "center", "n_dots": 10},
+           "forces": [{"type": "CenterGravity", "center": [300.0, 300.0], "magnitude": 5.0}]}
+    new = {"deposition": {"protocol": "centre", "n_dots": 10},
+           "forces": [{"type": "CentreGravity", "centre": [300.0, 300.0], "magnitude": 5.0}]}
+    assert runner.canonical(old) == runner.canonical(new)
+    assert old["deposition"]["protocol"] == "center" and old["forces"][0]["type"] == "CenterGravity"  # not changed
+
+
+@pytest.mark.parametrize("text, message", [
+    # an old key beside its new spelling is not guessed at
+    ('[[forces]]\ntype = "CenterGravity"\ncenter = [1, 2]\ncentre = [3, 4]', r"CentreGravity has no parameter 'center'"),
+    # the old key with today's type is not today's spelling
+    ('[[forces]]\ntype = "CentreGravity"\ncenter = [1, 2]', r"CentreGravity has no parameter 'center'"),
+    ('[deposition]\nprotocol = "centre-ish"', r"deposition.protocol must be one of 'random', 'centre'"),
+])
+def test_only_the_spellings_of_0_1_are_translated(tmp_path, text, message):
+    refused_file(load_experiment, tmp_path / "bad.toml", text, message)
+
+
+def test_the_python_api_takes_todays_spellings_only():
+    with pytest.raises(ValueError, match=r"deposition.protocol must be one of 'random', 'centre', got 'center'"):
+        Deposition(protocol="center")
+    with pytest.raises(ValueError, match=r"unknown preset 'center-gravity' \(known: .*centre-gravity"):
+        get_preset("center-gravity")

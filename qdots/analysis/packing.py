@@ -13,7 +13,6 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from labrig.deprecation import warn as warn_renamed
 from labrig.validate import InputError
 
 from ..neighbours import MAX_PAIRS, pair_bound
@@ -271,7 +270,7 @@ class FillCurve:
     centre: tuple[float, float]
 
 
-def fill_within_radius(state, radius, centre=None, **deprecated) -> FillCurve:
+def fill_within_radius(state, radius, centre=None) -> FillCurve:
     """Covered fraction of circles around a centre, computed exactly (no sampling).
 
     The Java (``determineFillWithinRadius``) throws 10^6 random points into
@@ -297,18 +296,13 @@ def fill_within_radius(state, radius, centre=None, **deprecated) -> FillCurve:
         raise InputError(f"radius must be finite circle radii > 0 px, got {radius!r}")
     if big.size > MAX_CIRCLES:
         raise InputError(f"radius must hold at most {MAX_CIRCLES:,} circles, got {big.size:,}")
-    if "center" in deprecated:  # the spelling of 0.1
-        warn_renamed("fill_within_radius(center=...)", "fill_within_radius(centre=...)")
-        centre = deprecated.pop("center")
-    if deprecated:
-        raise TypeError(f"fill_within_radius() got an unexpected keyword argument {sorted(deprecated)[0]!r}")
     if centre is None:
         box = getattr(state, "box", None)
         centre = (0.5 * float(box[0]), 0.5 * float(box[1])) if box is not None else \
             (tuple(positions.mean(axis=0)) if len(positions) else (0.0, 0.0))
     c = np.asarray(centre, dtype=float)
     if c.shape != (2,) or not np.all(np.isfinite(c)):
-        raise InputError(f"center must be two finite coordinates, px, got {centre!r}")
+        raise InputError(f"centre must be two finite coordinates, px, got {centre!r}")
     d = np.sqrt(((positions - c) ** 2).sum(axis=1))
     reach = d - radii < big.max()
     if int(reach.sum()) * big.size > MAX_FILL_TERMS:

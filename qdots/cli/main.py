@@ -77,9 +77,8 @@ def _add_preset(subparsers) -> None:
     _add_outputs(p, "qdots-preset")
     p.add_argument("--quick", type=fraction, default=None,
                    metavar="F", help="scale the runs down by F (e.g. 0.1) for a first look")
-    p.add_argument("--save", "--save-scenes", dest="save", type=Path, default=None, metavar="DIR",
-                   help="only write the preset's experiment files (TOML) into DIR, do not run "
-                        "(--save-scenes: the name of 0.1)")
+    p.add_argument("--save", type=Path, default=None, metavar="DIR",
+                   help="only write the preset's experiment files (TOML) into DIR, do not run")
 
 
 def _add_resume(subparsers) -> None:

@@ -5,8 +5,6 @@ All act as velocity changes applied once per time step (see `Force`).
 
 import inspect
 
-from labrig.deprecation import renamed_attributes
-from labrig.deprecation import warn as warn_renamed
 from labrig.validate import InputError
 
 from .base import Force, StepContext
@@ -30,11 +28,6 @@ def force_from_dict(spec: dict) -> Force:
         raise InputError(f"a force must be a table with a 'type' key, got {spec!r}")
     params = dict(spec)
     name = params.pop("type")
-    if name == "CenterGravity":  # the spelling of 0.1 (files keep loading)
-        warn_renamed("force type 'CenterGravity' (and its key 'center')", "'CentreGravity' ('centre')")
-        name = "CentreGravity"
-        if "center" in params:
-            params["centre"] = params.pop("center")
     if name not in FORCE_TYPES:
         raise InputError(f"unknown force type {name!r} (known: {', '.join(sorted(FORCE_TYPES))})")
     cls = FORCE_TYPES[name]
@@ -59,5 +52,3 @@ __all__ = [
     "hamaker_force",
     "thesis_offset",
 ]
-
-__getattr__ = renamed_attributes(__name__, {"CenterGravity": "CentreGravity"})

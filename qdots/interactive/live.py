@@ -128,7 +128,7 @@ class LiveRun:
     ----------
     scene : Scene, optional
         The starting board; default an empty closed `DEFAULT_BOX`. To go on
-        from a saved run: ``LiveRun(qdots.load(path).board())``.
+        from a saved run: ``LiveRun(qdots.load(path).current_scene())``.
     knobs : Knobs, optional
         Starting parameters. Default `Knobs` with the scene's elasticity.
         Given knobs override the scene's restitution mean.

@@ -12,6 +12,10 @@ Format (``format = "qdots-state"``, ``version = 1``): a NumPy ``.npz`` archive
   (each ``Force.to_dict()``), ``rng`` (the NumPy bit generator state) and the
   collision counters.
 
+Files written by 0.1 keep loading with the same meaning: a ``"CenterGravity"``
+force (key ``center``) in the metadata's ``forces`` is read as today's
+``"CentreGravity"`` (``centre``; `qdots.io.old_spellings`), without a warning.
+
 Any NumPy can read it (``np.load(path)``; ``json.loads(str(f["metadata"]))``).
 Files are written atomically (temporary file, then rename), so a crash
 mid-write leaves the previous checkpoint intact.
@@ -42,6 +46,7 @@ from ..scene import MAX_DOTS, MAX_LENGTH, MAX_SEGMENTS, Scene
 from ..settings import EngineSettings
 from ..simulation import Simulation
 from ..state import State
+from .old_spellings import current_force
 
 FORMAT = "qdots-state"
 VERSION = 1
@@ -157,7 +162,7 @@ def load(path: str | os.PathLike) -> Simulation:
         forces = _field(metadata, "forces")
         if not isinstance(forces, list):
             raise InputError(f"forces must be a list of tables, got {forces!r}")
-        sim = Simulation(scene, [force_from_dict(spec) for spec in forces], seed=0,
+        sim = Simulation(scene, [force_from_dict(current_force(spec)) for spec in forces], seed=0,
                          engine=EngineSettings.from_dict(metadata["engine"]))
         rng = _field(metadata, "rng")
         try:

@@ -8,6 +8,11 @@ them, with units and allowed ranges in comments. Floats are written with
 ``repr`` and read back exactly, so ``load_experiment(save_experiment(exp))
 == exp``. Unknown keys, wrong types and out-of-range values raise a
 ValueError naming the file and the full key (e.g. ``deposition.sigmaa``).
+
+Files written by 0.1 keep loading with the same meaning: their spellings
+(``deposition.protocol = "center"``, a ``"CenterGravity"`` force with its
+``center`` key) are read as today's (`qdots.io.old_spellings`), without a
+warning. The Python API takes today's spellings only.
 """
 
 from __future__ import annotations
@@ -35,6 +40,7 @@ from ..scene import MAX_DOTS, MAX_LENGTH, MAX_MASS
 from ..settings import (DT_RANGE, MAX_HASH_CELLS, MAX_ITERATIONS, MAX_SLOP, MAX_SUBSTEPS, TOLERANCE_RANGE,
                         EngineSettings)
 from ..simulation import MAX_STEPS
+from .old_spellings import current_experiment
 
 _PX = f"(0, {number(MAX_LENGTH)}]"
 
@@ -165,13 +171,15 @@ def _table(name: str, data) -> object:
 
 
 def experiment_from_dict(data: dict) -> Experiment:
-    """An `Experiment` from parsed TOML (nested dicts); missing keys take their defaults.
+    """An `Experiment` from parsed TOML (nested dicts); missing keys take their defaults, and the
+    spellings of files written by 0.1 are read as today's (`qdots.io.old_spellings`).
 
     Raises
     ------
     ValueError
         Naming the full key of an unknown key, a wrong type or an out-of-range value.
     """
+    data = current_experiment(data)
     kwargs = top_level(data, TOP, [*TABLES, "forces"])
     kwargs.update({name: _table(name, data[name]) for name in TABLES if name in data})
     if "forces" in data:
