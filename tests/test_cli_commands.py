@@ -74,7 +74,6 @@ def test_render(preset_run, tmp_path):
 
 def test_save_scenes_only(tmp_path):
     assert main(["preset", "fig2-3", "--save", str(tmp_path)]) == 0
-    assert main(["preset", "fig2-3", "--save-scenes", str(tmp_path)]) == 0  # the name of 0.1
     files = sorted(tmp_path.glob("*.toml"))
     assert len(files) == 2 and not list(tmp_path.glob("*.npz"))
 
