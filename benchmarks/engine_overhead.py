@@ -12,7 +12,7 @@ comparison fair):
   kicks, bulk write) and Chipmunk's ``space.step`` calls (which include the
   compiled ``begin`` callbacks of the collision rule). The overhead ratio is total / ``space.step``:
   what our forces add to the pymunk work of the *same* configuration.
-* ``every``: the same forces with every vdW pair pulled at every step (``far_interval=None``): what
+* ``every``: the same forces with every vdW pair pulled at every step (engine setting ``far_interval=None``): what
   the split into near pairs every step and far pairs every 20 ms saves in the force phase.
 * ``bare``: the same start stepped with no forces. It is not the same workload:
   without attraction the packed film relaxes and keeps about a third of its
@@ -37,6 +37,7 @@ from scipy.spatial import cKDTree
 
 import qdots
 from qdots.analysis import overlaps
+from qdots.engine.allocator import tune_allocator
 
 from .report import Figure, Headline, Note, Table
 
@@ -68,21 +69,26 @@ def warm_scene(n: int, kind: str, seed: int = 0, warmup_s: float = 0.3) -> qdots
     return scene.replace(positions=state.positions, velocities=state.velocities, overlap_tolerance=0.05)
 
 
-def full_forces(**vdw) -> list[qdots.Force]:
-    """van der Waals (with the ``vdw`` settings) + thermal kicks + drag."""
-    return [qdots.VanDerWaals(**vdw), qdots.ThermalKicks(), qdots.Drag()]
+def full_forces() -> list[qdots.Force]:
+    """van der Waals + thermal kicks + drag."""
+    return [qdots.VanDerWaals(), qdots.ThermalKicks(), qdots.Drag()]
+
+
+def pair_rebuilds(sim: qdots.Simulation) -> int:
+    """Rebuilds so far of the van der Waals pair list of ``sim`` (its first force)."""
+    return sim.force_cache(sim.forces[0])["pairs"].rebuilds
 
 
 def measure(n: int, kind: str, steps: int, chunk: int = 20, warmup_s: float = 0.3) -> dict:
     scene = warm_scene(n, kind, warmup_s=warmup_s)
     full = qdots.Simulation(scene, full_forces(), seed=1)
-    every = qdots.Simulation(scene, full_forces(far_interval=None), seed=1)
+    every = qdots.Simulation(scene, full_forces(), seed=1, far_interval=None)
     bare = qdots.Simulation(scene, [], seed=1)
     sims = (full, every, bare)
     for sim in sims:
         sim.step(chunk)  # first list build outside the timing
         sim.timings.update(forces=0.0, pymunk=0.0)
-    rebuilds0, begins0, substeps0 = full.forces[0].pairs.rebuilds, full.collisions.dot_dot, full.substeps_taken
+    rebuilds0, begins0, substeps0 = pair_rebuilds(full), full.collisions.dot_dot, full.substeps_taken
     rounds = max(1, steps // chunk)
     for _ in range(rounds):  # alternate, so drifts in machine speed hit all alike
         for sim in sims:
@@ -102,7 +108,7 @@ def measure(n: int, kind: str, steps: int, chunk: int = 20, warmup_s: float = 0.
         "every_forces_ms": 1e3 * every.timings["forces"] / done,
         "every_ms": 1e3 * (every.timings["forces"] + every.timings["pymunk"]) / done,
         "bare_ms": 1e3 * bare.timings["pymunk"] / done,
-        "rebuilds_per_100": 100.0 * (full.forces[0].pairs.rebuilds - rebuilds0) / done,
+        "rebuilds_per_100": 100.0 * (pair_rebuilds(full) - rebuilds0) / done,
         "overlap_pct": 100.0 * overlaps(full.state())[0],
         "contacts_per_dot": contacts_per_dot(full.state()),
         "bare_contacts_per_dot": contacts_per_dot(bare.state()),
@@ -208,10 +214,12 @@ def run(quick: bool) -> list:
 
 
 def machine() -> str:
+    """The machine and versions; whether the allocator was tuned (the cached result of the call the simulations
+    built before made, `qdots.EngineSettings.tune_allocator`)."""
     import os
 
     return (f"python {platform.python_version()}, pymunk {pymunk.version}, numpy {np.__version__}, "
-            f"{os.cpu_count()} cores, {platform.machine()}, allocator tuned: {qdots.ALLOCATOR_TUNED}")
+            f"{os.cpu_count()} cores, {platform.machine()}, allocator tuned: {tune_allocator()}")
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -7,7 +7,7 @@ and reports for each setting:
 
 * wall time per run (the overlap sampling below excluded) and the real-time multiple
   (simulated s / wall s), and the speed-up against the default settings;
-* Chipmunk sub-steps per time step (the sub-steps adapt to approach speeds, `qdots.stepping`);
+* Chipmunk sub-steps per time step (the sub-steps adapt to approach speeds, `qdots.engine.stepping`);
 * the worst overlap (r_i + r_j - d) / mean radius, sampled every 20 ms of simulated time (the
   thesis's kick interval) and at the end: mean over seeds and the worst seed;
 * the restitution error |measured - drawn| of an isolated head-on impact at the same settings;
@@ -43,11 +43,11 @@ from qdots.analysis.structure import hexatic_order
 from qdots.experiment import run_experiment
 from qdots.presets import get_preset
 
-from .qdots_cases import VDW_KNOBS
 from .report import Headline, Note, Table
 
-#: (label, settings changed from the preset's: engine settings, and the van der Waals force's `VDW_KNOBS`);
-#: the first is the converged reference of the paired differences, the second the default.
+#: (label, engine settings changed from the preset's, `qdots.EngineSettings` keywords, the van der Waals
+#: pair list's knobs among them); the first is the converged reference of the paired differences, the second
+#: the default.
 SETTINGS = [
     ("0.25 ms (reference)", {"dt": 2.5e-4, "iterations": 10, "far_interval": None}),
     ("2.5 ms (default)", {}),
@@ -94,17 +94,10 @@ def restitution_error(settings: qdots.EngineSettings, seed: int = 3) -> float:
     return abs(measured - drawn)
 
 
-def engine_changes(changes: dict) -> dict:
-    """The engine settings among ``changes`` (the rest are the van der Waals force's)."""
-    return {k: v for k, v in changes.items() if k not in VDW_KNOBS}
-
-
 def measure(preset: str, changes: dict, seed: int, quick: float | None) -> dict:
     """One run of the sigma = 0 experiment of ``preset`` with the ``changes`` and ``seed``."""
     exp = get_preset(preset, quick=quick or False)[0]
-    vdw = {k: v for k, v in changes.items() if k in VDW_KNOBS}
-    forces = tuple({**f, **vdw} if f["type"] == "VanDerWaals" else f for f in exp.forces)
-    exp = exp.replace(seed=seed, engine=exp.engine.replace(**engine_changes(changes)), forces=forces)
+    exp = exp.replace(seed=seed, engine=exp.engine.replace(**changes))
     probe = WorstOverlap(every=max(1, round(SAMPLE_S / exp.engine.dt)))
     start = time.perf_counter()
     sim = run_experiment(exp, writers=[probe])
@@ -167,7 +160,7 @@ def tables(runs: dict, settings, preset: str, workers: int) -> list:
         wall = float(np.mean([r["wall_s"] for r in rs]))
         default_wall = float(np.mean([r["wall_s"] for r in shared_seeds(default, rs)[0]]))
         worst = [r["worst_overlap_pct"] for r in rs]
-        engine = qdots.EngineSettings(**engine_changes(changes))
+        engine = qdots.EngineSettings(**changes)
         speed_rows.append([label, len(rs), 1e3 * engine.dt, float(np.mean([r["substeps"] for r in rs])), wall,
                            first["simulated_s"] / wall, default_wall / wall, float(np.mean(worst)),
                            float(np.max(worst)), restitution_error(engine)])
@@ -227,7 +220,7 @@ def run(quick: bool, seeds: int | None = None, workers: int | None = None) -> li
                         "sampling excluded). Packing differences are paired by seed against the converged "
                         "reference: dt = 0.25 ms, 10 solver iterations, every van der Waals pair pulled every "
                         "step; `1 ms, fixed sub-steps` (10 iterations, vdW every step) is the step of 0.2 on this "
-                        "engine (0.2 also handed the forces to Chipmunk differently, see `qdots.stepping`)."))
+                        "engine (0.2 also handed the forces to Chipmunk differently, see `qdots.engine.stepping`)."))
     for preset in PRESETS:
         results += tables(runs, settings, preset, workers)
     return results

@@ -23,10 +23,13 @@ import qdots
 class LoopForces:
     """van der Waals (thesis proxy) + thermal kicks + drag on a pymunk space, one body at a time."""
 
-    def __init__(self, space: pymunk.Space, vdw: qdots.VanDerWaals, kicks: qdots.ThermalKicks, drag: qdots.Drag):
-        if vdw.model != "thesis" or vdw.contact != "hold" or vdw.split:
-            raise ValueError("the loop version implements VanDerWaals('thesis', contact='hold', "
-                             "far_interval=None) only")
+    def __init__(self, space: pymunk.Space, vdw: qdots.VanDerWaals, kicks: qdots.ThermalKicks, drag: qdots.Drag,
+                 settings: qdots.EngineSettings, restitution: qdots.Restitution):
+        if vdw.model != "thesis" or vdw.contact != "hold" or vdw.split(settings):
+            raise ValueError("the loop version implements VanDerWaals('thesis', contact='hold') with every pair "
+                             "every step (EngineSettings(far_interval=None)) only")
+        #: The proxy's offset b under the collision rule ``restitution``, px.
+        self.offset = vdw.proxy_offset(restitution.sticking_speed)
         self.bodies = [b for b in space.bodies if b.body_type == pymunk.Body.DYNAMIC]
         self.radii = [next(iter(b.shapes)).radius for b in self.bodies]
         self.vdw, self.kicks, self.drag = vdw, kicks, drag
@@ -48,7 +51,7 @@ class LoopForces:
             if gap >= vdw.max_gap or d == 0.0:
                 continue
             g = max(gap, vdw.min_gap)
-            pull = (vdw.r0 / (g - vdw.offset)) ** 7
+            pull = (vdw.r0 / (g - self.offset)) ** 7
             linear = 0.5 * dt * pull
             capped = 0.5 * math.sqrt(g * pull)
             inv_i, inv_j = 1.0 / bodies[i].mass, 1.0 / bodies[j].mass

@@ -1,8 +1,8 @@
 """Test problems of the qdots engine with exact or converged answers, each timed as it runs.
 
-Every case takes engine settings (`Simulation` keywords plus the van der Waals force's numerical
-knobs, `VDW_KNOBS`) and returns a `Measured`: the error against the exact answer and the wall
-time per simulated second of the same run.
+Every case takes engine settings (`qdots.EngineSettings` keywords, the van der Waals pair list's
+``pair_skin``, ``near_gap`` and ``far_interval`` among them) and returns a `Measured`: the error against
+the exact answer and the wall time per simulated second of the same run.
 
 * `restitution`: an oblique impact (70 px/s, 9 px offset) from 6-12 start offsets; exact answer:
   the event-driven impact at the exact contact time with the drawn restitution along the exact
@@ -14,7 +14,7 @@ time per simulated second of the same run.
 * `vdw_pair`: two dots pulled together by the thesis's van der Waals proxy from an 8 px gap to
   0.8 of the contact time; reference: `scipy.integrate.solve_ivp` (DOP853, rtol 1e-10) of the
   dt -> 0 law. Error: largest position difference, px. `vdw_far`: the same from a 20 px gap, a
-  pair that stays beyond the force's ``near_gap`` (its far pass alone).
+  pair that stays beyond the engine's ``near_gap`` (its far pass alone).
 * `dense_pack`: a polydisperse pack compressed by centre gravity (x1 or x10 the thesis's
   750 px/s^2) with vdW, kicks and drag, settled once at the defaults and then run at the given
   settings. Error: worst overlap (r_i + r_j - d) / mean radius of the pair (exact: 0).
@@ -40,10 +40,10 @@ from qdots.analysis import overlaps
 from qdots.forces import StepContext
 from qdots.hard_cases import loose_film
 
-#: The van der Waals force's numerical knobs (the rest of a case's settings go to the `Simulation`).
-VDW_KNOBS = ("skin", "near_gap", "far_interval")
 #: The engine's defaults (the knob values marked on every plot).
-DEFAULTS = {**qdots.EngineSettings().to_dict(), **{k: getattr(qdots.VanDerWaals(), k) for k in VDW_KNOBS}}
+DEFAULTS = qdots.EngineSettings().to_dict()
+#: The collision rule of the elastic gas: elastic impacts and walls, no sticking.
+ELASTIC = qdots.Restitution(mean=1.0, wall=1.0, sticking_speed=0.0)
 
 
 @dataclass
@@ -59,13 +59,8 @@ class Measured:
 
 
 def engine(settings: dict) -> dict:
-    """The `Simulation` keywords of ``settings`` (everything but `VDW_KNOBS`)."""
-    return {k: v for k, v in {**DEFAULTS, **settings}.items() if k not in VDW_KNOBS}
-
-
-def vdw(settings: dict) -> qdots.VanDerWaals:
-    """The thesis's van der Waals force with the `VDW_KNOBS` of ``settings``."""
-    return qdots.VanDerWaals(**{k: v for k, v in {**DEFAULTS, **settings}.items() if k in VDW_KNOBS})
+    """The `Simulation` keywords of ``settings``: the defaults with ``settings`` changed."""
+    return {**DEFAULTS, **settings}
 
 
 def timed_run(sim: qdots.Simulation, seconds: float) -> float:
@@ -105,7 +100,7 @@ def restitution(settings: dict, quick: bool) -> Measured:
 
 # ---------------------------------------------------------------- elastic gas
 def elastic_gas(n: int, seed: int, area_fraction: float = 0.5, rms_speed: float = 85.0) -> qdots.Scene:
-    """``n`` discs of 7.5 px on a jittered square lattice, Gaussian velocities, elastic everything."""
+    """``n`` discs of 7.5 px on a jittered square lattice, Gaussian velocities (run them under `ELASTIC`)."""
     r = 7.5
     side = int(math.ceil(math.sqrt(n)))
     pitch = math.sqrt(math.pi * r * r / area_fraction)
@@ -114,8 +109,7 @@ def elastic_gas(n: int, seed: int, area_fraction: float = 0.5, rms_speed: float 
     play = max(0.0, (pitch - 2 * r) / 2 - 0.01)
     positions = pitch * (ij + 0.5) + rng.uniform(-play, play, (n, 2))
     return qdots.Scene(box=(pitch * side, pitch * side), positions=positions, radii=np.full(n, r),
-                       velocities=rng.normal(0.0, rms_speed / math.sqrt(2), (n, 2)),
-                       restitution=qdots.Restitution(mean=1.0, wall=1.0, sticking_speed=0.0))
+                       velocities=rng.normal(0.0, rms_speed / math.sqrt(2), (n, 2)))
 
 
 def gas_energy(settings: dict, quick: bool) -> Measured:
@@ -125,7 +119,7 @@ def gas_energy(settings: dict, quick: bool) -> Measured:
     for seed in seeds:
         scene = elastic_gas(n, seed)
         e0 = 0.5 * float(np.sum(scene.velocities**2))
-        sim = qdots.Simulation(scene, seed=seed, **engine(settings))
+        sim = qdots.Simulation(scene, restitution=ELASTIC, seed=seed, **engine(settings))
         wall += timed_run(sim, seconds)
         errors.append(abs(sim.state().kinetic_energy() - e0) / e0)
     return Measured(float(np.mean(errors)), wall / (seconds * len(seeds)),
@@ -137,10 +131,11 @@ def gas_energy(settings: dict, quick: bool) -> Measured:
 def vdw_reference(gap0: float = 8.0) -> tuple[float, float, float]:
     """(t_end, x1, x2) of the dt -> 0 thesis-proxy approach from ``gap0``, by solve_ivp; t_end = 0.8 t_contact."""
     force, r = qdots.VanDerWaals(), 7.5
+    offset = force.proxy_offset(qdots.Restitution().sticking_speed)
 
     def rhs(t, y):
         gap = max(y[1] - y[0] - 2 * r, force.min_gap)
-        pull = 0.5 * (force.r0 / (gap - force.offset)) ** 7
+        pull = 0.5 * (force.r0 / (gap - offset)) ** 7
         return [y[2], y[3], pull, -pull]
 
     touch = lambda t, y: y[1] - y[0] - 2 * r - 1.0  # noqa: E731 - a gap of 1 px
@@ -155,15 +150,15 @@ def vdw_reference(gap0: float = 8.0) -> tuple[float, float, float]:
 def vdw_pair(settings: dict, quick: bool, gap0: float = 8.0) -> Measured:
     t_end, x1, x2 = vdw_reference(gap0)
     scene = qdots.Scene(box=(200, 100), positions=[[80, 50], [95 + gap0, 50]], radii=[7.5, 7.5], closed=False)
-    sim = qdots.Simulation(scene, [vdw(settings)], seed=0, **engine(settings))
+    sim = qdots.Simulation(scene, [qdots.VanDerWaals()], seed=0, **engine(settings))
     wall = timed_run(sim, t_end)
     got = sim.state().positions[:, 0] - 80.0
     return Measured(max(abs(got[0] - x1), abs(got[1] - x2)), wall / t_end)
 
 
 # ---------------------------------------------------------------- dense pack under centre gravity
-def pack_forces(centre: float, gravity: float, settings: dict) -> list[qdots.Force]:
-    return [qdots.CentreGravity((centre, centre), 750.0 * gravity), vdw(settings), qdots.ThermalKicks(),
+def pack_forces(centre: float, gravity: float) -> list[qdots.Force]:
+    return [qdots.CentreGravity((centre, centre), 750.0 * gravity), qdots.VanDerWaals(), qdots.ThermalKicks(),
             qdots.Drag(1.0, 0.01)]
 
 
@@ -175,15 +170,14 @@ def settled_pack(gravity: float, quick: bool) -> qdots.Scene:
     grid = np.array([(x, y) for x in range(20, side - 15, 25) for y in range(20, side - 15, 25)], float)
     grid = grid[rng.permutation(len(grid))[:n]]
     scene = qdots.Scene(box=(side, side), positions=grid, radii=rng.normal(7.5, 0.75, n).clip(5, 9.5))
-    sim = qdots.Simulation(scene, pack_forces(side / 2, gravity, {}), seed=1)
+    sim = qdots.Simulation(scene, pack_forces(side / 2, gravity), seed=1)
     sim.run(settle)
     return sim.current_scene()
 
 
 def pack_simulation(settings: dict, gravity: float, quick: bool) -> qdots.Simulation:
     scene = settled_pack(gravity, quick)
-    return qdots.Simulation(scene, pack_forces(scene.box[0] / 2, gravity, settings), seed=2,
-                            **engine(settings))
+    return qdots.Simulation(scene, pack_forces(scene.box[0] / 2, gravity), seed=2, **engine(settings))
 
 
 def dense_pack(settings: dict, quick: bool, gravity: float) -> Measured:
@@ -202,28 +196,32 @@ def dense_pack(settings: dict, quick: bool, gravity: float) -> Measured:
 
 
 # ---------------------------------------------------------------- the vdW force against a plain pair search
-def vdw_change(sim: qdots.Simulation, force: qdots.VanDerWaals) -> np.ndarray:
-    """The velocity change ``force`` gives in the simulation's next step, from its present state."""
+def vdw_change(sim: qdots.Simulation, force: qdots.VanDerWaals, settings: qdots.EngineSettings,
+               cache: dict) -> np.ndarray:
+    """The velocity change ``force`` gives in the simulation's next step, from its present state, under the engine
+    ``settings`` with the force's per-run ``cache`` (its pair lists)."""
     state = sim.state()
     ctx = StepContext(time=sim.time, dt=sim.dt, x=state.positions[:, 0].copy(), y=state.positions[:, 1].copy(),
                       velocity=state.velocities, radii=sim.radii, masses=sim.masses,
-                      rng=np.random.default_rng(0), dv=np.zeros_like(state.velocities))
+                      rng=np.random.default_rng(0), dv=np.zeros_like(state.velocities), settings=settings,
+                      restitution=sim.restitution, cache=cache)
     force.kick(ctx)
     return ctx.dv
 
 
 def vdw_against(sim: qdots.Simulation, changes: dict, steps: int, summed: bool) -> float:
-    """The simulation's vdW velocity changes against those of the same force with ``changes``, over ``steps``.
+    """The simulation's vdW velocity changes against those of the same force under its engine settings with
+    ``changes`` (e.g. ``{"pair_skin": 0.0}``), over ``steps``.
 
     ``summed=False``: the largest |dv - dv_other| / max |dv_other| of any one step; ``summed=True``:
     the same of the changes summed over the steps (the impulse each dot received).
     """
-    own = next(f for f in sim.forces if isinstance(f, qdots.VanDerWaals))
-    other = qdots.VanDerWaals(**{**own.params(), **changes})
-    other.bind(sim.radii, sim.masses)
+    force = next(f for f in sim.forces if isinstance(f, qdots.VanDerWaals))
+    own, other = sim.force_cache(force), {}  # the run's own pair lists, and fresh ones for the other settings
+    other_settings = sim.settings.replace(**changes)
     worst, totals = 0.0, 0.0
     for _ in range(steps):
-        dv, dv_other = vdw_change(sim, own), vdw_change(sim, other)
+        dv, dv_other = vdw_change(sim, force, sim.settings, own), vdw_change(sim, force, other_settings, other)
         if summed:
             totals = totals + np.stack([dv, dv_other])
         else:
@@ -242,7 +240,7 @@ def many_body_run(settings: dict, quick: bool, scene: str) -> tuple[qdots.Simula
         seconds = 0.25 if quick else 0.5
     else:
         sim = qdots.Simulation(loose_film(300 if quick else 2000),
-                               [vdw(settings), qdots.ThermalKicks(), qdots.Drag()],
+                               [qdots.VanDerWaals(), qdots.ThermalKicks(), qdots.Drag()],
                                seed=3, **engine(settings))
         seconds = 0.3 if quick else 1.0
     return sim, timed_run(sim, seconds) / seconds
@@ -252,7 +250,7 @@ def list_error(settings: dict, quick: bool, scene: str) -> Measured:
     """Time a run of the pack (x10 gravity) or the loose film, then check the pair list on 10 more steps:
     the vdW change of every step against a brute-force pair search (skin 0) at the same instants."""
     sim, cost = many_body_run(settings, quick, scene)
-    return Measured(vdw_against(sim, {"skin": 0.0}, 10, summed=False), cost)
+    return Measured(vdw_against(sim, {"pair_skin": 0.0}, 10, summed=False), cost)
 
 
 def split_error(settings: dict, quick: bool, scene: str) -> Measured:
@@ -260,7 +258,8 @@ def split_error(settings: dict, quick: bool, scene: str) -> Measured:
     every far interval swept), the vdW impulse each dot received against that of every pair pulled at every
     step along the same trajectory."""
     sim, cost = many_body_run(settings, quick, scene)
-    return Measured(vdw_against(sim, {"skin": 0.0, "far_interval": None}, round(0.2 / sim.dt), summed=True), cost)
+    return Measured(vdw_against(sim, {"pair_skin": 0.0, "far_interval": None}, round(0.2 / sim.dt), summed=True),
+                    cost)
 
 
 #: name -> (title, error axis label, round-off floor of the error, measure(settings, quick))

@@ -2,8 +2,8 @@
 
 Knobs: time step ``dt``, the sub-steps' ``overlap_tolerance`` (and fixed sub-steps), Chipmunk
 ``substeps`` and solver ``iterations``, ``collision_slop``,
-overlap correction per step (``collision_bias``), the van der Waals pair list's Verlet ``skin``,
-the van der Waals split between pairs pulled every step (``near_gap``) and the far pass
+overlap correction per step (``collision_bias``), the van der Waals pair list's Verlet skin
+(``pair_skin``), the van der Waals split between pairs pulled every step (``near_gap``) and the far pass
 (``far_interval``), and Chipmunk's spatial hash against its default bounding-box tree. Each knob is swept over the
 test problems it can affect (`benchmarks.qdots_cases`: isolated restitution, elastic-gas energy,
 two-body vdW against solve_ivp, worst overlap in a dense pack, pair list against brute force, the
@@ -69,9 +69,9 @@ KNOBS = {
         ("10 %", {"collision_bias": _bias(0.1)}, True, True), ("20 %", {"collision_bias": _bias(0.2)}, True, False),
         ("30 %", {}, True, True), ("50 %", {"collision_bias": _bias(0.5)}, True, True)],
         ["pack_g1", "pack_g10"]),
-    "skin": ("Verlet skin of the vdW pair list (px)", [
-        ("0", {"skin": 0.0}, True, True), ("1", {"skin": 1.0}, True, False), ("3", {"skin": 3.0}, True, True),
-        ("6", {}, True, True), ("12", {"skin": 12.0}, True, False)],
+    "pair_skin": ("Verlet skin of the vdW pair list (px)", [
+        ("0", {"pair_skin": 0.0}, True, True), ("1", {"pair_skin": 1.0}, True, False),
+        ("3", {"pair_skin": 3.0}, True, True), ("6", {}, True, True), ("12", {"pair_skin": 12.0}, True, False)],
         ["list_pack", "list_film", "vdw_pair"]),
     "near_gap": ("vdW pairs pulled every step: surface gap below (px)", [
         ("1", {"near_gap": 1.0}, True, False), ("2", {"near_gap": 2.0}, True, True), ("4", {}, True, True),

@@ -81,10 +81,10 @@ class Sampler:
 def ours(n: int, fraction: float, seconds: float, dt: float | None = None, warmup: float = 0.2) -> dict:
     """qdots on the peer scene at its defaults, or at time step ``dt`` s."""
     positions, velocities, box = initial_board(n, fraction)
-    scene = qdots.Scene(box=(box, box), positions=positions, radii=np.full(n, RADIUS), velocities=velocities,
-                        restitution=qdots.Restitution(mean=RESTITUTION))
+    scene = qdots.Scene(box=(box, box), positions=positions, radii=np.full(n, RADIUS), velocities=velocities)
     settings = qdots.EngineSettings() if dt is None else qdots.EngineSettings(dt=dt)
-    sim = qdots.Simulation(scene, [qdots.Langevin(GAMMA, KT)], seed=1, engine=settings)
+    sim = qdots.Simulation(scene, [qdots.Langevin(GAMMA, KT)], restitution=qdots.Restitution(mean=RESTITUTION),
+                           seed=1, engine=settings)
     sim.run(warmup)
     sampler, wall, chunks = Sampler(), 0.0, 10
     for _ in range(chunks):
@@ -101,9 +101,8 @@ def ours(n: int, fraction: float, seconds: float, dt: float | None = None, warmu
 
 def our_restitution_error(settings: qdots.EngineSettings, seed: int = 3) -> float:
     scene = qdots.Scene(box=(300, 200), positions=[[100, 100], [117, 100]], radii=[RADIUS, RADIUS],
-                        velocities=[[IMPACT_SPEED / 2, 0.0], [-IMPACT_SPEED / 2, 0.0]],
-                        restitution=qdots.Restitution(mean=RESTITUTION))
-    sim = qdots.Simulation(scene, seed=seed, engine=settings)
+                        velocities=[[IMPACT_SPEED / 2, 0.0], [-IMPACT_SPEED / 2, 0.0]])
+    sim = qdots.Simulation(scene, restitution=qdots.Restitution(mean=RESTITUTION), seed=seed, engine=settings)
     drawn = sim.collisions.next_elasticity()
     v = sim.run(1.0).velocities
     return abs((v[1, 0] - v[0, 0]) / IMPACT_SPEED - drawn)
@@ -165,10 +164,10 @@ def loop_row(n: int, rounds: int) -> dict:
     scene = loose_film(n)
     # every vdW pair every step on both sides: the loop writes out that model (the far-pair split is
     # an approximation of its own, measured in qdots_knobs)
-    forces = [qdots.VanDerWaals(far_interval=None), qdots.ThermalKicks(), qdots.Drag()]
-    vector = qdots.Simulation(scene, forces, seed=1)
-    plain = qdots.Simulation(scene, [], seed=1)
-    loop = LoopForces(plain.space, *[type(f)(**f.params()) for f in forces])
+    forces = [qdots.VanDerWaals(), qdots.ThermalKicks(), qdots.Drag()]
+    vector = qdots.Simulation(scene, forces, seed=1, far_interval=None)
+    plain = qdots.Simulation(scene, [], seed=1, far_interval=None)
+    loop = LoopForces(plain.engine.space, *forces, plain.settings, plain.restitution)
     error = loop_error(plain, loop, forces)
     vector.step(5)  # first pair-list build
     vector.timings.update(forces=0.0, pymunk=0.0)
@@ -193,9 +192,10 @@ def loop_error(sim: qdots.Simulation, loop: LoopForces, forces) -> float:
         raise RuntimeError("pymunk's body order differs from the simulation's")
     ctx = StepContext(time=time_, dt=dt, x=state.positions[:, 0].copy(), y=state.positions[:, 1].copy(),
                       velocity=state.velocities, radii=sim.radii, masses=sim.masses,
-                      rng=np.random.default_rng(7), dv=np.zeros_like(state.velocities))
+                      rng=np.random.default_rng(7), dv=np.zeros_like(state.velocities), settings=sim.settings,
+                      restitution=sim.restitution)
     for force in forces:
-        force.bind(sim.radii, sim.masses)
+        ctx.cache = {}  # each force's own, fresh for this state
         force.kick(ctx)
     looped = np.array(loop.velocity_changes(time_, dt, np.random.default_rng(7)))
     return float(np.abs(looped - ctx.dv).max() / np.abs(ctx.dv).max())

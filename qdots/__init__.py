@@ -9,14 +9,14 @@
 
 from labrig import __version__  # noqa: F401 (one version for the distribution)
 
-from ._malloc import ALLOCATOR_TUNED
-from .collisions import Restitution
+from .restitution import Restitution
 from . import forces
 from .forces import (  # noqa: F401 (exported as forces.FORCE_TYPES in __all__)
     CentreGravity, Drag, Force, Gravity, Langevin, ThermalKicks, VanDerWaals)
 from .io.checkpoint import load, read_state, save
 from .scene import Scene, grating_segments
-from .simulation import EngineSettings, Simulation
+from .engine import EngineSettings
+from .simulation import Simulation
 from .state import State
 
 __all__ = [
@@ -31,5 +31,4 @@ __all__ = [
     "Force",
     *forces.FORCE_TYPES,  # the built-in forces
     "grating_segments",
-    "ALLOCATOR_TUNED",
 ]

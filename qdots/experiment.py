@@ -20,7 +20,7 @@ import numpy as np
 
 from labrig.validate import InputError, choice, count, flag, real, seed, text
 
-from .collisions import Restitution
+from .restitution import Restitution
 from .forces import Force, ThermalKicks, VanDerWaals, force_from_dict
 from .placement import MAX_TRIES
 from .protocols import GAP, MASS_MODELS, MAX_INTERVAL, deposit, deposit_around_centre, ring_radius
@@ -195,6 +195,7 @@ class Experiment:
         for k, force in enumerate(self.build_forces()):
             try:
                 force.check_run(self.engine.dt, math.ceil(steps))
+                force.check_rule(self.restitution)
             except InputError as exc:
                 raise InputError(f"forces[{k}]: {exc}") from None
         if dep.mean_diameter > min(b.width, b.height):
@@ -226,10 +227,10 @@ class Experiment:
         return (0.0, 0.0, self.board.width, self.grating or self.board.height)
 
     def scene(self) -> Scene:
-        """The empty board: box, grating wall (if any), collision rule."""
+        """The empty board: box and grating wall (if any)."""
         segments = [[0.0, self.grating, self.board.width, self.grating]] if self.grating else None
         return Scene(box=(self.board.width, self.board.height), positions=np.zeros((0, 2)), radii=np.zeros(0),
-                     segments=segments, closed=self.board.closed, restitution=self.restitution)
+                     segments=segments, closed=self.board.closed)
 
     def build_forces(self) -> list[Force]:
         """Fresh Force objects from `forces`."""
@@ -280,7 +281,7 @@ def build_simulation(exp: Experiment) -> Simulation:
     if not isinstance(exp, Experiment):
         raise InputError(f"exp must be a qdots.experiment.Experiment, got {type(exp).__name__}")
     sim_seed, _ = np.random.SeedSequence(exp.seed).spawn(2)
-    return Simulation(exp.scene(), exp.build_forces(), seed=sim_seed, engine=exp.engine)
+    return Simulation(exp.scene(), exp.build_forces(), restitution=exp.restitution, seed=sim_seed, engine=exp.engine)
 
 
 def populate(sim: Simulation, exp: Experiment, progress: bool = False) -> Simulation:

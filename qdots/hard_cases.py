@@ -41,7 +41,7 @@ from scipy.spatial import cKDTree
 
 from labrig.validate import InputError, choice, count, real
 
-from .collisions import Restitution
+from .restitution import Restitution
 from .forces import CentreGravity, Drag, Gravity, ThermalKicks, VanDerWaals
 from .scene import MAX_DOTS, Scene, grating_segments, segment_distances
 from .simulation import OVERLAP_WARNING, Simulation
@@ -59,14 +59,15 @@ CENTRE_PACK_SITES = 23 * 23
 
 @dataclass(frozen=True)
 class HardCase:
-    """A scene, its forces and engine settings, how long to run it (s, sampled every ``sample`` s: at most
-    `MAX_SAMPLES` samples), and whether it is a known failure."""
+    """A scene, its forces, collision rule and engine settings, how long to run it (s, sampled every ``sample``
+    s: at most `MAX_SAMPLES` samples), and whether it is a known failure."""
 
     name: str
     build: Callable[[], tuple[Scene, list]]
     seconds: float
     impact_speed: float
     settings: dict = field(default_factory=dict)
+    restitution: Restitution = field(default_factory=Restitution)
     slow: bool = False
     sample: float = SAMPLE
     known_failure: str = ""
@@ -137,14 +138,13 @@ def mixture(masses: str, centre_gravity: float = 0.0) -> Callable:
     return build
 
 
-def falling_gas(elasticity: float) -> Callable:
-    """400 dots at 100 px/s rms in a 420 px box under the thesis's gravity, restitution ``elasticity``."""
+def falling_gas() -> Callable:
+    """400 dots at 100 px/s rms in a 420 px box under the thesis's gravity (the cases set the restitution)."""
     def build():
         rng = np.random.default_rng(1)
         ij = np.argwhere(np.ones((20, 20))).astype(float)
         scene = Scene(box=(420.0, 420.0), positions=20 + 19 * ij + rng.uniform(-1, 1, (400, 2)),
-                            radii=np.full(400, 7.5), velocities=rng.normal(0, 100 / math.sqrt(2), (400, 2)),
-                            restitution=Restitution(mean=elasticity))
+                      radii=np.full(400, 7.5), velocities=rng.normal(0, 100 / math.sqrt(2), (400, 2)))
         return scene, [Gravity()]
     return build
 
@@ -205,8 +205,10 @@ CASES = [
              2 * fall_speed(750, 424, 0.01), {"max_substeps": 256}, slow=True),
     HardCase("size ratio 10, masses ~ r^3, centre gravity x1, defaults", mixture("volume", 1.0), 2.0,
              2 * fall_speed(750, 424, 0.01), slow=True),
-    HardCase("elasticity 0.02, falling gas", falling_gas(0.02), 2.5, 2 * math.hypot(300, fall_speed(750, 420))),
-    HardCase("elasticity 0.98, falling gas", falling_gas(0.98), 2.5, 2 * math.hypot(300, fall_speed(750, 420))),
+    HardCase("elasticity 0.02, falling gas", falling_gas(), 2.5, 2 * math.hypot(300, fall_speed(750, 420)),
+             restitution=Restitution(mean=0.02)),
+    HardCase("elasticity 0.98, falling gas", falling_gas(), 2.5, 2 * math.hypot(300, fall_speed(750, 420)),
+             restitution=Restitution(mean=0.98)),
     HardCase("head-on at 100x thermal speed (188 px/s)", head_on(100), 0.5, 200 * KICK, sample=0.002),
     HardCase("head-on at 1000x thermal speed (1,876 px/s), substeps 8", head_on(1000), 0.1, 2000 * KICK,
              {"substeps": 8}, sample=0.002),
@@ -236,7 +238,7 @@ def _pair_overlaps(positions: np.ndarray, radii: np.ndarray) -> tuple[float, boo
 def check(case: HardCase) -> dict:
     """Run ``case``; everything the tests assert, with the wall time."""
     scene, forces = case.build()
-    sim = Simulation(scene, forces, seed=1, **case.settings)
+    sim = Simulation(scene, forces, restitution=case.restitution, seed=1, **case.settings)
     walls, channels = scene.wall_segments(), _channels(scene.positions, scene.segments)
     samples = max(1, round(case.seconds / case.sample))
     sim.check_run(samples * round(case.seconds / samples / sim.dt) * sim.dt)  # the whole case, as one run

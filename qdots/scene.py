@@ -2,22 +2,21 @@
 
 A scene is the board (a rectangle with optional hard edges), static line
 segments (walls, grating lines) and the dots (positions, radii, masses,
-velocities), plus the collision rule. It holds no engine state; a
-`qdots.Simulation` is built from it.
+velocities): what exists, not what acts on it (forces and the collision rule
+are given to the `qdots.Simulation` built from it) and no engine state.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.spatial import cKDTree
 
 from labrig.validate import InputError, array, flag, is_real, number, real, reals
 
-from .collisions import Restitution
 from .neighbours import MAX_PAIRS, pair_bound
 
 #: Most dots a scene holds (Chipmunk needs about 1 kB per dot).
@@ -62,8 +61,6 @@ class Scene:
         Static walls ``(x0, y0, x1, y1)``, px, in addition to the box edges.
     closed : bool
         If True (default) the four box edges are hard walls.
-    restitution : Restitution
-        The collision rule (thesis Eq 2.5).
     overlap_tolerance : float
         Largest accepted relative overlap ``(r_i + r_j - d) / ((r_i + r_j)/2)``
         between two dots, in [0, 1). 0 (default) for boards built by hand.
@@ -91,7 +88,6 @@ class Scene:
     velocities: np.ndarray | None = None
     segments: np.ndarray | None = None
     closed: bool = True
-    restitution: Restitution = field(default_factory=Restitution)
     overlap_tolerance: float = 0.0
     from_engine: bool = False
 
@@ -117,8 +113,6 @@ class Scene:
         if short.size:
             raise InputError(f"segments[{int(short[0])}] has zero length")
         flag("closed", self.closed)
-        if not isinstance(self.restitution, Restitution):
-            raise InputError(f"restitution must be a qdots.Restitution, got {type(self.restitution).__name__}")
         object.__setattr__(self, "box", (float(box[0]), float(box[1])))
         object.__setattr__(self, "closed", bool(self.closed))
         for name, value in (("positions", positions), ("radii", radii), ("masses", masses),

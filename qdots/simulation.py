@@ -1,13 +1,18 @@
-"""`Simulation`: a scene moving under pymunk, with the forces and writers attached to it.
+"""`Simulation`: a scene moving under what acts on it, driven by an engine, with writers attached.
 
-A `Scene` says what exists; a `Simulation` owns what acts on it and what records it:
+A `Scene` says what exists; a `Simulation` holds what acts on it and what records it, and keeps the clock:
 
 * ``sim.forces`` -- the forces (`qdots.forces`), replaceable between runs (``sim.forces = [...]``);
-* ``sim.settings`` -- the engine's knobs (`EngineSettings`), replaceable between runs;
 * ``sim.restitution`` -- the collision rule (`qdots.Restitution`), replaceable between runs;
+* ``sim.settings`` -- the engine's numerical knobs (`qdots.EngineSettings`), replaceable between runs;
 * writers -- anything with a ``write(state)`` method, attached once with a trigger
   (``sim.attach(movie, every=200)`` or ``seconds=0.5``) and given the state on that schedule in
   every later run.
+
+Everything a run needs while it runs (the Chipmunk space and bodies, the collision callbacks and their
+record, the sub-step plan, each force's per-run cache) belongs to its engine, ``sim.engine``
+(`qdots.engine.ChipmunkEngine`): forces and the collision rule hold physics only, so one force object can
+serve any number of simulations.
 """
 
 from __future__ import annotations
@@ -20,14 +25,14 @@ from labrig.progress import progress_bar
 from labrig.validate import InputError, real
 from labrig.validate import seed as valid_seed
 
-from .collisions import CollisionRecord, Restitution, install_handlers, stream_key
+from .engine import ChipmunkEngine
+from .engine.contacts import CollisionRecord, stream_key
+from .engine.settings import OVERLAP_CORRECTION, EngineSettings  # noqa: F401 (public here too)
 from .forces.base import Force
 from .motion import SAFE_TRAVEL, RunawayError, check_motion, warn_travel  # noqa: F401 (public here too)
+from .restitution import Restitution
 from .scene import Scene, check_clear
-from .settings import OVERLAP_CORRECTION, EngineSettings  # noqa: F401 (public here too)
-from .space import add_discs, new_space, tune_space
 from .state import State
-from .stepping import Stepper
 from .writers import WriterSchedule
 
 #: Relative overlap above which a finished run warns (and says so in its summary). Soft contacts
@@ -38,37 +43,39 @@ OVERLAP_WARNING = 0.1
 MAX_STEPS = 1_000_000_000
 #: Fewest steps between two checks of the dots' motion in `Simulation.run` (a check reads the whole board).
 CHECK_EVERY = 50
+#: Settings the forces' numerical methods read: changing one empties the forces' caches.
+FORCE_NUMERICS = ("pair_skin", "near_gap", "far_interval")
 
 
 class Simulation:
-    """Dots of a `Scene` moving in a `pymunk.Space`.
+    """Dots of a `Scene` moving under forces and a collision rule, on the Chipmunk engine.
 
-    Each step (`qdots.stepping`): read all positions and velocities in bulk, choose the Chipmunk
+    Each step (`qdots.engine.stepping`): read all positions and velocities in bulk, choose the Chipmunk
     sub-steps so that no dot travels more than ``overlap_tolerance`` radii into a contact within
     one, let every force add its velocity change (evaluated where the dots are at the end of the
     first sub-step), hand that change to Chipmunk as a body force, and advance Chipmunk, which moves
     the dots, adds the forces' velocity change, and resolves contacts with the partial-elasticity
-    rule (`qdots.collisions`). With no forces and ``overlap_tolerance=None`` the bulk read is skipped.
+    rule (`qdots.engine.contacts`). With no forces and ``overlap_tolerance=None`` the bulk read is skipped.
 
     Parameters
     ----------
     scene : Scene
-        What exists: board, walls, dots, collision rule.
+        What exists: board, walls, dots.
     forces : iterable of Force
         Forces acting on the dots (e.g. ``VanDerWaals()``, ``ThermalKicks()``).
+    restitution : qdots.Restitution, optional
+        The collision rule (thesis Eq 2.5); default ``Restitution()``, the thesis's.
     seed : int or numpy.random.SeedSequence, optional
         Seed of the simulation's generator. Every random draw (collision
         elasticities, thermal noise) comes from it, so equal seeds give
         bit-identical runs.
     engine : EngineSettings, optional
-        The engine's knobs; default ``EngineSettings()``.
+        The engine's numerical knobs; default ``EngineSettings()``.
     **settings
-        Shorthand for ``engine=EngineSettings(**settings)`` (e.g. ``dt=2e-3``). The knobs:
-
-        The knobs and their meaning: `EngineSettings`.
+        Shorthand for ``engine=EngineSettings(**settings)`` (e.g. ``dt=2e-3``).
     """
 
-    def __init__(self, scene: Scene, forces: Iterable[Force] = (), *,
+    def __init__(self, scene: Scene, forces: Iterable[Force] = (), *, restitution: Restitution | None = None,
                  seed: int | np.random.SeedSequence | None = None, engine: EngineSettings | None = None,
                  **settings):
         if not isinstance(scene, Scene):
@@ -79,28 +86,25 @@ class Simulation:
             engine = EngineSettings.from_dict(settings)
         if not isinstance(engine, EngineSettings):
             raise InputError(f"engine must be a qdots.EngineSettings, got {type(engine).__name__}")
+        restitution = Restitution() if restitution is None else restitution
+        if not isinstance(restitution, Restitution):
+            raise InputError(f"restitution must be a qdots.Restitution, got {type(restitution).__name__}")
         self._settings = engine
+        self._restitution = restitution
         self.scene = scene
         self.rng = _generator(seed)
         self.steps_taken = 0
         #: Simulation time at step 0, s (nonzero for a run resumed from a checkpoint).
         self.start_time = 0.0
-        #: Wall-clock seconds spent in the force phase (bulk read, sub-step plan, kicks, force
-        #: write) and in Chipmunk's ``space.step`` calls (which include the collision
-        #: callbacks), accumulated over all steps.
-        self.timings = {"forces": 0.0, "pymunk": 0.0}
-        #: Counts of impacts and the position in the elasticity draws (`qdots.collisions.CollisionRecord`).
-        self.collisions = CollisionRecord(stream_key(self.rng))
         #: Chipmunk sub-steps taken, summed over all steps.
         self.substeps_taken = 0
         self._schedule = WriterSchedule()
         self._warned_travel = False
         self._forces: tuple[Force, ...] = ()
-        self._stepper: Stepper | None = None
-        self.radii = np.zeros(0)
-        self.masses = np.zeros(0)
+        #: The engine: everything a run needs while it runs (`qdots.engine.ChipmunkEngine`).
+        self.engine = ChipmunkEngine(scene.wall_segments(), restitution, engine, stream_key(self.rng),
+                                     scene.positions, scene.velocities, scene.radii, scene.masses)
         self.forces = forces
-        self._build(scene)
 
     # -- what acts on the dots ----------------------------------------------------------------
 
@@ -119,16 +123,17 @@ class Simulation:
                 raise InputError(f"forces must be qdots.forces.Force instances, got {type(force).__name__}")
         for force in forces:
             force.check_run(self.dt)
-        for force in forces:
-            force.bind(self.radii, self.masses)
+            force.check_rule(self._restitution)
         self._forces = forces
+        self.engine.forget_forces()
 
     @property
     def settings(self) -> EngineSettings:
         """The engine's knobs; assign new `EngineSettings` to change them between runs.
 
         The time step, iterations, slop and bias apply at once; a different spatial index or
-        thread count rebuilds Chipmunk's space from the board (as `reseat` does).
+        thread count rebuilds Chipmunk's space from the board (as `reseat` does); a different pair
+        skin, near gap or far interval empties the forces' caches.
         """
         return self._settings
 
@@ -146,19 +151,52 @@ class Simulation:
         if (old.spatial_hash, old.threads) != (settings.spatial_hash, settings.threads):
             self.reseat()
         else:
-            tune_space(self.space, settings)
+            self.engine.tune(settings)
+        if any(getattr(old, name) != getattr(settings, name) for name in FORCE_NUMERICS):
+            self.engine.forget_forces()
 
     @property
     def restitution(self) -> Restitution:
         """The collision rule; assign a new `qdots.Restitution` to change it between runs."""
-        return self.scene.restitution
+        return self._restitution
 
     @restitution.setter
     def restitution(self, rule: Restitution) -> None:
         if not isinstance(rule, Restitution):
             raise InputError(f"restitution must be a qdots.Restitution, got {type(rule).__name__}")
-        self.scene = self.scene.replace(restitution=rule)
-        install_handlers(self.space, rule, self.collisions)
+        for force in self._forces:
+            force.check_rule(rule)
+        self._restitution = rule
+        self.engine.set_restitution(rule)
+        self.engine.forget_forces()  # the sticking speed enters the thesis's van der Waals proxy
+
+    @property
+    def collisions(self) -> CollisionRecord:
+        """Counts of impacts and the position in the elasticity draws (`qdots.engine.contacts.CollisionRecord`)."""
+        return self.engine.collisions
+
+    @property
+    def timings(self) -> dict:
+        """Wall-clock seconds spent in the force phase and in Chipmunk's steps, over all steps."""
+        return self.engine.timings
+
+    @property
+    def radii(self) -> np.ndarray:
+        """Dot radii, px (read-only)."""
+        return self.engine.radii
+
+    @property
+    def masses(self) -> np.ndarray:
+        """Dot masses, mean dot masses (read-only)."""
+        return self.engine.masses
+
+    def force_cache(self, force: Force) -> dict:
+        """What ``force`` (one of `forces`) derived from the dots in this simulation: its pair lists, per-dot
+        constants (the engine owns it; a benchmark reads a pair list's ``rebuilds`` there)."""
+        for k, candidate in enumerate(self._forces):
+            if candidate is force:
+                return self.engine.force_cache(k)
+        raise InputError(f"{force!r} is not one of this simulation's forces")
 
     # -- writers --------------------------------------------------------------------------------
 
@@ -185,35 +223,7 @@ class Simulation:
         """The attached writers, in the order they write."""
         return self._schedule.writers
 
-    # -- the space ------------------------------------------------------------------------------
-
-    def _build(self, scene: Scene) -> None:
-        """(Re)create the pymunk space holding ``scene``'s walls and dots.
-
-        Construction and checkpoint re-seating both come through here, so two
-        simulations built from the same board have the same Chipmunk history
-        (body order, shape ids, spatial index) and step identically.
-        """
-        self.space = new_space(scene, self._settings)
-        self._bodies = []
-        self.radii = np.zeros(0)
-        self.masses = np.zeros(0)
-        self._add_bodies(scene.positions, scene.velocities, scene.radii, scene.masses)
-        install_handlers(self.space, scene.restitution, self.collisions)
-
-    def _add_bodies(self, positions, velocities, radii, masses) -> None:
-        self._bodies += add_discs(self.space, positions, velocities, radii, masses)
-        self.radii = np.concatenate([self.radii, radii])
-        self.masses = np.concatenate([self.masses, masses])
-        self.radii.setflags(write=False)
-        self.masses.setflags(write=False)
-        old = self._stepper
-        self._stepper = Stepper(self.space, self._bodies, self.radii, self.masses, self.scene.wall_segments())
-        if old is not None and old.space is self.space:  # same space: Chipmunk's contact impulses carry over
-            self._stepper.previous = old.previous
-        self._io = self._stepper.io
-        for force in self._forces:
-            force.bind(self.radii, self.masses)
+    # -- the board ------------------------------------------------------------------------------
 
     def add_dots(self, positions, radii, masses=None, velocities=None) -> None:
         """Add dots to the running board (the thesis's sequential deposition).
@@ -240,7 +250,7 @@ class Simulation:
                       velocities=velocities)
         if fresh.n_dots:
             check_clear(fresh, self.state(), self.scene.segments)
-            self._add_bodies(fresh.positions, fresh.velocities, fresh.radii, fresh.masses)
+            self.engine.add_dots(fresh.positions, fresh.velocities, fresh.radii, fresh.masses)
 
     def current_scene(self) -> Scene:
         """The board as it is now, as a `Scene` (``from_engine=True``: soft-contact overlaps and dots
@@ -258,11 +268,12 @@ class Simulation:
         `qdots.io.checkpoint`). A run that re-seats and a run resumed from the
         checkpoint therefore continue bit for bit alike.
         """
-        self._build(self.current_scene())
+        board = self.current_scene()
+        self.engine.build(self._settings, board.positions, board.velocities, board.radii, board.masses)
 
     @property
     def n_dots(self) -> int:
-        return len(self._bodies)
+        return self.engine.n_dots
 
     @property
     def dt(self) -> float:
@@ -285,7 +296,7 @@ class Simulation:
         """Advance ``n`` time steps (no writers, no checks: `run` is the checked way)."""
         for _ in range(int(n)):
             try:
-                k = self._stepper.step(self._forces, self._settings, self.time, self.rng, self.timings)
+                k = self.engine.step(self._forces, self._settings, self.time, self.rng)
             except (ValueError, OverflowError, MemoryError, FloatingPointError, RuntimeError):
                 self._check_motion()  # a blown-up board makes the pair searches fail: say what happened
                 raise
@@ -357,23 +368,23 @@ class Simulation:
         """Stop when the dots leave the model's range; warn (once) when contacts can be missed at this speed."""
         if not self.n_dots:
             return
-        position, velocity = self._io.read()
+        position, velocity = self.engine.read()
 
         def describe() -> tuple[str, str]:
             forces = ", ".join(map(_describe, self._forces)) or "none"
             return f"at t = {self.time:g} s (step {self.steps_taken})", f"the forces ({forces}) or the time step"
 
-        sub_dt = self.dt / max(self._stepper.previous, self.substeps)  # the last step's sub-step
+        sub_dt = self.dt / max(self.engine.last_substeps, self.substeps)  # the last step's sub-step
         travel = check_motion(position, velocity, self.radii, sub_dt, self.scene.box, describe)
         if self._settings.overlap_tolerance is not None:  # contacts are planned for: warn only when capped
-            travel = self._stepper.take_capped_travel()
+            travel = self.engine.take_capped_travel()
         if travel > SAFE_TRAVEL and not self._warned_travel:
             self._warned_travel = True
             warn_travel(travel, f"at t = {self.time:g} s")
 
     def state(self) -> State:
         """A snapshot of the board (copies of every array)."""
-        position, velocity = self._io.read()
+        position, velocity = self.engine.read()
         return State(
             time=self.time,
             positions=position,
@@ -390,7 +401,7 @@ class Simulation:
         v = np.asarray(velocities, dtype=float)
         if v.shape != (self.n_dots, 2) or not np.isfinite(v).all():
             raise InputError(f"velocities must be a finite ({self.n_dots}, 2) array, got shape {v.shape}")
-        self._io.write_velocities(v)
+        self.engine.write_velocities(v)
 
     def __repr__(self) -> str:
         return (f"Simulation(n_dots={self.n_dots}, t={self.time:g} s, dt={self.dt:g} s, "

@@ -25,7 +25,7 @@ from qdots.protocols import deposit
 from labrig.figures import MAX_DPI
 from qdots.render import save_png
 from qdots.scene import MAX_DISTANCES, MAX_DOTS, MAX_SEGMENTS, Scene, grating_segments, segment_distances
-from qdots.settings import EngineSettings
+from qdots.engine.settings import EngineSettings
 from qdots.simulation import MAX_STEPS
 
 
@@ -221,10 +221,10 @@ CASES = {
     "loose_film n": (lambda: hard_cases.loose_film(MAX_DOTS + 1), ["n", f"{MAX_DOTS:,}"]),
     "mixture masses": (lambda: hard_cases.mixture("heavy"), ["masses", "'heavy'"]),
     "HardCase sample": (
-        lambda: hard_cases.HardCase("x", hard_cases.falling_gas(0.5), 1.0, 1.0,
+        lambda: hard_cases.HardCase("x", hard_cases.falling_gas(), 1.0, 1.0,
                                     sample=1 / (hard_cases.MAX_SAMPLES + 1)),
         ["sample", f"{hard_cases.MAX_SAMPLES:,}"]),
-    "HardCase seconds": (lambda: hard_cases.HardCase("x", hard_cases.falling_gas(0.5), 0.0, 1.0), ["seconds", "0.0"]),
+    "HardCase seconds": (lambda: hard_cases.HardCase("x", hard_cases.falling_gas(), 0.0, 1.0), ["seconds", "0.0"]),
     "hard case run": (long_case, [f"{MAX_STEPS:,}"]),
     "get_preset quick": (lambda: get_preset("fig2-2", quick=1.5), ["quick must be in (0, 1]", "1.5"]),
 }

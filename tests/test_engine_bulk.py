@@ -9,9 +9,9 @@ import pymunk
 import pytest
 
 import qdots
-from qdots import bulk
-from qdots.bulk import BodyArrays, body_offsets
-from qdots.space import advance
+from qdots.engine import bodies as body_io
+from qdots.engine.bodies import BodyArrays
+from qdots.engine.chipmunk import advance, internals
 
 
 def dots_space(n=40, seed=0):
@@ -29,15 +29,16 @@ def dots_space(n=40, seed=0):
 
 
 def test_the_body_fields_are_found_in_chipmunks_memory():
-    offsets = body_offsets()
-    assert offsets is not None, "pymunk's body layout changed: the step falls back to pymunk.batch"
+    found = internals()
+    assert found is not None, "pymunk's body layout changed: the step falls back to pymunk.batch"
+    offsets = found.body_offsets
     assert len(set(offsets.tolist())) == 3 and all(offset % 8 == 0 for offset in offsets.tolist())
 
 
 @pytest.mark.parametrize("direct", [True, False], ids=["direct", "pymunk.batch"])
 def test_reads_and_force_writes_equal_pymunks_own_accessors(direct, monkeypatch):
     if not direct:
-        monkeypatch.setattr(bulk, "_OFFSETS", None)
+        monkeypatch.setattr(body_io, "internals", lambda: None)
     space, bodies = dots_space()
     io = BodyArrays(space, bodies)
     assert io.direct is direct
@@ -88,17 +89,18 @@ def test_a_space_with_pending_python_work_steps_through_pymunk():
 
 
 def test_a_run_is_the_same_through_pymunk_batch(monkeypatch):
-    def film():
+    def film(direct):
         rng = np.random.default_rng(6)
         grid = np.array([(x, y) for x in range(20, 200, 20) for y in range(20, 200, 20)], float)
         scene = qdots.Scene(box=(220, 220), positions=grid, radii=np.full(len(grid), 7.5),
                             velocities=rng.normal(0, 20, grid.shape))
         sim = qdots.Simulation(scene, [qdots.VanDerWaals(), qdots.ThermalKicks()], seed=6)
+        assert sim.engine.io.direct is direct
         sim.run(0.5)
         return sim.state()
 
-    direct = film()
-    monkeypatch.setattr(bulk, "_OFFSETS", None)
-    fallback = film()
+    direct = film(True)
+    monkeypatch.setattr(body_io, "internals", lambda: None)  # the bulk reads and writes alone fall back
+    fallback = film(False)
     assert np.array_equal(direct.positions, fallback.positions)
     assert np.array_equal(direct.velocities, fallback.velocities)

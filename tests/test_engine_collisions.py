@@ -13,7 +13,9 @@ import numpy as np
 import pytest
 
 import qdots
-from qdots.collisions import CollisionRecord, elasticity_of_impact, impact_normal, install_handlers
+from qdots.engine import stepping
+from qdots.engine.contacts import CollisionRecord, elasticity_of_impact, install_handlers
+from qdots.restitution import impact_normal
 
 TOL = 1e-9
 MASK = 2**64 - 1
@@ -54,9 +56,8 @@ def collide(v1, v2, m1=1.0, m2=1.0, offset=0.0, seed=0, mean=0.8, seconds=1.2, *
         radii=[7.5, 7.5],
         masses=[m1, m2],
         velocities=[v1, v2],
-        restitution=qdots.Restitution(mean=mean, **rule),
     )
-    sim = qdots.Simulation(scene, seed=seed)
+    sim = qdots.Simulation(scene, restitution=qdots.Restitution(mean=mean, **rule), seed=seed)
     before = sim.state()
     sim.run(seconds)
     after = sim.state()
@@ -184,9 +185,8 @@ def test_wall_impacts_are_elastic_by_default(angle_deg):
 
 
 def test_wall_restitution_is_configurable():
-    scene = qdots.Scene(box=(300, 100), positions=[[100, 50]], radii=[7.5], velocities=[[0.0, -50.0]],
-                        restitution=qdots.Restitution(wall=0.5))
-    sim = qdots.Simulation(scene, seed=0)
+    scene = qdots.Scene(box=(300, 100), positions=[[100, 50]], radii=[7.5], velocities=[[0.0, -50.0]])
+    sim = qdots.Simulation(scene, restitution=qdots.Restitution(wall=0.5), seed=0)
     sim.run(0.9)  # one bounce off the floor, not yet the ceiling
     assert sim.state().velocities[0, 1] == pytest.approx(25.0, abs=TOL)
 
@@ -205,9 +205,9 @@ def test_elastic_gas_conserves_energy(rng, iterations, bound):
     n, side = 100, 400
     grid = np.array([(x, y) for x in range(20, side, 38) for y in range(20, side, 38)], float)[:n]
     scene = qdots.Scene(box=(side, side), positions=grid, radii=np.full(n, 7.5),
-                        velocities=rng.normal(0, 100, (n, 2)),
-                        restitution=qdots.Restitution(mean=1.0, sticking_speed=0.0))
-    sim = qdots.Simulation(scene, seed=1, dt=1e-3, iterations=iterations)
+                        velocities=rng.normal(0, 100, (n, 2)))
+    sim = qdots.Simulation(scene, restitution=qdots.Restitution(mean=1.0, sticking_speed=0.0), seed=1, dt=1e-3,
+                           iterations=iterations)
     e0 = sim.state().kinetic_energy()
     energies = []
     for _ in range(20):
@@ -291,7 +291,7 @@ def busy_film(seed, compiled):
     scene = qdots.Scene(box=(220, 220), positions=grid, radii=rng.uniform(6.5, 8.5, len(grid)),
                         velocities=rng.normal(0, 40, (len(grid), 2)), segments=[[0, 110, 80, 110]])
     sim = qdots.Simulation(scene, [qdots.VanDerWaals(), qdots.ThermalKicks()], seed=seed)
-    install_handlers(sim.space, scene.restitution, sim.collisions, compiled=compiled)
+    install_handlers(sim.engine.space, sim.restitution, sim.collisions, compiled=compiled)
     sim.run(1.0)
     return sim
 
@@ -313,15 +313,15 @@ def test_a_still_board_skips_the_pair_plan_and_keeps_the_same_sub_steps(monkeypa
     scene = qdots.Scene(box=(200.0, 200.0), positions=40.0 + 15.2 * ij + rng.uniform(-0.05, 0.05, (64, 2)),
                         radii=np.full(64, 7.5), velocities=rng.normal(0.0, 30.0, (64, 2)))
     calls = []
-    travel = qdots.stepping.closing_travel
-    monkeypatch.setattr(qdots.stepping, "closing_travel", lambda *a: calls.append(1) or travel(*a))
+    travel = stepping.closing_travel
+    monkeypatch.setattr(stepping, "closing_travel", lambda *a: calls.append(1) or travel(*a))
     boards = []
     for shortcut in (True, False):
         calls.clear()
         sim = qdots.Simulation(scene, [qdots.Drag(linear=5.0)], seed=0)
         sim.step(1)
         if not shortcut:
-            sim._stepper.smallest = 0.0  # no dot is ever slow enough: the plan always reads the pairs
+            sim.engine._stepper.smallest = 0.0  # no dot is ever slow enough: the plan always reads the pairs
         sim.step(800)
         boards.append((sim.state(), sim.substeps_taken, len(calls)))
     (fast, k_fast, planned), (full, k_full, every) = boards

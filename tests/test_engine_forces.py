@@ -5,12 +5,14 @@ import pytest
 from scipy.integrate import solve_ivp
 
 import qdots
-from qdots.forces import hamaker_force, thesis_offset
+from qdots.forces import StepContext, hamaker_force, thesis_offset
 from qdots.units import thesis_kick_speed
 
 from conftest import TimeRecorder, worst_overlap
 
 BIG_BOX = (2000.0, 2000.0)
+#: Every van der Waals pair pulled every step (no far pass).
+EVERY_STEP = qdots.EngineSettings(far_interval=None)
 
 
 def lone_dot(velocity=(0.0, 0.0), mass=1.0, position=(1000.0, 1000.0)):
@@ -18,15 +20,22 @@ def lone_dot(velocity=(0.0, 0.0), mass=1.0, position=(1000.0, 1000.0)):
 
 
 # ---------------------------------------------------------------- van der Waals vs solve_ivp
+def proxy_constants(force):
+    """The thesis proxy's offset b (px) and the Hamaker constant ``force`` uses under the default collision rule."""
+    offset = force.proxy_offset(qdots.Restitution().sticking_speed)
+    return offset, force.hamaker_strength(offset)
+
+
 def vdw_pair_reference(model, gap0, masses, t_end, force):
     """Separation of two dots under the dt -> 0 limit of the force law, by solve_ivp at rtol 1e-10."""
     m1, m2 = masses
     r = 7.5
+    offset, strength = proxy_constants(force)
 
     def pull(gap):  # force magnitude between the pair (mass * px / s^2)
         if model == "thesis":
-            return 0.5 * (force.r0 / (gap - force.offset)) ** 7
-        return float(hamaker_force(np.array(gap), np.array(r), np.array(r), force.strength))
+            return 0.5 * (force.r0 / (gap - offset)) ** 7
+        return float(hamaker_force(np.array(gap), np.array(r), np.array(r), strength))
 
     def rhs(t, y):
         x1, x2, v1, v2 = y
@@ -43,22 +52,24 @@ def contact_time(model, gap0, masses, force):
     event = lambda t, y: y[1] - y[0] - 2 * r - 1.0  # noqa: E731 - gap of 1 px
     event.terminal = True
     m1, m2 = masses
+    offset, strength = proxy_constants(force)
 
     def rhs(t, y):
         gap = max(y[1] - y[0] - 2 * r, force.min_gap)
-        f = 0.5 * (force.r0 / (gap - force.offset)) ** 7 if model == "thesis" else float(
-            hamaker_force(np.array(gap), np.array(r), np.array(r), force.strength))
+        f = 0.5 * (force.r0 / (gap - offset)) ** 7 if model == "thesis" else float(
+            hamaker_force(np.array(gap), np.array(r), np.array(r), strength))
         return [y[2], y[3], f / m1, -f / m2]
 
     sol = solve_ivp(rhs, (0, 100), [0, 2 * r + gap0, 0, 0], events=event, rtol=1e-10, atol=1e-12)
     return sol.t_events[0][0]
 
 
-def pair_error(force, gap0, masses, t_end, dt, reference):
-    """Largest position error (px) of two 7.5 px dots pulled together by ``force`` from ``gap0`` over ``t_end``."""
+def pair_error(force, gap0, masses, t_end, dt, reference, **settings):
+    """Largest position error (px) of two 7.5 px dots pulled together by ``force`` from ``gap0`` over ``t_end``, at
+    time step ``dt`` and the engine ``settings`` (e.g. ``far_interval``)."""
     scene = qdots.Scene(box=(200, 100), positions=[[80, 50], [80 + 15 + gap0, 50]], radii=[7.5, 7.5],
                         masses=list(masses), closed=False)
-    sim = qdots.Simulation(scene, [force], seed=0, dt=dt)
+    sim = qdots.Simulation(scene, [force], seed=0, dt=dt, **settings)
     sim.run(t_end)
     assert sim.collisions.dot_dot == 0
     x1, x2 = sim.state().positions[:, 0] - 80
@@ -68,7 +79,7 @@ def pair_error(force, gap0, masses, t_end, dt, reference):
 @pytest.mark.parametrize("model, masses", [("thesis", (1.0, 1.0)), ("thesis", (1.0, 2.0)), ("hamaker", (1.0, 1.0))])
 def test_vdw_pair_matches_solve_ivp_first_order(model, masses):
     """Every pair pulled every step (no far pass): first order in dt from the start's half-step lag."""
-    force = qdots.VanDerWaals(model, far_interval=None)
+    force = qdots.VanDerWaals(model)
     gap0 = 8.0
     t_end = 0.8 * contact_time(model, gap0, masses, force)
     t_end = round(t_end / 0.004) * 0.004  # a whole number of steps for every dt below
@@ -76,7 +87,7 @@ def test_vdw_pair_matches_solve_ivp_first_order(model, masses):
     errors = []
     dts = (4e-3, 2e-3, 1e-3, 5e-4)
     for dt in dts:
-        errors.append(pair_error(qdots.VanDerWaals(model, far_interval=None), gap0, masses, t_end, dt, reference))
+        errors.append(pair_error(force, gap0, masses, t_end, dt, reference, far_interval=None))
     orders = np.log2(np.array(errors[:-1]) / np.array(errors[1:]))
     # symplectic Euler (kick, then Chipmunk's drift) is first order in dt
     assert np.all((orders > 0.85) & (orders < 1.15)), (errors, orders)
@@ -91,32 +102,42 @@ def test_far_pass_is_second_order_in_its_interval(model, masses):
     gap0 = 20.0
     t_end = round(0.8 * contact_time(model, gap0, masses, force) / 0.04) * 0.04
     reference = vdw_pair_reference(model, gap0, masses, t_end, force).sol(t_end)
-    assert reference[1] - reference[0] - 15.0 > 2 * force.near_gap  # far all along
+    assert reference[1] - reference[0] - 15.0 > 2 * qdots.EngineSettings().near_gap  # far all along
     intervals = (0.04, 0.02, 0.01)
-    errors = [pair_error(qdots.VanDerWaals(model, far_interval=i), gap0, masses, t_end, 5e-3, reference)
-              for i in intervals]
+    errors = [pair_error(force, gap0, masses, t_end, 5e-3, reference, far_interval=i) for i in intervals]
     orders = np.log2(np.array(errors[:-1]) / np.array(errors[1:]))
     assert np.all((orders > 1.8) & (orders < 2.2)), (errors, orders)
-    every_step = pair_error(qdots.VanDerWaals(model, far_interval=None), gap0, masses, t_end, 2.5e-3, reference)
+    every_step = pair_error(force, gap0, masses, t_end, 2.5e-3, reference, far_interval=None)
     assert errors[1] < every_step / 10  # the default 20 ms interval against every 2.5 ms step
 
 
 def test_thesis_proxy_constants():
     force = qdots.VanDerWaals()
-    assert force.offset == pytest.approx(thesis_offset(15.0, 0.1, 1.0))
-    assert force.offset == pytest.approx(0.1 - 15.0 * (0.1 / 100.0) ** (1 / 7))
+    assert force.offset is None  # derived from the collision rule's sticking speed (thesis: 1 px/s)
+    assert force.proxy_offset(1.0) == pytest.approx(thesis_offset(15.0, 0.1, 1.0))
+    assert force.proxy_offset(1.0) == pytest.approx(0.1 - 15.0 * (0.1 / 100.0) ** (1 / 7))
+    assert force.proxy_offset(2.0) == pytest.approx(thesis_offset(15.0, 0.1, 2.0))
+    assert qdots.VanDerWaals(offset=-3.0).proxy_offset(1.0) == -3.0
     assert force.max_gap == 30.0
 
 
-def kick_speed(force, gap, dt=1e-3, masses=(1.0, 1.0), time=0.0):
-    """Speed change of dot 0 toward dot 1 in one step from ``time``, two 7.5 px dots at surface gap `gap`."""
-    from qdots.forces import StepContext
+def test_the_proxy_offset_follows_the_simulations_sticking_speed():
+    """The sticking speed is the collision rule's: the same force pulls harder under a rule with a faster one."""
+    force = qdots.VanDerWaals()
+    slow, fast = (kick_speed(force, 2.0, restitution=qdots.Restitution(sticking_speed=v)) for v in (1.0, 3.0))
+    a = (15.0 / (2.0 - thesis_offset(15.0, 0.1, 3.0))) ** 7
+    assert fast == pytest.approx(a / 2 * 1e-3, rel=1e-12) and fast > slow
 
+
+def kick_speed(force, gap, dt=1e-3, masses=(1.0, 1.0), time=0.0, settings=None, restitution=None):
+    """Speed change of dot 0 toward dot 1 in one step from ``time``, two 7.5 px dots at surface gap `gap`, under the
+    engine ``settings`` (default `qdots.EngineSettings`) and collision rule ``restitution`` (default the thesis's)."""
     radii, masses = np.array([7.5, 7.5]), np.array(masses)
-    force.bind(radii, masses)
     x = np.array([0.0, 15.0 + gap])
     ctx = StepContext(time=time, dt=dt, x=x, y=np.zeros(2), velocity=np.zeros((2, 2)), radii=radii,
-                      masses=masses, rng=np.random.default_rng(0), dv=np.zeros((2, 2)))
+                      masses=masses, rng=np.random.default_rng(0), dv=np.zeros((2, 2)),
+                      settings=settings or qdots.EngineSettings(), restitution=restitution or qdots.Restitution(),
+                      cache={})
     force.kick(ctx)
     assert ctx.dv[0, 1] == 0 and ctx.dv[1, 1] == 0
     assert ctx.dv[0, 0] * masses[0] == pytest.approx(-ctx.dv[1, 0] * masses[1])  # equal and opposite
@@ -126,53 +147,67 @@ def kick_speed(force, gap, dt=1e-3, masses=(1.0, 1.0), time=0.0):
 @pytest.mark.parametrize("gap, dt", [(0.5, 1e-3), (0.5, 0.2), (5.0, 1e-3), (29.0, 1e-2)])
 def test_thesis_proxy_one_step(gap, dt):
     """min(a dt/2, sqrt(g a)/2) with a = (R0/(g - b))^7 / m; the cap binds at large dt."""
-    force = qdots.VanDerWaals(far_interval=None)
-    a = (15.0 / (gap - force.offset)) ** 7
-    assert kick_speed(force, gap, dt) == pytest.approx(min(a * dt / 2, np.sqrt(gap * a) / 2), rel=1e-12)
+    force = qdots.VanDerWaals()
+    a = (15.0 / (gap - force.proxy_offset(1.0))) ** 7
+    expected = min(a * dt / 2, np.sqrt(gap * a) / 2)
+    assert kick_speed(force, gap, dt, settings=EVERY_STEP) == pytest.approx(expected, rel=1e-12)
 
 
 def test_thesis_proxy_mass_dependence():
     force = qdots.VanDerWaals()
-    a = (15.0 / (2.0 - force.offset)) ** 7
+    a = (15.0 / (2.0 - force.proxy_offset(1.0))) ** 7
     assert kick_speed(force, 2.0, 1e-3, masses=(2.0, 1.0)) == pytest.approx(a / 2 * 1e-3 / 2, rel=1e-12)
 
 
 def test_vdw_range_and_contact_rules():
-    hold, zero = qdots.VanDerWaals(contact="hold", far_interval=None), qdots.VanDerWaals(contact="zero", far_interval=None)
-    assert kick_speed(hold, 31.0) == 0.0  # beyond 2 R0
-    assert kick_speed(hold, 29.0) > 0.0
-    at_min_gap = kick_speed(hold, 0.1)
-    assert kick_speed(hold, -0.05) == pytest.approx(at_min_gap)  # pressed pairs keep the contact force
-    assert kick_speed(hold, 0.02) == pytest.approx(at_min_gap)
-    assert kick_speed(zero, 0.02) == 0.0 and kick_speed(zero, -0.05) == 0.0
-    assert kick_speed(hold, 0.2) > 0
-    assert kick_speed(zero, 0.2) == pytest.approx(kick_speed(hold, 0.2))
+    hold, zero = qdots.VanDerWaals(contact="hold"), qdots.VanDerWaals(contact="zero")
+
+    def kick(force, gap):
+        return kick_speed(force, gap, settings=EVERY_STEP)
+
+    assert kick(hold, 31.0) == 0.0  # beyond 2 R0
+    assert kick(hold, 29.0) > 0.0
+    at_min_gap = kick(hold, 0.1)
+    assert kick(hold, -0.05) == pytest.approx(at_min_gap)  # pressed pairs keep the contact force
+    assert kick(hold, 0.02) == pytest.approx(at_min_gap)
+    assert kick(zero, 0.02) == 0.0 and kick(zero, -0.05) == 0.0
+    assert kick(hold, 0.2) > 0
+    assert kick(zero, 0.2) == pytest.approx(kick(hold, 0.2))
 
 
 @pytest.mark.parametrize("model", ["thesis", "hamaker"])
 def test_far_pairs_get_the_pull_of_their_interval_at_its_middle(model):
-    split, every = qdots.VanDerWaals(model), qdots.VanDerWaals(model, far_interval=None)
+    force = qdots.VanDerWaals(model)
+
+    def split(gap, dt, time=0.0):
+        return kick_speed(force, gap, dt, time=time)
+
+    def every(gap, dt):
+        return kick_speed(force, gap, dt, settings=EVERY_STEP)
+
     far, near = 10.0, 2.0  # surface gaps, px, beyond and within near_gap
-    assert split.near_gap == 4.0 and split.far_interval == 0.02
-    assert kick_speed(split, far, 1e-3, time=0.0) == 0.0  # no interval's middle in (0, 1 ms]
-    assert kick_speed(split, far, 1e-3, time=0.0095) == pytest.approx(kick_speed(every, far, 0.02), rel=1e-12)
-    assert kick_speed(split, far, 0.05, time=0.0) == pytest.approx(kick_speed(every, far, 0.06), rel=1e-12)  # 3 middles
-    assert kick_speed(split, near, 1e-3, time=0.0) == kick_speed(every, near, 1e-3)
-    assert kick_speed(split, 31.0, 1e-3, time=0.0095) == 0.0  # beyond max_gap either way
-    assert kick_speed(qdots.VanDerWaals(model, near_gap=40.0), far, 1e-3) == kick_speed(every, far, 1e-3)
+    assert qdots.EngineSettings().near_gap == 4.0 and qdots.EngineSettings().far_interval == 0.02
+    assert split(far, 1e-3) == 0.0  # no interval's middle in (0, 1 ms]
+    assert split(far, 1e-3, time=0.0095) == pytest.approx(every(far, 0.02), rel=1e-12)
+    assert split(far, 0.05) == pytest.approx(every(far, 0.06), rel=1e-12)  # 3 middles
+    assert split(near, 1e-3) == every(near, 1e-3)
+    assert split(31.0, 1e-3, time=0.0095) == 0.0  # beyond max_gap either way
+    assert kick_speed(force, far, 1e-3, settings=qdots.EngineSettings(near_gap=40.0)) == every(far, 1e-3)
 
 
 @pytest.mark.parametrize("model", ["thesis", "hamaker"])
 def test_fade_between_the_passes_keeps_each_pairs_whole_pull(model):
     """Between near_gap / 2 and near_gap the every-step part falls smoothly from the whole pull to none, and
     the far pass carries the rest: in a step of one far interval the two parts sum to the whole pull."""
-    split, every = qdots.VanDerWaals(model), qdots.VanDerWaals(model, far_interval=None)
-    gaps = np.linspace(0.5 * split.near_gap, split.near_gap, 9)
-    weights = [kick_speed(split, g, 1e-3) / kick_speed(every, g, 1e-3) for g in gaps]  # no far pass in (0, 1 ms]
+    force = qdots.VanDerWaals(model)
+    near_gap = qdots.EngineSettings().near_gap
+    gaps = np.linspace(0.5 * near_gap, near_gap, 9)
+    # no far pass in (0, 1 ms]
+    weights = [kick_speed(force, g, 1e-3) / kick_speed(force, g, 1e-3, settings=EVERY_STEP) for g in gaps]
     assert weights[0] == 1.0 and weights[-1] == 0.0
     assert np.all(np.diff(weights) < 0) and weights[4] == pytest.approx(0.5, abs=1e-12)  # smoothstep's middle
     for g in gaps:
-        assert kick_speed(split, g, 0.02) == pytest.approx(kick_speed(every, g, 0.02), rel=1e-12)
+        assert kick_speed(force, g, 0.02) == pytest.approx(kick_speed(force, g, 0.02, settings=EVERY_STEP), rel=1e-12)
 
 
 def test_pair_crossing_near_gap_is_neither_pulled_twice_nor_missed():
@@ -180,18 +215,22 @@ def test_pair_crossing_near_gap_is_neither_pulled_twice_nor_missed():
     hard cut at near_gap they were 6.5x farther from the dt -> 0 path than with every pair every step
     (measured: 4.9e-2 against 7.6e-3 px); with the fade they are closer than every pair every step."""
     force = qdots.VanDerWaals()
-    gap0, masses = force.near_gap, (1.0, 1.0)
+    gap0, masses = qdots.EngineSettings().near_gap, (1.0, 1.0)
     t_end = round(0.8 * contact_time("thesis", gap0, masses, force) / 0.02) * 0.02
     reference = vdw_pair_reference("thesis", gap0, masses, t_end, force).sol(t_end)
-    split = pair_error(qdots.VanDerWaals(), gap0, masses, t_end, 2.5e-3, reference)
-    every_step = pair_error(qdots.VanDerWaals(far_interval=None), gap0, masses, t_end, 2.5e-3, reference)
+    split = pair_error(force, gap0, masses, t_end, 2.5e-3, reference)
+    every_step = pair_error(force, gap0, masses, t_end, 2.5e-3, reference, far_interval=None)
     assert split < every_step / 3, (split, every_step)
 
 
 def test_default_hamaker_strength_matches_proxy_at_one_px():
     thesis, hamaker = qdots.VanDerWaals("thesis"), qdots.VanDerWaals("hamaker")
-    proxy = 0.5 * (15.0 / (1.0 - thesis.offset)) ** 7
-    assert float(hamaker_force(np.array(1.0), np.array(7.5), np.array(7.5), hamaker.strength)) == pytest.approx(proxy)
+    offset = thesis.proxy_offset(1.0)
+    proxy = 0.5 * (15.0 / (1.0 - offset)) ** 7
+    assert hamaker.strength is None  # unset: derived per run from the proxy's offset
+    strength = hamaker.hamaker_strength(offset)
+    assert float(hamaker_force(np.array(1.0), np.array(7.5), np.array(7.5), strength)) == pytest.approx(proxy)
+    assert kick_speed(hamaker, 1.0, settings=EVERY_STEP) == pytest.approx(kick_speed(thesis, 1.0, settings=EVERY_STEP))
 
 
 def test_hamaker_force_limits():
@@ -247,10 +286,10 @@ def test_langevin_equipartition():
     rng = np.random.default_rng(0)
     grid = np.array([(x, y) for x in range(40, 1000, 68) for y in range(40, 1000, 68)], float)[:n]
     masses = rng.choice([0.5, 1.0, 2.0], n)
-    scene = qdots.Scene(box=(1000, 1000), positions=grid, radii=np.full(n, 3.0), masses=masses,
-                        restitution=qdots.Restitution(mean=1.0, sticking_speed=0.0))
+    scene = qdots.Scene(box=(1000, 1000), positions=grid, radii=np.full(n, 3.0), masses=masses)
     kT = 5.0
-    sim = qdots.Simulation(scene, [qdots.Langevin(gamma=2.0, kT=kT)], seed=11, dt=2e-3)
+    sim = qdots.Simulation(scene, [qdots.Langevin(gamma=2.0, kT=kT)],
+                           restitution=qdots.Restitution(mean=1.0, sticking_speed=0.0), seed=11, dt=2e-3)
     sim.run(3.0)  # kinetic energy relaxes as exp(-2 gamma t)
     samples = []
     for _ in range(30):
@@ -344,14 +383,33 @@ def test_same_seed_is_bit_identical_and_other_seed_differs():
     assert not np.array_equal(a.positions, c.positions)
 
 
-def test_no_forces_means_no_bulk_traffic():
-    sim = qdots.Simulation(lone_dot(velocity=(10.0, 0.0)), [], seed=0)
+def bulk_traffic(forces, **settings):
+    """The bulk reads (`BodyArrays.read_rows`, the read a step makes) and force writes of 10 steps of a lone dot
+    moving at 10 px/s, and its x after them."""
+    sim = qdots.Simulation(lone_dot(velocity=(10.0, 0.0)), forces, seed=0, **settings)
+    io = sim.engine.io
+    calls = {"read_rows": 0, "write_forces": 0}
+    for name in calls:
+        method = getattr(io, name)
 
-    def forbidden():
-        raise AssertionError("bulk read with no forces")
+        def counted(*args, name=name, method=method):
+            calls[name] += 1
+            return method(*args)
 
-    sim._io.read = forbidden  # noqa: SLF001
+        setattr(io, name, counted)
     sim.step(10)
+    stepped = dict(calls)  # before the state is read
+    return stepped, sim.state().positions[0, 0]
+
+
+def test_no_forces_means_no_bulk_traffic():
+    """With no forces and a fixed sub-step a step neither reads nor writes the bodies in bulk; with the sub-step
+    plan (which reads the velocities) every step reads, and with a force every step also writes."""
+    calls, x = bulk_traffic([], overlap_tolerance=None)
+    assert calls == {"read_rows": 0, "write_forces": 0}
+    assert x == pytest.approx(1000.0 + 10.0 * 10 * 2.5e-3, rel=1e-15)  # it did move
+    assert bulk_traffic([])[0] == {"read_rows": 10, "write_forces": 0}  # the plan reads; nothing to write
+    assert bulk_traffic([qdots.Drag(0.0, 0.0)])[0] == {"read_rows": 10, "write_forces": 10}
 
 
 @pytest.mark.parametrize(
@@ -361,7 +419,6 @@ def test_no_forces_means_no_bulk_traffic():
         (lambda: qdots.VanDerWaals(contact="sticky"), "contact must be"),
         (lambda: qdots.VanDerWaals(r0=-1), r"r0 must be in \(0, 1000\] px"),
         (lambda: qdots.VanDerWaals(max_gap=0.05), "max_gap"),
-        (lambda: qdots.VanDerWaals(skin=-1), r"skin must be in \[0, 1000\] px"),
         (lambda: qdots.ThermalKicks(interval=0), r"interval must be in \(0, "),
         (lambda: qdots.Langevin(gamma=-1), r"gamma must be in \[0, "),
         (lambda: qdots.Drag(-0.1), r"linear must be in \[0, "),
@@ -387,11 +444,23 @@ def test_force_validation(make, message):
         (dict(dt=True), r"dt must be (a number )?in \[1e-7, 0.1\] s"),
         (dict(spatial_hash=(10.0, 2.5)), "spatial_hash"),
         (dict(spatial_hash="big"), "spatial_hash"),
+        (dict(pair_skin=-1), r"pair_skin must be in \[0, 1000\] px"),
+        (dict(near_gap=0), r"near_gap must be in \(0, 2,?000\] px"),
+        (dict(far_interval=0), r"far_interval must be in \(0, "),
+        (dict(tune_allocator="yes"), "tune_allocator"),
+        (dict(restitution=0.8), "restitution must be a qdots.Restitution"),
     ],
 )
 def test_simulation_validation(kwargs, message):
     with pytest.raises(ValueError, match=message):
         qdots.Simulation(lone_dot(), **kwargs)
+
+
+@pytest.mark.parametrize("knob", ["skin", "near_gap", "far_interval", "sticking_speed"])
+def test_vdw_holds_no_numerics_of_the_engine(knob):
+    """The pair list's skin and the near/far split are engine settings, the sticking speed the collision rule's."""
+    with pytest.raises(TypeError, match=knob):
+        qdots.VanDerWaals(**{knob: 1.0})
 
 
 def test_run_rejects_negative_time_and_bad_writer():

@@ -43,7 +43,8 @@ EXPERIMENT_KEYS = ["name", "seed", "grating", "board.width", "board.height", "bo
                    "deposition.heavy_mass", "deposition.interval", "deposition.settle", "deposition.max_tries",
                    "restitution.mean", "restitution.wall", "restitution.sticking_speed", "engine.dt",
                    "engine.substeps", "engine.iterations", "engine.collision_slop", "engine.collision_bias",
-                   "engine.spatial_hash", "engine.threads", "forces.0.r0", "forces.0.min_gap", "forces.0.skin",
+                   "engine.spatial_hash", "engine.threads", "engine.pair_skin", "engine.far_interval",
+                   "forces.0.r0", "forces.0.min_gap", "forces.0.skin",
                    "forces.0.model", "forces.1.interval", "forces.1.scale", "forces.2.acceleration", "forces.0.type",
                    "board.colour", "deposition.sigmaa", "extra"]
 SMALL_EXPERIMENT = {"name": "fuzz", "board": {"width": 80.0, "height": 80.0},

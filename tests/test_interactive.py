@@ -85,7 +85,7 @@ def test_knob_controls_rebuild_the_simulation():
     np.testing.assert_array_equal(after.positions, before.positions)
     np.testing.assert_array_equal(after.velocities, before.velocities)
     c["elasticity"].value = 0.5
-    assert board.sim.scene.restitution.mean == 0.5
+    assert board.sim.restitution.mean == 0.5
     c["thermal"].value, c["vdw_r0"].value = 0.0, 0.0
     assert board.sim.forces == ()  # a knob at 0 costs nothing
     c["vdw_r0"].value, c["thermal"].value, c["drag"].value = 10.0, 2.0, 0.3

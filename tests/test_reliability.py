@@ -419,7 +419,7 @@ def test_api_type_errors_name_the_field():
                         (lambda: qdots.Simulation(scene, collision_bias="x"), "collision_bias"),
                         (lambda: qdots.Simulation(scene, seed=-1), "seed"),
                         (lambda: qdots.Simulation(scene, dt="fast"), "dt"),
-                        (lambda: qdots.VanDerWaals(skin="x"), "skin"),
+                        (lambda: qdots.Simulation(scene, pair_skin="x"), "pair_skin"),
                         (lambda: qdots.Scene(box=(100, 100), positions=[[50, 50]], radii=[7.5], closed=1), "closed")):
         with pytest.raises(ValueError, match=field):
             call()

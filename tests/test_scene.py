@@ -41,7 +41,6 @@ def test_valid_scene_defaults():
         (dict(box=(100, -5)), r"box\[1\] = -5.0 must be in \(0, "),
         (dict(segments=[[10, 10, 10, 10]]), r"segments\[0\] has zero length"),
         (dict(radii=["a", "b"]), r"radii must hold real numbers"),
-        (dict(restitution=0.8), r"restitution must be a qdots.Restitution"),
     ],
 )
 def test_bad_input_is_named(changes, message):
@@ -81,6 +80,19 @@ def test_touching_dots_are_allowed():
 def test_restitution_validation(kwargs, message):
     with pytest.raises(ValueError, match=message):
         qdots.Restitution(**kwargs)
+
+
+def test_the_collision_rule_is_the_simulations_not_the_scenes():
+    """A scene says what exists; the rule is given to (and checked by) the simulation, at start and between runs."""
+    with pytest.raises(TypeError, match="restitution"):
+        two_dots(restitution=qdots.Restitution())
+    with pytest.raises(ValueError, match=r"restitution must be a qdots.Restitution, got float"):
+        qdots.Simulation(two_dots(), restitution=0.8)
+    sim = qdots.Simulation(two_dots(), restitution=qdots.Restitution(mean=0.5), seed=0)
+    assert sim.restitution == qdots.Restitution(mean=0.5)
+    with pytest.raises(ValueError, match=r"restitution must be a qdots.Restitution, got float"):
+        sim.restitution = 0.8
+    assert sim.restitution == qdots.Restitution(mean=0.5)
 
 
 def test_restitution_spread_follows_thesis():

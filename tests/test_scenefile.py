@@ -7,6 +7,7 @@ from conftest import refused_file
 
 import qdots
 from qdots.cli.sweep import ExperimentRunner
+from qdots.forces import thesis_offset
 from qdots.experiment import Board, Deposition, Experiment
 from qdots.presets import PRESETS, get_preset
 from qdots.io.experiment_file import experiment_from_toml, experiment_to_toml, load_experiment, save_experiment
@@ -48,14 +49,29 @@ def test_an_unset_setting_whose_default_is_set_round_trips_as_false():
     assert experiment_from_toml(experiment_to_toml(Experiment())).engine.overlap_tolerance == 0.005
 
 
-def test_a_force_parameter_unset_from_a_set_default_round_trips_as_false():
-    """Every vdW pair every step (``far_interval=None``) was written as a comment and read back as the 20 ms
-    default: a saved experiment ran another model."""
-    exp = Experiment(forces=(qdots.VanDerWaals(far_interval=None), qdots.ThermalKicks()))
+def test_every_pair_every_step_round_trips_as_false():
+    """Every vdW pair every step (``far_interval=None``, an engine setting now) was written as a comment and
+    read back as the 20 ms default: a saved experiment ran another model."""
+    exp = Experiment(engine=EngineSettings(far_interval=None), forces=(qdots.VanDerWaals(), qdots.ThermalKicks()))
     text = experiment_to_toml(exp)
     assert "\nfar_interval = false " in text and "# strength (unset)" in text
     back = experiment_from_toml(text)
-    assert back == exp and back.forces[0]["far_interval"] is None
+    assert back == exp and back.engine.far_interval is None
+
+
+def test_a_file_of_0_2_with_vdw_numerics_means_what_it_meant():
+    """0.2 kept the pair list's knobs and a sticking speed in the VanDerWaals table: the knobs are read into the
+    engine table, and a sticking speed other than the collision rule's as the proxy offset it gave."""
+    old = ('[restitution]\nsticking_speed = 1.0\n'
+           '[[forces]]\ntype = "VanDerWaals"\nskin = 3.0\nnear_gap = 6.0\nfar_interval = false\nsticking_speed = 2.0\n'
+           '[[forces]]\ntype = "VanDerWaals"\nsticking_speed = 1.0\n')
+    exp = experiment_from_toml(old)
+    assert exp.engine == EngineSettings(pair_skin=3.0, near_gap=6.0, far_interval=None)
+    assert exp.forces[0] == qdots.VanDerWaals(offset=thesis_offset(15.0, 0.1, 2.0)).to_dict()
+    assert exp.forces[1] == qdots.VanDerWaals().to_dict()  # the rule's own sticking speed: nothing to keep
+    assert experiment_from_toml(experiment_to_toml(exp)) == exp
+    with pytest.raises(ValueError, match=r"pair_skin = 3.0 differs from engine.pair_skin = 6.0"):
+        experiment_from_toml('[engine]\npair_skin = 6.0\n[[forces]]\ntype = "VanDerWaals"\nskin = 3.0\n')
 
 
 def test_written_file_has_every_key_with_units():

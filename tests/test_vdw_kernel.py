@@ -8,12 +8,28 @@ from qdots.forces.base import StepContext
 from qdots.forces.vdw import hamaker_force
 from qdots.neighbours import VerletPairs, extent
 
+#: The collision rule of every context here (its sticking speed sets the proxy's offset).
+RULE = qdots.Restitution()
 
-def numpy_kicks(force: qdots.VanDerWaals, x, y, radii, masses, dt, time=0.0):
-    """Velocity changes of one step from ``time``, written array-wise (bincount over the pair list): with the
-    split, the pull of each pair for ``dt`` times ``w(g)`` (1 below ``near_gap / 2``, smoothstep down to 0 at
-    ``near_gap``) plus its pull for the far intervals whose middle is in the step times ``1 - w(g)``."""
-    pairs = VerletPairs(force.skin)
+
+def context(x, y, radii, masses, dt, time=0.0, settings=None, cache=None, rng=None):
+    """The step context a simulation would give a force: the engine ``settings`` (default `qdots.EngineSettings`),
+    `RULE`, and ``cache`` (a fresh one by default: one per simulation)."""
+    n = len(x)
+    return StepContext(time=time, dt=dt, x=x, y=y, velocity=np.zeros((n, 2)), radii=radii, masses=masses,
+                       rng=rng or np.random.default_rng(0), dv=np.zeros((n, 2)),
+                       settings=settings or qdots.EngineSettings(), restitution=RULE,
+                       cache={} if cache is None else cache)
+
+
+def numpy_kicks(force: qdots.VanDerWaals, settings, x, y, radii, masses, dt, time=0.0):
+    """Velocity changes of one step from ``time`` under the engine ``settings``, written array-wise (bincount over
+    the pair list): with the split, the pull of each pair for ``dt`` times ``w(g)`` (1 below ``near_gap / 2``,
+    smoothstep down to 0 at ``near_gap``) plus its pull for the far intervals whose middle is in the step times
+    ``1 - w(g)``."""
+    offset = force.proxy_offset(RULE.sticking_speed)
+    strength = force.hamaker_strength(offset)
+    pairs = VerletPairs(settings.pair_skin)
     pairs.update(x, y, force.max_gap + 2.0 * radii.max())
     i, j = pairs.i, pairs.j
     ri, rj, inv_mi, inv_mj = radii[i], radii[j], 1.0 / masses[i], 1.0 / masses[j]
@@ -28,19 +44,20 @@ def numpy_kicks(force: qdots.VanDerWaals, x, y, radii, masses, dt, time=0.0):
 
     def speeds(seconds):
         if force.model == "hamaker":
-            impulse = hamaker_force(g, ri, rj, force.strength) * seconds
+            impulse = hamaker_force(g, ri, rj, strength) * seconds
             return impulse * inv_mi, impulse * inv_mj
-        pull = (force.r0 / (g - force.offset)) ** 7
+        pull = (force.r0 / (g - offset)) ** 7
         capped = 0.5 * np.sqrt(g * pull)
         return (np.minimum(0.5 * seconds * pull * inv_mi, capped * np.sqrt(inv_mi)),
                 np.minimum(0.5 * seconds * pull * inv_mj, capped * np.sqrt(inv_mj)))
 
     speed_i, speed_j = speeds(dt)
-    if force.split:
-        middles = np.floor((time + dt) / force.far_interval + 0.5 + 1e-9) - np.floor(time / force.far_interval + 0.5 + 1e-9)
-        s = np.clip((gap - force.near_gap / 2) / (force.near_gap / 2), 0.0, 1.0)
+    if force.split(settings):
+        interval, near_gap = settings.far_interval, settings.near_gap
+        middles = np.floor((time + dt) / interval + 0.5 + 1e-9) - np.floor(time / interval + 0.5 + 1e-9)
+        s = np.clip((gap - near_gap / 2) / (near_gap / 2), 0.0, 1.0)
         near = 1.0 - s * s * (3.0 - 2.0 * s)
-        far_i, far_j = speeds(middles * force.far_interval)
+        far_i, far_j = speeds(middles * interval)
         speed_i, speed_j = near * speed_i + (1 - near) * far_i, near * speed_j + (1 - near) * far_j
     n = len(x)
     dv = np.zeros((n, 2))
@@ -67,27 +84,25 @@ def random_film(n=400, seed=0):
 def test_compiled_pass_matches_the_numpy_oracle(model, contact, dt, masses, far):
     x, y, radii = random_film()
     m = np.ones(len(x)) if masses == "equal" else np.where(np.arange(len(x)) % 2, 2.0, 1.0)
-    force = qdots.VanDerWaals(model, contact=contact, far_interval=None if far is None else 0.05)
-    force.bind(radii, m)
+    force = qdots.VanDerWaals(model, contact=contact)
+    settings = qdots.EngineSettings(far_interval=None if far is None else 0.05)
     time = 0.025 - dt / 2 if far == "a middle" else 0.0  # the middle of the first far interval is 25 ms
-    ctx = StepContext(time=time, dt=dt, x=x, y=y, velocity=np.zeros((len(x), 2)), radii=radii, masses=m,
-                      rng=np.random.default_rng(0), dv=np.zeros((len(x), 2)))
+    ctx = context(x, y, radii, m, dt, time, settings)
     force.kick(ctx)
-    expected = numpy_kicks(force, x, y, radii, m, dt, time)
+    expected = numpy_kicks(force, settings, x, y, radii, m, dt, time)
     assert np.abs(expected).max() > 0
     np.testing.assert_allclose(ctx.dv, expected, rtol=1e-12, atol=1e-12 * np.abs(expected).max())
 
 
 def test_the_cap_binds_where_the_numpy_oracle_says():
     """At 20 ms the proxy's sqrt(g a)/2 cap is smaller than a dt/2 for a close pair: the kernel uses it."""
-    force = qdots.VanDerWaals(far_interval=None)
+    force = qdots.VanDerWaals()
     radii, m = np.array([7.5, 7.5]), np.ones(2)
-    force.bind(radii, m)
     x, y = np.array([0.0, 15.2]), np.zeros(2)
-    dv = np.zeros((2, 2))
-    ctx = StepContext(0.0, 0.02, x, y, np.zeros((2, 2)), radii, m, np.random.default_rng(0), dv)
+    ctx = context(x, y, radii, m, 0.02, settings=qdots.EngineSettings(far_interval=None))
     force.kick(ctx)
-    pull = (force.r0 / (0.2 - force.offset)) ** 7
+    dv = ctx.dv
+    pull = (force.r0 / (0.2 - force.proxy_offset(RULE.sticking_speed))) ** 7
     assert 0.5 * 0.02 * pull > 0.5 * np.sqrt(0.2 * pull)
     assert dv[0, 0] == pytest.approx(0.5 * np.sqrt(0.2 * pull), rel=1e-14) and dv[1, 0] == -dv[0, 0]
 
@@ -95,11 +110,10 @@ def test_the_cap_binds_where_the_numpy_oracle_says():
 def test_coincident_centres_get_no_force():
     force = qdots.VanDerWaals()
     radii, m = np.array([7.5, 7.5, 7.5]), np.ones(3)
-    force.bind(radii, m)
     x, y = np.array([10.0, 10.0, 200.0]), np.array([10.0, 10.0, 10.0])
-    dv = np.zeros((3, 2))
-    force.kick(StepContext(0.0, 1e-3, x, y, np.zeros((3, 2)), radii, m, np.random.default_rng(0), dv))
-    assert np.all(dv == 0.0)
+    ctx = context(x, y, radii, m, 1e-3)
+    force.kick(ctx)
+    assert np.all(ctx.dv == 0.0)
 
 
 @pytest.mark.parametrize("skin", [0.0, 1.0, 3.0])
@@ -146,14 +160,14 @@ def test_the_split_force_matches_the_oracle_while_the_dots_move():
     near_gap between rebuilds is missed, and the far pass runs at each interval's middle."""
     x, y, radii = random_film(n=200, seed=3)
     m = np.ones(len(x))
-    force = qdots.VanDerWaals(far_interval=0.01)
-    force.bind(radii, m)
+    force = qdots.VanDerWaals()
+    settings = qdots.EngineSettings(far_interval=0.01)
+    cache = {}  # one simulation's: the pair lists live on from step to step
     rng, dt = np.random.default_rng(4), 2e-3
     for step in range(60):
         x, y = x + rng.normal(0, 0.4, x.size), y + rng.normal(0, 0.4, y.size)
-        ctx = StepContext(time=step * dt, dt=dt, x=x, y=y, velocity=np.zeros((len(x), 2)), radii=radii, masses=m,
-                          rng=rng, dv=np.zeros((len(x), 2)))
+        ctx = context(x, y, radii, m, dt, step * dt, settings, cache, rng)
         force.kick(ctx)
-        expected = numpy_kicks(force, x, y, radii, m, dt, step * dt)
+        expected = numpy_kicks(force, settings, x, y, radii, m, dt, step * dt)
         np.testing.assert_allclose(ctx.dv, expected, rtol=1e-12, atol=1e-12 * np.abs(expected).max(), err_msg=step)
-    assert 3 < force.pairs.rebuilds < 60
+    assert 3 < cache["pairs"].rebuilds < 60

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import inspect
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -32,6 +32,15 @@ class StepContext:
         The simulation's generator; draw from it only, so runs repeat.
     dv : ndarray, shape (N, 2)
         Accumulator: each force *adds* its velocity change, px/s.
+    settings : qdots.EngineSettings
+        The engine's numerical knobs (a force's numerical method reads its own there, e.g. the van der
+        Waals pair list's skin).
+    restitution : qdots.Restitution
+        The collision rule of the simulation (its sticking speed enters the thesis's van der Waals proxy).
+    cache : dict
+        This force's cache in this simulation, owned by the engine: what a force derives from the dots
+        (per-dot constants, pair lists) it keeps here, never on itself, so one force object serves any
+        number of simulations. The engine empties it when the dots or the forces change.
     """
 
     time: float
@@ -43,6 +52,9 @@ class StepContext:
     masses: np.ndarray
     rng: np.random.Generator
     dv: np.ndarray
+    settings: object = None
+    restitution: object = None
+    cache: dict = field(default_factory=dict)
 
 
 def instants_in_step(time: float, dt: float, interval: float) -> int:
@@ -56,22 +68,25 @@ def instants_in_step(time: float, dt: float, interval: float) -> int:
 
 
 class Force:
-    """A velocity update applied to the dots once per time step.
+    """A velocity update applied to the dots once per time step: physics only.
 
     Forces are evaluated on the same start-of-step state and their velocity
     changes summed (first-order operator splitting, as the thesis adds
     "acceleration ... only at the beginning of each time step as a change in
-    velocity"); Chipmunk then moves the dots and resolves contacts.
+    velocity"); the engine then moves the dots and resolves contacts.
 
-    Subclasses implement `kick`, and `bind` when they cache per-dot data.
+    A force holds its physical parameters and nothing of any run: what it derives from the dots it
+    keeps in ``ctx.cache``, which the engine owns. One force object can serve any number of
+    simulations, at once or in turn. Subclasses implement `kick`.
     """
-
-    def bind(self, radii: np.ndarray, masses: np.ndarray) -> None:
-        """Called when the set of dots changes; cache per-dot constants here."""
 
     def kick(self, ctx: StepContext) -> None:
         """Add this force's velocity change for one step to ``ctx.dv``."""
         raise NotImplementedError
+
+    def check_rule(self, restitution) -> None:
+        """`InputError` when this force cannot act beside the collision rule ``restitution``; called whenever
+        either is set. Most forces do not depend on the rule."""
 
     def check_run(self, dt: float, steps: int | None = None) -> None:
         """`InputError` when a step of ``dt`` s (or a run of ``steps`` such steps) would make this force do

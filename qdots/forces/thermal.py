@@ -50,10 +50,6 @@ class ThermalKicks(Force):
     def __init__(self, interval: float = THESIS_KICK_INTERVAL, scale: float = 1.0):
         self.interval = real("ThermalKicks.interval", interval, 0.0, MAX_INTERVAL, low_open=True, unit="s")
         self.scale = real("ThermalKicks.scale", scale, 0.0, MAX_SCALE)
-        self._speed = np.zeros(0)
-
-    def bind(self, radii: np.ndarray, masses: np.ndarray) -> None:
-        self._speed = self.scale * thesis_kick_speed(masses)
 
     def kicks_in_step(self, time: float, dt: float) -> int:
         """How many kick instants fall in ``(time, time + dt]`` (`instants_in_step`)."""
@@ -73,10 +69,16 @@ class ThermalKicks(Force):
                              f"{number(steps * dt / MAX_KICKS_PER_RUN)} s")
 
     def kick(self, ctx: StepContext) -> None:
-        for _ in range(self.kicks_in_step(ctx.time, ctx.dt)):
-            angle = ctx.rng.uniform(0.0, 2.0 * math.pi, size=len(self._speed))
-            ctx.dv[:, 0] += self._speed * np.cos(angle)
-            ctx.dv[:, 1] += self._speed * np.sin(angle)
+        kicks = self.kicks_in_step(ctx.time, ctx.dt)
+        if not kicks:
+            return
+        if "speed" not in ctx.cache:
+            ctx.cache["speed"] = self.scale * thesis_kick_speed(ctx.masses)
+        speed = ctx.cache["speed"]
+        for _ in range(kicks):
+            angle = ctx.rng.uniform(0.0, 2.0 * math.pi, size=len(speed))
+            ctx.dv[:, 0] += speed * np.cos(angle)
+            ctx.dv[:, 1] += speed * np.sin(angle)
 
 
 class Langevin(Force):
@@ -105,13 +107,11 @@ class Langevin(Force):
             kT = float(thesis_kick_speed(1.0)) ** 2 / 2.0
         self.gamma = real("Langevin.gamma", gamma, 0.0, MAX_GAMMA, unit="1/s")
         self.kT = real("Langevin.kT", kT, 0.0, MAX_KT)
-        self._sigma_unit = np.zeros(0)
-
-    def bind(self, radii: np.ndarray, masses: np.ndarray) -> None:
-        self._sigma_unit = np.sqrt(self.kT / masses)
 
     def kick(self, ctx: StepContext) -> None:
+        if "sigma_unit" not in ctx.cache:
+            ctx.cache["sigma_unit"] = np.sqrt(self.kT / ctx.masses)
         c = math.exp(-self.gamma * ctx.dt)
-        sigma = self._sigma_unit * math.sqrt(1.0 - c * c)
+        sigma = ctx.cache["sigma_unit"] * math.sqrt(1.0 - c * c)
         noise = ctx.rng.standard_normal(ctx.dv.shape)
         ctx.dv += (c - 1.0) * ctx.velocity + sigma[:, None] * noise

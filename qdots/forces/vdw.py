@@ -10,7 +10,6 @@ from labrig.compiled import jit
 from labrig.validate import InputError, choice, real
 
 from ..neighbours import VerletPairs, pair_separation, pairs_closer
-from ..units import THESIS_KICK_INTERVAL
 from .base import Force, StepContext, instants_in_step
 
 MODELS = ("thesis", "hamaker")
@@ -20,17 +19,7 @@ CONTACTS = ("hold", "zero")
 MAX_RANGE = 1000.0
 #: Largest Hamaker constant, mean-dot mass px^2/s^2 (the default is about 2e4).
 MAX_STRENGTH = 1e12
-#: Surface gap below which pairs are pulled every step by default, px (wholly below half of it): the contacts
-#: and the pairs about to touch; beyond it the thesis proxy's pull is under 2.5 % of its pull at contact. With the default skin, the
-#: every-step list (gaps below ``NEAR_GAP + SKIN``) stays short of the second shell of a packed film (11 px).
-NEAR_GAP = 4.0
-#: Verlet skin of the pair list by default, px.
-SKIN = 6.0
-#: Seconds between the passes over the far pairs by default: the thesis's frame.
-FAR_INTERVAL = THESIS_KICK_INTERVAL
-#: Longest interval between far passes, s.
-MAX_FAR_INTERVAL = 1e4
-#: Where the every-step pull starts to fade, as a fraction of ``near_gap``: a pair's pull moves smoothly
+#: Where the every-step pull starts to fade, as a fraction of `qdots.EngineSettings.near_gap`: a pair's pull moves smoothly
 #: (smoothstep in the gap) from the every-step pass at ``NEAR_FADE * near_gap`` to the far pass at
 #: ``near_gap``, so a pair that crosses between them is neither pulled twice nor missed. With a hard cut at
 #: ``near_gap`` two dots approaching from 4 px were 6.5x farther from the dt -> 0 path than with every
@@ -164,23 +153,25 @@ def add_pair_kicks(x, y, i, j, radii, inv_mass, model, r0, offset, strength, min
 class VanDerWaals(Force):
     """Pairwise van der Waals attraction, applied as velocity changes.
 
-    Pairs closer than ``near_gap / 2`` (the contacts and the pairs about to touch) are pulled every
-    step; the far pairs, whose pull is small and slow to change, get the pull of a whole
-    ``far_interval`` at once, at the middle of each interval. Between ``near_gap / 2`` and ``near_gap``
-    a pair's pull passes smoothly from one to the other (`NEAR_FADE`), so pairs crossing over are
-    neither pulled twice nor missed. That is position Verlet for the far
-    field: second order in the interval (two dots approaching from a 20 px gap stay within 1e-6 px of
-    the dt -> 0 path at 20 ms, against 6e-4 px for a pull every 2.5 ms step, which lags by half a
+    The numerical method is the engine's (`qdots.EngineSettings`): pairs closer than ``near_gap / 2`` (the
+    contacts and the pairs about to touch) are pulled every step; the far pairs, whose pull is small and
+    slow to change, get the pull of a whole ``far_interval`` at once, at the middle of each interval.
+    Between ``near_gap / 2`` and ``near_gap`` a pair's pull passes smoothly from one to the other
+    (`NEAR_FADE`), so pairs crossing over are neither pulled twice nor missed. That is position Verlet for
+    the far field: second order in the interval (two dots approaching from a 20 px gap stay within 1e-6
+    px of the dt -> 0 path at 20 ms, against 6e-4 px for a pull every 2.5 ms step, which lags by half a
     step), and it cut the force phase of the thesis's 300-dot film by about a third on this 2-core
-    machine (the error and cost of both knobs: ``python -m benchmarks --only qdots_knobs``).
+    machine (the error and cost of both knobs: ``python -m benchmarks --only qdots_knobs``). The thesis
+    proxy's cap then applies to the interval's pull, as it did to the thesis's frame (it binds only for
+    dots lighter than ~1/400 of the mean mass). The far passes follow the clock
+    (`qdots.forces.base.instants_in_step`), so a resumed run keeps them.
 
     Parameters
     ----------
     model : {"thesis", "hamaker"}
         ``"thesis"``: the Java proxy. For a pair at surface gap ``g`` each dot
         gets, toward the other, ``dv = min(a dt/2, sqrt(g a)/2)`` with
-        ``a = (R0/(g - b))^7 / m`` (`thesis_offset` gives ``b``); as
-        ``dt -> 0`` this is an acceleration ``a/2``.
+        ``a = (R0/(g - b))^7 / m``; as ``dt -> 0`` this is an acceleration ``a/2``.
         ``"hamaker"``: Eq 2.2, ``dv = F dt / m`` with `hamaker_force`.
     r0 : float
         ``R0`` of the thesis proxy, px (thesis 15).
@@ -203,20 +194,11 @@ class VanDerWaals(Force):
         ``"hold"`` (default) evaluates the force at ``min_gap`` instead, so
         contacts persist; it deepens the pair well by the force at
         ``min_gap`` times ``min_gap``, about 2 % of the well.
-    sticking_speed : float
-        Enters the thesis offset ``b`` (px/s, thesis 1).
-    skin : float
-        Verlet skin of the pair list, px (see `qdots.neighbours.VerletPairs`).
-    near_gap : float
-        Surface gap, px, below which pairs are pulled every step (wholly below ``near_gap / 2``,
-        fading out above); the pull of farther ones (up to ``max_gap``) comes every ``far_interval``.
-    far_interval : float, optional
-        Seconds between the passes over the far pairs: each gives the far pairs' pull over the
-        interval at once, in the step that holds the interval's middle (multiple time stepping, in the
-        impulse form of r-RESPA; the thesis gave every pair's pull once per 20 ms frame). The thesis
-        proxy's cap then applies to the interval's pull, as it did to the thesis's frame (it binds
-        only for dots lighter than ~1/400 of the mean mass). On a schedule of the clock
-        (`qdots.forces.base.instants_in_step`), so a resumed run keeps it. None: every pair every step.
+    offset : float, optional
+        The thesis proxy's offset ``b``, px. Default: as the Java computes it from ``r0``, ``min_gap`` and
+        the sticking speed of the simulation's collision rule (`thesis_offset`; -5.49 px for the
+        thesis's values): the sticking speed is the collision rule's, defined once
+        (`qdots.Restitution.sticking_speed`).
     """
 
     def __init__(
@@ -228,10 +210,7 @@ class VanDerWaals(Force):
         min_gap: float = 0.1,
         max_gap: float | None = None,
         contact: str = "hold",
-        sticking_speed: float = 1.0,
-        skin: float = SKIN,
-        near_gap: float = NEAR_GAP,
-        far_interval: float | None = FAR_INTERVAL,
+        offset: float | None = None,
     ):
         choice("VanDerWaals.model", model, MODELS)
         choice("VanDerWaals.contact", contact, CONTACTS)
@@ -242,67 +221,73 @@ class VanDerWaals(Force):
         max_gap = real("VanDerWaals.max_gap", 2.0 * r0 if max_gap is None else max_gap, 0.0, 2 * MAX_RANGE,
                        low_open=True, unit="px")
         min_gap = real("VanDerWaals.min_gap", min_gap, 0.0, MAX_RANGE, low_open=True, unit="px")
-        sticking_speed = real("VanDerWaals.sticking_speed", sticking_speed, 0.0, 1e6, low_open=True, unit="px/s")
         if max_gap <= min_gap:
             raise InputError(f"VanDerWaals.max_gap ({max_gap}) must exceed min_gap ({min_gap})")
-        self.near_gap = real("VanDerWaals.near_gap", near_gap, 0.0, 2 * MAX_RANGE, low_open=True, unit="px")
-        self.far_interval = None if far_interval is None else real(
-            "VanDerWaals.far_interval", far_interval, 0.0, MAX_FAR_INTERVAL, low_open=True, unit="s")
+        self.offset = None if offset is None else real("VanDerWaals.offset", offset, -MAX_RANGE, min_gap,
+                                                       high_open=True, unit="px")
         self.model = model
         self.r0 = float(r0)
         self.min_gap = float(min_gap)
         self.max_gap = float(max_gap)
         self.contact = contact
-        self.sticking_speed = float(sticking_speed)
-        self.offset = thesis_offset(self.r0, self.min_gap, self.sticking_speed)
-        if strength is None:
-            # Match the thesis proxy's acceleration a/2 for mean dots (r = 7.5 px) at a 1 px gap.
-            proxy = 0.5 * (self.r0 / (1.0 - self.offset)) ** 7
-            strength = proxy / hamaker_force(1.0, 7.5, 7.5, 1.0)
-        self.strength = real("VanDerWaals.strength", strength, 0.0, MAX_STRENGTH)
-        self._pairs = VerletPairs(skin)
-        self.skin = self._pairs.skin
-        self.bind(np.zeros(0), np.zeros(0))
+        self.strength = None if strength is None else real("VanDerWaals.strength", strength, 0.0, MAX_STRENGTH)
 
     def params(self) -> dict:
         params = super().params()
         return {key: (None if key in self._unset else value) for key, value in params.items()}
 
-    @property
-    def pairs(self) -> VerletPairs:
-        """The pair list (its ``rebuilds`` counter is useful in benchmarks)."""
-        return self._pairs
+    def check_rule(self, restitution) -> None:
+        """`InputError` when the offset ``b`` would come from a sticking speed of 0 (it would be -inf: no pull)."""
+        if self.offset is None and (self.model == "thesis" or self.strength is None) \
+                and restitution.sticking_speed <= 0.0:
+            raise InputError("VanDerWaals derives the thesis proxy's offset b from restitution.sticking_speed, which "
+                             "is 0 (b would be -inf, no pull): give a sticking speed > 0 or VanDerWaals.offset")
 
-    @property
-    def split(self) -> bool:
-        """True when the far pairs are pulled every `far_interval` instead of every step."""
-        return self.far_interval is not None and self.near_gap < self.max_gap
+    def proxy_offset(self, sticking_speed: float) -> float:
+        """The offset ``b`` of the thesis proxy, px: `offset`, else `thesis_offset` at ``sticking_speed`` px/s."""
+        return self.offset if self.offset is not None else thesis_offset(self.r0, self.min_gap, sticking_speed)
 
-    def bind(self, radii: np.ndarray, masses: np.ndarray) -> None:
-        self._radii = np.ascontiguousarray(radii, dtype=float)
-        self._inv_mass = np.ascontiguousarray(1.0 / masses, dtype=float)
-        self._cutoff = self.max_gap + 2.0 * float(radii.max(initial=0.0))
-        self._pairs.invalidate()
-        self._near = self._pairs.i, self._pairs.j
+    def hamaker_strength(self, offset: float) -> float:
+        """The Hamaker constant of the ``"hamaker"`` model: `strength`, else the one that gives two mean-size dots
+        (7.5 px) at a 1 px gap the thesis proxy's acceleration ``a/2`` at offset ``offset`` px."""
+        if self.strength is not None:
+            return self.strength
+        proxy = 0.5 * (self.r0 / (1.0 - offset)) ** 7
+        return real("VanDerWaals.strength", proxy / hamaker_force(1.0, 7.5, 7.5, 1.0), 0.0, MAX_STRENGTH)
+
+    def split(self, settings) -> bool:
+        """True when the engine ``settings`` pull the far pairs every ``far_interval`` instead of every step."""
+        return settings.far_interval is not None and settings.near_gap < self.max_gap
 
     def kick(self, ctx: StepContext) -> None:
-        pairs = self._pairs
-        rebuilt = pairs.update(ctx.x, ctx.y, self._cutoff)
-        if not self.split:
+        cache = ctx.cache
+        if not cache:  # first step with these dots: what this force derives from them and the settings
+            offset = self.proxy_offset(ctx.restitution.sticking_speed)
+            cache.update(radii=np.ascontiguousarray(ctx.radii, dtype=float),
+                         inv_mass=np.ascontiguousarray(1.0 / ctx.masses, dtype=float),
+                         cutoff=self.max_gap + 2.0 * float(ctx.radii.max(initial=0.0)),
+                         pairs=VerletPairs(ctx.settings.pair_skin), offset=offset,
+                         strength=self.hamaker_strength(offset), split=self.split(ctx.settings))
+            cache["near"] = cache["pairs"].i, cache["pairs"].j
+        pairs = cache["pairs"]
+        rebuilt = pairs.update(ctx.x, ctx.y, cache["cutoff"])
+        if not cache["split"]:
             self._pull(ctx, pairs.i, pairs.j, self.max_gap, False, ctx.dt)
             return
+        settings = ctx.settings
         if rebuilt:  # every pair that can come within near_gap before the next rebuild
-            self._near = pairs_closer(ctx.x, ctx.y, self._radii, pairs.i, pairs.j, self.near_gap + pairs.skin)
-        self._pull(ctx, *self._near, self.near_gap, False, ctx.dt)
-        intervals = instants_in_step(ctx.time + 0.5 * self.far_interval, ctx.dt, self.far_interval)
+            cache["near"] = pairs_closer(ctx.x, ctx.y, cache["radii"], pairs.i, pairs.j, settings.near_gap + pairs.skin)
+        self._pull(ctx, *cache["near"], settings.near_gap, False, ctx.dt)
+        intervals = instants_in_step(ctx.time + 0.5 * settings.far_interval, ctx.dt, settings.far_interval)
         if intervals:
-            self._pull(ctx, pairs.i, pairs.j, self.max_gap, True, intervals * self.far_interval)
+            self._pull(ctx, pairs.i, pairs.j, self.max_gap, True, intervals * settings.far_interval)
 
     def _pull(self, ctx: StepContext, i, j, gap_to: float, far: bool, seconds: float) -> None:
         """Add the pull over ``seconds`` of the pairs ``i, j`` closer than ``gap_to``: the part pulled every
         step (``far`` False) or the far pass's part."""
-        fade_to = self.near_gap if self.split else self.max_gap
-        fade_from = NEAR_FADE * fade_to if self.split else fade_to
-        add_pair_kicks(ctx.x, ctx.y, i, j, self._radii, self._inv_mass, HAMAKER if self.model == "hamaker" else THESIS,
-                       self.r0, self.offset, self.strength, self.min_gap, gap_to, fade_from, fade_to, far,
-                       self.contact == "zero", seconds, ctx.dv)
+        cache = ctx.cache
+        fade_to = ctx.settings.near_gap if cache["split"] else self.max_gap
+        fade_from = NEAR_FADE * fade_to if cache["split"] else fade_to
+        add_pair_kicks(ctx.x, ctx.y, i, j, cache["radii"], cache["inv_mass"],
+                       HAMAKER if self.model == "hamaker" else THESIS, self.r0, cache["offset"], cache["strength"],
+                       self.min_gap, gap_to, fade_from, fade_to, far, self.contact == "zero", seconds, ctx.dv)

@@ -40,7 +40,8 @@ from ..forces.vdw import MAX_RANGE
 from ..io import checkpoint
 from ..protocols import deposit
 from ..scene import MAX_DOTS, Scene, grating_segments, segment_distances
-from ..settings import DT_RANGE, EngineSettings
+from ..engine.settings import DT_RANGE, EngineSettings
+from ..restitution import Restitution
 from ..simulation import Simulation
 from ..state import State
 
@@ -130,8 +131,7 @@ class LiveRun:
         The starting board; default an empty closed `DEFAULT_BOX`. To go on
         from a saved run: ``LiveRun(qdots.load(path).current_scene())``.
     knobs : Knobs, optional
-        Starting parameters. Default `Knobs` with the scene's elasticity.
-        Given knobs override the scene's restitution mean.
+        Starting parameters, the collision rule's mean elasticity among them; default `Knobs()`.
     seed : int or SeedSequence, optional
         Root seed: one child seeds the simulation, one the deposition.
     frame_steps : int
@@ -147,7 +147,7 @@ class LiveRun:
             scene = Scene(box=DEFAULT_BOX, positions=np.zeros((0, 2)), radii=np.zeros(0))
         if not isinstance(scene, Scene):
             raise InputError(f"scene must be a qdots.Scene, got {type(scene).__name__}")
-        self.knobs = Knobs(elasticity=scene.restitution.mean) if knobs is None else knobs
+        self.knobs = Knobs() if knobs is None else knobs
         if not isinstance(self.knobs, Knobs):
             raise InputError(f"knobs must be a qdots.interactive.Knobs, got {type(self.knobs).__name__}")
         engine = EngineSettings() if engine is None else engine
@@ -155,9 +155,8 @@ class LiveRun:
             raise InputError(f"engine must be a qdots.EngineSettings, got {type(engine).__name__}")
         self.frame_steps = count("frame_steps", frame_steps, 1, MAX_FRAME_STEPS)
         sim_seed, drop_seed = np.random.SeedSequence(seed).spawn(2)
-        scene = scene.replace(restitution=dataclasses.replace(scene.restitution, mean=self.knobs.elasticity))
-        self.sim = Simulation(scene, self.knobs.forces(scene.box), seed=sim_seed,
-                              engine=engine.replace(dt=self.knobs.dt))
+        self.sim = Simulation(scene, self.knobs.forces(scene.box), restitution=Restitution(mean=self.knobs.elasticity),
+                              seed=sim_seed, engine=engine.replace(dt=self.knobs.dt))
         self._drop_rng = np.random.default_rng(drop_seed)
         self._drops: collections.deque[_Drop] = collections.deque()
         self._next_drop = -np.inf
@@ -193,7 +192,7 @@ class LiveRun:
     def _rebuild(self, board: Scene) -> None:
         """A new simulation of ``board`` that goes on with the old one's time, random stream, forces and writers."""
         old = self.sim
-        sim = Simulation(board, self.knobs.forces(board.box), seed=0, engine=old.settings)
+        sim = Simulation(board, self.knobs.forces(board.box), restitution=old.restitution, seed=0, engine=old.settings)
         sim.rng.bit_generator.state = old.rng.bit_generator.state
         sim.collisions.copy_from(old.collisions)
         sim.start_time = old.time

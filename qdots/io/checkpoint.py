@@ -40,18 +40,19 @@ from labrig.archive import read_archive, write_archive
 from labrig.files import recover_beside
 from labrig.validate import InputError, count, flag, real, reals
 
-from ..collisions import Restitution, stream_key
+from ..engine.contacts import stream_key
+from ..restitution import Restitution
 from ..forces import force_from_dict
 from ..scene import MAX_DOTS, MAX_LENGTH, MAX_SEGMENTS, Scene
-from ..settings import EngineSettings
+from ..engine.settings import EngineSettings
 from ..simulation import Simulation
 from ..state import State
-from .old_spellings import current_force
+from .old_spellings import current_force, current_numerics
 
 FORMAT = "qdots-state"
 VERSION = 1
 ARRAYS = ("positions", "velocities", "radii", "masses", "segments")
-#: Keys of the saved collision counters (`qdots.collisions.CollisionRecord`); files of 0.2 and
+#: Keys of the saved collision counters (`qdots.engine.contacts.CollisionRecord`); files of 0.2 and
 #: earlier have only the first three (their draws start from a key derived from the saved generator).
 COUNTERS = ("dot_dot", "dot_wall", "sticking", "draws", "key")
 OLD_COUNTERS = COUNTERS[:3]
@@ -86,8 +87,8 @@ def save(sim: Simulation, path: str | os.PathLike) -> Path:
         "steps_taken": sim.steps_taken,
         "box": list(scene.box),
         "closed": scene.closed,
-        "restitution": {"mean": scene.restitution.mean, "wall": scene.restitution.wall,
-                        "sticking_speed": scene.restitution.sticking_speed},
+        "restitution": {"mean": sim.restitution.mean, "wall": sim.restitution.wall,
+                        "sticking_speed": sim.restitution.sticking_speed},
         "engine": sim.settings.to_dict(),
         "forces": [force.to_dict() for force in sim.forces],
         "rng": sim.rng.bit_generator.state,
@@ -106,8 +107,9 @@ def _field(metadata: dict, key: str):
     return metadata[key]
 
 
-def _read(path: str | os.PathLike) -> tuple[dict, Scene]:
-    """The checked metadata and the board of a state file, or an InputError that says what is wrong with it."""
+def _read(path: str | os.PathLike) -> tuple[dict, Scene, Restitution]:
+    """The checked metadata, the board and the collision rule of a state file, or an InputError that says what is
+    wrong with it."""
     recover_beside(path)  # finish a switch of its output set that a kill interrupted (labrig.staging)
     metadata, arrays = read_archive(path, FORMAT, VERSION, ARRAYS, "qdots state", max_bytes=MAX_ARRAY_BYTES)
     try:
@@ -120,14 +122,15 @@ def _read(path: str | os.PathLike) -> tuple[dict, Scene]:
         rule = _field(metadata, "restitution")
         if not isinstance(rule, dict) or sorted(rule) != ["mean", "sticking_speed", "wall"]:
             raise InputError(f"restitution must be a table of mean, wall and sticking_speed, got {rule!r}")
+        restitution = Restitution(**rule)
         scene = Scene(box=reals("box", _field(metadata, "box"), 2, 0.0, MAX_LENGTH), positions=arrays["positions"],
                       radii=arrays["radii"], masses=arrays["masses"], velocities=arrays["velocities"],
                       segments=arrays["segments"], closed=flag("closed", _field(metadata, "closed")),
-                      restitution=Restitution(**rule), from_engine=True)
+                      from_engine=True)
     except InputError as exc:
         raise InputError(f"{path}: the saved board is invalid: {exc}") from None
     metadata["time"] = time
-    return metadata, scene
+    return metadata, scene, restitution
 
 
 def read_state(path: str | os.PathLike) -> State:
@@ -140,7 +143,7 @@ def read_state(path: str | os.PathLike) -> State:
     labrig.validate.InputError
         If the file is not a readable qdots state file (the message says why).
     """
-    metadata, scene = _read(path)
+    metadata, scene, _ = _read(path)
     return State(time=metadata["time"], positions=scene.positions.copy(), velocities=scene.velocities.copy(),
                  radii=scene.radii.copy(), masses=scene.masses.copy(), box=scene.box,
                  walls=scene.wall_segments().copy(), closed=scene.closed)
@@ -157,13 +160,15 @@ def load(path: str | os.PathLike) -> Simulation:
         If the file is truncated, corrupted, of another format or version,
         or holds invalid values; the message starts with the path.
     """
-    metadata, scene = _read(path)
+    metadata, scene, restitution = _read(path)
     try:
         forces = _field(metadata, "forces")
         if not isinstance(forces, list):
             raise InputError(f"forces must be a list of tables, got {forces!r}")
-        sim = Simulation(scene, [force_from_dict(current_force(spec)) for spec in forces], seed=0,
-                         engine=EngineSettings.from_dict(metadata["engine"]))
+        forces, engine = current_numerics([current_force(spec) for spec in forces], metadata["engine"],
+                                          restitution.sticking_speed)
+        sim = Simulation(scene, [force_from_dict(spec) for spec in forces], restitution=restitution, seed=0,
+                         engine=EngineSettings.from_dict(engine))
         rng = _field(metadata, "rng")
         try:
             sim.rng.bit_generator.state = rng

@@ -26,19 +26,19 @@ from labrig.files import write_text_atomic
 from labrig.tomlfile import as_table, check_keys, from_source, parse_toml, read_toml, toml_line, top_level
 from labrig.validate import MAX_SEED, InputError, number, typed
 
-from ..collisions import MAX_STICKING_SPEED, Restitution
+from ..restitution import MAX_STICKING_SPEED, Restitution
 from ..experiment import MAX_SETTLE, Board, Deposition, Experiment
 from ..forces import FORCE_TYPES
 from ..forces.fields import MAX_ACCELERATION, MAX_DRAG
 from ..forces.thermal import MAX_GAMMA, MAX_KICKS_PER_RUN, MAX_KICKS_PER_STEP, MAX_KT, MAX_SCALE
 from ..forces.thermal import MAX_INTERVAL as MAX_KICK_INTERVAL
-from ..forces.vdw import MAX_FAR_INTERVAL, MAX_RANGE, MAX_STRENGTH
+from ..forces.vdw import MAX_RANGE, MAX_STRENGTH
 from ..neighbours import MAX_SKIN
 from ..placement import MAX_TRIES
 from ..protocols import MAX_INTERVAL
 from ..scene import MAX_DOTS, MAX_LENGTH, MAX_MASS
-from ..settings import (DT_RANGE, MAX_HASH_CELLS, MAX_ITERATIONS, MAX_SLOP, MAX_SUBSTEPS, TOLERANCE_RANGE,
-                        EngineSettings)
+from ..engine.settings import (DT_RANGE, MAX_FAR_INTERVAL, MAX_HASH_CELLS, MAX_ITERATIONS, MAX_NEAR_GAP, MAX_SLOP,
+                               MAX_SUBSTEPS, TOLERANCE_RANGE, EngineSettings)
 from ..simulation import MAX_STEPS
 from .old_spellings import current_experiment
 
@@ -89,6 +89,12 @@ TABLES = {
         "spatial_hash": ("pair?", f"[cell size px > 0, count in [1, {MAX_HASH_CELLS:,}]]; unset: Chipmunk's "
                                   "bounding-box tree"),
         "threads": ("int", "solver threads, 1 or 2"),
+        "pair_skin": ("float", f"px, Verlet skin of the van der Waals pair list, in [0, {number(MAX_SKIN)}]"),
+        "near_gap": ("float", f"px, van der Waals pairs closer than this are pulled every step, in "
+                              f"(0, {number(MAX_NEAR_GAP)}]"),
+        "far_interval": ("float?", f"s between passes over the farther van der Waals pairs, in "
+                                   f"(0, {number(MAX_FAR_INTERVAL)}]; false: every pair every step"),
+        "tune_allocator": ("bool", "raise glibc's allocator thresholds (speed only)"),
     }),
 }
 #: Comments for force parameters: type -> {parameter: comment}.
@@ -98,11 +104,7 @@ FORCE_NOTES = {
                     "strength": f"Hamaker constant, mean-dot mass px^2/s^2, in [0, {number(MAX_STRENGTH)}]",
                     "min_gap": "px, closer counts as contact", "max_gap": "px, no force beyond",
                     "contact": '"hold" | "zero" (force below min_gap)',
-                    "sticking_speed": "px/s, enters the proxy offset b",
-                    "skin": f"px, Verlet skin of the pair list, in [0, {number(MAX_SKIN)}]",
-                    "near_gap": f"px, pairs closer than this are pulled every step, in (0, {number(2 * MAX_RANGE)}]",
-                    "far_interval": f"s between passes over the farther pairs, in (0, {number(MAX_FAR_INTERVAL)}]; "
-                                    "false: every pair every step"},
+                    "offset": "px, the proxy's b, below min_gap; unset: from restitution.sticking_speed"},
     "ThermalKicks": {"interval": f"s between kicks, in (0, {number(MAX_KICK_INTERVAL)}]; at most "
                                  f"{MAX_KICKS_PER_STEP:,} kicks per engine.dt and {MAX_KICKS_PER_RUN:,} per run",
                      "scale": f"multiple of the thesis kick speed, in [0, {number(MAX_SCALE)}]"},

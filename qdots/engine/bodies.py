@@ -2,10 +2,10 @@
 
 Reading or writing bodies one by one costs ~12 ms per direction at 3,000 dots. The step's own
 reads (positions and velocities) and writes (forces) go straight to Chipmunk's body memory from
-compiled code, at offsets found once by writing known values through pymunk (`body_offsets`):
-at 300 dots that is ~3 us a direction, against ~15 us for a `pymunk.batch` call and its Python
-wrapping (measured on this 2-core machine). When the offsets are not found (another pymunk
-layout), the same reads and writes go through `pymunk.batch`, with the same numbers.
+compiled code, at the offsets `qdots.engine.chipmunk.internals` found: at 300 dots that is ~3 us a
+direction, against ~15 us for a `pymunk.batch` call and its Python wrapping (measured on this 2-core
+machine). Without them (an untested pymunk), the same reads and writes go through `pymunk.batch`, with
+the same numbers.
 
 Measured facts the `pymunk.batch` path relies on (pymunk 7.3, checked at construction):
 
@@ -19,53 +19,21 @@ Measured facts the `pymunk.batch` path relies on (pymunk 7.3, checked at constru
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import pymunk
 from numba import carray
 from pymunk import batch
-from pymunk._chipmunk import ffi
 
 from labrig.compiled import jit, pointer
 
+from .chipmunk import FORCE, POSITION, VELOCITY, body_address, internals
+
 _POS_VEL = batch.BodyFields.POSITION | batch.BodyFields.VELOCITY
-#: Index of each field's byte offset in the `body_offsets` array.
-POSITION, VELOCITY, FORCE = 0, 1, 2
-
-
-def body_address(body: pymunk.Body) -> int:
-    """The address of a body's Chipmunk struct (valid while the body lives)."""
-    return int(ffi.cast("uintptr_t", body._body))
-
-
-def body_offsets() -> np.ndarray | None:
-    """Byte offsets of a Chipmunk body's position, velocity and force vectors (uint64 array indexed by
-    `POSITION`, `VELOCITY`, `FORCE`), or None when pymunk's memory is not laid out as expected.
-
-    The body struct is opaque to pymunk's declarations, so each field is found by writing two
-    different known values through pymunk (a disc body: no rotation, centre of gravity at its
-    position) and reading them back from memory. Velocity and force must be found at exactly one
-    offset; the position is also the translation of the body's transform, further on, so the first
-    of its offsets (Chipmunk's ``cpBody.p``, which its integrator moves) is taken.
-    """
-    found = []
-    for field in ("position", "velocity", "force"):
-        offsets = set()
-        for value in ((1.25e-3, -7.5e4), (-3.5e2, 6.0625)):
-            body = pymunk.Body(1.0, math.inf)
-            setattr(body, field, value)
-            memory = np.frombuffer(ffi.buffer(ffi.cast("char *", body._body), 256), dtype=np.float64)
-            offsets.add(tuple(8 * k for k in range(len(memory) - 1) if (memory[k], memory[k + 1]) == value))
-        if len(offsets) != 1 or not (at := offsets.pop()) or (len(at) > 1 and field != "position"):
-            return None
-        found.append(at[0])
-    return np.array(found, dtype=np.uint64)
 
 
 @jit
 def read_bodies(addresses, offsets, rows):
-    """Fill ``rows`` (N, 4) with ``(x, y, vx, vy)`` of the bodies at ``addresses`` (`body_offsets`)."""
+    """Fill ``rows`` (N, 4) with ``(x, y, vx, vy)`` of the bodies at ``addresses`` (`qdots.engine.chipmunk.Internals.body_offsets`)."""
     for a in range(addresses.size):
         p = carray(pointer(addresses[a] + offsets[POSITION]), 2, np.float64)
         v = carray(pointer(addresses[a] + offsets[VELOCITY]), 2, np.float64)
@@ -82,9 +50,6 @@ def write_body_forces(addresses, offsets, forces):
         f = carray(pointer(addresses[a] + offsets[FORCE]), 2, np.float64)
         f[0] = forces[a, 0]
         f[1] = forces[a, 1]
-
-
-_OFFSETS = body_offsets()
 
 
 class BodyArrays:
@@ -129,16 +94,18 @@ class BodyArrays:
         self._force_rows = np.zeros((self.rows, 2))  # static rows stay zero
         self._force_buffer = batch.Buffer()
         self._force_buffer.set_float_buf(self._force_rows)
+        found = internals()
+        self._offsets = None if found is None else found.body_offsets
 
     @property
     def direct(self) -> bool:
-        """True when reads and writes go straight to Chipmunk's memory (`body_offsets` found the fields)."""
-        return _OFFSETS is not None
+        """True when reads and writes go straight to Chipmunk's memory (`qdots.engine.chipmunk.internals`)."""
+        return self._offsets is not None
 
     def read_rows(self) -> np.ndarray:
         """The dots' rows ``(x, y, vx, vy)``, shape (N, 4): a read-only array valid until the next read."""
-        if _OFFSETS is not None:
-            read_bodies(self._addresses, _OFFSETS, self._rows)
+        if self._offsets is not None:
+            read_bodies(self._addresses, self._offsets, self._rows)
             return self._rows_view
         self._read.clear()
         batch.get_space_bodies(self._space, _POS_VEL, self._read)
@@ -153,8 +120,8 @@ class BodyArrays:
 
     def write_forces(self, forces: np.ndarray) -> None:
         """Set every dot's force (mean mass px/s^2; Chipmunk applies it in its next step only) from an (N, 2) array."""
-        if _OFFSETS is not None:
-            write_body_forces(self._addresses, _OFFSETS, forces)
+        if self._offsets is not None:
+            write_body_forces(self._addresses, self._offsets, forces)
             return
         self._force_rows[: self.n] = forces
         batch.set_space_bodies(self._space, batch.BodyFields.FORCE, self._force_buffer)

@@ -1,4 +1,4 @@
-"""One time step of a `qdots.Simulation`: the force phase, the sub-step plan, Chipmunk's steps.
+"""One time step of the Chipmunk engine: the force phase, the sub-step plan, Chipmunk's steps.
 
 Order within a step of length ``dt`` (semi-implicit Euler, as Chipmunk itself integrates):
 
@@ -26,15 +26,15 @@ import math
 from time import perf_counter
 
 import numpy as np
-from pymunk._chipmunk import lib
 
 from labrig.compiled import jit
 
-from .bulk import BodyArrays
-from .forces.base import StepContext
-from .neighbours import VerletPairs, pair_separation
+from ..forces.base import StepContext
+from ..neighbours import VerletPairs, pair_separation
+from ..restitution import Restitution
+from .bodies import BodyArrays
+from .chipmunk import advance, set_last_substep
 from .settings import EngineSettings
-from .space import advance
 
 #: Largest factor by which the sub-step may grow from one step to the next.
 SUBSTEP_GROWTH = 2
@@ -176,9 +176,11 @@ def plan_reach(fastest: float, dt: float, radius: float) -> float:
 
 
 class Stepper:
-    """The per-step machinery of a simulation's dots: buffers, the plan's pair list, the force phase.
+    """The per-step machinery of a simulation's dots: buffers, the plan's pair list, the force phase, and
+    each force's per-run cache.
 
-    Rebuilt whenever the space or the set of dots changes (it holds pymunk's body rows).
+    Rebuilt whenever the space or the set of dots changes (it holds pymunk's body rows), which empties the
+    forces' caches (`StepContext.cache`).
 
     Parameters
     ----------
@@ -200,7 +202,9 @@ class Stepper:
         self.dv = np.zeros((n, 2))
         self._forces = np.zeros((n, 2))
         self._context = StepContext(time=0.0, dt=0.0, x=self.px, y=self.py, velocity=np.zeros((n, 2)), radii=radii,
-                                    masses=masses, rng=None, dv=self.dv)
+                                    masses=masses, rng=None, dv=self.dv, settings=None, restitution=None, cache={})
+        #: Each force's per-run cache, by its place in the forces' sequence (`forget_forces` empties them).
+        self.caches: dict[int, dict] = {}
         #: Largest radius, px: the plan's pairs are those closer than twice it plus `reach`.
         self.largest = float(radii.max(initial=0.0))
         #: Smallest radius, px: no dot slower than ``overlap_tolerance * smallest / (2 dt)`` px/s can travel
@@ -215,7 +219,11 @@ class Stepper:
         self.capped_travel = 0.0
         self._bias_h = None
 
-    def step(self, forces, settings: EngineSettings, time: float, rng: np.random.Generator,
+    def forget_forces(self) -> None:
+        """Empty the forces' caches (the forces changed)."""
+        self.caches = {}
+
+    def step(self, forces, settings: EngineSettings, restitution: Restitution, time: float, rng: np.random.Generator,
              timings: dict) -> int:
         """Advance one time step of ``settings.dt`` from ``time``; returns the Chipmunk sub-steps taken.
 
@@ -235,7 +243,9 @@ class Stepper:
             if forces:  # they act at the end of the first sub-step
                 ctx = self._context
                 ctx.time, ctx.dt, ctx.velocity, ctx.rng = time, dt, rows[:, 2:], rng
-                for force in forces:
+                ctx.settings, ctx.restitution = settings, restitution
+                for index, force in enumerate(forces):
+                    ctx.cache = self.caches.setdefault(index, {})
                     force.kick(ctx)
             if adaptive:
                 k = self._plan(settings)
@@ -245,11 +255,7 @@ class Stepper:
         h = dt / k
         if h != self._bias_h:
             self.space.collision_bias = settings.bias_for(h)
-            # Chipmunk re-applies the last sub-step's contact impulses scaled by h / (its h) but keeps
-            # them unscaled as the total the solver may take back: a ratio other than 1 leaves an
-            # impact's impulse partly applied twice or reversed (an elastic gas gained or lost 2-5 %
-            # of its energy). Telling it the last sub-step was h makes the ratio 1, as at a fixed step.
-            lib.cpSpaceSetCurrentTimeStep(self.space._space, h)
+            set_last_substep(self.space, h)
             self._bias_h = h
         middle = perf_counter()
         advance(self.space, h, k)
