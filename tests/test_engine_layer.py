@@ -248,3 +248,13 @@ def test_a_rule_that_never_sticks_and_the_thesis_proxy():
     given = qdots.Simulation(scene, [qdots.VanDerWaals(offset=-5.0)], restitution=rule, seed=0)
     given.run(0.05)
     assert given.state().velocities[0, 0] > 0.0  # pulled toward the other dot
+
+
+def test_the_pymunk_pin_is_the_tested_range():
+    """pyproject pins the pymunk versions the adapter was tested with; others run on the public API."""
+    import re
+
+    text = (Path(__file__).parent.parent / "pyproject.toml").read_text()
+    low, high = re.search(r'"pymunk>=(\d+\.\d+),<(\d+\.\d+)"', text).groups()
+    assert chipmunk.pymunk_tested(low + ".0") and not chipmunk.pymunk_tested(high + ".0")
+    assert chipmunk.pymunk_tested(pymunk.version)
