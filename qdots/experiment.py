@@ -15,10 +15,12 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass, field
+from typing import ClassVar
 
 import numpy as np
 
-from labrig.validate import InputError, choice, count, flag, real, seed, text
+from labrig.params import Param, check_fields
+from labrig.validate import MAX_SEED, InputError, real
 
 from .restitution import Restitution
 from .forces import Force, ThermalKicks, VanDerWaals, force_from_dict
@@ -53,10 +55,15 @@ class Board:
     height: float = 600.0
     closed: bool = True
 
+    #: Declarations of the fields: checks and file comments (`labrig.params`).
+    PARAMS: ClassVar[dict[str, Param]] = {
+        "width": Param("float", 0.0, MAX_LENGTH, low_open=True, unit="px", doc="board width"),
+        "height": Param("float", 0.0, MAX_LENGTH, low_open=True, unit="px", doc="board height"),
+        "closed": Param("bool", doc="the four edges are hard walls"),
+    }
+
     def __post_init__(self) -> None:
-        for name in ("width", "height"):
-            _set(self, name, real(f"board.{name}", getattr(self, name), 0.0, MAX_LENGTH, low_open=True, unit="px"))
-        flag("board.closed", self.closed)
+        check_fields(self, self.PARAMS, "board.")
 
 
 @dataclass(frozen=True)
@@ -98,17 +105,26 @@ class Deposition:
     settle: float = 100.0
     max_tries: int = 10_000
 
+    #: Declarations of the fields: checks and file comments (`labrig.params`).
+    PARAMS: ClassVar[dict[str, Param]] = {
+        "protocol": Param("str", choices=PROTOCOLS, doc='where the dots arrive ("random": uniformly in the board or '
+                                                        'grating channel, "centre": on a ring around the centre)'),
+        "n_dots": Param("int", 0, MAX_DOTS, doc="dots deposited"),
+        "mean_diameter": Param("float", 0.0, MAX_LENGTH, low_open=True, unit="px", doc="mean dot diameter"),
+        "sigma": Param("float", 0.0, 1.0, high_open=True,
+                       doc="standard deviation of the diameter as a fraction of the mean"),
+        "mass_model": Param("str", choices=MASS_MODELS, doc='dot masses ("equal", ~ d^2 "area", ~ d^3 "volume", or '
+                                                            'half the dots heavy_mass "bimodal")'),
+        "heavy_mass": Param("float", 0.0, MAX_MASS, low_open=True, unit="mean-dot masses",
+                            doc="mass of the heavy half of a bimodal board"),
+        "interval": Param("float", 0.0, MAX_INTERVAL, unit="s", doc="simulated time between two dots"),
+        "settle": Param("float", 0.0, MAX_SETTLE, unit="s", doc="simulated time after the last dot",
+                        rule=f"the whole run at most {MAX_STEPS:,} steps of engine.dt"),
+        "max_tries": Param("int", 1, MAX_TRIES, doc="rejected candidates in a row before the board counts as full"),
+    }
+
     def __post_init__(self) -> None:
-        choice("deposition.protocol", self.protocol, PROTOCOLS)
-        choice("deposition.mass_model", self.mass_model, MASS_MODELS)
-        _set(self, "n_dots", count("deposition.n_dots", self.n_dots, 0, MAX_DOTS))
-        _set(self, "max_tries", count("deposition.max_tries", self.max_tries, 1, MAX_TRIES))
-        _set(self, "mean_diameter", real("deposition.mean_diameter", self.mean_diameter, 0.0, MAX_LENGTH,
-                                         low_open=True, unit="px"))
-        _set(self, "sigma", real("deposition.sigma", self.sigma, 0.0, 1.0, high_open=True))
-        _set(self, "heavy_mass", real("deposition.heavy_mass", self.heavy_mass, 0.0, MAX_MASS, low_open=True))
-        _set(self, "interval", real("deposition.interval", self.interval, 0.0, MAX_INTERVAL, unit="s"))
-        _set(self, "settle", real("deposition.settle", self.settle, 0.0, MAX_SETTLE, unit="s"))
+        check_fields(self, self.PARAMS, "deposition.")
 
 
 def default_forces() -> tuple[dict, ...]:
@@ -165,9 +181,19 @@ class Experiment:
     forces: tuple = field(default_factory=default_forces)
     engine: EngineSettings = field(default_factory=EngineSettings)
 
+    #: Declarations of the top-level fields: checks and file comments (`labrig.params`).
+    PARAMS: ClassVar[dict[str, Param]] = {
+        "name": Param("str", high=1000, doc="label of the run"),
+        "seed": Param("int", 0, MAX_SEED, doc="root of the simulation and deposition random streams"),
+        "grating": Param("float", 0.0, MAX_LENGTH, unit="px",
+                         doc="width of the grating channel (a wall at y = grating keeps the dots in 0 < y < grating)",
+                         rule="0 = no grating, else above deposition.mean_diameter and below board.height"),
+    }
+
     def __post_init__(self) -> None:
-        text("name", self.name)
-        _set(self, "seed", seed("seed", self.seed))
+        if self.grating is None:
+            _set(self, "grating", 0.0)
+        check_fields(self, self.PARAMS)
         for key, cls in (("board", Board), ("deposition", Deposition), ("restitution", Restitution),
                          ("engine", EngineSettings)):
             if not isinstance(getattr(self, key), cls):
@@ -176,8 +202,6 @@ class Experiment:
         if isinstance(self.forces, (dict, str, Force)) or not hasattr(self.forces, "__iter__"):
             raise InputError(f"forces must be a sequence of force tables, got {self.forces!r}")
         _set(self, "forces", tuple(_canonical_force(k, f) for k, f in enumerate(self.forces)))
-        _set(self, "grating", real("grating", 0.0 if self.grating is None else self.grating, 0.0, MAX_LENGTH,
-                                   unit="px"))
         self._check_geometry()
 
     def __hash__(self) -> int:

@@ -16,7 +16,8 @@ radius minus the smaller), and overlap stays within the documented tolerances:
   normal approach speed, from its physics (stated where the case is built).
 
 Overlap is (r_i + r_j - d) / ((r_i + r_j) / 2), as in `qdots.analysis.overlaps` (r: the mean
-radius); dot-wall overlap is (r - distance to the segment) / r.
+radius; `qdots.geometry.worst_overlap`); dot-wall overlap is (r - distance to the segment) / r
+(`qdots.geometry.worst_wall_overlap`).
 
 Cases marked *known failure* are limits measured here and documented, not hidden: the tests
 expect them to fail (strict xfail), so a fix shows up as an unexpected pass. Since 0.3 (forces
@@ -37,13 +38,13 @@ from dataclasses import dataclass, field
 from typing import Callable
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from labrig.validate import InputError, choice, count, real
 
 from .restitution import Restitution
 from .forces import CentreGravity, Drag, Gravity, ThermalKicks, VanDerWaals
-from .scene import MAX_DOTS, Scene, grating_segments, segment_distances
+from .geometry import DiscTree, nested_pairs, worst_overlap, worst_wall_overlap
+from .scene import MAX_DOTS, Scene, grating_segments
 from .simulation import OVERLAP_WARNING, Simulation
 from .units import thesis_kick_speed
 
@@ -120,12 +121,13 @@ def mixture(masses: str, centre_gravity: float = 0.0) -> Callable:
 
     def build():
         rng = np.random.default_rng(0)
-        positions, radii = [], []
+        positions, radii, placed = [], [], DiscTree(np.zeros((0, 2)), np.zeros(0))
         for p in rng.uniform(30, 570, (5000, 2)):
             r = 15.0 if len(positions) < 60 else 1.5
-            if all(math.dist(p, q) > r + s + 0.5 for q, s in zip(positions, radii)):
+            if placed.clashing_partners(p, [r], 0.5)[0] < 0:  # at least 0.5 px from every dot placed
                 positions.append(p)
                 radii.append(r)
+                placed = DiscTree(positions, radii)
             if len(positions) == 560:
                 break
         radii = np.array(radii)
@@ -223,18 +225,6 @@ CASES = [
 ]
 
 
-def _pair_overlaps(positions: np.ndarray, radii: np.ndarray) -> tuple[float, bool]:
-    """Worst overlap / mean radius of the pair, and whether some dot is inside another."""
-    pairs = cKDTree(positions).query_pairs(2.0 * float(radii.max()), output_type="ndarray")
-    if not len(pairs):
-        return 0.0, False
-    i, j = pairs.T
-    d = np.linalg.norm(positions[i] - positions[j], axis=1)
-    rsum = radii[i] + radii[j]
-    swallowed = bool((d < np.abs(radii[i] - radii[j]) + 1e-9).any())
-    return max(0.0, float(((rsum - d) / (0.5 * rsum)).max())), swallowed
-
-
 def check(case: HardCase) -> dict:
     """Run ``case``; everything the tests assert, with the wall time."""
     scene, forces = case.build()
@@ -255,10 +245,9 @@ def check(case: HardCase) -> dict:
             finally:
                 wall_time += time.perf_counter() - start
             s = sim.state()
-            overlap, swallowed = _pair_overlaps(s.positions, s.radii)
-            pair.append(overlap)
-            wall.append(max(0.0, float(((s.radii[:, None] - segment_distances(s.positions, walls))
-                                        / s.radii[:, None]).max())))
+            swallowed = len(nested_pairs(s.positions, s.radii)[0]) > 0
+            pair.append(worst_overlap(s.positions, s.radii)[0])
+            wall.append(worst_wall_overlap(s.positions, s.radii, walls)[0])
             outside = (s.positions < 0).any() or (s.positions > np.array(s.box)).any()
             lost = lost or swallowed or bool(outside) or sim.n_dots != scene.n_dots
             crossed = crossed or not np.array_equal(_channels(s.positions, scene.segments), channels)

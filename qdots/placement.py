@@ -6,12 +6,13 @@ already placed is rejected and drawn again, diameter and position both, as
 the thesis's deposition code does (Appendix A, ``addRandomBallInRect``).
 
 Candidates are drawn in fixed-size batches and tested against the placed
-dots with a KD-tree in one vectorized query; the survivors of a batch are
-then accepted in draw order, each only if it clears the ones accepted before
-it. This consumes the candidate stream exactly as a one-at-a-time loop
-would, so the result is the sequential process, and since the batch size is
-fixed, the first ``k`` dots placed for ``n`` dots are the ``k`` dots placed
-for any other ``n >= k`` with the same seed.
+dots with a KD-tree in one vectorized query (`qdots.geometry.DiscTree`); the
+survivors of a batch are then accepted in draw order, each only if it clears
+the ones accepted before it (`qdots.geometry.clashing_pairs`). This
+consumes the candidate stream exactly as a one-at-a-time loop would, so the
+result is the sequential process, and since the batch size is fixed, the
+first ``k`` dots placed for ``n`` dots are the ``k`` dots placed for any
+other ``n >= k`` with the same seed.
 """
 
 from __future__ import annotations
@@ -19,10 +20,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from labrig.validate import InputError, choice, count, generator, real, reals
 
+from .geometry import DiscTree, clashing_pairs
 from .scene import MAX_DOTS, MAX_LENGTH
 
 #: Candidates drawn per batch. Part of the random stream: changing it changes the placements.
@@ -85,22 +86,6 @@ def draw_candidates(rng: np.random.Generator, m: int, region: tuple[float, float
     return np.column_stack([x, y]), r, fits
 
 
-def _clash_with_placed(pos, r, tree, placed_pos, placed_r, margin) -> np.ndarray:
-    """Which candidates overlap (or come closer than ``margin`` to) a placed dot."""
-    clash = np.zeros(len(r), dtype=bool)
-    if tree is None or not len(r):
-        return clash
-    reach = float(r.max() + placed_r.max() + margin)
-    pairs = cKDTree(pos).sparse_distance_matrix(tree, reach, output_type="ndarray")
-    if len(pairs):
-        i, j = pairs["i"], pairs["j"]
-        dx = pos[i, 0] - placed_pos[j, 0]
-        dy = pos[i, 1] - placed_pos[j, 1]
-        bad = np.sqrt(dx * dx + dy * dy) < r[i] + placed_r[j] + margin
-        clash[i[bad]] = True
-    return clash
-
-
 def _accept_in_order(pos, r, margin) -> np.ndarray:
     """Greedy acceptance in draw order among candidates that clear the placed dots.
 
@@ -108,16 +93,7 @@ def _accept_in_order(pos, r, margin) -> np.ndarray:
     an accepted candidate ``a < b``. Only clashing pairs are visited.
     """
     accepted = np.ones(len(r), dtype=bool)
-    if len(r) < 2:
-        return accepted
-    pairs = cKDTree(pos).query_pairs(2.0 * float(r.max()) + margin, output_type="ndarray")
-    if not len(pairs):
-        return accepted
-    a, b = pairs[:, 0], pairs[:, 1]  # a < b
-    dx = pos[a, 0] - pos[b, 0]
-    dy = pos[a, 1] - pos[b, 1]
-    bad = np.sqrt(dx * dx + dy * dy) < r[a] + r[b] + margin
-    a, b = a[bad], b[bad]
+    a, b = clashing_pairs(pos, r, margin)  # a < b
     order = np.lexsort((a, b))  # by b, then a: a's fate is settled before any b > a is decided
     for ai, bi in zip(a[order].tolist(), b[order].tolist()):
         if accepted[ai]:
@@ -190,10 +166,10 @@ def random_sequential(
     radii = np.empty(n)
     k = 0  # dots placed
     failures = 0  # consecutive rejected candidates for dot k
-    tree = None  # KD-tree over positions[:k]; rebuilt when a batch added dots
+    placed = DiscTree(positions[:0], radii[:0])  # the dots placed; rebuilt when a batch added dots
     while k < n:
         pos, r, ok = draw_candidates(gen, BATCH, (0.0, 0.0, w, h), float(mean_diameter), float(sigma), float(margin))
-        ok &= ~_clash_with_placed(pos, r, tree, positions[:k], radii[:k], margin)
+        ok &= placed.clashing_partners(pos, r, margin) < 0
         survivors = np.flatnonzero(ok)
         accepted = survivors[_accept_in_order(pos[survivors], r[survivors], margin)][: n - k]
         # Consecutive failures before each accepted candidate, in draw order.
@@ -211,7 +187,7 @@ def random_sequential(
         if k < n and failures >= max_tries:
             _too_full(n, k, (w, h), mean_diameter, sigma, max_tries, radii[:k])
         if len(accepted):
-            tree = cKDTree(positions[:k])
+            placed = DiscTree(positions[:k], radii[:k])
     return positions, radii
 
 

@@ -22,8 +22,9 @@ import numpy as np
 from labrig.progress import progress_bar
 from labrig.validate import InputError, count, generator, real
 
+from .geometry import DiscTree, clear_of_walls
 from .placement import MAX_TRIES, draw_candidates
-from .scene import MAX_DOTS, MAX_LENGTH, MAX_MASS, segment_distances
+from .scene import MAX_DOTS, MAX_LENGTH, MAX_MASS
 
 #: Mass models (see `dot_masses`).
 MASS_MODELS = ("equal", "area", "volume", "bimodal")
@@ -118,16 +119,9 @@ def ring_radius(i: int, mean_diameter: float, sigma: float) -> float:
     return math.sqrt(HEX_PACKING * i) * mean_diameter / 2.0 + (3.0 + sigma) * mean_diameter
 
 
-def _clear(pos: np.ndarray, r: np.ndarray, board, segments: np.ndarray) -> np.ndarray:
-    """Which candidates keep `GAP` clear of every dot on the board and every extra wall."""
-    ok = np.ones(len(r), dtype=bool)
-    if board.n_dots:
-        delta = pos[:, None, :] - board.positions[None, :, :]
-        dist = np.sqrt(np.einsum("ijk,ijk->ij", delta, delta))
-        ok &= (dist >= r[:, None] + board.radii[None, :] + GAP).all(axis=1)
-    if len(segments):
-        ok &= (segment_distances(pos, segments) >= r[:, None] + GAP).all(axis=1)
-    return ok
+def _clear(pos: np.ndarray, r: np.ndarray, board: DiscTree, segments: np.ndarray) -> np.ndarray:
+    """Which candidates keep `GAP` clear of every dot on the ``board`` and every extra wall."""
+    return (board.clashing_partners(pos, r, GAP) < 0) & clear_of_walls(pos, r, segments, GAP)
 
 
 def _sequential(sim, n, mean_diameter, mass_model, heavy_mass, interval, max_tries, rng, progress,
@@ -153,9 +147,10 @@ def _sequential(sim, n, mean_diameter, mass_model, heavy_mass, interval, max_tri
     with progress_bar(n, unit="dot", desc="qdots deposit", show=progress, leave=False) as bar:
         for i in range(n):
             board, tries, hit = sim.state(), 0, None
+            placed = DiscTree(board.positions, board.radii)
             while hit is None and tries < max_tries:
                 pos, r, ok = draw(i, min(BATCH, max_tries - tries))
-                good = np.flatnonzero(ok & _clear(pos, r, board, sim.scene.segments))
+                good = np.flatnonzero(ok & _clear(pos, r, placed, sim.scene.segments))
                 hit, tries = (good[0] if good.size else None), tries + len(r)
             if hit is None:
                 fraction = float(np.sum(np.pi * board.radii**2)) / area

@@ -16,11 +16,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 
 from labrig.compiled import jit
-from labrig.validate import real
+from labrig.params import Param, check_fields
 
 #: Largest sticking speed, px/s.
 MAX_STICKING_SPEED = 1e6
@@ -49,11 +50,16 @@ class Restitution:
     wall: float = 1.0
     sticking_speed: float = 1.0
 
+    #: Declarations of the fields: checks and file comments (`labrig.params`).
+    PARAMS: ClassVar[dict[str, Param]] = {
+        "mean": Param("float", 0.0, 1.0, doc="mean dot-dot coefficient of restitution"),
+        "wall": Param("float", 0.0, 1.0, doc="dot-wall coefficient of restitution"),
+        "sticking_speed": Param("float", 0.0, MAX_STICKING_SPEED, unit="px/s",
+                                doc="dot-dot impacts slower than this are perfectly inelastic"),
+    }
+
     def __post_init__(self) -> None:
-        for name in ("mean", "wall"):
-            object.__setattr__(self, name, real(f"Restitution.{name}", getattr(self, name), 0.0, 1.0))
-        object.__setattr__(self, "sticking_speed", real("Restitution.sticking_speed", self.sticking_speed, 0.0,
-                                                        MAX_STICKING_SPEED, unit="px/s"))
+        check_fields(self, self.PARAMS, "Restitution.")
 
     @property
     def std(self) -> float:

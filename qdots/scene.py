@@ -13,11 +13,10 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from labrig.validate import InputError, array, flag, is_real, number, real, reals
 
-from .neighbours import MAX_PAIRS, pair_bound
+from .geometry import DiscTree, worst_overlap, worst_wall_overlap
 
 #: Most dots a scene holds (Chipmunk needs about 1 kB per dot).
 MAX_DOTS = 1_000_000
@@ -29,9 +28,6 @@ MAX_LENGTH = 1e6
 MAX_MASS = 1e6
 #: Largest speed given as input, px/s (a mean dot crosses the thesis's board in 0.6 ms).
 MAX_SPEED = 1e6
-#: Most (point, segment) distances of one `segment_distances` call: about 60 bytes each in its
-#: temporaries, 1.2 GB (the hard cases take 30,000 dots x 4 walls, a deposition 32 candidates x the lines).
-MAX_DISTANCES = 20_000_000
 
 
 def _positive(name: str, arr: np.ndarray, high: float) -> None:
@@ -63,7 +59,8 @@ class Scene:
         If True (default) the four box edges are hard walls.
     overlap_tolerance : float
         Largest accepted relative overlap ``(r_i + r_j - d) / ((r_i + r_j)/2)``
-        between two dots, in [0, 1). 0 (default) for boards built by hand.
+        between two dots (`qdots.geometry.relative_overlap`), in [0, 1). 0 (default) for boards built
+        by hand.
     from_engine : bool
         True for a board a simulation produced (`Simulation.current_scene`, a checkpoint): its dots
         may overlap (Chipmunk's contacts are soft), touch a wall from outside its line or have left
@@ -78,7 +75,7 @@ class Scene:
         masses in (1/`MAX_MASS`, `MAX_MASS`], speeds up to `MAX_SPEED` px/s), a dot outside the
         box, two overlapping dots or a zero-length segment; the message names the field and the
         index. Also when the overlap check (pairs within twice the largest radius) would list more
-        than `qdots.neighbours.MAX_PAIRS` pairs: a few huge dots among very many small ones.
+        than `qdots.geometry.MAX_PAIRS` pairs: a few huge dots among very many small ones.
     """
 
     box: tuple[float, float]
@@ -140,29 +137,15 @@ class Scene:
             )
 
     def _check_no_overlap(self) -> None:
-        n = self.n_dots
-        if n < 2:
-            return
-        if n * (n - 1) // 2 > MAX_PAIRS:
-            bound = pair_bound(self.positions[:, 0], self.positions[:, 1], 2.0 * float(self.radii.max()))
-            if bound > MAX_PAIRS:
-                raise InputError(f"radii: the largest, {float(self.radii.max()):g} px, makes the overlap check of the "
-                                 f"{n:,} dots take up to {bound:.3g} pairs, more than the {MAX_PAIRS:,} allowed")
-        pairs = cKDTree(self.positions).query_pairs(2.0 * self.radii.max(), output_type="ndarray")
-        if not len(pairs):
-            return
-        i, j = pairs[:, 0], pairs[:, 1]
-        distance = np.linalg.norm(self.positions[i] - self.positions[j], axis=1)
-        contact = self.radii[i] + self.radii[j]
-        allowed = contact * (1.0 - 0.5 * self.overlap_tolerance)
-        bad = np.flatnonzero(distance < allowed)
-        if bad.size:
-            k = bad[np.argmin((distance[bad] - contact[bad]) / contact[bad])]
-            a, b = sorted((int(i[k]), int(j[k])))
-            overlap = 2.0 * (contact[k] - distance[k]) / contact[k]
+        rmax = float(self.radii.max(initial=0.0))
+        worst, (a, b) = worst_overlap(self.positions, self.radii, self.overlap_tolerance,
+                                      f"radii: the overlap check (2 x the largest radius, {rmax:g} px)")
+        if a >= 0:
+            contact = float(self.radii[a] + self.radii[b])
+            distance = math.dist(self.positions[a], self.positions[b])
             raise InputError(
-                f"dots {a} and {b} overlap: centre distance {distance[k]:.6g} px < "
-                f"radii[{a}] + radii[{b}] = {contact[k]:.6g} px (relative overlap {overlap:.3g}, "
+                f"dots {a} and {b} overlap: centre distance {distance:.6g} px < "
+                f"radii[{a}] + radii[{b}] = {contact:.6g} px (relative overlap {worst:.3g}, "
                 f"overlap_tolerance {self.overlap_tolerance:g})"
             )
 
@@ -179,40 +162,18 @@ class Scene:
         return np.vstack([edges, self.segments])
 
 
-def segment_distances(points: np.ndarray, segments: np.ndarray) -> np.ndarray:
-    """Distance from each point to each segment, px; shape (P, M).
-
-    Parameters
-    ----------
-    points : ndarray, shape (P, 2)
-    segments : ndarray, shape (M, 4)
-        ``(x0, y0, x1, y1)`` with nonzero length. ``P * M`` is at most `MAX_DISTANCES`.
-    """
-    points = np.asarray(points, dtype=float).reshape(-1, 2)
-    segments = np.asarray(segments, dtype=float).reshape(-1, 4)
-    if len(points) * len(segments) > MAX_DISTANCES:
-        raise InputError(f"{len(points):,} points x {len(segments):,} segments make {len(points) * len(segments):,} "
-                         f"distances, more than the {MAX_DISTANCES:,} allowed")
-    start, along = segments[None, :, :2], segments[None, :, 2:] - segments[None, :, :2]
-    offset = points[:, None, :] - start
-    t = np.clip(np.einsum("pmk,pmk->pm", offset, along) / np.einsum("pmk,pmk->pm", along, along), 0.0, 1.0)
-    return np.linalg.norm(offset - t[:, :, None] * along, axis=2)
-
-
 def check_clear(new: Scene, board, segments: np.ndarray) -> None:
-    """Raise `InputError` if a dot of ``new`` crosses a wall segment or overlaps a dot of ``board`` (a `State`)."""
-    if len(segments):
-        gap = segment_distances(new.positions, segments) - new.radii[:, None]
-        k, m = np.unravel_index(np.argmin(gap), gap.shape)
-        if gap[k, m] < 0:
-            raise InputError(f"new dot {k} crosses wall segments[{m}]")
-    if board.n_dots:
-        tree = cKDTree(board.positions)
-        reach = new.radii + float(board.radii.max())
-        for k, (point, r) in enumerate(zip(new.positions, new.radii)):
-            for j in tree.query_ball_point(point, reach[k]):
-                if np.linalg.norm(point - board.positions[j]) < r + board.radii[j]:
-                    raise InputError(f"new dot {k} overlaps dot {j} already on the board")
+    """Raise `InputError` if a dot of ``new`` crosses a wall segment or overlaps a dot of ``board`` (a `State`):
+    the deepest wall crossing (`qdots.geometry.worst_wall_overlap`) is named first, then the first new dot that
+    overlaps a dot of the board (`qdots.geometry.DiscTree`; touching is allowed)."""
+    _, (k, m) = worst_wall_overlap(new.positions, new.radii, segments)
+    if k >= 0:
+        raise InputError(f"new dot {k} crosses wall segments[{m}]")
+    partners = DiscTree(board.positions, board.radii).clashing_partners(new.positions, new.radii)
+    clash = np.flatnonzero(partners >= 0)
+    if clash.size:
+        k = int(clash[0])
+        raise InputError(f"new dot {k} overlaps dot {int(partners[k])} already on the board")
 
 
 def grating_segments(box: tuple[float, float], pitch: float, offset: float = 0.0) -> np.ndarray:

@@ -11,20 +11,19 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
-from scipy.spatial import cKDTree
 
 import qdots
 from labrig.validate import InputError
-from qdots import hard_cases, neighbours
+from qdots import hard_cases
 from qdots.analysis import lqe, lqe_thesis, packing, report, structure
 from qdots.analysis.forster import TAU_NS, exciton_network
-from qdots.neighbours import MAX_PAIRS, pair_bound
+from qdots.geometry import MAX_DISTANCES, MAX_PAIRS, segment_distances
 from qdots.placement import MAX_CANDIDATES, MAX_LATTICE_SIZE, draw_candidates, hexagonal_lattice
 from qdots.presets import get_preset
 from qdots.protocols import deposit
 from labrig.figures import MAX_DPI
 from qdots.render import save_png
-from qdots.scene import MAX_DISTANCES, MAX_DOTS, MAX_SEGMENTS, Scene, grating_segments, segment_distances
+from qdots.scene import MAX_DOTS, MAX_SEGMENTS, Scene, grating_segments
 from qdots.engine.settings import EngineSettings
 from qdots.simulation import MAX_STEPS
 
@@ -122,7 +121,7 @@ RNG = np.random.default_rng(0)
 
 #: (call, words its one-line message holds): each asks for just more than one bound.
 CASES = {
-    # analysis: pair searches (qdots.neighbours.MAX_PAIRS)
+    # analysis: pair searches (qdots.geometry.MAX_PAIRS)
     "radial_distribution r_max": (lambda: structure.radial_distribution(crowd(), r_max=150.0),
                                   ["r_max = 150 px", f"{MAX_PAIRS:,}"]),
     "neighbour_edges mean_radius": (lambda: packing.neighbour_edges(crowd(), mean_radius=200.0),
@@ -250,25 +249,7 @@ def test_the_same_inputs_at_their_bounds_are_measured():
     assert len(hard_cases.centre_pack(1.0, n=hard_cases.CENTRE_PACK_SITES)()[0].radii) == hard_cases.CENTRE_PACK_SITES
 
 
-def test_pair_bound_is_an_upper_bound():
-    rng = np.random.default_rng(0)
-    for trial in range(60):
-        n = int(rng.integers(2, 300))
-        kind = trial % 4
-        if kind == 0:
-            xy = rng.uniform(0, rng.uniform(1, 1000), (n, 2))
-        elif kind == 1:  # on a line
-            xy = np.column_stack([rng.uniform(0, 1000, n), np.full(n, 5.0)])
-        elif kind == 2:  # on a grid, many at equal distances
-            xy = np.round(rng.uniform(0, 50, (n, 2)))
-        else:  # far from the origin
-            xy = rng.normal(0, rng.uniform(0.01, 100), (n, 2)) + 1e6
-        reach = float(rng.choice([0.0, rng.uniform(0, 2000), rng.uniform(0, 5)]))
-        assert pair_bound(xy[:, 0], xy[:, 1], reach) >= len(cKDTree(xy).query_pairs(reach))
-    xy = hexagonal_lattice(60, 15.0)
-    true = len(cKDTree(xy).query_pairs(150.0))
-    assert true <= pair_bound(xy[:, 0], xy[:, 1], 150.0) <= 2.5 * true  # tight enough at large reach
-    assert pair_bound(xy[:, 0], xy[:, 1], 1e9) == len(xy) * (len(xy) - 1) // 2
+def test_the_bounds_sit_just_below_the_cases_that_exceed_them():
     assert CROWD * (CROWD - 1) // 2 > MAX_PAIRS >= (CROWD - 1) * (CROWD - 2) // 2
     assert 5001 * packing.MAX_CIRCLES > packing.MAX_FILL_TERMS >= 5000 * packing.MAX_CIRCLES
     assert 2001 * 10_000 > MAX_DISTANCES >= 2000 * 10_000
@@ -278,30 +259,3 @@ def test_deposition_refusal_leaves_the_board_as_it_was():
     sim = one_dot_sim()
     refused(lambda: deposit(sim, DEPOSITS, interval=1e4), f"{MAX_STEPS:,}")
     assert sim.n_dots == 1 and sim.steps_taken == 0
-
-
-# --------------------------------------------------------------------------- the engine's pair search
-
-
-def test_engine_pair_search_refuses_too_many_pairs(monkeypatch):
-    monkeypatch.setattr(neighbours, "MAX_PAIRS", 1000)
-    xy = grid(100)  # 4,950 pairs within 200 px
-    refused(lambda: neighbours.pairs_within(xy[:, 0], xy[:, 1], 200.0), "pair search: 4,950 pairs", "1,000")
-    i, _ = neighbours.pairs_within(xy[:, 0], xy[:, 1], 1.5)  # 342 pairs
-    assert len(i) == 342
-
-
-def test_engine_pair_search_hint_and_grid_are_bounded():
-    # a huge hint allocates no more than a list may hold
-    xy = grid(100)
-    i, j = neighbours.pairs_within(xy[:, 0], xy[:, 1], 1.5, expected=10**15)
-    assert len(i) == 342
-    # dots in close couples strung along 10^6 px, a cutoff far below their spacing: the grid would have
-    # 6e8 cells; it gets wider cells, and the same pairs
-    couples = 100_000
-    x = np.repeat(10.0 * np.arange(couples), 2) + np.tile([0.0, 5e-4], couples)
-    y = np.zeros_like(x)
-    width, cell = x.max(), math.sqrt(1.0 / (2 * len(x)))
-    assert (width / cell + 1) > neighbours.MAX_GRID_CELLS
-    i, j = neighbours.pairs_within(x, y, 1e-3)
-    assert sorted(zip(i.tolist(), j.tolist())) == [(2 * k, 2 * k + 1) for k in range(couples)]

@@ -1,16 +1,22 @@
 """TOML scene files: round trips, defaults and every error path."""
 
+import dataclasses
+import inspect
+import re
 import warnings
 
 import pytest
 from conftest import refused_file
 
 import qdots
+from labrig.tomlfile import tomllib
 from qdots.cli.sweep import ExperimentRunner
-from qdots.forces import thesis_offset
+from qdots.forces import FORCE_TYPES, thesis_offset
 from qdots.experiment import Board, Deposition, Experiment
 from qdots.presets import PRESETS, get_preset
-from qdots.io.experiment_file import experiment_from_toml, experiment_to_toml, load_experiment, save_experiment
+from qdots.io import experiment_file
+from qdots.io.experiment_file import (TABLES, experiment_from_toml, experiment_to_toml, load_experiment,
+                                      save_experiment)
 from qdots.simulation import EngineSettings
 
 ALL_PRESET_RUNS = [exp for name in PRESETS for exp in (*PRESETS[name], *get_preset(name, quick=True))]
@@ -76,11 +82,83 @@ def test_a_file_of_0_2_with_vdw_numerics_means_what_it_meant():
 
 def test_written_file_has_every_key_with_units():
     text = experiment_to_toml(PRESETS["fig2-2"][1])
-    for line in ("sigma = 0.15", "# fraction of mean diameter, [0, 1)", "[board]", "[deposition]",
-                 "[restitution]", "[engine]", "[[forces]]", 'type = "VanDerWaals"', f"dt = {EngineSettings().dt}",
-                 "# collision_bias (unset)", "# spatial_hash (unset)"):
+    for line in ("sigma = 0.15", "# standard deviation of the diameter as a fraction of the mean: unitless, in [0, 1)",
+                 "[board]", "[deposition]", "[restitution]", "[engine]", "[[forces]]", 'type = "VanDerWaals"',
+                 f"dt = {EngineSettings().dt}", "# collision_bias (unset)", "# spatial_hash (unset)"):
         assert line in text, line
-    assert "# px, in (0, 1e6]" in text and "# s of simulated time" in text
+    assert "# board width: px, in (0, 1e6]" in text and "# simulated time after the last dot: s, in [0, 100000]" in text
+
+
+#: How a comment states a unit: ``what: unit, range`` (a unit of the package or "unitless"), or lists the choices.
+UNIT = re.compile(r": (px|px/s|px/s\^2|s|1/s|1/px|radii|mean-dot masses|mean-dot mass px\^2/s\^2|unitless), "
+                  r"|: one of |: true or false$|: text of at most ")
+#: How a comment states the range: an interval, a lower bound, the choices, or the longest text.
+RANGE = re.compile(r"\bin [\[(]-?[\d.e-]+, -?[\d.e,-]+[\])]|integer >= \d|: one of |: true or false$"
+                   r"|: text of at most [\d,]+ characters")
+
+
+def key_lines(text: str):
+    """``(table, key, comment)`` of every key line of a saved experiment file (set or written unset), comment
+    None when the line has none."""
+    table = ""
+    for line in text.splitlines()[text.splitlines().index(""):]:  # after the file's header comment
+        if not line or line.startswith("["):
+            table = line.strip("[]")
+            continue
+        head, _, comment = line.rpartition("  # ") if "  # " in line else (line, "", None)
+        unset = re.fullmatch(r"# (\w+) \(unset\)\s*", head)
+        if unset:
+            yield table, unset.group(1), comment
+            continue
+        (key,) = tomllib.loads(head).keys()  # a whole `key = value`: the comment was split off where it starts
+        yield table, key, comment
+
+
+@pytest.mark.parametrize("exp", ALL_PRESET_RUNS, ids=lambda e: e.name)
+def test_every_key_of_a_saved_preset_states_its_unit_and_range(exp):
+    """Issue 42: near_gap, far_interval, min_gap, max_gap, offset, centre and each force's type had no range (or
+    no comment) in a saved file, though the README says the comments state every bound."""
+    lines = list(key_lines(experiment_to_toml(exp)))
+    for table, key, comment in lines:
+        assert comment, f"[{table}] {key} has no comment"
+        assert UNIT.search(comment), f"[{table}] {key}: no unit in {comment!r}"
+        assert RANGE.search(comment), f"[{table}] {key}: no range in {comment!r}"
+    keys = {(table, key) for table, key, _ in lines}
+    assert {("", key) for key in Experiment.PARAMS} | {(name, key) for name, cls in TABLES.items()
+                                                       for key in cls.PARAMS} <= keys
+    assert len(lines) == len(Experiment.PARAMS) + sum(len(cls.PARAMS) for cls in TABLES.values()) + \
+        sum(len(spec) for spec in exp.forces)  # every key of every table once, each force's type and parameters
+
+
+def test_declarations_cover_every_parameter_and_the_file_module_restates_no_bound():
+    assert list(Experiment.PARAMS) == ["name", "seed", "grating"]
+    for cls in TABLES.values():
+        assert list(cls.PARAMS) == [f.name for f in dataclasses.fields(cls)], cls
+    for name, cls in FORCE_TYPES.items():
+        assert list(cls.PARAMS) == [p for p in inspect.signature(cls.__init__).parameters if p != "self"], name
+    assert not [name for name in vars(experiment_file) if name.startswith("MAX_") or name.endswith("_RANGE")]
+
+
+def test_a_bound_changed_in_its_declaration_changes_the_check_and_the_file_comment(tmp_path, monkeypatch):
+    """The check of a value and the comment of its key come from one declaration: change the declared bound and
+    both follow (a table's field, an engine setting, a force parameter)."""
+    monkeypatch.setitem(Board.PARAMS, "width", dataclasses.replace(Board.PARAMS["width"], high=500.0))
+    monkeypatch.setitem(EngineSettings.PARAMS, "near_gap", dataclasses.replace(EngineSettings.PARAMS["near_gap"],
+                                                                               high=8.0, unit="px"))
+    monkeypatch.setitem(qdots.Drag.PARAMS, "linear", dataclasses.replace(qdots.Drag.PARAMS["linear"], low_open=True))
+    with pytest.raises(ValueError, match=r"^board.width must be in \(0, 500\] px, got 550.0$"):
+        Board(width=550.0)
+    with pytest.raises(ValueError, match=r"^near_gap must be in \(0, 8\] px, got 9.0$"):
+        EngineSettings(near_gap=9.0)
+    with pytest.raises(ValueError, match=r"^Drag.linear must be in \(0, 1e6\] 1/s, got 0.0$"):
+        qdots.Drag(linear=0.0)
+    exp = Experiment(board=Board(400.0, 400.0), forces=(qdots.Drag(),))
+    text = experiment_to_toml(exp)
+    assert "# board width: px, in (0, 500]" in text and "# board height: px, in (0, 1e6]" in text
+    assert "pulled every step: px, in (0, 8]" in text and "# linear friction f1: 1/s, in (0, 1e6]" in text
+    path = tmp_path / "wide.toml"
+    refused_file(load_experiment, path, text.replace("width = 400.0", "width = 550.0"),
+                 r"board.width must be in \(0, 500\] px, got 550.0")
 
 
 def test_missing_keys_take_defaults_and_ints_are_accepted_for_floats():
@@ -112,6 +190,9 @@ def test_missing_keys_take_defaults_and_ints_are_accepted_for_floats():
     ("[[forces]]\ntype = 'Drag'\nlinaer = 0.1", r"forces\[0\]: Drag has no parameter 'linaer'"),
     ("[[forces]]\nlinear = 0.1", r"forces\[0\]: a force must be a table with a 'type' key"),
     ("[[forces]]\ntype = 'Drag'\nlinear = -1.0", r"forces\[0\]: Drag.linear must be in \[0, "),
+    ("[[forces]]\ntype = 'VanDerWaals'\noffset = 0.1", r"forces\[0\]: VanDerWaals.offset \(0.1\) must be below min_gap"),
+    ("[[forces]]\ntype = 'VanDerWaals'\noffset = -1e4", r"forces\[0\]: VanDerWaals.offset must be in \[-1000, 1000\] px"),
+    ("[[forces]]\ntype = ['Drag']", r"forces\[0\]: unknown force type \['Drag'\] \(known: CentreGravity, "),
     ("forces = 3", r"forces must be an array of tables"),
 ])
 def test_bad_files_raise_errors_naming_the_file_and_key(tmp_path, text, message):

@@ -6,7 +6,7 @@ import pytest
 import qdots
 from qdots.forces.base import StepContext
 from qdots.forces.vdw import hamaker_force
-from qdots.neighbours import VerletPairs, extent
+from qdots.geometry import VerletPairs
 
 #: The collision rule of every context here (its sticking speed sets the proxy's offset).
 RULE = qdots.Restitution()
@@ -114,45 +114,6 @@ def test_coincident_centres_get_no_force():
     ctx = context(x, y, radii, m, 1e-3)
     force.kick(ctx)
     assert np.all(ctx.dv == 0.0)
-
-
-@pytest.mark.parametrize("skin", [0.0, 1.0, 3.0])
-def test_the_verlet_list_never_misses_a_pair_and_rebuilds_only_when_needed(skin):
-    rng = np.random.default_rng(5)
-    xy = rng.uniform(0, 200, (150, 2))
-    pairs, cutoff, rebuilds = VerletPairs(skin), 20.0, 0
-    anchor = None
-    for step in range(200):
-        xy += rng.normal(0, 0.05, xy.shape)
-        x, y = xy[:, 0].copy(), xy[:, 1].copy()
-        rebuilt = pairs.update(x, y, cutoff)
-        if rebuilt:
-            anchor, rebuilds = xy.copy(), rebuilds + 1
-        moved = np.hypot(*(xy - anchor).T).max()
-        assert moved <= skin / 2 or skin == 0  # kept only while every dot stayed within skin / 2
-        listed = set(zip(pairs.i.tolist(), pairs.j.tolist()))
-        d = np.hypot(*(xy[:, None] - xy[None]).transpose(2, 0, 1))
-        close = {(a, b) for a, b in zip(*np.nonzero(np.triu(d < cutoff, 1)))}
-        assert close <= listed, step
-    assert pairs.rebuilds == rebuilds
-    assert (rebuilds == 200) if skin == 0 else (1 < rebuilds < 100)
-
-
-@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
-@pytest.mark.parametrize("axis", [0, 1])
-def test_a_non_finite_position_forces_a_rebuild(bad, axis):
-    pairs = VerletPairs(3.0)
-    x, y = np.array([0.0, 10.0, 30.0]), np.array([0.0, 0.0, 5.0])
-    assert pairs.update(x, y, 20.0) and not pairs.update(x, y, 20.0)
-    moved = [x.copy(), y.copy()]
-    moved[axis][1] = bad
-    with pytest.raises(ValueError, match="not all finite"):
-        pairs.update(*moved, 20.0)  # the search refuses it: the run says what happened
-
-
-def test_extent_is_the_bounding_box(rng):
-    x, y = rng.normal(0, 50, 257), rng.uniform(-3, 900, 257)
-    assert extent(x, y) == (x.min(), y.min(), x.max(), y.max(), True)
 
 
 def test_the_split_force_matches_the_oracle_while_the_dots_move():

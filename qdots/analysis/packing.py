@@ -2,7 +2,8 @@
 
 Every function takes a `qdots.State`, or anything with ``positions`` (N, 2)
 and ``radii`` (N,) attributes in px, and works on whole arrays: pairs come
-from one KD-tree query, counts from ``np.bincount``.
+from one KD-tree query (`qdots.geometry.pairs_with_distances`), counts from
+``np.bincount``.
 """
 
 from __future__ import annotations
@@ -11,11 +12,10 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from labrig.validate import InputError
 
-from ..neighbours import MAX_PAIRS, pair_bound
+from ..geometry import overlapping_pairs, pairs_with_distances, worst_overlap
 
 #: Neighbour rules: "text" is the thesis's prose (section 2.4), "code" its Java (Appendix A).
 RULES = ("text", "code")
@@ -48,27 +48,8 @@ def state_arrays(state) -> tuple[np.ndarray, np.ndarray]:
     return positions, radii
 
 
-def pairs_within(positions: np.ndarray, reach: float, what: str | None = None
-                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """All pairs ``i < j`` with centre distance <= ``reach`` px, and their distances; `InputError` naming
-    ``what`` asked for ``reach`` if they could be more than `qdots.neighbours.MAX_PAIRS` (`pair_bound`)."""
-    n = len(positions)
-    if n < 2:
-        empty = np.zeros(0, dtype=np.intp)
-        return empty, empty, np.zeros(0)
-    if n * (n - 1) // 2 > MAX_PAIRS:
-        bound = pair_bound(positions[:, 0], positions[:, 1], reach)
-        if bound > MAX_PAIRS:
-            raise InputError(f"{what or f'a reach of {reach:g} px'} takes up to {bound:.3g} pairs of the {n:,} dots "
-                             f"(within {reach:g} px), more than the {MAX_PAIRS:,} allowed")
-    pairs = cKDTree(positions).query_pairs(reach, output_type="ndarray")
-    i, j = pairs[:, 0], pairs[:, 1]
-    delta = positions[i] - positions[j]
-    return i, j, np.sqrt(np.einsum("ij,ij->i", delta, delta))
-
-
 def overlaps(state) -> tuple[float, tuple[int, int]]:
-    """Worst relative overlap between two dots.
+    """Worst relative overlap between two dots (`qdots.geometry.worst_overlap`).
 
     The relative overlap of a pair is ``(r_i + r_j - d) / ((r_i + r_j) / 2)``
     with ``d`` the centre distance, i.e. ``(2r - d) / r`` for equal radii: the
@@ -83,22 +64,7 @@ def overlaps(state) -> tuple[float, tuple[int, int]]:
         Indices ``(i, j)``, ``i < j``, of the worst pair, or ``(-1, -1)``.
     """
     positions, radii = state_arrays(state)
-    if len(radii) < 2:
-        return 0.0, (-1, -1)
-    i, j, d = pairs_within(positions, 2.0 * float(radii.max()), _overlap_search(radii))
-    if not len(d):
-        return 0.0, (-1, -1)
-    rsum = radii[i] + radii[j]
-    relative = (rsum - d) / (0.5 * rsum)
-    k = int(np.argmax(relative))
-    if relative[k] <= 0:
-        return 0.0, (-1, -1)
-    return float(relative[k]), (int(i[k]), int(j[k]))
-
-
-def _overlap_search(radii: np.ndarray) -> str:
-    """What sets the reach of an overlap search, for `pairs_within`'s message."""
-    return f"the overlap search (2 x the largest radius, {float(radii.max(initial=0.0)):g} px)"
+    return worst_overlap(positions, radii)
 
 
 def escaped(state) -> int:
@@ -152,12 +118,12 @@ def neighbour_edges(state, rule: str = "text", mean_radius: float | None = None
             mean_radius = float(radii.mean())
         elif not (isinstance(mean_radius, (int, float)) and math.isfinite(mean_radius) and mean_radius > 0):
             raise InputError(f"mean_radius must be > 0 px, got {mean_radius!r}")
-        i, j, d = pairs_within(positions, 2.0 * rmax + mean_radius,
-                               f"mean_radius = {mean_radius:g} px (with the largest radius, {rmax:g} px)")
+        i, j, d = pairs_with_distances(positions, 2.0 * rmax + mean_radius,
+                                       f"mean_radius = {mean_radius:g} px (with the largest radius, {rmax:g} px)")
         near = d - radii[i] - radii[j] < mean_radius
         i_sees_j = j_sees_i = near
     else:
-        i, j, d = pairs_within(positions, 3.0 * rmax, f"rule 'code' (3 x the largest radius, {rmax:g} px)")
+        i, j, d = pairs_with_distances(positions, 3.0 * rmax, f"rule 'code' (3 x the largest radius, {rmax:g} px)")
         i_sees_j = d <= radii[i] + 2.0 * radii[j]
         j_sees_i = d <= radii[j] + 2.0 * radii[i]
     src = np.concatenate([i[i_sees_j], j[j_sees_i]])
@@ -309,9 +275,7 @@ def fill_within_radius(state, radius, centre=None) -> FillCurve:
         raise InputError(f"radius: {big.size:,} circles reached by {int(reach.sum()):,} dots make "
                          f"{int(reach.sum()) * big.size:,} areas, more than the {MAX_FILL_TERMS:,} allowed")
     covered = _disc_in_circle_area(radii[reach, None], d[reach, None], big[None, :]).sum(axis=0)
-    i, j, dij = pairs_within(positions, 2.0 * float(radii.max()) if len(radii) else 0.0, _overlap_search(radii))
-    hit = dij < radii[i] + radii[j]
-    i, j, dij = i[hit], j[hit], dij[hit]
+    i, j, dij = overlapping_pairs(positions, radii)
     lens = _disc_in_circle_area(radii[i], dij, radii[j])  # common area of each overlapping pair
     reaches = np.maximum(d[i] - radii[i], d[j] - radii[j])  # the lens lies in both discs
     double = np.array([lens[reaches < b].sum() for b in big])

@@ -18,7 +18,8 @@ from scipy.spatial import Delaunay, cKDTree
 
 from labrig.validate import InputError, count
 
-from .packing import neighbour_edges, pairs_within, state_arrays
+from ..geometry import pairs_with_distances
+from .packing import neighbour_edges, state_arrays
 
 #: Most bins of `radial_distribution` (8 MB an array; ``qdots analyze`` uses 80, the default is 100).
 MAX_BINS = 1_000_000
@@ -125,7 +126,7 @@ def radial_distribution(state, r_max: float | None = None, bins: int = 100) -> R
     Raises
     ------
     labrig.validate.InputError
-        On a bad argument, or an ``r_max`` that takes more than `qdots.neighbours.MAX_PAIRS` pairs.
+        On a bad argument, or an ``r_max`` that takes more than `qdots.geometry.MAX_PAIRS` pairs.
 
     Notes
     -----
@@ -151,7 +152,7 @@ def radial_distribution(state, r_max: float | None = None, bins: int = 100) -> R
         raise InputError(f"r_max must be in (0, {min(width, height):g}] px (the window's smaller side), got {r_max!r}")
     bins = count("bins", bins, 1, MAX_BINS)
     edges = np.linspace(0.0, float(r_max), bins + 1)
-    _, _, d = pairs_within(positions, float(r_max), f"r_max = {r_max:g} px")
+    _, _, d = pairs_with_distances(positions, float(r_max), f"r_max = {r_max:g} px")
     counts = np.histogram(d, bins=edges)[0]
     ideal = _ideal_pairs(edges, len(radii), width, height)
     with np.errstate(invalid="ignore", divide="ignore"):

@@ -39,7 +39,7 @@ from labrig.sweeps.files import SweepFile
 from labrig.validate import InputError
 
 from ..experiment import Experiment, run_experiment
-from ..io.experiment_file import TABLES, TOP, experiment_from_dict
+from ..io.experiment_file import TABLES, experiment_from_dict
 
 
 #: Wall seconds per time step and per dot and time step of a run, at the default engine settings (from fig2-2:
@@ -56,10 +56,10 @@ def experiment_to_dict(exp: Experiment) -> dict:
     def plain(value):
         return list(value) if isinstance(value, tuple) else value
 
-    data = {key: getattr(exp, key) for key in TOP}
-    for name, (_, schema) in TABLES.items():
+    data = {key: getattr(exp, key) for key in Experiment.PARAMS}
+    for name, cls in TABLES.items():
         table = getattr(exp, name)
-        data[name] = {key: plain(getattr(table, key)) for key in schema if getattr(table, key) is not None}
+        data[name] = {key: plain(getattr(table, key)) for key in cls.PARAMS if getattr(table, key) is not None}
     data["forces"] = [{key: plain(value) for key, value in spec.items() if value is not None} for spec in exp.forces]
     return data
 

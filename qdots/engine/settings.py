@@ -4,10 +4,12 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import asdict, dataclass
+from typing import ClassVar
 
-from labrig.validate import InputError, choice, count, flag, real
+from labrig.params import Param, check_fields
+from labrig.validate import InputError
 
-from ..neighbours import MAX_SKIN
+from ..geometry import MAX_SKIN
 from ..scene import MAX_LENGTH
 from ..units import THESIS_KICK_INTERVAL
 
@@ -81,7 +83,7 @@ class EngineSettings:
     threads : int
         Chipmunk solver threads, 1 or 2; it helps dense piles a little.
     pair_skin : float
-        Verlet skin of the van der Waals pair list, px, in [0, `MAX_SKIN`] (`qdots.neighbours.VerletPairs`):
+        Verlet skin of the van der Waals pair list, px, in [0, `MAX_SKIN`] (`qdots.geometry.VerletPairs`):
         the list is rebuilt when a dot has moved half of it. Exact either way; a larger skin means fewer
         rebuilds and longer lists.
     near_gap : float
@@ -113,34 +115,34 @@ class EngineSettings:
     far_interval: float | None = THESIS_KICK_INTERVAL
     tune_allocator: bool = True
 
-    def __post_init__(self) -> None:
-        def put(name, value):
-            object.__setattr__(self, name, value)
+    #: Declarations of the fields: checks and file comments (`labrig.params`).
+    PARAMS: ClassVar[dict[str, Param]] = {
+        "dt": Param("float", *DT_RANGE, unit="s", doc="time step"),
+        "substeps": Param("int", 1, MAX_SUBSTEPS, doc="fewest Chipmunk steps per time step"),
+        "overlap_tolerance": Param("float", *TOLERANCE_RANGE, unit="radii", optional=True,
+                                   doc="how far a dot may travel into a contact in one Chipmunk step",
+                                   unset="always `substeps`"),
+        "max_substeps": Param("int", 1, MAX_SUBSTEPS, doc="most Chipmunk steps per time step for overlap_tolerance"),
+        "iterations": Param("int", 1, MAX_ITERATIONS, doc="solver iterations per sub-step"),
+        "collision_slop": Param("float", 0.0, MAX_SLOP, unit="px", doc="overlap left uncorrected"),
+        "collision_bias": Param("float", 0.0, 1.0, high_open=True, optional=True,
+                                doc="fraction of an overlap left after 1 s",
+                                unset=f"{OVERLAP_CORRECTION:.0%} of an overlap corrected per sub-step"),
+        "spatial_hash": Param("pair", optional=True, doc="Chipmunk's spatial hash", unset="Chipmunk's bounding-box tree",
+                              parts=(Param("float", 0.0, MAX_LENGTH, low_open=True, unit="px", doc="cell size"),
+                                     Param("int", 1, MAX_HASH_CELLS, doc="count"))),
+        "threads": Param("int", choices=(1, 2), doc="Chipmunk solver threads"),
+        "pair_skin": Param("float", 0.0, MAX_SKIN, unit="px", doc="Verlet skin of the van der Waals pair list"),
+        "near_gap": Param("float", 0.0, MAX_NEAR_GAP, low_open=True, unit="px",
+                          doc="van der Waals pairs closer than this are pulled every step"),
+        "far_interval": Param("float", 0.0, MAX_FAR_INTERVAL, low_open=True, unit="s", optional=True,
+                              doc="time between passes over the farther van der Waals pairs",
+                              unset="every pair every step"),
+        "tune_allocator": Param("bool", doc="raise glibc's allocator thresholds (speed only)"),
+    }
 
-        put("dt", real("dt", self.dt, *DT_RANGE, unit="s"))
-        put("substeps", count("substeps", self.substeps, 1, MAX_SUBSTEPS))
-        if self.overlap_tolerance is not None:
-            put("overlap_tolerance", real("overlap_tolerance", self.overlap_tolerance, *TOLERANCE_RANGE,
-                                          unit="radii"))
-        put("max_substeps", count("max_substeps", self.max_substeps, 1, MAX_SUBSTEPS))
-        put("iterations", count("iterations", self.iterations, 1, MAX_ITERATIONS))
-        put("collision_slop", real("collision_slop", self.collision_slop, 0.0, MAX_SLOP, unit="px"))
-        if self.collision_bias is not None:
-            put("collision_bias", real("collision_bias", self.collision_bias, 0.0, 1.0, high_open=True))
-        put("threads", choice("threads", self.threads, (1, 2)))
-        put("pair_skin", real("pair_skin", self.pair_skin, 0.0, MAX_SKIN, unit="px"))
-        put("near_gap", real("near_gap", self.near_gap, 0.0, MAX_NEAR_GAP, low_open=True, unit="px"))
-        if self.far_interval is not None:
-            put("far_interval", real("far_interval", self.far_interval, 0.0, MAX_FAR_INTERVAL, low_open=True,
-                                     unit="s"))
-        put("tune_allocator", flag("tune_allocator", self.tune_allocator))
-        if self.spatial_hash is not None:
-            if isinstance(self.spatial_hash, (str, bytes, dict)) or not hasattr(self.spatial_hash, "__len__") \
-                    or len(self.spatial_hash) != 2:
-                raise InputError(f"spatial_hash must be (cell size px, cell count), got {self.spatial_hash!r}")
-            cell = real("spatial_hash cell size", self.spatial_hash[0], 0.0, MAX_LENGTH, low_open=True, unit="px")
-            cells = count("spatial_hash count", self.spatial_hash[1], 1, MAX_HASH_CELLS)
-            put("spatial_hash", (cell, cells))
+    def __post_init__(self) -> None:
+        check_fields(self, self.PARAMS)
 
     @property
     def bias(self) -> float:

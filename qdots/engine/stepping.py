@@ -30,7 +30,7 @@ import numpy as np
 from labrig.compiled import jit
 
 from ..forces.base import StepContext
-from ..neighbours import VerletPairs, pair_separation
+from ..geometry import VerletPairs, pair_separation
 from ..restitution import Restitution
 from .bodies import BodyArrays
 from .chipmunk import advance, set_last_substep

@@ -5,6 +5,7 @@ All act as velocity changes applied once per time step (see `Force`).
 
 import inspect
 
+from labrig.params import Param
 from labrig.validate import InputError
 
 from .base import Force, StepContext
@@ -14,6 +15,8 @@ from .vdw import VanDerWaals, hamaker_force, thesis_offset
 
 #: The built-in forces by name, for files (checkpoints, experiment files).
 FORCE_TYPES = {cls.__name__: cls for cls in (VanDerWaals, ThermalKicks, Langevin, Drag, Gravity, CentreGravity)}
+#: Declaration of a force table's ``type`` key (`labrig.params`); each force declares its parameters (``PARAMS``).
+FORCE_TYPE = Param("str", choices=tuple(sorted(FORCE_TYPES)), doc="the force")
 
 
 def force_from_dict(spec: dict) -> Force:
@@ -28,8 +31,8 @@ def force_from_dict(spec: dict) -> Force:
         raise InputError(f"a force must be a table with a 'type' key, got {spec!r}")
     params = dict(spec)
     name = params.pop("type")
-    if name not in FORCE_TYPES:
-        raise InputError(f"unknown force type {name!r} (known: {', '.join(sorted(FORCE_TYPES))})")
+    if not isinstance(name, str) or name not in FORCE_TYPE.choices:
+        raise InputError(f"unknown force type {name!r} (known: {', '.join(FORCE_TYPE.choices)})")
     cls = FORCE_TYPES[name]
     allowed = [n for n in inspect.signature(cls.__init__).parameters if n != "self"]
     unknown = sorted(set(params) - set(allowed))
@@ -40,6 +43,7 @@ def force_from_dict(spec: dict) -> Force:
 
 __all__ = [
     "FORCE_TYPES",
+    "FORCE_TYPE",
     "force_from_dict",
     "Force",
     "StepContext",

@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+from typing import ClassVar
+
 import numpy as np
 
-from labrig.validate import real, reals
+from labrig.params import Param
 
 from ..scene import MAX_LENGTH
 from .base import Force, StepContext
@@ -28,9 +30,12 @@ class Gravity(Force):
         down).
     """
 
+    #: Declarations of the parameters: checks and file comments (`labrig.params`).
+    PARAMS: ClassVar[dict[str, Param]] = {"acceleration": Param("float2", -MAX_ACCELERATION, MAX_ACCELERATION, unit="px/s^2",
+                                    doc="acceleration [ax, ay]")}
+
     def __init__(self, acceleration: tuple[float, float] = (0.0, -THESIS_GRAVITY)):
-        self.acceleration = reals("Gravity.acceleration", acceleration, 2, -MAX_ACCELERATION, MAX_ACCELERATION,
-                                  unit="px/s^2")
+        self.acceleration = self.PARAMS["acceleration"].check("Gravity.acceleration", acceleration)
 
     def kick(self, ctx: StepContext) -> None:
         ctx.dv += np.multiply(self.acceleration, ctx.dt)
@@ -47,9 +52,13 @@ class CentreGravity(Force):
         Acceleration, px/s^2 (>= 0). Default 750 px/s^2 as in the thesis.
     """
 
+    #: Declarations of the parameters: checks and file comments (`labrig.params`).
+    PARAMS: ClassVar[dict[str, Param]] = {"centre": Param("float2", -MAX_LENGTH, MAX_LENGTH, unit="px", doc="attracting point [x, y]"),
+              "magnitude": Param("float", 0.0, MAX_ACCELERATION, unit="px/s^2", doc="acceleration toward the centre")}
+
     def __init__(self, centre: tuple[float, float], magnitude: float = THESIS_GRAVITY):
-        self.centre = reals("CentreGravity.centre", centre, 2, -MAX_LENGTH, MAX_LENGTH, unit="px")
-        self.magnitude = real("CentreGravity.magnitude", magnitude, 0.0, MAX_ACCELERATION, unit="px/s^2")
+        self.centre = self.PARAMS["centre"].check("CentreGravity.centre", centre)
+        self.magnitude = self.PARAMS["magnitude"].check("CentreGravity.magnitude", magnitude)
 
     def kick(self, ctx: StepContext) -> None:
         dx = self.centre[0] - ctx.x
@@ -73,9 +82,13 @@ class Drag(Force):
         divides by its 30 px per length unit, so 0.025/30 px^-1.
     """
 
+    #: Declarations of the parameters: checks and file comments (`labrig.params`).
+    PARAMS: ClassVar[dict[str, Param]] = {"linear": Param("float", 0.0, MAX_DRAG, unit="1/s", doc="linear friction f1"),
+              "quadratic": Param("float", 0.0, MAX_DRAG, unit="1/px", doc="quadratic friction f2")}
+
     def __init__(self, linear: float = 0.025, quadratic: float = 0.025 / 30.0):
-        self.linear = real("Drag.linear", linear, 0.0, MAX_DRAG, unit="1/s")
-        self.quadratic = real("Drag.quadratic", quadratic, 0.0, MAX_DRAG, unit="1/px")
+        self.linear = self.PARAMS["linear"].check("Drag.linear", linear)
+        self.quadratic = self.PARAMS["quadratic"].check("Drag.quadratic", quadratic)
 
     def kick(self, ctx: StepContext) -> None:
         v = ctx.velocity

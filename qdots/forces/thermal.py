@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 import math
+from typing import ClassVar
 
 import numpy as np
 
-from labrig.validate import InputError, number, real
+from labrig.params import Param
+from labrig.validate import InputError, number
 
 from ..units import THESIS_KICK_INTERVAL, thesis_kick_speed
 from .base import Force, StepContext, instants_in_step
@@ -47,9 +49,16 @@ class ThermalKicks(Force):
         Multiplier on the thesis magnitude (>= 0).
     """
 
+    #: Declarations of the parameters: checks and file comments (`labrig.params`); the kicks per step and per
+    #: run are checked by `check_run`.
+    PARAMS: ClassVar[dict[str, Param]] = {"interval": Param("float", 0.0, MAX_INTERVAL, low_open=True, unit="s", doc="time between kicks",
+                                rule=f"at most {MAX_KICKS_PER_STEP:,} kicks per engine.dt and {MAX_KICKS_PER_RUN:,} "
+                                     "per run"),
+              "scale": Param("float", 0.0, MAX_SCALE, doc="multiple of the thesis kick speed")}
+
     def __init__(self, interval: float = THESIS_KICK_INTERVAL, scale: float = 1.0):
-        self.interval = real("ThermalKicks.interval", interval, 0.0, MAX_INTERVAL, low_open=True, unit="s")
-        self.scale = real("ThermalKicks.scale", scale, 0.0, MAX_SCALE)
+        self.interval = self.PARAMS["interval"].check("ThermalKicks.interval", interval)
+        self.scale = self.PARAMS["scale"].check("ThermalKicks.scale", scale)
 
     def kicks_in_step(self, time: float, dt: float) -> int:
         """How many kick instants fall in ``(time, time + dt]`` (`instants_in_step`)."""
@@ -102,11 +111,15 @@ class Langevin(Force):
         thesis kick, ``kT = thesis_kick_speed(1)**2 / 2`` (about 1.76).
     """
 
+    #: Declarations of the parameters: checks and file comments (`labrig.params`).
+    PARAMS: ClassVar[dict[str, Param]] = {"gamma": Param("float", 0.0, MAX_GAMMA, unit="1/s", doc="friction rate"),
+              "kT": Param("float", 0.0, MAX_KT, unit="mean-dot mass px^2/s^2", doc="thermal energy")}
+
     def __init__(self, gamma: float = 1.0, kT: float | None = None):
         if kT is None:
             kT = float(thesis_kick_speed(1.0)) ** 2 / 2.0
-        self.gamma = real("Langevin.gamma", gamma, 0.0, MAX_GAMMA, unit="1/s")
-        self.kT = real("Langevin.kT", kT, 0.0, MAX_KT)
+        self.gamma = self.PARAMS["gamma"].check("Langevin.gamma", gamma)
+        self.kT = self.PARAMS["kT"].check("Langevin.kT", kT)
 
     def kick(self, ctx: StepContext) -> None:
         if "sigma_unit" not in ctx.cache:

@@ -3,13 +3,15 @@
 from __future__ import annotations
 
 import math
+from typing import ClassVar
 
 import numpy as np
 
 from labrig.compiled import jit
-from labrig.validate import InputError, choice, real
+from labrig.params import Param
+from labrig.validate import InputError
 
-from ..neighbours import VerletPairs, pair_separation, pairs_closer
+from ..geometry import VerletPairs, pair_separation, pairs_closer
 from .base import Force, StepContext, instants_in_step
 
 MODELS = ("thesis", "hamaker")
@@ -201,6 +203,22 @@ class VanDerWaals(Force):
         (`qdots.Restitution.sticking_speed`).
     """
 
+    #: Declarations of the parameters: checks and file comments (`labrig.params`); max_gap above min_gap and
+    #: offset below it are checked in the constructor.
+    PARAMS: ClassVar[dict[str, Param]] = {
+        "model": Param("str", choices=MODELS, doc='pull law ("thesis": the Java proxy, "hamaker": Eq 2.2)'),
+        "r0": Param("float", 0.0, MAX_RANGE, low_open=True, unit="px", doc="range R0 of the proxy"),
+        "strength": Param("float", 0.0, MAX_STRENGTH, unit="mean-dot mass px^2/s^2", optional=True,
+                          doc="Hamaker constant of the hamaker model",
+                          unset="gives two mean-size dots at a 1 px gap the thesis proxy's pull"),
+        "min_gap": Param("float", 0.0, MAX_RANGE, low_open=True, unit="px", doc="closer counts as contact"),
+        "max_gap": Param("float", 0.0, 2 * MAX_RANGE, low_open=True, unit="px", optional=True,
+                         doc="no force beyond this gap", rule="above min_gap", unset="2 r0"),
+        "contact": Param("str", choices=CONTACTS, doc='force below min_gap ("hold": the force at min_gap, "zero": none)'),
+        "offset": Param("float", -MAX_RANGE, MAX_RANGE, unit="px", optional=True, doc="the proxy's b",
+                        rule="below min_gap", unset="from restitution.sticking_speed"),
+    }
+
     def __init__(
         self,
         model: str = "thesis",
@@ -212,25 +230,27 @@ class VanDerWaals(Force):
         contact: str = "hold",
         offset: float | None = None,
     ):
-        choice("VanDerWaals.model", model, MODELS)
-        choice("VanDerWaals.contact", contact, CONTACTS)
+        p = self.PARAMS
+        model = p["model"].check("VanDerWaals.model", model)
+        contact = p["contact"].check("VanDerWaals.contact", contact)
         # Derived defaults stay "unset" in params(), so a saved scene whose r0 is
         # edited recomputes them instead of freezing the old values.
         self._unset = {name for name, value in (("strength", strength), ("max_gap", max_gap)) if value is None}
-        r0 = real("VanDerWaals.r0", r0, 0.0, MAX_RANGE, low_open=True, unit="px")
-        max_gap = real("VanDerWaals.max_gap", 2.0 * r0 if max_gap is None else max_gap, 0.0, 2 * MAX_RANGE,
-                       low_open=True, unit="px")
-        min_gap = real("VanDerWaals.min_gap", min_gap, 0.0, MAX_RANGE, low_open=True, unit="px")
+        r0 = p["r0"].check("VanDerWaals.r0", r0)
+        max_gap = p["max_gap"].check("VanDerWaals.max_gap", 2.0 * r0 if max_gap is None else max_gap)
+        min_gap = p["min_gap"].check("VanDerWaals.min_gap", min_gap)
         if max_gap <= min_gap:
             raise InputError(f"VanDerWaals.max_gap ({max_gap}) must exceed min_gap ({min_gap})")
-        self.offset = None if offset is None else real("VanDerWaals.offset", offset, -MAX_RANGE, min_gap,
-                                                       high_open=True, unit="px")
+        offset = p["offset"].check("VanDerWaals.offset", offset)
+        if offset is not None and offset >= min_gap:
+            raise InputError(f"VanDerWaals.offset ({offset}) must be below min_gap ({min_gap})")
+        self.offset = offset
         self.model = model
         self.r0 = float(r0)
         self.min_gap = float(min_gap)
         self.max_gap = float(max_gap)
         self.contact = contact
-        self.strength = None if strength is None else real("VanDerWaals.strength", strength, 0.0, MAX_STRENGTH)
+        self.strength = p["strength"].check("VanDerWaals.strength", strength)
 
     def params(self) -> dict:
         params = super().params()
@@ -253,7 +273,7 @@ class VanDerWaals(Force):
         if self.strength is not None:
             return self.strength
         proxy = 0.5 * (self.r0 / (1.0 - offset)) ** 7
-        return real("VanDerWaals.strength", proxy / hamaker_force(1.0, 7.5, 7.5, 1.0), 0.0, MAX_STRENGTH)
+        return self.PARAMS["strength"].check("VanDerWaals.strength", proxy / hamaker_force(1.0, 7.5, 7.5, 1.0))
 
     def split(self, settings) -> bool:
         """True when the engine ``settings`` pull the far pairs every ``far_interval`` instead of every step."""

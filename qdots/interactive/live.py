@@ -39,7 +39,8 @@ from ..forces.thermal import MAX_SCALE
 from ..forces.vdw import MAX_RANGE
 from ..io import checkpoint
 from ..protocols import deposit
-from ..scene import MAX_DOTS, Scene, grating_segments, segment_distances
+from ..geometry import worst_wall_overlap
+from ..scene import MAX_DOTS, Scene, grating_segments
 from ..engine.settings import DT_RANGE, EngineSettings
 from ..restitution import Restitution
 from ..simulation import Simulation
@@ -211,13 +212,11 @@ class LiveRun:
         board = self.sim.current_scene()
         new = board.replace(segments=np.vstack([board.segments, np.asarray(segments, dtype=float).reshape(-1, 4)]))
         added = new.segments[len(board.segments):]
-        if board.n_dots and len(added):
-            gap = segment_distances(board.positions, added) - board.radii[:, None]
-            k, m = np.unravel_index(np.argmin(gap), gap.shape)
-            if gap[k, m] < 0:
-                x0, y0, x1, y1 = added[m]
-                raise InputError(f"wall ({x0:g}, {y0:g}) - ({x1:g}, {y1:g}) px crosses dot {k} at "
-                                 f"({board.positions[k, 0]:.1f}, {board.positions[k, 1]:.1f}) px")
+        _, (k, m) = worst_wall_overlap(board.positions, board.radii, added)
+        if k >= 0:
+            x0, y0, x1, y1 = added[m]
+            raise InputError(f"wall ({x0:g}, {y0:g}) - ({x1:g}, {y1:g}) px crosses dot {k} at "
+                             f"({board.positions[k, 0]:.1f}, {board.positions[k, 1]:.1f}) px")
         self._rebuild(new)
 
     def add_wall(self, x0: float, y0: float, x1: float, y1: float) -> None:

@@ -4,7 +4,9 @@ An experiment file holds one experiment: top-level ``name``, ``seed`` and
 ``grating``, the tables ``[board]``, ``[deposition]``, ``[restitution]`` and
 ``[engine]``, and one ``[[forces]]`` table per force. Every key is optional
 (a missing key takes its default) and `experiment_to_toml` writes all of
-them, with units and allowed ranges in comments. Floats are written with
+them, with units and allowed ranges in comments generated from each
+parameter's declaration (`labrig.params.Param`), the one the classes check
+values with. Floats are written with
 ``repr`` and read back exactly, so ``load_experiment(save_experiment(exp))
 == exp``. Unknown keys, wrong types and out-of-range values raise a
 ValueError naming the file and the full key (e.g. ``deposition.sigmaa``).
@@ -23,122 +25,50 @@ import os
 from pathlib import Path
 
 from labrig.files import write_text_atomic
+from labrig.params import file_schema
 from labrig.tomlfile import as_table, check_keys, from_source, parse_toml, read_toml, toml_line, top_level
-from labrig.validate import MAX_SEED, InputError, number, typed
+from labrig.validate import InputError, typed
 
-from ..restitution import MAX_STICKING_SPEED, Restitution
-from ..experiment import MAX_SETTLE, Board, Deposition, Experiment
-from ..forces import FORCE_TYPES
-from ..forces.fields import MAX_ACCELERATION, MAX_DRAG
-from ..forces.thermal import MAX_GAMMA, MAX_KICKS_PER_RUN, MAX_KICKS_PER_STEP, MAX_KT, MAX_SCALE
-from ..forces.thermal import MAX_INTERVAL as MAX_KICK_INTERVAL
-from ..forces.vdw import MAX_RANGE, MAX_STRENGTH
-from ..neighbours import MAX_SKIN
-from ..placement import MAX_TRIES
-from ..protocols import MAX_INTERVAL
-from ..scene import MAX_DOTS, MAX_LENGTH, MAX_MASS
-from ..engine.settings import (DT_RANGE, MAX_FAR_INTERVAL, MAX_HASH_CELLS, MAX_ITERATIONS, MAX_NEAR_GAP, MAX_SLOP,
-                               MAX_SUBSTEPS, TOLERANCE_RANGE, EngineSettings)
-from ..simulation import MAX_STEPS
+from ..restitution import Restitution
+from ..experiment import Board, Deposition, Experiment
+from ..forces import FORCE_TYPE, FORCE_TYPES
+from ..engine.settings import EngineSettings
 from .old_spellings import current_experiment
 
-_PX = f"(0, {number(MAX_LENGTH)}]"
-
-#: Top-level scalars: key -> (kind, comment).
-TOP = {
-    "name": ("str", "label of the run"),
-    "seed": ("int", f"integer in [0, {MAX_SEED}]; root of the simulation and deposition random streams"),
-    "grating": ("float", "px, a wall at y = grating keeps the dots in 0 < y < grating; "
-                         "in (mean_diameter, board.height), 0 = no grating"),
-}
-#: Tables: name -> (class, {key: (kind, comment)}). Kinds ending in "?" may be unset (None).
-TABLES = {
-    "board": (Board, {
-        "width": ("float", f"px, in {_PX}"),
-        "height": ("float", f"px, in {_PX}"),
-        "closed": ("bool", "the four edges are hard walls"),
-    }),
-    "deposition": (Deposition, {
-        "protocol": ("str", '"random" (uniform in the board or grating channel) | "centre" (ring around the centre)'),
-        "n_dots": ("int", f"dots deposited, integer in [0, {MAX_DOTS:,}]"),
-        "mean_diameter": ("float", f"px, in {_PX}"),
-        "sigma": ("float", "fraction of mean diameter, [0, 1)"),
-        "mass_model": ("str", '"equal" | "area" (d/mean)^2 | "volume" (d/mean)^3 | "bimodal"'),
-        "heavy_mass": ("float", f"mass of the heavy half of a bimodal board, mean-dot masses, in (0, {number(MAX_MASS)}]"),
-        "interval": ("float", f"s of simulated time between two dots, in [0, {number(MAX_INTERVAL)}]"),
-        "settle": ("float", f"s of simulated time after the last dot, in [0, {number(MAX_SETTLE)}]; "
-                            f"the whole run at most {MAX_STEPS:,} steps"),
-        "max_tries": ("int", f"rejected candidates in a row before the board counts as full, in [1, {MAX_TRIES:,}]"),
-    }),
-    "restitution": (Restitution, {
-        "mean": ("float", "mean dot-dot coefficient of restitution, [0, 1]"),
-        "wall": ("float", "dot-wall coefficient of restitution, [0, 1]"),
-        "sticking_speed": ("float", f"px/s, slower dot-dot impacts are perfectly inelastic, in [0, "
-                                    f"{number(MAX_STICKING_SPEED)}]"),
-    }),
-    "engine": (EngineSettings, {
-        "dt": ("float", f"s, time step, in [{number(DT_RANGE[0])}, {number(DT_RANGE[1])}]"),
-        "substeps": ("int", f"fewest Chipmunk steps per time step, in [1, {MAX_SUBSTEPS}]"),
-        "overlap_tolerance": ("float?", f"radii a dot may travel into a contact in one Chipmunk step, in "
-                                        f"[{number(TOLERANCE_RANGE[0])}, {number(TOLERANCE_RANGE[1])}]; false: "
-                                        "always `substeps`"),
-        "max_substeps": ("int", f"most Chipmunk steps per time step for overlap_tolerance, in [1, {MAX_SUBSTEPS}]"),
-        "iterations": ("int", f"solver iterations per sub-step, in [1, {MAX_ITERATIONS}]"),
-        "collision_slop": ("float", f"px of overlap left uncorrected, in [0, {number(MAX_SLOP)}]"),
-        "collision_bias": ("float?", "overlap fraction left after 1 s, [0, 1); unset: 30 % corrected per sub-step"),
-        "spatial_hash": ("pair?", f"[cell size px > 0, count in [1, {MAX_HASH_CELLS:,}]]; unset: Chipmunk's "
-                                  "bounding-box tree"),
-        "threads": ("int", "solver threads, 1 or 2"),
-        "pair_skin": ("float", f"px, Verlet skin of the van der Waals pair list, in [0, {number(MAX_SKIN)}]"),
-        "near_gap": ("float", f"px, van der Waals pairs closer than this are pulled every step, in "
-                              f"(0, {number(MAX_NEAR_GAP)}]"),
-        "far_interval": ("float?", f"s between passes over the farther van der Waals pairs, in "
-                                   f"(0, {number(MAX_FAR_INTERVAL)}]; false: every pair every step"),
-        "tune_allocator": ("bool", "raise glibc's allocator thresholds (speed only)"),
-    }),
-}
-#: Comments for force parameters: type -> {parameter: comment}.
-FORCE_NOTES = {
-    "VanDerWaals": {"model": '"thesis" (Java proxy) | "hamaker" (Eq 2.2)',
-                    "r0": f"px, range R0 of the proxy, in (0, {number(MAX_RANGE)}]",
-                    "strength": f"Hamaker constant, mean-dot mass px^2/s^2, in [0, {number(MAX_STRENGTH)}]",
-                    "min_gap": "px, closer counts as contact", "max_gap": "px, no force beyond",
-                    "contact": '"hold" | "zero" (force below min_gap)',
-                    "offset": "px, the proxy's b, below min_gap; unset: from restitution.sticking_speed"},
-    "ThermalKicks": {"interval": f"s between kicks, in (0, {number(MAX_KICK_INTERVAL)}]; at most "
-                                 f"{MAX_KICKS_PER_STEP:,} kicks per engine.dt and {MAX_KICKS_PER_RUN:,} per run",
-                     "scale": f"multiple of the thesis kick speed, in [0, {number(MAX_SCALE)}]"},
-    "Langevin": {"gamma": f"1/s, friction rate, in [0, {number(MAX_GAMMA)}]",
-                 "kT": f"mean-dot mass px^2/s^2, in [0, {number(MAX_KT)}]"},
-    "Drag": {"linear": f"f1, 1/s, in [0, {number(MAX_DRAG)}]", "quadratic": f"f2, 1/px, in [0, {number(MAX_DRAG)}]"},
-    "Gravity": {"acceleration": f"[ax, ay], px/s^2, each within +-{number(MAX_ACCELERATION)}"},
-    "CentreGravity": {"centre": "[x, y], px", "magnitude": f"px/s^2, in [0, {number(MAX_ACCELERATION)}]"},
-}
+#: The tables of an experiment file and the classes they build. The keys of a table, their kinds, ranges and
+#: units, and the comments a saved file gives them are the class's declarations (``cls.PARAMS``,
+#: `labrig.params.Param`), as are the top-level keys (`Experiment.PARAMS`) and each force's parameters
+#: (``FORCE_TYPES[type].PARAMS``).
+TABLES = {"board": Board, "deposition": Deposition, "restitution": Restitution, "engine": EngineSettings}
 
 
 def experiment_to_toml(exp: Experiment) -> str:
-    """The experiment file text of ``exp``: every parameter, with units and ranges in comments."""
+    """The experiment file text of ``exp``: every parameter, its unit and range in a comment (from its declaration)."""
     lines = ["# qdots experiment. Units: px, s (simulated), masses in units of a mean-size dot's mass.",
-             "# Every key is optional; a missing key takes the default. Load with qdots.io.experiment_file.load_experiment.",
+             "# Every key is optional; a missing key takes the default, `key = false` unsets a key whose default",
+             ("# is set. Comments: what a key is, its unit and its range. Load with "
+              "qdots.io.experiment_file.load_experiment."),
              ""]
-    lines += [toml_line(key, getattr(exp, key), note) for key, (_, note) in TOP.items()]
+    lines += [toml_line(key, getattr(exp, key), param.comment()) for key, param in Experiment.PARAMS.items()]
     if not exp.forces:
         lines.append("forces = []  # no forces")
-    for table, (_, schema) in TABLES.items():
+    for table, cls in TABLES.items():
         obj = getattr(exp, table)
-        defaults = {f.name: f.default for f in dataclasses.fields(obj)} if dataclasses.is_dataclass(obj) else {}
-        lines += ["", f"[{table}]"] + [toml_line(key, getattr(obj, key), note, defaults.get(key))
-                                       for key, (_, note) in schema.items()]
+        defaults = {f.name: f.default for f in dataclasses.fields(obj)}
+        lines += ["", f"[{table}]"] + [toml_line(key, getattr(obj, key), param.comment(), defaults.get(key))
+                                       for key, param in cls.PARAMS.items()]
     for spec in exp.forces:
-        notes = FORCE_NOTES.get(spec["type"], {})
+        declared = FORCE_TYPES[spec["type"]].PARAMS
         defaults = force_defaults(spec["type"])
-        lines += ["", "[[forces]]"] + [toml_line(k, v, notes.get(k), defaults.get(k)) for k, v in spec.items()]
+        lines += ["", "[[forces]]", toml_line("type", spec["type"], FORCE_TYPE.comment())]
+        lines += [toml_line(k, v, declared[k].comment(), defaults.get(k)) for k, v in spec.items() if k != "type"]
     return "\n".join(lines) + "\n"
 
 
 def force_defaults(name: str) -> dict:
-    """The constructor defaults of the force type ``name`` ({} for an unknown type)."""
-    cls = FORCE_TYPES.get(name)
+    """The constructor defaults of the force type ``name`` ({} for an unknown type, or a type that is not a
+    string: the force reader refuses it in words)."""
+    cls = FORCE_TYPES.get(name) if isinstance(name, str) else None
     if cls is None:
         return {}
     return {key: p.default for key, p in inspect.signature(cls.__init__).parameters.items()
@@ -160,9 +90,9 @@ def save_experiment(exp: Experiment, path: str | os.PathLike) -> Path:
 
 
 def _table(name: str, data) -> object:
-    cls, schema = TABLES[name]
-    check_keys(name, as_table(name, data), schema)
-    values = {key: typed(f"{name}.{key}", value, schema[key][0]) for key, value in data.items()}
+    cls = TABLES[name]
+    check_keys(name, as_table(name, data), cls.PARAMS)
+    values = {key: typed(f"{name}.{key}", value, cls.PARAMS[key].file_kind) for key, value in data.items()}
     try:
         return cls(**values)
     except ValueError as exc:
@@ -182,7 +112,7 @@ def experiment_from_dict(data: dict) -> Experiment:
         Naming the full key of an unknown key, a wrong type or an out-of-range value.
     """
     data = current_experiment(data)
-    kwargs = top_level(data, TOP, [*TABLES, "forces"])
+    kwargs = top_level(data, file_schema(Experiment.PARAMS), [*TABLES, "forces"])
     kwargs.update({name: _table(name, data[name]) for name in TABLES if name in data})
     if "forces" in data:
         forces = data["forces"]

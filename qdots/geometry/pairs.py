@@ -1,12 +1,15 @@
-"""Candidate pairs for short-range forces: a Verlet list built on a cell grid.
+"""Pair searches: which dots are near which, on the compiled cell grid and on a KD-tree.
 
-The list holds every pair closer than ``cutoff + skin`` when it is built and
-is rebuilt only when some dot has moved more than ``skin / 2`` since then, so
-it never misses a pair within ``cutoff`` (two dots closing in on each other
-can reduce their distance by at most ``skin`` before a rebuild). ``skin = 0``
-rebuilds every step. A build bins the dots into square cells and compares each
-dot with the dots of the cells within reach (`pairs_within`): 1.5-2.3x faster
-than scipy's KD-tree from 300 to 30,000 dots (measured on this 2-core machine).
+* `pairs_within` (the engine's): every pair ``(i, j)``, ``i < j``, closer than a cutoff, strictly, in the
+  order of a cell grid (compiled). `VerletPairs` keeps such a list with a skin and rebuilds it only when
+  some dot has moved more than ``skin / 2`` since the last build, so it never misses a pair within the
+  cutoff (two dots closing in on each other can reduce their distance by at most ``skin`` before a
+  rebuild). ``skin = 0`` rebuilds every step. The grid search is 1.5-2.3x faster than scipy's KD-tree
+  from 300 to 30,000 dots (measured on a 2-core machine). `pairs_closer` keeps the sub-list of pairs
+  whose surfaces are closer than a gap; `pair_separation` is the offset of one pair (compiled callers).
+* `pairs_with_distances` (the analysis's): every pair ``(i, j, d)`` at most a reach apart, with its
+  centre distance, in the order of scipy's KD-tree, refused beforehand (`pair_bound`) when they could be
+  more than `MAX_PAIRS`.
 """
 
 from __future__ import annotations
@@ -14,15 +17,17 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from labrig.compiled import jit
 from labrig.validate import InputError, real
 
 #: Largest Verlet skin, px.
 MAX_SKIN = 1000.0
-#: Most pairs of dots one pair search lists (the engine's Verlet lists, `pair_bound` for the analysis and the
-#: scene checks): about 40 bytes a pair in indices, distances and offsets, 4 GB. The largest boards measured
-#: have far fewer: 4e6 pairs for g(r) to 5 mean diameters on 10^5 dots, about 1e7 within 2 diameters on 10^6.
+#: Most pairs of dots one pair search lists (the engine's Verlet lists; `pairs_with_distances`, by `pair_bound`,
+#: for the analysis and the scene checks): about 40 bytes a pair in indices, distances and offsets, 4 GB. The
+#: largest boards measured have far fewer: 4e6 pairs for g(r) to 5 mean diameters on 10^5 dots, about 1e7 within
+#: 2 diameters on 10^6.
 MAX_PAIRS = 100_000_000
 #: Most cells of the grid of one pair search (8 bytes each: 512 MiB). A board gets about 2 cells a dot,
 #: 2e6 for the largest (`qdots.scene.MAX_DOTS`); only dots strung along a line with a cutoff far below their
@@ -251,3 +256,44 @@ class VerletPairs:
         self._cutoff = cutoff
         self.rebuilds += 1
         self.i, self.j = pairs_within(x, y, cutoff + self.skin, expected=self.i.size)
+
+
+def pairs_with_distances(positions: np.ndarray, reach: float, what: str | None = None
+                         ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Every pair ``i < j`` of points with centre distance <= ``reach`` px, and that distance.
+
+    Parameters
+    ----------
+    positions : ndarray, shape (N, 2)
+        Centres, px.
+    reach : float
+        Largest centre distance, px (>= 0); a pair at exactly ``reach`` is listed.
+    what : str, optional
+        What asked for ``reach``, for the message when the pairs could be too many.
+
+    Returns
+    -------
+    i, j : ndarray of int, shape (P,)
+        The pairs, ``i < j``, in the order of scipy's KD-tree (``cKDTree.query_pairs``).
+    distance : ndarray, shape (P,)
+        Centre distance of each pair, px.
+
+    Raises
+    ------
+    labrig.validate.InputError
+        Naming ``what`` when the pairs could be more than `MAX_PAIRS` (`pair_bound`, checked before the
+        search when ``N (N - 1) / 2`` exceeds it).
+    """
+    n = len(positions)
+    if n < 2:
+        empty = np.zeros(0, dtype=np.intp)
+        return empty, empty, np.zeros(0)
+    if n * (n - 1) // 2 > MAX_PAIRS:
+        bound = pair_bound(positions[:, 0], positions[:, 1], reach)
+        if bound > MAX_PAIRS:
+            raise InputError(f"{what or f'a reach of {reach:g} px'} takes up to {bound:.3g} pairs of the {n:,} dots "
+                             f"(within {reach:g} px), more than the {MAX_PAIRS:,} allowed")
+    pairs = cKDTree(positions).query_pairs(reach, output_type="ndarray")
+    i, j = pairs[:, 0], pairs[:, 1]
+    delta = positions[i] - positions[j]
+    return i, j, np.sqrt(np.einsum("ij,ij->i", delta, delta))
