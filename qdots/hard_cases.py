@@ -253,7 +253,7 @@ def check(case: HardCase) -> dict:
             crossed = crossed or not np.array_equal(_channels(s.positions, scene.segments), channels)
     settled = slice(int(0.6 * samples), None)
     adaptive = sim.settings.overlap_tolerance is not None
-    step = 0.0 if adaptive else sim.dt / sim.substeps
+    step = 0.0 if adaptive else sim.dt / sim.settings.substeps
     return {"case": case.name, "dots": sim.n_dots, "steps": sim.steps_taken, "wall_s": wall_time,
             "finite": finite, "lost": lost, "crossed": crossed,
             "warned": any("per sub-step" in str(w.message) for w in caught),

@@ -58,6 +58,17 @@ def check_motion(positions: np.ndarray, velocities: np.ndarray, radii: np.ndarra
     return float((speed / radii).max()) * sub_dt
 
 
+def describe_forces(forces) -> str:
+    """The forces with their parameters, for messages (a force that cannot say them by its class name)."""
+    def describe(force) -> str:
+        try:
+            return repr(force)
+        except (AttributeError, TypeError, ValueError):
+            return type(force).__name__
+
+    return ", ".join(map(describe, forces)) or "none"
+
+
 def warn_travel(travel: float, when: str) -> None:
     """Warn that a dot moves ``travel`` radii per sub-step, more than `SAFE_TRAVEL`."""
     warnings.warn(f"{when} a dot moves {travel:.2f} radii per sub-step (> {SAFE_TRAVEL}): contacts are found "

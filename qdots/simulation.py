@@ -22,14 +22,13 @@ from typing import Iterable, Sequence
 import numpy as np
 
 from labrig.progress import progress_bar
-from labrig.validate import InputError, real
-from labrig.validate import seed as valid_seed
+from labrig.validate import InputError, generator, real
 
 from .engine import ChipmunkEngine
 from .engine.contacts import CollisionRecord, stream_key
 from .engine.settings import OVERLAP_CORRECTION, EngineSettings  # noqa: F401 (public here too)
 from .forces.base import Force
-from .motion import SAFE_TRAVEL, RunawayError, check_motion, warn_travel  # noqa: F401 (public here too)
+from .motion import SAFE_TRAVEL, RunawayError, check_motion, describe_forces, warn_travel  # noqa: F401
 from .restitution import Restitution
 from .scene import Scene, check_clear
 from .state import State
@@ -92,7 +91,7 @@ class Simulation:
         self._settings = engine
         self._restitution = restitution
         self.scene = scene
-        self.rng = _generator(seed)
+        self.rng = generator("seed", seed)
         self.steps_taken = 0
         #: Simulation time at step 0, s (nonzero for a run resumed from a checkpoint).
         self.start_time = 0.0
@@ -281,11 +280,6 @@ class Simulation:
         return self._settings.dt
 
     @property
-    def substeps(self) -> int:
-        """Chipmunk steps per time step."""
-        return self._settings.substeps
-
-    @property
     def time(self) -> float:
         """Simulation time, s: start time + steps taken * dt (no round-off drift)."""
         return self.start_time + self.steps_taken * self._settings.dt
@@ -371,10 +365,10 @@ class Simulation:
         position, velocity = self.engine.read()
 
         def describe() -> tuple[str, str]:
-            forces = ", ".join(map(_describe, self._forces)) or "none"
+            forces = describe_forces(self._forces)
             return f"at t = {self.time:g} s (step {self.steps_taken})", f"the forces ({forces}) or the time step"
 
-        sub_dt = self.dt / max(self.engine.last_substeps, self.substeps)  # the last step's sub-step
+        sub_dt = self.dt / max(self.engine.last_substeps, self._settings.substeps)  # the last step's sub-step
         travel = check_motion(position, velocity, self.radii, sub_dt, self.scene.box, describe)
         if self._settings.overlap_tolerance is not None:  # contacts are planned for: warn only when capped
             travel = self.engine.take_capped_travel()
@@ -405,19 +399,4 @@ class Simulation:
 
     def __repr__(self) -> str:
         return (f"Simulation(n_dots={self.n_dots}, t={self.time:g} s, dt={self.dt:g} s, "
-                f"substeps={self.substeps}, forces={list(self._forces)})")
-
-
-def _describe(force: Force) -> str:
-    """A force with its parameters, for messages (its class name if it cannot say them)."""
-    try:
-        return repr(force)
-    except (AttributeError, TypeError, ValueError):
-        return type(force).__name__
-
-
-def _generator(seed) -> np.random.Generator:
-    """The simulation's generator from a seed (an integer >= 0, a SeedSequence or None)."""
-    if seed is None or isinstance(seed, np.random.SeedSequence):
-        return np.random.default_rng(seed)
-    return np.random.default_rng(valid_seed("seed", seed))
+                f"substeps={self._settings.substeps}, forces={list(self._forces)})")
