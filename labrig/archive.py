@@ -22,9 +22,9 @@ import numpy as np
 
 from .files import atomic_path, existing_file
 from .jsonfile import parse_json
-from .validate import InputError, within_memory
+from .validate import InputError, available_memory, within_memory
 
-__all__ = ["write_archive", "read_archive", "available_memory", "MAX_ARCHIVE_BYTES", "MAX_METADATA_CHARS",
+__all__ = ["write_archive", "read_archive", "MAX_ARCHIVE_BYTES", "MAX_METADATA_CHARS",
            "MAX_MEMBERS"]
 
 #: Largest archive `read_archive` loads, bytes uncompressed.
@@ -47,22 +47,6 @@ def write_archive(path: str | os.PathLike, metadata: dict, arrays: dict) -> Path
         with open(tmp, "wb") as stream:  # a file object stops np.savez appending ".npz"
             np.savez(stream, metadata=np.array(json.dumps(metadata)), **arrays)
     return Path(path)
-
-
-def available_memory() -> float:
-    """Bytes of memory this process can expect to get (MemAvailable on Linux; else the physical memory; inf
-    when neither can be read)."""
-    try:
-        with open("/proc/meminfo") as stream:
-            for line in stream:
-                if line.startswith("MemAvailable:"):
-                    return float(line.split()[1]) * 1024
-    except OSError:
-        pass
-    try:
-        return float(os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
-    except (ValueError, OSError, AttributeError):  # pragma: no cover - no way to tell
-        return math.inf
 
 
 def read_archive(path: str | os.PathLike, kind: str, version: int, names: Sequence[str], what: str | None = None,

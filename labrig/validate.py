@@ -23,12 +23,13 @@ its traceback.
 from __future__ import annotations
 
 import math
+import os
 import numbers
 
 import numpy as np
 
 __all__ = ["InputError", "number", "interval", "is_real", "real", "count", "seed", "generator", "choice", "flag", "text", "reals",
-           "array", "typed", "within_memory", "printable", "MAX_SEED"]
+           "array", "typed", "within_memory", "available_memory", "printable", "MAX_SEED"]
 
 #: Largest seed accepted (numpy's generators take any integer >= 0; this keeps seeds within 64 bits).
 MAX_SEED = 2**63 - 1
@@ -184,6 +185,22 @@ def array(name: str, value, shape: tuple[int | None, ...], *, limit: float = mat
         raise InputError(f"{name}{where} {why} ({float(arr[index])!r})")
     arr.setflags(write=False)
     return arr
+
+
+def available_memory() -> float:
+    """Bytes of memory this process can expect to get (MemAvailable on Linux; else the physical memory; inf
+    when neither can be read)."""
+    try:
+        with open("/proc/meminfo") as stream:
+            for line in stream:
+                if line.startswith("MemAvailable:"):
+                    return float(line.split()[1]) * 1024
+    except OSError:
+        pass
+    try:
+        return float(os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
+    except (ValueError, OSError, AttributeError):  # pragma: no cover - no way to tell
+        return math.inf
 
 
 def within_memory(name: str, n_bytes: float, limit_bytes: float) -> None:

@@ -8,14 +8,13 @@
 from __future__ import annotations
 
 import math
-import os
 import time
 from dataclasses import dataclass, field
 from typing import Callable
 
 import numpy as np
 
-from labrig.validate import InputError, count, flag, real, reals, within_memory
+from labrig.validate import InputError, available_memory, count, flag, real, reals, within_memory
 
 from .engines import engine_settings
 from .engines.base import check_oxide
@@ -129,21 +128,6 @@ def thickness_targets(spec, thickness: float, name: str, limit: int = MAX_RECORD
     return np.unique(values)
 
 
-def _available_memory() -> float:
-    """Bytes of memory this process can expect to get (MemAvailable on Linux; else the physical memory)."""
-    try:
-        with open("/proc/meminfo") as stream:
-            for line in stream:
-                if line.startswith("MemAvailable:"):
-                    return float(line.split()[1]) * 1024
-    except OSError:
-        pass
-    try:
-        return float(os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
-    except (ValueError, OSError, AttributeError):  # pragma: no cover - no way to tell
-        return math.inf
-
-
 def _model_and_engine(model, engine):
     """The `Model` (default ``Model()``) and the engine settings of a call."""
     model = Model() if model is None else model
@@ -209,7 +193,7 @@ def anodize(metal: Surface, thickness: float, model: Model | None = None, engine
     shots_at = thickness_targets([0.0, thickness] if snapshots is None else snapshots, thickness, "snapshots",
                                  MAX_RECORD, empty=True)
     n = metal.z.size
-    within_memory("the run", run_bytes(n, len(rows_at), len(shots_at)), _available_memory())
+    within_memory("the run", run_bytes(n, len(rows_at), len(shots_at)), available_memory())
     sim = settings.build(metal, oxide, model)
     parameters = {"engine": settings.name, "thickness": thickness, "step": model.step, "k_exp": model.k_exp,
                   "distance": model.distance, "volume": model.volume, "boundary": metal.boundary,

@@ -227,9 +227,9 @@ def test_the_memory_of_a_run_counts_the_engine_snapshots_and_history(monkeypatch
     need = run_bytes(hill.z.size, 51, 2)  # record=50: 51 rows; the default snapshots: start and end
     assert run_bytes(hill.z.size, 52, 2) - need == HISTORY_ROW_BYTES
     assert run_bytes(hill.z.size, 51, 3) - need == 24 * hill.z.size  # metal, oxide and distances
-    monkeypatch.setattr(anodize_module, "_available_memory", lambda: need - 1)
+    monkeypatch.setattr(anodize_module, "available_memory", lambda: need - 1)
     refused(lambda: anodize(hill, 0.01, Model(step=0.01)), "the run would need about .* GiB of memory, more than")
-    monkeypatch.setattr(anodize_module, "_available_memory", lambda: need)
+    monkeypatch.setattr(anodize_module, "available_memory", lambda: need)
     assert anodize(hill, 0.01, Model(step=0.01)).complete
 
 

@@ -56,7 +56,7 @@ from labrig.validate import InputError, array, choice, flag, real
 from ..surface import BOUNDARIES, MAX_POINTS, Surface, check_heights
 from .gwy import read_gwy, write_gwy
 from .limits import checked_file
-from .texttable import read_table
+from .texttable import is_number, read_table
 from .units import MAX_COORDINATE, file_unit, given_spacing, spacing_pair, unit_scale, unit_scales
 
 #: Formats by file suffix.
@@ -178,14 +178,6 @@ def _text_table(path: Path, columns: int) -> tuple[dict, np.ndarray]:
     return read_table(path, columns * MAX_POINTS, HEADER_KEYS, note)
 
 
-def _is_number(text: str) -> bool:
-    try:
-        float(text)
-    except ValueError:
-        return False
-    return True
-
-
 _QUANTITY = re.compile(r"^\s*([-+0-9.eE]+)\s*(\S*)\s*$")
 
 
@@ -194,7 +186,7 @@ def _quantity(header: dict, key: str) -> tuple[float, str] | None:
     if key not in header:
         return None
     match = _QUANTITY.match(header[key])
-    if not match or not _is_number(match.group(1)):
+    if not match or not is_number(match.group(1)):
         raise InputError(f"header {key!r}: cannot read {header[key]!r} as a number and a unit")
     value = real(f"header {key!r}", float(match.group(1)), 0.0, MAX_COORDINATE, low_open=True)
     return value, file_unit(match.group(2), f"header {key!r} values")

@@ -114,8 +114,8 @@ class _TableReader:
         try:
             numbers = [float(f) for f in fields]
         except ValueError:
-            bad = next(f for f in fields if not _is_number(f))
-            if self.names_allowed and self.row_values == 0 and not any(_is_number(f) for f in fields):
+            bad = next(f for f in fields if not is_number(f))
+            if self.names_allowed and self.row_values == 0 and not any(is_number(f) for f in fields):
                 self.line_mode, self.bad_name = "names", bad  # a first line of column names, unless a number follows
                 return
             raise InputError(f"line {self.number}: cannot read {bad.strip()!r} as a number") from None
@@ -125,7 +125,7 @@ class _TableReader:
             raise InputError(f"the file holds more than {self.max_values:,} numbers{self.limit_note}")
 
     def _names(self, fields) -> None:
-        if any(_is_number(f) for f in fields):  # a line of names has no number
+        if any(is_number(f) for f in fields):  # a line of names has no number
             raise InputError(f"line {self.number}: cannot read {self.bad_name.strip()!r} as a number")
 
     def _end_line(self) -> None:
@@ -153,7 +153,8 @@ class _TableReader:
         return np.frombuffer(self.values, dtype=float).reshape(self.rows, self.width)
 
 
-def _is_number(text: str) -> bool:
+def is_number(text: str) -> bool:
+    """Whether ``text`` reads as a float."""
     try:
         float(text)
     except ValueError:
