@@ -224,6 +224,8 @@ class OutputSet(AllOrNothing):
     def __init__(self, directory: str | os.PathLike, name: str):
         self.directory = Path(directory)
         self.name = name
+        #: Whether this set made ``directory`` (an aborted set then removes it again if it is empty).
+        self.made_directory = not self.directory.exists()
         self.directory.mkdir(parents=True, exist_ok=True)
         remove_stale_temporaries(self.directory)
         self._staging = open_staging(self.directory, name)
@@ -376,11 +378,15 @@ class OutputSet(AllOrNothing):
 
     def abort(self) -> None:
         """Drop every staged file and stream; the earlier files stay as they were (a switch that had
-        begun is finished by the next open or reader instead)."""
+        begun is finished by the next open or reader instead). A directory that this set made is removed
+        when nothing is left in it: a refused run leaves nothing behind."""
         for stream in self._streams:
             stream.abort()
         self._streams, self._staged, self._updates = [], [], []
         self._staging.discard()
+        if self.made_directory:
+            with contextlib.suppress(OSError):  # not empty (another writer's files): it stays
+                self.directory.rmdir()
 
     def finish(self) -> list[Path]:
         """`commit` (what the end of a ``with`` block calls)."""

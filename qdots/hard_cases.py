@@ -20,12 +20,10 @@ radius; `qdots.geometry.worst_overlap`); dot-wall overlap is (r - distance to th
 (`qdots.geometry.worst_wall_overlap`).
 
 Cases marked *known failure* are limits measured here and documented, not hidden: the tests
-expect them to fail (strict xfail), so a fix shows up as an unexpected pass. Since 0.3 (forces
-handed to Chipmunk's contact solve, sub-steps that adapt to approach speeds) all five limits of
-0.2 pass at the default settings. The last of them, a 1000:1 mass mixture under centre gravity
-whose light dots move ~600 px/s and would need ~200 sub-steps, passes at the default cap of 64
-since the default became 5 solver iterations (settled overlap 0.7 %; 9.4 % at 10 iterations) and
-with ``max_substeps = 256`` at either. The one kept shows what fixed sub-steps do.
+expect them to fail (strict xfail), so a fix shows up as an unexpected pass. Two are kept: what
+fixed sub-steps do, and a 1000:1 mass mixture under centre gravity (not a thesis scene) at the
+default step, the thesis's 20 ms frame, which passes at 5 ms. Every other case passes at the
+defaults; samples are taken at least one time step apart.
 
 """
 
@@ -203,10 +201,14 @@ CASES = [
     HardCase("size ratio 10, equal masses, vdW film", mixture("equal"), 3.0, 50.0),
     HardCase("size ratio 10, masses ~ r^3, vdW film, substeps 4", mixture("volume"), 1.5, 50.0, {"substeps": 4}),
     HardCase("size ratio 10, masses ~ r^3, vdW film, defaults", mixture("volume"), 3.0, 50.0, slow=True),
-    HardCase("size ratio 10, masses ~ r^3, centre gravity x1, max_substeps 256", mixture("volume", 1.0), 2.0,
-             2 * fall_speed(750, 424, 0.01), {"max_substeps": 256}, slow=True),
+    HardCase("size ratio 10, masses ~ r^3, centre gravity x1, dt 5 ms", mixture("volume", 1.0), 2.0,
+             2 * fall_speed(750, 424, 0.01), {"dt": 5e-3}, slow=True),
     HardCase("size ratio 10, masses ~ r^3, centre gravity x1, defaults", mixture("volume", 1.0), 2.0,
-             2 * fall_speed(750, 424, 0.01), slow=True),
+             2 * fall_speed(750, 424, 0.01), slow=True,
+             known_failure="at the thesis's 20 ms frame each step's gravity reaches the 1000x lighter dots as one "
+                           "velocity change that Chipmunk's iterative contact solve spreads through the heavy dots "
+                           "only in part: transient overlap 24 %, settled 5.2 % (measured; 20 iterations: 8.9 % and "
+                           "1.1 %). At dt = 5 ms it passes (0.4 %)"),
     HardCase("elasticity 0.02, falling gas", falling_gas(), 2.5, 2 * math.hypot(300, fall_speed(750, 420)),
              restitution=Restitution(mean=0.02)),
     HardCase("elasticity 0.98, falling gas", falling_gas(), 2.5, 2 * math.hypot(300, fall_speed(750, 420)),
@@ -217,8 +219,8 @@ CASES = [
     HardCase("head-on at 3000x thermal speed (5,628 px/s), defaults", head_on(3000), 0.1, 6000 * KICK, sample=0.002),
     HardCase("head-on at 3000x thermal speed (5,628 px/s), fixed sub-steps", head_on(3000), 0.1, 6000 * KICK,
              {"overlap_tolerance": None}, slow=True, sample=0.002,
-             known_failure="no continuous collision detection: at a fixed sub-step a dot travels 17 px (2.3 r) per "
-                           "3 ms step and passes through walls (measured); the run warns "
+             known_failure="no continuous collision detection: at a fixed sub-step a dot travels 113 px (15 r) per "
+                           "20 ms step and passes through walls (measured); the run warns "
                            "(`qdots.simulation.SAFE_TRAVEL`). The default, sub-steps that adapt to approach speeds "
                            "(`overlap_tolerance`), passes"),
     HardCase("30,000 dots, vdW + kicks + drag, 10^3 steps", large_film, 1.0, 100.0, slow=True),
@@ -230,7 +232,7 @@ def check(case: HardCase) -> dict:
     scene, forces = case.build()
     sim = Simulation(scene, forces, restitution=case.restitution, seed=1, **case.settings)
     walls, channels = scene.wall_segments(), _channels(scene.positions, scene.segments)
-    samples = max(1, round(case.seconds / case.sample))
+    samples = max(1, round(case.seconds / max(case.sample, sim.dt)))  # each sample at least one step
     sim.check_run(samples * round(case.seconds / samples / sim.dt) * sim.dt)  # the whole case, as one run
     pair, wall, finite, lost, crossed, wall_time = [], [], True, False, False, 0.0
     with warnings.catch_warnings(record=True) as caught:

@@ -188,12 +188,12 @@ def deposit(sim, n_dots: int, mean_diameter: float = 15.0, sigma: float = 0.0, r
     and a centre uniform over the positions where the dot lies inside
     ``region``; if it comes within `GAP` of a dot now on the board or of an
     extra wall segment, draw both again. Add it (mass from `dot_masses`) and
-    run the board ``interval`` seconds.
+    run the board ``interval`` seconds (rounded to whole time steps, as `qdots.Simulation.run` does).
 
     Parameters
     ----------
     sim : Simulation
-        The running board; advanced by ``n_dots * interval`` s.
+        The running board; advanced by ``n_dots * interval`` s (each rounded to whole steps).
     n_dots : int
         Dots to add (>= 0; the board holds at most `qdots.scene.MAX_DOTS`). The ``n_dots`` runs of
         ``interval`` s are checked as one run before the first dot (`qdots.Simulation.check_run`).

@@ -24,7 +24,7 @@ import numpy as np
 from labrig.progress import progress_bar
 from labrig.validate import InputError, generator, real
 
-from .engine import ChipmunkEngine
+from .engine import ENGINE_CLASSES
 from .engine.contacts import CollisionRecord, stream_key
 from .engine.settings import OVERLAP_CORRECTION, EngineSettings  # noqa: F401 (public here too)
 from .forces.base import Force
@@ -100,9 +100,9 @@ class Simulation:
         self._schedule = WriterSchedule()
         self._warned_travel = False
         self._forces: tuple[Force, ...] = ()
-        #: The engine: everything a run needs while it runs (`qdots.engine.ChipmunkEngine`).
-        self.engine = ChipmunkEngine(scene.wall_segments(), restitution, engine, stream_key(self.rng),
-                                     scene.positions, scene.velocities, scene.radii, scene.masses)
+        #: The engine: everything a run needs while it runs (`qdots.engine.ChipmunkEngine` or `EventEngine`).
+        self.engine = ENGINE_CLASSES[engine.kind](scene.wall_segments(), restitution, engine, stream_key(self.rng),
+                                                  scene.positions, scene.velocities, scene.radii, scene.masses)
         self.forces = forces
 
     # -- what acts on the dots ----------------------------------------------------------------
@@ -147,7 +147,12 @@ class Simulation:
         if settings.dt != old.dt:  # the time so far is kept; steps count from here with the new step
             self._schedule.restart(self.steps_taken, settings.dt)
             self.start_time, self.steps_taken = time_now, 0
-        if (old.spatial_hash, old.threads) != (settings.spatial_hash, settings.threads):
+        if settings.kind != old.kind:  # another engine goes on from this board, with the same record
+            board, record = self.current_scene(), self.engine.collisions
+            self.engine = ENGINE_CLASSES[settings.kind](board.wall_segments(), self._restitution, settings, record.key,
+                                                        board.positions, board.velocities, board.radii, board.masses)
+            self.engine.collisions.copy_from(record)
+        elif (old.spatial_hash, old.threads) != (settings.spatial_hash, settings.threads):
             self.reseat()
         else:
             self.engine.tune(settings)

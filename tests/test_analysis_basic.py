@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import qdots
-from conftest import worst_overlap
+from helpers import worst_overlap
 from qdots import placement
 from qdots.analysis import neighbour_counts, overlaps, packing_summary
 from qdots.placement import random_sequential

@@ -10,6 +10,8 @@ import qdots
 from qdots.cli import main
 from qdots.placement import hexagonal_lattice
 
+from helpers import run_ok
+
 
 @pytest.fixture(scope="module")
 def state_file(tmp_path_factory):
@@ -37,6 +39,16 @@ def test_analyze_json_has_the_exact_packing_numbers(state_file, capsys):
     assert main(["analyze", str(state_file), "--json", "--draws", "2", "--forster-radii", "1"]) == 0
     in_radii = json.loads(capsys.readouterr().out)
     assert in_radii["forster_radius_px"] == 7.5 and in_radii["lqe"] > out["lqe"]
+
+
+def test_analyze_json_is_strict_json(tmp_path, capsys, good_state):
+    text = run_ok(main, ["analyze", str(good_state), "--json"], capsys).out
+
+    def refuse(constant):
+        raise AssertionError(f"{constant} is not JSON")
+
+    summary = json.loads(text, parse_constant=refuse)
+    assert summary["n_dots"] == 2
 
 
 def test_analyze_table_and_plot(state_file, tmp_path, capsys):

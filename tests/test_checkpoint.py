@@ -1,4 +1,5 @@
-"""Save, load, resume: bit-identical continuation, atomic writes, clear errors on bad files."""
+"""Save, load, resume: bit-identical continuation, atomic writes, clear errors on bad files (from Python and from
+the command line), dots added to a saved run, state files of earlier versions."""
 
 import json
 import warnings
@@ -9,7 +10,10 @@ import pytest
 
 import labrig.archive
 import qdots
+from qdots.cli import main as qdots_main
 from qdots.io import checkpoint
+
+from helpers import one_line_error
 
 
 def busy_simulation(seed=7, n=80):
@@ -59,24 +63,24 @@ def test_resume_after_deposition(tmp_path):
 
 def test_saved_file_is_plain_numpy_and_json(tmp_path):
     sim = busy_simulation()
-    sim.run(0.05)
+    sim.run(0.04)
     path = qdots.save(sim, tmp_path / "state.npz")
     with np.load(path, allow_pickle=False) as f:
         meta = json.loads(str(f["metadata"]))
         assert f["positions"].shape == (80, 2)
         assert f["segments"].tolist() == [[0, 120, 60, 120]]
     assert meta["format"] == "qdots-state" and meta["version"] == 1
-    assert meta["steps_taken"] == round(0.05 / qdots.EngineSettings().dt) and meta["engine"]["substeps"] == 2
+    assert meta["steps_taken"] == round(0.04 / qdots.EngineSettings().dt) and meta["engine"]["substeps"] == 2
     assert [f["type"] for f in meta["forces"]] == ["VanDerWaals", "ThermalKicks", "Drag", "Langevin"]
     state = qdots.read_state(path)
     np.testing.assert_array_equal(state.positions, sim.state().positions)
-    assert state.time == pytest.approx(0.05) and state.walls.shape == (5, 4)
+    assert state.time == pytest.approx(0.04) and state.walls.shape == (5, 4)
 
 
 def test_crash_mid_write_keeps_the_old_file(tmp_path, monkeypatch):
     path = tmp_path / "run.npz"
     sim = busy_simulation()
-    sim.run(0.05)
+    sim.run(0.04)
     qdots.save(sim, path)
     before = path.read_bytes()
     sim.run(0.05)
@@ -90,9 +94,10 @@ def test_crash_mid_write_keeps_the_old_file(tmp_path, monkeypatch):
         qdots.save(sim, path)
     assert path.read_bytes() == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["run.npz"]  # no temporary left behind
-    assert qdots.read_state(path).time == pytest.approx(0.05)
+    assert qdots.read_state(path).time == pytest.approx(0.04)
 
 
+# ---------------------------------------------------------------- bad files: one clear error each
 @pytest.fixture
 def saved(tmp_path):
     sim = busy_simulation()
@@ -159,6 +164,56 @@ def test_zip_member_damage(tmp_path, saved):
         qdots.load(bad)
 
 
+def rewrite_metadata(source, target, change):
+    with np.load(source) as data:
+        arrays = {k: data[k] for k in data.files}
+    metadata = json.loads(str(arrays.pop("metadata")))
+    metadata = change(metadata)
+    with open(target, "wb") as stream:
+        np.savez(stream, metadata=np.array(json.dumps(metadata)), **arrays)
+
+
+@pytest.mark.parametrize("change, board_damaged", [
+    (lambda m: [1, 2], True), (lambda m: None, True), (lambda m: 3, True), (lambda m: "text", True),
+    (lambda m: {k: v for k, v in m.items() if k != "time"}, True), (lambda m: {**m, "time": None}, True),
+    (lambda m: {**m, "time": float("nan")}, True), (lambda m: {**m, "closed": "no"}, True),
+    (lambda m: {**m, "engine": {**m["engine"], "iterations": 2**62}}, True),
+    (lambda m: {**m, "collisions": {"dot_dot": 1, "sideways": 2, "dot_wall": 0, "sticking": 0}}, False),
+    (lambda m: {**m, "rng": {"bit_generator": "PCG64", "state": "x"}}, False),
+    (lambda m: {**m, "forces": [{"type": "Warp"}]}, False),
+], ids=["list", "null", "number", "string", "no-time", "null-time", "nan-time", "closed-string", "huge-iterations",
+        "collision-name", "bad-rng", "unknown-force"])
+def test_damaged_state_metadata_is_a_one_line_error(tmp_path, capsys, good_state, change, board_damaged):
+    """Resuming needs every field; a picture or an analysis needs the board only (and says when it is damaged)."""
+    bad = tmp_path / "bad.npz"
+    rewrite_metadata(good_state, bad, change)
+    assert qdots_main(["resume", str(bad), "--seconds", "0.01"]) == 2
+    one_line_error(capsys)
+    for argv in (["render", str(bad)], ["analyze", str(bad)]):
+        if board_damaged:
+            assert qdots_main(argv) == 2
+            one_line_error(capsys)
+        else:
+            assert qdots_main(argv) == 0
+
+
+def test_arrays_renamed_and_complex_positions_are_refused(tmp_path, capsys, good_state):
+    npy = tmp_path / "array.npz"
+    np.save(tmp_path / "array.npy", np.zeros(3))
+    (tmp_path / "array.npy").rename(npy)
+    assert qdots_main(["render", str(npy)]) == 2
+    one_line_error(capsys)
+    with np.load(good_state) as data:
+        arrays = {k: data[k] for k in data.files}
+    arrays["positions"] = arrays["positions"] + 1j
+    with open(tmp_path / "complex.npz", "wb") as stream:
+        np.savez(stream, **arrays)
+    assert qdots_main(["render", str(tmp_path / "complex.npz")]) == 2
+    assert "real numbers" in one_line_error(capsys)
+    with pytest.raises(ValueError, match="real numbers"):
+        qdots.Scene(box=(100, 100), positions=[[30 + 1j, 50]], radii=[7.5])
+
+
 # ---------------------------------------------------------------- add_dots
 def test_add_dots_validates_against_the_board():
     sim = qdots.Simulation(qdots.Scene(box=(100, 100), positions=[[50, 50]], radii=[7.5]), [qdots.ThermalKicks()])
@@ -193,13 +248,7 @@ def test_add_dots_respects_wall_segments():
     assert sim.n_dots == 1
 
 
-def test_scene_file_keeps_derived_vdw_defaults_unset():
-    spec = qdots.VanDerWaals(r0=10.0).to_dict()
-    assert spec["strength"] is None and spec["max_gap"] is None
-    assert qdots.forces.force_from_dict(spec).max_gap == 20.0
-    assert qdots.VanDerWaals(max_gap=12.0).to_dict()["max_gap"] == 12.0
-
-
+# ---------------------------------------------------------------- state files of earlier versions
 def test_a_state_file_of_0_1_with_center_gravity_resumes_the_same_run(tmp_path):
     # 0.1 wrote the force as "CenterGravity" with key "center": read as today's CentreGravity, no warning
     sim = busy_simulation(n=20)

@@ -1,6 +1,9 @@
-"""qdots run / preset / resume / render: files written, exit codes, one-line errors."""
+"""qdots run / preset / resume / render: files written, boards out of the ordinary (a dot in a wall, dots
+overlapping at a coarse step, dots escaped from an open board), exit codes, one-line errors (and the checks of
+paths that both command lines share)."""
 
 import csv
+import os
 
 import imageio.v2 as imageio
 import imageio.v3 as iio
@@ -8,7 +11,10 @@ import numpy as np
 import pytest
 
 import qdots
+from planarize.cli import main as planarize_main
 from qdots.cli import main
+
+from helpers import gravity_scene_file, one_line_error, refused_run, run_ok, to_toml
 
 
 def rows(path):
@@ -60,8 +66,8 @@ def test_resume_keeps_the_table_and_continues(preset_run, tmp_path):
     assert main(["resume", str(state), "--seconds", "0.5", "--out", str(tmp_path)]) == 0
     after = qdots.read_state(tmp_path / state.name)
     assert after.time == pytest.approx(before.time + 0.5)
-    assert main(["resume", str(tmp_path / state.name), "--seconds", "0.25"]) == 0
-    assert qdots.read_state(tmp_path / state.name).time == pytest.approx(before.time + 0.75)
+    assert main(["resume", str(tmp_path / state.name), "--seconds", "0.3"]) == 0
+    assert qdots.read_state(tmp_path / state.name).time == pytest.approx(before.time + 0.8)
     assert len(rows(tmp_path / "summary.csv")) == 1
 
 
@@ -102,3 +108,80 @@ def test_corrupt_state_file_is_reported(tmp_path, capsys):
     bad.write_bytes(b"PK\x03\x04garbage")
     assert main(["render", str(bad)]) == 2
     assert "not a readable qdots state file" in capsys.readouterr().err
+
+
+# -- boards out of the ordinary: saved, loaded, rendered, resumed ---------------------------------
+
+def test_a_board_overlapping_a_wall_after_a_run_saves_loads_renders_and_resumes_in_place(tmp_path, capsys):
+    scene = gravity_scene_file(tmp_path)
+    out = tmp_path / "out"
+    run_ok(main, ["run", str(scene), "--out", str(out)], capsys)
+    state = qdots.read_state(out / "grav.npz")  # a dot sits 0.01 px into the inelastic floor: still loads
+    assert state.n_dots == 12
+    run_ok(main, ["render", str(out / "grav.npz")], capsys)
+    before = (out / "grav.npz").read_bytes()
+    run_ok(main, ["resume", str(out / "grav.npz"), "--seconds", "3"], capsys)  # in place
+    assert (out / "grav.npz").read_bytes() != before
+    assert qdots.load(out / "grav.npz").time == pytest.approx(6.0)
+    # run again into the same directory: the good result is replaced by another good one
+    run_ok(main, ["run", str(scene), "--out", str(out)], capsys)
+    assert qdots.read_state(out / "grav.npz").time == pytest.approx(3.0)
+
+
+def test_large_overlap_at_a_coarse_time_step_is_measured_and_warned_not_refused(tmp_path, capsys):
+    # 60 dots under the thesis's centre gravity at its 20 ms frame, fixed sub-steps (false: the default
+    # adaptive sub-steps would split the impacts): they overlap by ~30 % of a radius (measured)
+    path = tmp_path / "coarse.toml"
+    path.write_text(to_toml({"name": "coarse", "board": {"width": 200.0, "height": 200.0},
+                             "deposition": {"n_dots": 60, "interval": 0.0, "settle": 1.0},
+                             "engine": {"dt": 0.02, "overlap_tolerance": False},
+                             "forces": [{"type": "CentreGravity", "centre": [100.0, 100.0]}]}))
+    assert main(["run", str(path), "--out", str(tmp_path / "out")]) == 0
+    captured = capsys.readouterr()
+    state = qdots.read_state(tmp_path / "out" / "coarse.npz")
+    assert qdots.load(tmp_path / "out" / "coarse.npz").settings.overlap_tolerance is None  # as the file said
+    overlap = qdots.analysis.overlaps(state)[0]
+    assert overlap > qdots.simulation.OVERLAP_WARNING  # measured and kept ...
+    header, row = (tmp_path / "out" / "summary.csv").read_text().splitlines()[:2]
+    assert float(row.split(",")[header.split(",").index("max_overlap_pct_radius")]) == pytest.approx(100 * overlap,
+                                                                                                     rel=1e-6)
+    assert "warning: coarse: dots overlap" in captured.err  # ... and said
+    run_ok(main, ["render", str(tmp_path / "out" / "coarse.npz")], capsys)
+
+
+def test_dots_that_leave_an_open_board_are_counted_and_the_board_loads(tmp_path, capsys):
+    path = tmp_path / "open.toml"
+    path.write_text(to_toml({"name": "open", "board": {"width": 100.0, "height": 100.0, "closed": False},
+                             "deposition": {"n_dots": 10, "interval": 0.0, "settle": 20.0},
+                             "forces": [{"type": "Gravity", "acceleration": [0.0, -200.0]}]}))
+    assert main(["run", str(path), "--out", str(tmp_path / "out")]) == 0
+    err = capsys.readouterr().err
+    state = qdots.read_state(tmp_path / "out" / "open.npz")
+    escaped = qdots.analysis.escaped(state)
+    assert escaped > 0 and f"{escaped} of 10 dots have left the open board" in err
+    assert f",{escaped}," in (tmp_path / "out" / "summary.csv").read_text()
+    sim = qdots.load(tmp_path / "out" / "open.npz")
+    sim.run(0.1)  # and goes on
+
+
+# -- more one-line errors: a run that blows up, paths that are not files ------------------------
+
+def test_runaway_dots_are_reported_physically(tmp_path, capsys):
+    text = to_toml({"deposition": {"n_dots": 5, "interval": 0.0, "settle": 1.0}, "engine": {"dt": 0.1},
+                    "forces": [{"type": "Gravity", "acceleration": [0.0, -1e8]}]})
+    assert "the dots left the model's range" in refused_run(main, tmp_path / "fast.toml", text, capsys)
+
+
+def test_paths_that_are_not_files_are_said_to_be(tmp_path, capsys):
+    """Both programs check a path before they read or write it (labrig.files)."""
+    assert main(["run", str(tmp_path)]) == 2
+    assert "is not a regular file" in one_line_error(capsys)
+    fifo = tmp_path / "fifo"
+    os.mkfifo(fifo)
+    assert planarize_main(["run", str(fifo)]) == 2
+    assert "is not a regular file" in one_line_error(capsys, "planarize")
+    assert planarize_main(["scene", "hill", "--save", "."]) == 2
+    assert "names a directory" in one_line_error(capsys, "planarize")
+    assert planarize_main(["scene", "hill", "--save", str(tmp_path / "missing" / "hill.toml")]) == 2
+    err = one_line_error(capsys, "planarize")
+    assert "does not exist" in err and ".tmp" not in err

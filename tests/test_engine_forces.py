@@ -5,18 +5,18 @@ import pytest
 from scipy.integrate import solve_ivp
 
 import qdots
+from labrig.validate import InputError
+from qdots.experiment import Experiment
 from qdots.forces import StepContext, hamaker_force, thesis_offset
 from qdots.units import thesis_kick_speed
 
-from conftest import TimeRecorder, worst_overlap
+from helpers import lone_dot, worst_overlap
 
 BIG_BOX = (2000.0, 2000.0)
 #: Every van der Waals pair pulled every step (no far pass).
 EVERY_STEP = qdots.EngineSettings(far_interval=None)
-
-
-def lone_dot(velocity=(0.0, 0.0), mass=1.0, position=(1000.0, 1000.0)):
-    return qdots.Scene(box=BIG_BOX, positions=[position], radii=[5.0], masses=[mass], velocities=[velocity])
+#: Far pairs (gap beyond near_gap) pulled once per 20 ms far interval.
+FAR_PASS = qdots.EngineSettings(far_interval=0.02)
 
 
 # ---------------------------------------------------------------- van der Waals vs solve_ivp
@@ -129,6 +129,26 @@ def test_the_proxy_offset_follows_the_simulations_sticking_speed():
     assert fast == pytest.approx(a / 2 * 1e-3, rel=1e-12) and fast > slow
 
 
+def test_a_rule_that_never_sticks_and_the_thesis_proxy():
+    """The proxy's offset b derives from the rule's sticking speed, which may be 0 (an elastic gas); 0.2's force
+    had its own, above 0. A van der Waals run under such a rule is refused in one line before it starts, or
+    runs: it does not die inside a step. An offset given to the force does not depend on the rule."""
+    scene = qdots.Scene(box=(100.0, 100.0), positions=[[30.0, 50.0], [60.0, 50.0]], radii=[7.5, 7.5])
+    rule = qdots.Restitution(sticking_speed=0.0)
+    with pytest.raises(InputError, match=r"^VanDerWaals derives the thesis proxy's offset b from "
+                                         r"restitution.sticking_speed, which is 0"):
+        qdots.Simulation(scene, [qdots.VanDerWaals()], restitution=rule, seed=0)
+    sim = qdots.Simulation(scene, [qdots.VanDerWaals()], seed=0)
+    with pytest.raises(InputError, match="restitution.sticking_speed"):
+        sim.restitution = rule
+    assert sim.restitution.sticking_speed == 1.0  # the refused rule did not replace the old one
+    with pytest.raises(InputError, match=r"^forces\[0\]: VanDerWaals derives"):
+        Experiment(restitution=rule)
+    given = qdots.Simulation(scene, [qdots.VanDerWaals(offset=-5.0)], restitution=rule, seed=0)
+    given.run(0.05)
+    assert given.state().velocities[0, 0] > 0.0  # pulled toward the other dot
+
+
 def kick_speed(force, gap, dt=1e-3, masses=(1.0, 1.0), time=0.0, settings=None, restitution=None):
     """Speed change of dot 0 toward dot 1 in one step from ``time``, two 7.5 px dots at surface gap `gap`, under the
     engine ``settings`` (default `qdots.EngineSettings`) and collision rule ``restitution`` (default the thesis's)."""
@@ -180,19 +200,21 @@ def test_far_pairs_get_the_pull_of_their_interval_at_its_middle(model):
     force = qdots.VanDerWaals(model)
 
     def split(gap, dt, time=0.0):
-        return kick_speed(force, gap, dt, time=time)
+        return kick_speed(force, gap, dt, time=time, settings=FAR_PASS)
 
     def every(gap, dt):
         return kick_speed(force, gap, dt, settings=EVERY_STEP)
 
     far, near = 10.0, 2.0  # surface gaps, px, beyond and within near_gap
-    assert qdots.EngineSettings().near_gap == 4.0 and qdots.EngineSettings().far_interval == 0.02
-    assert split(far, 1e-3) == 0.0  # no interval's middle in (0, 1 ms]
-    assert split(far, 1e-3, time=0.0095) == pytest.approx(every(far, 0.02), rel=1e-12)
-    assert split(far, 0.05) == pytest.approx(every(far, 0.06), rel=1e-12)  # 3 middles
+    assert FAR_PASS.near_gap == 4.0 and FAR_PASS.far_interval == 0.02
+    # the far pass runs at the start of the step after each middle (the middles in (time - dt, time])
+    assert split(far, 1e-3) == 0.0  # no interval's middle in (-1 ms, 0]
+    assert split(far, 1e-3, time=0.0105) == pytest.approx(every(far, 0.02), rel=1e-12)
+    assert split(far, 0.05, time=0.05) == pytest.approx(every(far, 0.06), rel=1e-12)  # 3 middles
     assert split(near, 1e-3) == every(near, 1e-3)
-    assert split(31.0, 1e-3, time=0.0095) == 0.0  # beyond max_gap either way
-    assert kick_speed(force, far, 1e-3, settings=qdots.EngineSettings(near_gap=40.0)) == every(far, 1e-3)
+    assert split(31.0, 1e-3, time=0.0105) == 0.0  # beyond max_gap either way
+    wide = qdots.EngineSettings(near_gap=40.0, far_interval=0.02)
+    assert kick_speed(force, far, 1e-3, settings=wide) == every(far, 1e-3)
 
 
 @pytest.mark.parametrize("model", ["thesis", "hamaker"])
@@ -200,14 +222,16 @@ def test_fade_between_the_passes_keeps_each_pairs_whole_pull(model):
     """Between near_gap / 2 and near_gap the every-step part falls smoothly from the whole pull to none, and
     the far pass carries the rest: in a step of one far interval the two parts sum to the whole pull."""
     force = qdots.VanDerWaals(model)
-    near_gap = qdots.EngineSettings().near_gap
+    near_gap = FAR_PASS.near_gap
     gaps = np.linspace(0.5 * near_gap, near_gap, 9)
-    # no far pass in (0, 1 ms]
-    weights = [kick_speed(force, g, 1e-3) / kick_speed(force, g, 1e-3, settings=EVERY_STEP) for g in gaps]
+    # no far pass in a step of 1 ms from 0 (no middle in (-1 ms, 0])
+    weights = [kick_speed(force, g, 1e-3, settings=FAR_PASS) / kick_speed(force, g, 1e-3, settings=EVERY_STEP)
+               for g in gaps]
     assert weights[0] == 1.0 and weights[-1] == 0.0
     assert np.all(np.diff(weights) < 0) and weights[4] == pytest.approx(0.5, abs=1e-12)  # smoothstep's middle
     for g in gaps:
-        assert kick_speed(force, g, 0.02) == pytest.approx(kick_speed(force, g, 0.02, settings=EVERY_STEP), rel=1e-12)
+        whole = kick_speed(force, g, 0.02, settings=EVERY_STEP)
+        assert kick_speed(force, g, 0.02, settings=FAR_PASS) == pytest.approx(whole, rel=1e-12)
 
 
 def test_pair_crossing_near_gap_is_neither_pulled_twice_nor_missed():
@@ -215,10 +239,10 @@ def test_pair_crossing_near_gap_is_neither_pulled_twice_nor_missed():
     hard cut at near_gap they were 6.5x farther from the dt -> 0 path than with every pair every step
     (measured: 4.9e-2 against 7.6e-3 px); with the fade they are closer than every pair every step."""
     force = qdots.VanDerWaals()
-    gap0, masses = qdots.EngineSettings().near_gap, (1.0, 1.0)
+    gap0, masses = FAR_PASS.near_gap, (1.0, 1.0)
     t_end = round(0.8 * contact_time("thesis", gap0, masses, force) / 0.02) * 0.02
     reference = vdw_pair_reference("thesis", gap0, masses, t_end, force).sol(t_end)
-    split = pair_error(force, gap0, masses, t_end, 2.5e-3, reference)
+    split = pair_error(force, gap0, masses, t_end, 2.5e-3, reference, far_interval=FAR_PASS.far_interval)
     every_step = pair_error(force, gap0, masses, t_end, 2.5e-3, reference, far_interval=None)
     assert split < every_step / 3, (split, every_step)
 
@@ -365,53 +389,7 @@ def test_dense_pack_under_centre_gravity_overlap_bounded(gravity):
     assert 0 < max(worst) < OVERLAP_TOLERANCE[gravity]
 
 
-# ---------------------------------------------------------------- reproducibility and plumbing
-def noisy_run(seed):
-    rng = np.random.default_rng(0)
-    n = 150
-    grid = np.array([(x, y) for x in range(20, 300, 22) for y in range(20, 300, 22)], float)[:n]
-    scene = qdots.Scene(box=(300, 300), positions=grid, radii=np.full(n, 7.5), velocities=rng.normal(0, 30, (n, 2)))
-    sim = qdots.Simulation(scene, [qdots.VanDerWaals(), qdots.ThermalKicks(), qdots.Drag()], seed=seed)
-    sim.run(1.0)
-    assert sim.collisions.dot_dot > 20  # random elasticities were drawn
-    return sim.state()
-
-
-def test_same_seed_is_bit_identical_and_other_seed_differs():
-    a, b, c = noisy_run(42), noisy_run(42), noisy_run(43)
-    assert np.array_equal(a.positions, b.positions) and np.array_equal(a.velocities, b.velocities)
-    assert not np.array_equal(a.positions, c.positions)
-
-
-def bulk_traffic(forces, **settings):
-    """The bulk reads (`BodyArrays.read_rows`, the read a step makes) and force writes of 10 steps of a lone dot
-    moving at 10 px/s, and its x after them."""
-    sim = qdots.Simulation(lone_dot(velocity=(10.0, 0.0)), forces, seed=0, **settings)
-    io = sim.engine.io
-    calls = {"read_rows": 0, "write_forces": 0}
-    for name in calls:
-        method = getattr(io, name)
-
-        def counted(*args, name=name, method=method):
-            calls[name] += 1
-            return method(*args)
-
-        setattr(io, name, counted)
-    sim.step(10)
-    stepped = dict(calls)  # before the state is read
-    return stepped, sim.state().positions[0, 0]
-
-
-def test_no_forces_means_no_bulk_traffic():
-    """With no forces and a fixed sub-step a step neither reads nor writes the bodies in bulk; with the sub-step
-    plan (which reads the velocities) every step reads, and with a force every step also writes."""
-    calls, x = bulk_traffic([], overlap_tolerance=None)
-    assert calls == {"read_rows": 0, "write_forces": 0}
-    assert x == pytest.approx(1000.0 + 10.0 * 10 * 2.5e-3, rel=1e-15)  # it did move
-    assert bulk_traffic([])[0] == {"read_rows": 10, "write_forces": 0}  # the plan reads; nothing to write
-    assert bulk_traffic([qdots.Drag(0.0, 0.0)])[0] == {"read_rows": 10, "write_forces": 10}
-
-
+# ---------------------------------------------------------------- the forces' parameters
 @pytest.mark.parametrize(
     "make, message",
     [
@@ -431,88 +409,8 @@ def test_force_validation(make, message):
         make()
 
 
-@pytest.mark.parametrize(
-    "kwargs, message",
-    [
-        (dict(dt=0), r"dt must be (a number )?in \[1e-7, 0.1\] s"),
-        (dict(substeps=0), r"substeps must be an integer in \[1, 1,000\]"),
-        (dict(iterations=2.5), r"iterations must be an integer in \[1, 1,000\]"),
-        (dict(collision_slop=-1), r"collision_slop must be in \[0, 100\] px"),
-        (dict(collision_bias=1.5), r"collision_bias must be in \[0, 1\)"),
-        (dict(threads=3), "threads must be one of 1, 2"),
-        (dict(threads=True), "threads must be one of 1, 2"),
-        (dict(dt=True), r"dt must be (a number )?in \[1e-7, 0.1\] s"),
-        (dict(spatial_hash=(10.0, 2.5)), "spatial_hash"),
-        (dict(spatial_hash="big"), "spatial_hash"),
-        (dict(pair_skin=-1), r"pair_skin must be in \[0, 1000\] px"),
-        (dict(near_gap=0), r"near_gap must be in \(0, 2,?000\] px"),
-        (dict(far_interval=0), r"far_interval must be in \(0, "),
-        (dict(tune_allocator="yes"), "tune_allocator"),
-        (dict(restitution=0.8), "restitution must be a qdots.Restitution"),
-    ],
-)
-def test_simulation_validation(kwargs, message):
-    with pytest.raises(ValueError, match=message):
-        qdots.Simulation(lone_dot(), **kwargs)
-
-
 @pytest.mark.parametrize("knob", ["skin", "near_gap", "far_interval", "sticking_speed"])
 def test_vdw_holds_no_numerics_of_the_engine(knob):
     """The pair list's skin and the near/far split are engine settings, the sticking speed the collision rule's."""
     with pytest.raises(TypeError, match=knob):
         qdots.VanDerWaals(**{knob: 1.0})
-
-
-def test_run_rejects_negative_time_and_bad_writer():
-    sim = qdots.Simulation(lone_dot(), seed=0)
-    with pytest.raises(ValueError, match="seconds must be >= 0"):
-        sim.run(-1)
-
-    class Bad:
-        every = 0
-
-        def write(self, state):
-            pass
-
-    with pytest.raises(ValueError, match="every must be an integer >= 1"):
-        sim.attach(Bad())
-    with pytest.raises(ValueError, match="write"):
-        sim.attach(object(), every=3)
-    with pytest.raises(ValueError, match="every .* or seconds"):
-        sim.attach(Bad(), every=3, seconds=0.1)
-
-
-def test_attached_writers_see_one_schedule_over_successive_runs():
-    writer = TimeRecorder(every=7)
-    sim = qdots.Simulation(lone_dot(), seed=0, dt=1e-3)
-    assert sim.attach(writer) is writer and sim.writers == (writer,)
-    with pytest.raises(ValueError, match="attached already"):
-        sim.attach(writer)
-    sim.run(0.03)
-    np.testing.assert_allclose(writer.times, [0.0, 0.007, 0.014, 0.021, 0.028])
-    sim.run(0.004)  # successive runs keep the schedule: 0.035 at step 35 is next
-    sim.run(0.001)
-    sim.run(0.01)
-    np.testing.assert_allclose(writer.times, [0.0, 0.007, 0.014, 0.021, 0.028, 0.035, 0.042])
-    sim.detach(writer)
-    sim.run(0.01)
-    assert len(writer.times) == 7
-    with pytest.raises(ValueError, match="not attached"):
-        sim.detach(writer)
-
-
-def test_writer_in_seconds_keeps_its_interval_when_dt_changes():
-    writer = TimeRecorder(every=7)
-    sim = qdots.Simulation(lone_dot(), seed=0, dt=1e-3)
-    sim.attach(writer, seconds=0.01)
-    sim.run(0.02)
-    sim.settings = sim.settings.replace(dt=2e-3)  # the time so far is kept
-    assert sim.time == pytest.approx(0.02)
-    sim.run(0.02)
-    np.testing.assert_allclose(writer.times, [0.0, 0.01, 0.02, 0.03, 0.04])
-
-
-def test_substeps_and_spatial_hash_give_the_same_free_flight():
-    a = qdots.Simulation(lone_dot(velocity=(10.0, 5.0)), seed=0, substeps=3, spatial_hash=(20.0, 1000))
-    a.run(0.1)
-    np.testing.assert_allclose(a.state().positions[0], 1000.0 + np.array([10.0, 5.0]) * a.time, rtol=1e-12)

@@ -15,7 +15,7 @@ import string
 
 import numpy as np
 import pytest
-from conftest import to_toml
+from helpers import to_toml
 from hypothesis import HealthCheck, Phase, example, given, settings
 from hypothesis import strategies as st
 

@@ -37,21 +37,21 @@ def finish_drops(board):
 
 
 def test_drop_button_deposits_n_dots_exactly_as_the_protocol():
-    board = LiveBoard(seed=5, frame_steps=30)
+    board = LiveBoard(seed=5, frame_steps=2)
     c = board.controls
     c["gravity"].value = "uniform"  # dots fall from the moment they land: timing shows in positions
-    c["n_dots"].value, c["mean_diameter"].value, c["sigma"].value, c["interval"].value = 6, 12.0, 0.1, 0.05
+    c["n_dots"].value, c["mean_diameter"].value, c["sigma"].value, c["interval"].value = 6, 12.0, 0.1, 0.04
     board.buttons["drop"].click()
     assert board.live.pending == 6 and board.sim.n_dots == 0
     finish_drops(board)
     assert board.sim.n_dots == 6
-    board.live.advance(round((6 * 0.05 - board.sim.time) / board.sim.dt))
+    board.live.advance(round((6 * 0.04 - board.sim.time) / board.sim.dt))
     # the same film as one deposit() call with the same seeds, bit for bit
     sim_seed, drop_seed = np.random.SeedSequence(5).spawn(2)
     scene = qdots.Scene(box=(400, 400), positions=np.zeros((0, 2)), radii=np.zeros(0))
     reference = qdots.Simulation(scene, Knobs(gravity="uniform").forces(scene.box), seed=sim_seed)
-    diameters = deposit(reference, 6, 12.0, 0.1, interval=0.05, rng=np.random.default_rng(drop_seed))
-    assert reference.steps_taken == board.sim.steps_taken == round(0.3 / reference.dt)
+    diameters = deposit(reference, 6, 12.0, 0.1, interval=0.04, rng=np.random.default_rng(drop_seed))
+    assert reference.steps_taken == board.sim.steps_taken == round(0.24 / reference.dt)
     np.testing.assert_array_equal(board.sim.state().positions, reference.state().positions)
     np.testing.assert_array_equal(board.sim.state().radii, diameters / 2)
     assert "6 (+0 queued)" in board.readout.value

@@ -2,7 +2,8 @@
 
 An output set switches all at once (a kill between two of its renames is rolled forward by the next
 open or reader), a second writer of a set is refused, concurrent runs never lose each other's summary
-rows, a resumed run leaves a coherent set, and Ctrl-C is one line at any moment.
+rows, a resumed run leaves a coherent set, and Ctrl-C is one line at any moment. A run that fails late leaves
+the earlier files whole, the input file is never written over, and stale temporaries are cleared.
 """
 
 import csv
@@ -12,6 +13,7 @@ import signal
 import subprocess
 import sys
 import textwrap
+import time
 from pathlib import Path
 
 import pytest
@@ -25,32 +27,13 @@ from planarize.io.results import load_run
 from qdots.cli import main as qdots_main
 from qdots.cli.commands import OVERLAP_COLUMN, merge_summary
 
+from helpers import gravity_scene_file, one_line_error, run_ok
+
 #: Longest any subprocess of these tests may take, s.
 TIMEOUT = 300
 
-GRAVITY_SCENE = """
-name = "{name}"
-[board]
-width = 100.0
-height = 100.0
-[deposition]
-n_dots = 12
-interval = 0.0
-settle = {settle}
-[restitution]
-wall = 0.0
-[[forces]]
-type = "Gravity"
-"""
-
 #: The files of a set like `qdots run --movie --gsd`'s (npz, png, mp4, gsd, toml, summary, ...): nine renames.
 NAMES = [f"r.{k}" for k in range(9)]
-
-
-def scene_file(directory: Path, name: str = "grav", settle: float = 3.0) -> Path:
-    path = directory / f"{name}.toml"
-    path.write_text(GRAVITY_SCENE.format(name=name, settle=settle))
-    return path
 
 
 def python(code: str, *args, timeout: float = TIMEOUT) -> subprocess.CompletedProcess:
@@ -214,7 +197,7 @@ def test_sigkill_before_the_switch_leaves_the_earlier_set_and_the_next_open_clea
 
 
 def test_qdots_run_cut_mid_switch_is_finished_by_reading_its_state(tmp_path, capsys, monkeypatch):
-    scene, out = scene_file(tmp_path), tmp_path / "out"
+    scene, out = gravity_scene_file(tmp_path), tmp_path / "out"
     assert qdots_main(["run", str(scene), "--out", str(out), "--movie", "--gsd", "--seed", "1"]) == 0
     first = contents(out)
     monkeypatch.setattr(os, "replace", FailingRename(out, 5))
@@ -254,6 +237,50 @@ def test_a_killed_planarize_run_leaves_the_earlier_result_alone_and_no_temporary
     assert run.complete and contents(out) == before and stagings(out) == []
 
 
+# -- earlier files survive a later run ---------------------------------------------------------------
+
+def test_a_run_that_fails_late_leaves_the_earlier_files_whole(tmp_path, capsys, monkeypatch):
+    scene = gravity_scene_file(tmp_path)
+    out = tmp_path / "out"
+    run_ok(qdots_main, ["run", str(scene), "--out", str(out)], capsys)
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+
+    def fail(*args, **kwargs):
+        raise OSError("disk full")
+
+    monkeypatch.setattr(qdots.render, "save_png", fail)
+    assert qdots_main(["run", str(scene), "--out", str(out), "--seed", "9"]) == 2
+    one_line_error(capsys)
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before  # nothing replaced, no temporary left
+
+
+def test_the_input_scene_file_is_never_written_over(tmp_path, capsys):
+    scene = gravity_scene_file(tmp_path)
+    written = scene.read_text()
+    run_ok(qdots_main, ["run", str(scene), "--seed", "7", "--out", str(tmp_path)], capsys)
+    assert scene.read_text() == written
+    assert "seed = 7" in (tmp_path / "grav.ran.toml").read_text()
+    hill = tmp_path / "hill_quick_0.25.toml"  # the name of the scene inside
+    run_ok(planarize_main, ["scene", "hill", "--quick", "0.25", "--save", str(hill)], capsys)
+    text = hill.read_text()
+    run_ok(planarize_main, ["run", str(hill), "--engine", "reference", "--out", str(tmp_path)], capsys)
+    assert hill.read_text() == text
+    assert 'engine = "reference"' in (tmp_path / "hill_quick_0.25.ran.toml").read_text()
+
+
+def test_stale_temporary_files_are_cleared_by_the_next_run(tmp_path, capsys):
+    scene = gravity_scene_file(tmp_path)
+    out = tmp_path / "out"
+    out.mkdir()
+    stale, fresh = out / ".grav-0123abcd.tmp.npz", out / ".grav-4567cdef.tmp.npz"
+    stale.write_bytes(b"partial")
+    fresh.write_bytes(b"another run, still writing")
+    old = time.time() - 2 * 3600
+    os.utime(stale, (old, old))
+    run_ok(qdots_main, ["run", str(scene), "--out", str(out)], capsys)
+    assert not stale.exists() and fresh.exists()
+
+
 # -- one writer per set ------------------------------------------------------------------------------
 
 def test_a_live_set_is_left_alone_and_a_second_writer_is_refused(tmp_path):
@@ -271,7 +298,7 @@ def test_a_live_set_is_left_alone_and_a_second_writer_is_refused(tmp_path):
 
 
 def test_a_run_or_resume_of_a_set_being_written_is_refused_before_it_starts(tmp_path, capsys):
-    scene, out = scene_file(tmp_path), tmp_path / "out"
+    scene, out = gravity_scene_file(tmp_path), tmp_path / "out"
     assert qdots_main(["run", str(scene), "--out", str(out)]) == 0
     capsys.readouterr()
     before = contents(out)
@@ -285,7 +312,7 @@ def test_a_run_or_resume_of_a_set_being_written_is_refused_before_it_starts(tmp_
 
 
 def test_concurrent_resumes_of_one_checkpoint_never_drop_a_continuation(tmp_path, capsys):
-    scene, out = scene_file(tmp_path), tmp_path / "out"
+    scene, out = gravity_scene_file(tmp_path), tmp_path / "out"
     assert qdots_main(["run", str(scene), "--out", str(out)]) == 0
     capsys.readouterr()
     start = qdots.read_state(out / "grav.npz").time
@@ -329,7 +356,7 @@ def test_concurrent_sets_never_lose_a_summary_row(tmp_path):
 
 def test_two_qdots_runs_of_different_names_into_one_directory_keep_both_rows(tmp_path):
     out = tmp_path / "out"
-    scenes = [scene_file(tmp_path, name) for name in ("first", "second")]
+    scenes = [gravity_scene_file(tmp_path, name) for name in ("first", "second")]
     code = LAUNCH.format(prog="qdots")
     runs = [started(code, "run", scene, "--out", out) for scene in scenes]
     for run in runs:
@@ -341,7 +368,7 @@ def test_two_qdots_runs_of_different_names_into_one_directory_keep_both_rows(tmp
 # -- a resumed run writes a coherent set ----------------------------------------------------------------
 
 def test_resume_in_place_keeps_the_earlier_movie_under_a_name_that_says_what_it_shows(tmp_path, capsys):
-    scene, out = scene_file(tmp_path), tmp_path / "out"
+    scene, out = gravity_scene_file(tmp_path), tmp_path / "out"
     assert qdots_main(["run", str(scene), "--out", str(out), "--movie", "--gsd"]) == 0
     capsys.readouterr()
     earlier = contents(out)
@@ -370,7 +397,7 @@ def test_resume_in_place_keeps_the_earlier_movie_under_a_name_that_says_what_it_
 
 
 def test_render_says_that_it_replaced_the_runs_picture(tmp_path, capsys):
-    scene, out = scene_file(tmp_path), tmp_path / "out"
+    scene, out = gravity_scene_file(tmp_path), tmp_path / "out"
     assert qdots_main(["run", str(scene), "--out", str(out)]) == 0
     capsys.readouterr()
     assert qdots_main(["render", str(out / "grav.npz")]) == 0
@@ -388,7 +415,7 @@ def test_the_summary_overlap_is_in_percent_of_a_radius_and_old_tables_are_conver
     merged = {row["name"]: row for row in rows(table)}
     assert "max_overlap" not in merged["old"] and float(merged["old"][OVERLAP_COLUMN]) == pytest.approx(0.125)
     assert float(merged["new"][OVERLAP_COLUMN]) == 0.5
-    scene = scene_file(tmp_path)
+    scene = gravity_scene_file(tmp_path)
     assert qdots_main(["run", str(scene), "--out", str(tmp_path / "out")]) == 0
     printed = capsys.readouterr().out
     (row,) = rows(tmp_path / "out" / "summary.csv")

@@ -11,6 +11,7 @@ from planarize.cli import build_parser, main
 from planarize.io.results import load_run
 from planarize.io.scenefile import SCENES, load_scene
 
+from helpers import refused_run, run_ok
 from movie_probe import assert_playable
 
 FILES = (".toml", ".npz", "_history.csv", "_fig3-8.png", "_fig3-9.png", "_surfaces.png")
@@ -74,6 +75,13 @@ def test_import_runs_a_height_map(tmp_path, capsys):
     assert load_scene(tmp_path / "s.toml").run.step == 0.1
 
 
+def test_an_empty_snapshot_list_runs_and_writes_its_files(tmp_path, capsys):
+    path = tmp_path / "none.toml"
+    path.write_text("name = 'none'\n[surface]\nrefine = 1\n[run]\nthickness = 0.2\nsnapshots = []\n")
+    run_ok(main, ["run", str(path), "--out", str(tmp_path)], capsys)
+    assert (tmp_path / "none.npz").exists() and not (tmp_path / "none_surfaces.png").exists()
+
+
 @pytest.mark.parametrize("argv, match", [
     (["scene", "mountain"], "invalid choice: 'mountain'"),
     (["run", "absent.toml"], "scene file 'absent.toml' does not exist"),
@@ -95,6 +103,19 @@ def test_bad_input_is_one_line_and_exit_code_2(tmp_path, capsys, argv, match):
     err = capsys.readouterr().err
     assert err.startswith("planarize: error: ") and err.count("\n") == 1
     assert re.search(match, err), err
+
+
+@pytest.mark.parametrize("run_table, message", [
+    ("k_exp = 1e100", r"run.k_exp must be in \[1, 5\]"),
+    ("k_exp = 1e10", r"run.k_exp"),
+    ("thickness = 0.1\nstep = 5.0", r"step \(5 nm\) must not exceed thickness \(0.1 nm\)"),
+    ("record = []", r"run.record"),
+    ("thickness = inf", r"run.thickness"),
+    ("engine = 'reference'\ntolerance = 0.1", r"settings of the fast engine"),
+])
+def test_planarize_parameters_out_of_range_are_one_line_errors(tmp_path, capsys, run_table, message):
+    error = refused_run(main, tmp_path / "bad.toml", f"[run]\n{run_table}\n", capsys, "planarize")
+    assert re.search(message, error)
 
 
 def test_help_and_commands(capsys):

@@ -5,7 +5,7 @@ import sys
 
 import numpy as np
 import pytest
-from conftest import refused_file
+from helpers import refused_file
 
 import planarize
 from planarize.io.gwy import gwy_channels
@@ -100,6 +100,21 @@ def test_gwy_without_units_needs_them_from_the_user(tmp_path):
         load_heights(path)
     surface = load_heights(path, unit="nm")
     assert surface.spacing == pytest.approx((5.0, 5.0)) and planarize.rms(surface) == pytest.approx(1.5)
+
+
+def test_gwyddion_fields_without_sizes_are_one_line_errors(tmp_path):
+    for xres in (None, 0):
+        field = GwyDataField(np.zeros((3, 3)), xreal=1e-9, yreal=1e-9, si_unit_xy="m", si_unit_z="m")
+        if xres is None:
+            del field["xres"]
+        else:
+            field["xres"] = xres
+        container = GwyContainer()
+        container["/0/data"] = field
+        path = tmp_path / f"bad{xres}.gwy"
+        container.tofile(str(path))
+        with pytest.raises(ValueError, match="xres"):
+            load_heights(path)
 
 
 def test_missing_gwyfile_names_the_extra(tmp_path, monkeypatch):

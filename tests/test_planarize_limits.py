@@ -24,6 +24,8 @@ from planarize.io.scenefile import RunSettings, SurfaceSpec, scene_from_toml
 from planarize.surface import MAX_POINTS
 from planarize.surfaces import MAX_SCALES
 
+from helpers import one_line_error
+
 FLAT = Surface(np.zeros((4, 4)))
 anodize_module = importlib.import_module("planarize.anodize")  # (planarize.anodize is also the function)
 
@@ -100,6 +102,31 @@ def test_the_import_command_refuses_hostile_files_in_one_line(tmp_path, capsys):
         err = capsys.readouterr().err
         assert err.startswith("planarize: error:") and len(err.strip().splitlines()) == 1
         assert "16,785,409" in err
+
+
+def test_height_maps_with_absurd_numbers_are_one_line_errors(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # the default output directory, ./planarize-import, must not be left behind
+    cases = {
+        "zero.csv": "# Width: 0 nm\n# Height: 1 nm\n# Value units: nm\n1,2\n3,4\n",
+        "huge.xyz": "0 0 1\n0 1e308 1\n1e308 0 1\n1e308 1e308 1\n",
+        "tall.xyz": "0 0 1\n0 1 1.8e19\n1 0 1\n1 1 1\n",
+    }
+    for name, text in cases.items():
+        (tmp_path / name).write_text(text)
+        assert planarize_main(["import", str(tmp_path / name), "--thickness", "1", "--unit", "nm"]) == 2
+        one_line_error(capsys, "planarize")
+    for name, array in (("u64.npy", np.full((3, 3), 18_000_000_000_000_000_000, dtype=np.uint64)),
+                        ("dates.npy", np.zeros((3, 3), dtype="timedelta64[s]")), ("big.npy", np.full((3, 3), 1e300))):
+        np.save(tmp_path / name, array)
+        assert planarize_main(["import", str(tmp_path / name), "--thickness", "1", "--unit", "nm", "--spacing",
+                               "1"]) == 2
+        one_line_error(capsys, "planarize")
+    np.save(tmp_path / "flat.npy", np.zeros((3, 3)))
+    for spacing in ("1e300", "1e-300"):
+        assert planarize_main(["import", str(tmp_path / "flat.npy"), "--thickness", "1", "--unit", "nm",
+                               "--spacing", spacing, "--step", "0.1"]) == 2
+        assert "spacing" in one_line_error(capsys, "planarize")
+    assert not (tmp_path / "planarize-import").exists()
 
 
 def test_the_byte_caps_follow_the_point_limit():

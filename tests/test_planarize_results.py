@@ -2,10 +2,11 @@
 
 import csv
 import json
+import zipfile
 
 import numpy as np
 import pytest
-from conftest import refused_file
+from helpers import refused_file
 
 import planarize
 from planarize.io.results import history_json, load_run, save_history_csv, save_history_json, save_run
@@ -80,3 +81,30 @@ def test_bad_run_files(tmp_path):
         load_run(tmp_path / "other.npz")
     with pytest.raises(ValueError, match="Anodization"):
         save_run("not a run", tmp_path / "x.npz")
+
+
+def test_damaged_run_files_are_one_line_errors(tmp_path):
+    run = planarize.anodize(planarize.surfaces.hill(points=3, refine=1), 0.05, record=2)
+    good = save_run(run, tmp_path / "run.npz")
+    data = good.read_bytes()
+    (tmp_path / "truncated.npz").write_bytes(data[: len(data) // 2])
+    with zipfile.ZipFile(good) as archive:  # a byte of the metal heights (after its local header)
+        info = archive.getinfo("metal.npy")
+    local = data[info.header_offset:info.header_offset + 30]
+    start = info.header_offset + 30 + int.from_bytes(local[26:28], "little") + int.from_bytes(local[28:30], "little")
+    flipped = bytearray(data)
+    flipped[start + info.file_size - 3] ^= 0xFF
+    (tmp_path / "flipped.npz").write_bytes(bytes(flipped))
+    for name in ("truncated.npz", "flipped.npz"):
+        with pytest.raises(ValueError, match="run"):
+            load_run(tmp_path / name)
+    with np.load(good) as archive:
+        arrays = {k: archive[k] for k in archive.files}
+    metadata = json.loads(str(arrays["metadata"]))
+    for name, change in (("list", lambda a: {**a, "metadata": np.array(json.dumps([1]))}),
+                         ("shape", lambda a: {**a, "metal": np.zeros((2, 2))}),
+                         ("spacing", lambda a: {**a, "metadata": np.array(json.dumps({**metadata, "spacing": "x"}))})):
+        with open(tmp_path / f"{name}.npz", "wb") as stream:
+            np.savez(stream, **change(arrays))
+        with pytest.raises(ValueError, match="run"):
+            load_run(tmp_path / f"{name}.npz")

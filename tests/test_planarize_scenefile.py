@@ -2,7 +2,7 @@
 
 import numpy as np
 import pytest
-from conftest import refused_file
+from helpers import refused_file
 
 import planarize
 from planarize import Fast, Model, Reference

@@ -4,7 +4,7 @@ import math
 
 import numpy as np
 import pytest
-from conftest import TimeRecorder, worst_overlap
+from helpers import TimeRecorder, worst_overlap
 
 import qdots
 from qdots.experiment import Board, Deposition, Experiment, run_experiment
@@ -73,9 +73,9 @@ def test_deposit_places_dots_inside_region_without_overlap():
 
 def test_deposit_advances_time_per_dot_and_sets_masses():
     sim = empty_sim(box=(120.0, 120.0), forces=[qdots.VanDerWaals(), qdots.ThermalKicks()])
-    d = deposit(sim, 8, sigma=0.15, mass_model="volume", interval=0.05, rng=3)
+    d = deposit(sim, 8, sigma=0.15, mass_model="volume", interval=0.04, rng=3)
     assert sim.n_dots == 8
-    assert sim.steps_taken == 8 * round(0.05 / sim.dt) and sim.time == pytest.approx(0.4)
+    assert sim.steps_taken == 8 * round(0.04 / sim.dt) and sim.time == pytest.approx(0.32)
     assert np.allclose(sim.masses, (d / 15.0) ** 3)
 
 
@@ -127,13 +127,13 @@ def test_deposit_around_centre_uses_the_thesis_ring():
 
 def small_experiment(seed=3):
     return Experiment(name="small", seed=seed, board=Board(120.0, 120.0),
-                      deposition=Deposition(n_dots=8, sigma=0.1, interval=0.05, settle=0.3))
+                      deposition=Deposition(n_dots=8, sigma=0.1, interval=0.04, settle=0.3))
 
 
 def test_run_experiment_is_reproducible_and_seed_dependent():
     a, b, c = (run_experiment(small_experiment(seed)) for seed in (3, 3, 4))
     sa, sb, sc = a.state(), b.state(), c.state()
-    assert sa.time == pytest.approx(8 * 0.05 + 0.3) and sa.n_dots == 8
+    assert sa.time == pytest.approx(8 * 0.04 + 0.3) and sa.n_dots == 8
     assert np.array_equal(sa.positions, sb.positions) and np.array_equal(sa.velocities, sb.velocities)
     assert np.array_equal(sa.radii, sb.radii)
     assert not np.array_equal(sa.positions, sc.positions)

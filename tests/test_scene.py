@@ -1,4 +1,5 @@
-"""Scene validation: every bad input is a ValueError naming the field and the index."""
+"""Scene and collision-rule validation: every bad input is a ValueError naming the field (and the index); so is
+a value of the wrong type given to the Python API (Scene, Restitution, Simulation)."""
 
 import numpy as np
 import pytest
@@ -118,3 +119,15 @@ def test_grating_lines():
 def test_replace_revalidates():
     with pytest.raises(ValueError, match="radii"):
         two_dots().replace(radii=[7.5, -7.5])
+
+
+def test_api_type_errors_name_the_field():
+    scene = qdots.Scene(box=(100, 100), positions=[[50, 50]], radii=[7.5])
+    for call, field in ((lambda: qdots.Restitution(mean="x"), "Restitution.mean"),
+                        (lambda: qdots.Simulation(scene, collision_bias="x"), "collision_bias"),
+                        (lambda: qdots.Simulation(scene, seed=-1), "seed"),
+                        (lambda: qdots.Simulation(scene, dt="fast"), "dt"),
+                        (lambda: qdots.Simulation(scene, pair_skin="x"), "pair_skin"),
+                        (lambda: qdots.Scene(box=(100, 100), positions=[[50, 50]], radii=[7.5], closed=1), "closed")):
+        with pytest.raises(ValueError, match=field):
+            call()

@@ -1,4 +1,5 @@
-"""TOML scene files: round trips, defaults and every error path."""
+"""TOML experiment (scene) files: round trips, the text written, defaults, every error path, and files written by
+earlier releases."""
 
 import dataclasses
 import inspect
@@ -6,7 +7,7 @@ import re
 import warnings
 
 import pytest
-from conftest import refused_file
+from helpers import refused_file
 
 import qdots
 from labrig.tomlfile import tomllib
@@ -21,6 +22,8 @@ from qdots.simulation import EngineSettings
 
 ALL_PRESET_RUNS = [exp for name in PRESETS for exp in (*PRESETS[name], *get_preset(name, quick=True))]
 
+
+# -- round trips ---------------------------------------------------------------------------------------
 
 @pytest.mark.parametrize("exp", ALL_PRESET_RUNS, ids=lambda e: e.name)
 def test_every_preset_round_trips_through_a_file(tmp_path, exp):
@@ -55,30 +58,19 @@ def test_an_unset_setting_whose_default_is_set_round_trips_as_false():
     assert experiment_from_toml(experiment_to_toml(Experiment())).engine.overlap_tolerance == 0.005
 
 
-def test_every_pair_every_step_round_trips_as_false():
-    """Every vdW pair every step (``far_interval=None``, an engine setting now) was written as a comment and
-    read back as the 20 ms default: a saved experiment ran another model."""
-    exp = Experiment(engine=EngineSettings(far_interval=None), forces=(qdots.VanDerWaals(), qdots.ThermalKicks()))
+def test_the_far_pass_round_trips_set_and_unset():
+    """Every vdW pair every step (``far_interval=None``, the default since the step is the thesis's frame) reads
+    back unset; a far pass for a shorter step reads back as set."""
+    exp = Experiment(forces=(qdots.VanDerWaals(), qdots.ThermalKicks()))
     text = experiment_to_toml(exp)
-    assert "\nfar_interval = false " in text and "# strength (unset)" in text
-    back = experiment_from_toml(text)
-    assert back == exp and back.engine.far_interval is None
+    assert "# far_interval (unset)" in text and "# strength (unset)" in text
+    assert experiment_from_toml(text) == exp and experiment_from_toml(text).engine.far_interval is None
+    split = exp.replace(engine=EngineSettings(dt=2.5e-3, far_interval=0.02))
+    back = experiment_from_toml(experiment_to_toml(split))
+    assert back == split and back.engine.far_interval == 0.02
 
 
-def test_a_file_of_0_2_with_vdw_numerics_means_what_it_meant():
-    """0.2 kept the pair list's knobs and a sticking speed in the VanDerWaals table: the knobs are read into the
-    engine table, and a sticking speed other than the collision rule's as the proxy offset it gave."""
-    old = ('[restitution]\nsticking_speed = 1.0\n'
-           '[[forces]]\ntype = "VanDerWaals"\nskin = 3.0\nnear_gap = 6.0\nfar_interval = false\nsticking_speed = 2.0\n'
-           '[[forces]]\ntype = "VanDerWaals"\nsticking_speed = 1.0\n')
-    exp = experiment_from_toml(old)
-    assert exp.engine == EngineSettings(pair_skin=3.0, near_gap=6.0, far_interval=None)
-    assert exp.forces[0] == qdots.VanDerWaals(offset=thesis_offset(15.0, 0.1, 2.0)).to_dict()
-    assert exp.forces[1] == qdots.VanDerWaals().to_dict()  # the rule's own sticking speed: nothing to keep
-    assert experiment_from_toml(experiment_to_toml(exp)) == exp
-    with pytest.raises(ValueError, match=r"pair_skin = 3.0 differs from engine.pair_skin = 6.0"):
-        experiment_from_toml('[engine]\npair_skin = 6.0\n[[forces]]\ntype = "VanDerWaals"\nskin = 3.0\n')
-
+# -- the text written: every key with its unit and range -----------------------------------------------
 
 def test_written_file_has_every_key_with_units():
     text = experiment_to_toml(PRESETS["fig2-2"][1])
@@ -90,7 +82,7 @@ def test_written_file_has_every_key_with_units():
 
 
 #: How a comment states a unit: ``what: unit, range`` (a unit of the package or "unitless"), or lists the choices.
-UNIT = re.compile(r": (px|px/s|px/s\^2|s|1/s|1/px|radii|mean-dot masses|mean-dot mass px\^2/s\^2|unitless), "
+UNIT = re.compile(r": (px|px/s|px/s\^2|s|1/s|1/px|radii|mean radii|mean-dot masses|mean-dot mass px\^2/s\^2|unitless), "
                   r"|: one of |: true or false$|: text of at most ")
 #: How a comment states the range: an interval, a lower bound, the choices, or the longest text.
 RANGE = re.compile(r"\bin [\[(]-?[\d.e-]+, -?[\d.e,-]+[\])]|integer >= \d|: one of |: true or false$"
@@ -116,8 +108,8 @@ def key_lines(text: str):
 
 @pytest.mark.parametrize("exp", ALL_PRESET_RUNS, ids=lambda e: e.name)
 def test_every_key_of_a_saved_preset_states_its_unit_and_range(exp):
-    """Issue 42: near_gap, far_interval, min_gap, max_gap, offset, centre and each force's type had no range (or
-    no comment) in a saved file, though the README says the comments state every bound."""
+    """near_gap, far_interval, min_gap, max_gap, offset, centre and each force's type once had no range (or no
+    comment) in a saved file, though the README says the comments state every bound."""
     lines = list(key_lines(experiment_to_toml(exp)))
     for table, key, comment in lines:
         assert comment, f"[{table}] {key} has no comment"
@@ -161,6 +153,8 @@ def test_a_bound_changed_in_its_declaration_changes_the_check_and_the_file_comme
                  r"board.width must be in \(0, 500\] px, got 550.0")
 
 
+# -- defaults ------------------------------------------------------------------------------------------
+
 def test_missing_keys_take_defaults_and_ints_are_accepted_for_floats():
     assert experiment_from_toml("") == Experiment()
     exp = experiment_from_toml('seed = 9\n[board]\nwidth = 300\n[deposition]\nsigma = 0.1\n[[forces]]\ntype = "Drag"\n')
@@ -169,6 +163,15 @@ def test_missing_keys_take_defaults_and_ints_are_accepted_for_floats():
     assert isinstance(exp.board.width, float)
     assert experiment_from_toml("forces = []").forces == ()
 
+
+def test_scene_file_keeps_derived_vdw_defaults_unset():
+    spec = qdots.VanDerWaals(r0=10.0).to_dict()
+    assert spec["strength"] is None and spec["max_gap"] is None
+    assert qdots.forces.force_from_dict(spec).max_gap == 20.0
+    assert qdots.VanDerWaals(max_gap=12.0).to_dict()["max_gap"] == 12.0
+
+
+# -- errors ---------------------------------------------------------------------------------------------
 
 @pytest.mark.parametrize("text, message", [
     ("nmae = 'x'", r"unknown key 'nmae' \(allowed: name, seed, grating, board, deposition"),
@@ -224,6 +227,23 @@ def test_failed_save_keeps_the_previous_file(tmp_path, monkeypatch):
     assert path.read_text() == before and sorted(p.name for p in tmp_path.iterdir()) == ["scene.toml"]
     with pytest.raises(TypeError, match="exp must be a qdots.experiment.Experiment"):
         save_experiment({"seed": 1}, path)
+
+
+# -- files written by earlier releases ------------------------------------------------------------------
+
+def test_a_file_of_0_2_with_vdw_numerics_means_what_it_meant():
+    """0.2 kept the pair list's knobs and a sticking speed in the VanDerWaals table: the knobs are read into the
+    engine table, and a sticking speed other than the collision rule's as the proxy offset it gave."""
+    old = ('[restitution]\nsticking_speed = 1.0\n'
+           '[[forces]]\ntype = "VanDerWaals"\nskin = 3.0\nnear_gap = 6.0\nfar_interval = false\nsticking_speed = 2.0\n'
+           '[[forces]]\ntype = "VanDerWaals"\nsticking_speed = 1.0\n')
+    exp = experiment_from_toml(old)
+    assert exp.engine == EngineSettings(pair_skin=3.0, near_gap=6.0, far_interval=None)
+    assert exp.forces[0] == qdots.VanDerWaals(offset=thesis_offset(15.0, 0.1, 2.0)).to_dict()
+    assert exp.forces[1] == qdots.VanDerWaals().to_dict()  # the rule's own sticking speed: nothing to keep
+    assert experiment_from_toml(experiment_to_toml(exp)) == exp
+    with pytest.raises(ValueError, match=r"pair_skin = 3.0 differs from engine.pair_skin = 6.0"):
+        experiment_from_toml('[engine]\npair_skin = 6.0\n[[forces]]\ntype = "VanDerWaals"\nskin = 3.0\n')
 
 
 OLD_CENTRAL_FILE = """# an experiment file as qdots 0.1 wrote it: American spellings

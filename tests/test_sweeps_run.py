@@ -1,4 +1,5 @@
-"""Running sweeps: resume after a kill, failures and crashed workers recorded, the table, sweep-plot."""
+"""Running sweeps: resume after a kill, failures and crashed workers recorded, workers that end with a killed
+sweep, damaged run records run again, the table, sweep-plot."""
 
 import json
 import math
@@ -6,6 +7,7 @@ import os
 import signal
 import subprocess
 import sys
+import textwrap
 import time
 import uuid
 from dataclasses import dataclass
@@ -15,6 +17,9 @@ import numpy as np
 import pytest
 
 from labrig.sweeps import Sweep, read_table, run_sweep, save_sweep_plot, summarize
+from qdots.cli import main as qdots_main
+
+from helpers import one_line_error
 
 
 @dataclass(frozen=True)
@@ -163,6 +168,41 @@ def test_a_run_that_kills_its_worker_is_isolated_and_recorded(tmp_path, log):
     assert all(r["attempts"] == 1 for r in result.rows if r["status"] == "ok")
 
 
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="parent-death signal is Linux's")
+def test_sweep_workers_exit_when_the_sweep_is_killed(tmp_path):
+    script = tmp_path / "slow.py"
+    script.write_text(textwrap.dedent("""
+        import time
+        from labrig.sweeps import Sweep, run_sweep
+
+        def run_one(params):
+            time.sleep(60)
+            return {"y": params["x"]}
+
+        if __name__ == "__main__":
+            run_sweep(Sweep(base={"x": 0}, axes={"x": [1, 2, 3]}), run_one, "out", workers=2, progress=False)
+    """))
+    parent = subprocess.Popen([sys.executable, str(script)], cwd=tmp_path)
+    children = []
+    for _ in range(100):
+        time.sleep(0.1)
+        children = subprocess.run(["pgrep", "-P", str(parent.pid)], capture_output=True, text=True,
+                                  timeout=30).stdout.split()
+        if len(children) >= 2:
+            break
+    assert len(children) >= 2, "the pool did not start"
+    parent.send_signal(signal.SIGKILL)
+    parent.wait(timeout=30)
+    deadline = time.time() + 10
+    alive = children
+    while alive and time.time() < deadline:
+        time.sleep(0.2)
+        alive = [c for c in alive if subprocess.run(["kill", "-0", c], capture_output=True, timeout=30).returncode == 0
+                 and "Z" not in subprocess.run(["ps", "-o", "stat=", "-p", c], capture_output=True, text=True,
+                                               timeout=30).stdout]
+    assert not alive, f"orphaned workers still running: {alive}"
+
+
 def test_plain_function_and_bad_rows(tmp_path):
     result = run_sweep(Sweep(base={"x": 1.0}), square, tmp_path / "a", workers=1, progress=False)
     assert result.rows[0]["y"] == 1.0
@@ -199,3 +239,22 @@ def test_summarize_and_plot(tmp_path, log):
         summarize(result.table, "z", "x")
     with pytest.raises(ValueError, match="'x' varies among the runs"):  # x is swept: averaging over it is an error
         summarize(result.table, "y", "even")
+
+
+def test_damaged_sweep_records_are_run_again_and_damaged_tables_are_one_line(tmp_path, capsys):
+    sweep = Sweep(base={"x": 1.0}, axes={"x": [1.0, 2.0]})
+    result = run_sweep(sweep, square, tmp_path / "s", workers=1, progress=False)
+    record = next((tmp_path / "s" / "runs").iterdir())
+    data = json.loads(record.read_text())
+    data["row"] = ["not", "a", "row"]
+    record.write_text(json.dumps(data))
+    again = run_sweep(sweep, square, tmp_path / "s", workers=1, progress=False)
+    assert again.ran == 1 and again.rows == [dict(r, wall_s=a["wall_s"]) for r, a in zip(result.rows, again.rows)]
+    table = tmp_path / "s" / "table.csv"
+    lines = table.read_text().splitlines()
+    table.write_text("\n".join(lines[:-1] + [lines[-1][: len(lines[-1]) // 3]]) + "\n")  # truncated mid-row
+    assert qdots_main(["sweep-plot", str(table), "--metric", "y", "--x", "x"]) == 2
+    one_line_error(capsys)
+    table.write_text("\n".join(lines) + "\n")
+    assert qdots_main(["sweep-plot", str(table), "--metric", "status", "--x", "x"]) == 2
+    assert "holds no numbers" in one_line_error(capsys)

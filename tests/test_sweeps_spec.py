@@ -1,11 +1,16 @@
 """Sweep specifications: expansion, ranges, run identity, sweep files and their errors."""
 
+import tracemalloc
+
 import pytest
 
+from qdots.cli import main as qdots_main
 from qdots.cli.sweep import ExperimentRunner, load_sweep
 from labrig.sweeps import Sweep, run_id
 from labrig.sweeps.files import sweep_from_dict
 from labrig.sweeps.spec import get_path, range_values, set_path
+
+from helpers import one_line_error
 
 
 def test_product_order_points_axes_then_seeds():
@@ -144,6 +149,18 @@ def test_missing_files(tmp_path):
     (tmp_path / "sweep.toml").write_text('base = "none.toml"\n')
     with pytest.raises(FileNotFoundError, match="base file .*none.toml"):
         load_sweep(tmp_path / "sweep.toml")
+
+
+def test_a_huge_seed_count_is_refused_before_anything_is_allocated(tmp_path, capsys):
+    (tmp_path / "sweep.toml").write_text("seeds = 1000000000\n[base]\nname = 'x'\n")
+    tracemalloc.start()
+    try:
+        assert qdots_main(["sweep", str(tmp_path / "sweep.toml"), "--workers", "1"]) == 2
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert "seeds must be an integer in [1, 100,000]" in one_line_error(capsys)
+    assert peak < 50e6  # a billion seeds would be gigabytes
 
 
 def test_inline_base_and_dotted_points():

@@ -25,8 +25,8 @@ def context(x, y, radii, masses, dt, time=0.0, settings=None, cache=None, rng=No
 def numpy_kicks(force: qdots.VanDerWaals, settings, x, y, radii, masses, dt, time=0.0):
     """Velocity changes of one step from ``time`` under the engine ``settings``, written array-wise (bincount over
     the pair list): with the split, the pull of each pair for ``dt`` times ``w(g)`` (1 below ``near_gap / 2``,
-    smoothstep down to 0 at ``near_gap``) plus its pull for the far intervals whose middle is in the step times
-    ``1 - w(g)``."""
+    smoothstep down to 0 at ``near_gap``) plus, in the step after a far interval's middle, its pull over that
+    interval times ``1 - w(g)``."""
     offset = force.proxy_offset(RULE.sticking_speed)
     strength = force.hamaker_strength(offset)
     pairs = VerletPairs(settings.pair_skin)
@@ -54,7 +54,8 @@ def numpy_kicks(force: qdots.VanDerWaals, settings, x, y, radii, masses, dt, tim
     speed_i, speed_j = speeds(dt)
     if force.split(settings):
         interval, near_gap = settings.far_interval, settings.near_gap
-        middles = np.floor((time + dt) / interval + 0.5 + 1e-9) - np.floor(time / interval + 0.5 + 1e-9)
+        # the far pass runs at the start of the step after each middle: the middles in (time - dt, time]
+        middles = np.floor(time / interval + 0.5 + 1e-9) - np.floor((time - dt) / interval + 0.5 + 1e-9)
         s = np.clip((gap - near_gap / 2) / (near_gap / 2), 0.0, 1.0)
         near = 1.0 - s * s * (3.0 - 2.0 * s)
         far_i, far_j = speeds(middles * interval)
@@ -86,7 +87,7 @@ def test_compiled_pass_matches_the_numpy_oracle(model, contact, dt, masses, far)
     m = np.ones(len(x)) if masses == "equal" else np.where(np.arange(len(x)) % 2, 2.0, 1.0)
     force = qdots.VanDerWaals(model, contact=contact)
     settings = qdots.EngineSettings(far_interval=None if far is None else 0.05)
-    time = 0.025 - dt / 2 if far == "a middle" else 0.0  # the middle of the first far interval is 25 ms
+    time = 0.025 + dt / 2 if far == "a middle" else 0.0  # the middle of the first far interval is 25 ms
     ctx = context(x, y, radii, m, dt, time, settings)
     force.kick(ctx)
     expected = numpy_kicks(force, settings, x, y, radii, m, dt, time)

@@ -113,6 +113,7 @@ def finish(sim: Simulation, files: OutputSet, stem: str, wall: float, extra: dic
               file=sys.stderr)
     row = {
         **extra,
+        "engine": sim.settings.kind,
         "dots": summary["n_dots"],
         "time_s": round(state.time, 9),
         "steps": sim.steps_taken,
@@ -180,7 +181,7 @@ def report(rows: Sequence[dict], out: Path) -> None:
     for row in rows:
         print_table(f"{row.get('name', row['state_file'])}:", [
             ("dots", str(row["dots"]) + (f" ({row['escaped_dots']} left the board)" if row["escaped_dots"] else "")),
-            ("simulated time", f"{row['time_s']:.2f} s ({row['steps']} steps)"),
+            ("simulated time", f"{row['time_s']:.2f} s ({row['steps']} steps, {row['engine']} engine)"),
             ("wall time", f"{row['wall_s']:.1f} s ({row['x_real_time']:.1f}x real time)"),
             ("interior fraction", f"{row['interior_fraction']:.3f}"),
             ("mean neighbours (interior)", f"{row['mean_neighbours_interior']:.2f}"),

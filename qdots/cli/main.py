@@ -52,6 +52,19 @@ def _add_outputs(p, out_default: str | None) -> None:
     p.add_argument("--gsd", action="store_true", help="also write a GSD trajectory (needs the gsd package)")
 
 
+def _add_engine(p) -> None:
+    from ..engine import ENGINES
+
+    p.add_argument("--engine", choices=list(ENGINES), default=None,
+                   help="override the file's [engine] kind: chipmunk (pymunk, the default) or event (the thesis's "
+                        "event-driven exact hard discs)")
+
+
+def _with_engine(exp, engine: str | None):
+    """``exp`` run by the engine ``engine`` (None: as it says)."""
+    return exp if engine is None else exp.replace(engine=exp.engine.replace(kind=engine))
+
+
 def _add_state_command(subparsers, name: str, func, help: str, description: str | None = None):
     """A subcommand whose argument is a state file (``STATE.npz``)."""
     p = add_command(subparsers, name, func, help, description)
@@ -63,6 +76,7 @@ def _add_run(subparsers) -> None:
     p = add_command(subparsers, "run", _run_scene, "run the experiment described by a TOML experiment file")
     p.add_argument("experiment", type=Path, metavar="EXPERIMENT.toml", help="experiment file")
     _add_outputs(p, "qdots-run")
+    _add_engine(p)
     p.add_argument("--seed", type=int_in(0, MAX_SEED), default=None, help="override the file's seed")
     p.add_argument("--quick", type=fraction, default=None,
                    metavar="F", help="scale the run down by F (fewer dots, shorter times) for a first look")
@@ -75,6 +89,7 @@ def _add_preset(subparsers) -> None:
                     description="Run the experiments that reproduce a thesis figure: " + ", ".join(PRESETS) + ".")
     p.add_argument("name", choices=list(PRESETS), metavar="NAME", help=f"one of: {', '.join(PRESETS)}")
     _add_outputs(p, "qdots-preset")
+    _add_engine(p)
     p.add_argument("--quick", type=fraction, default=None,
                    metavar="F", help="scale the runs down by F (e.g. 0.1) for a first look")
     p.add_argument("--save", type=Path, default=None, metavar="DIR",
@@ -157,6 +172,7 @@ def _run_scene(args: argparse.Namespace) -> int:
         exp = exp.replace(seed=args.seed)
     if args.quick is not None:
         exp = exp.quick(args.quick)
+    exp = _with_engine(exp, args.engine)
     run_experiments([exp], args.out, movie=args.movie, gsd=args.gsd, source=args.experiment)
     return 0
 
@@ -168,7 +184,8 @@ def _run_preset(args: argparse.Namespace) -> int:
     from ..presets import get_preset
     from .commands import run_experiments
 
-    experiments = get_preset(args.name, quick=False if args.quick is None else args.quick)
+    experiments = [_with_engine(exp, args.engine)
+                   for exp in get_preset(args.name, quick=False if args.quick is None else args.quick)]
     if args.save is not None:
         args.save.mkdir(parents=True, exist_ok=True)
         for exp in experiments:

@@ -1,7 +1,7 @@
-"""Bulk reads and writes of dot positions, velocities and forces.
+"""Bulk reads and writes of dot positions and velocities.
 
 Reading or writing bodies one by one costs ~12 ms per direction at 3,000 dots. The step's own
-reads (positions and velocities) and writes (forces) go straight to Chipmunk's body memory from
+reads (positions and velocities) and writes (velocity changes) go straight to Chipmunk's body memory from
 compiled code, at the offsets `qdots.engine.chipmunk.internals` found: at 300 dots that is ~3 us a
 direction, against ~15 us for a `pymunk.batch` call and its Python wrapping (measured on this 2-core
 machine). Without them (an untested pymunk), the same reads and writes go through `pymunk.batch`, with
@@ -26,7 +26,7 @@ from pymunk import batch
 
 from labrig.compiled import jit, pointer
 
-from .chipmunk import FORCE, POSITION, VELOCITY, body_address, internals
+from .chipmunk import POSITION, VELOCITY, body_address, internals
 
 _POS_VEL = batch.BodyFields.POSITION | batch.BodyFields.VELOCITY
 
@@ -44,16 +44,16 @@ def read_bodies(addresses, offsets, rows):
 
 
 @jit
-def write_body_forces(addresses, offsets, forces):
-    """Set the force vector of the bodies at ``addresses`` from ``forces`` (N, 2)."""
+def add_body_velocities(addresses, offsets, dv):
+    """Add ``dv`` (N, 2) to the velocity vectors of the bodies at ``addresses``."""
     for a in range(addresses.size):
-        f = carray(pointer(addresses[a] + offsets[FORCE]), 2, np.float64)
-        f[0] = forces[a, 0]
-        f[1] = forces[a, 1]
+        v = carray(pointer(addresses[a] + offsets[VELOCITY]), 2, np.float64)
+        v[0] += dv[a, 0]
+        v[1] += dv[a, 1]
 
 
 class BodyArrays:
-    """Bulk access to the positions, velocities and forces of a space's dot bodies.
+    """Bulk access to the positions and velocities of a space's dot bodies.
 
     Parameters
     ----------
@@ -91,9 +91,6 @@ class BodyArrays:
         self._state_rows = np.zeros((self.rows, 4))
         self._state_buffer = batch.Buffer()
         self._state_buffer.set_float_buf(self._state_rows)
-        self._force_rows = np.zeros((self.rows, 2))  # static rows stay zero
-        self._force_buffer = batch.Buffer()
-        self._force_buffer.set_float_buf(self._force_rows)
         found = internals()
         self._offsets = None if found is None else found.body_offsets
 
@@ -118,13 +115,13 @@ class BodyArrays:
         rows = self.read_rows()
         return rows[:, :2].copy(), rows[:, 2:].copy()
 
-    def write_forces(self, forces: np.ndarray) -> None:
-        """Set every dot's force (mean mass px/s^2; Chipmunk applies it in its next step only) from an (N, 2) array."""
+    def add_velocities(self, dv: np.ndarray, velocities: np.ndarray) -> None:
+        """Add ``dv`` (N, 2) to every dot's velocity; ``velocities`` (N, 2) are their velocities now (what the
+        public-API path writes, with ``dv`` added)."""
         if self._offsets is not None:
-            write_body_forces(self._addresses, self._offsets, forces)
+            add_body_velocities(self._addresses, self._offsets, dv)
             return
-        self._force_rows[: self.n] = forces
-        batch.set_space_bodies(self._space, batch.BodyFields.FORCE, self._force_buffer)
+        self.write_velocities(velocities + dv)
 
     def write_velocities(self, velocities: np.ndarray) -> None:
         """Set every dot's velocity from an (N, 2) array."""

@@ -4,10 +4,10 @@ pymunk's public API (``Space``, ``Body``, ``Circle``, ``Segment``, ``pymunk.batc
 ``Space.step``) does everything a simulation needs. Four of pymunk's internals make it several times
 faster, and they are written for the pymunk versions in `TESTED_PYMUNK` (7.3, Chipmunk 2.0.1):
 
-* where Chipmunk keeps a body's position, velocity and force (`Internals.body_offsets`), so compiled code
+* where Chipmunk keeps a body's position and velocity (`Internals.body_offsets`), so compiled code
   reads and writes them directly (`qdots.engine.bodies`);
 * where it keeps an arbiter's restitution, normal and bodies (`Internals.arbiter`), so the collision rule
-  runs as a compiled C callback (`qdots.engine.contacts`);
+  runs as a compiled C callback (`qdots.engine.contacts`, `add_pre_solve_callback`);
 * its C step without pymunk's Python bookkeeping (`advance`);
 * ``cpSpaceSetCurrentTimeStep``, which tells Chipmunk the length of the last sub-step when the sub-step
   changes (`set_last_substep`).
@@ -39,8 +39,8 @@ DOT = 1
 WALL = 2
 #: pymunk's records of work its ``Space.step`` does in Python after the C step (pymunk 7.3).
 _PYMUNK_PENDING = ("_bodies_to_check", "_add_later", "_remove_later", "_post_step_callbacks")
-#: The C type of a begin callback.
-_BEGIN = "void(*)(struct cpArbiter *, struct cpSpace *, void *)"
+#: The C type of a collision callback.
+_CALLBACK = "void(*)(struct cpArbiter *, struct cpSpace *, void *)"
 
 
 @dataclass(frozen=True)
@@ -49,8 +49,8 @@ class Internals:
 
     Attributes
     ----------
-    body_offsets : ndarray of uint64, shape (3,)
-        Byte offsets of a body's position, velocity and force vectors (`POSITION`, `VELOCITY`, `FORCE`).
+    body_offsets : ndarray of uint64, shape (2,)
+        Byte offsets of a body's position and velocity vectors (`POSITION`, `VELOCITY`).
     arbiter : dict
         Word (8-byte) indices into a ``cpArbiter``: its size in words (``"words"``), the restitution
         ``"e"``, the normal ``"normal"``, the two body pointers ``"body_a"``, ``"body_b"``.
@@ -61,7 +61,7 @@ class Internals:
 
 
 #: Index of each field's byte offset in `Internals.body_offsets`.
-POSITION, VELOCITY, FORCE = 0, 1, 2
+POSITION, VELOCITY = 0, 1
 
 
 def pymunk_tested(version: str | None = None) -> bool:
@@ -117,18 +117,18 @@ def body_address(body: pymunk.Body) -> int:
 
 
 def _body_offsets() -> np.ndarray | None:
-    """Byte offsets of a Chipmunk body's position, velocity and force vectors, or None when pymunk's memory is
+    """Byte offsets of a Chipmunk body's position and velocity vectors, or None when pymunk's memory is
     not laid out as expected.
 
     The body struct is opaque to pymunk's declarations, so each field is found by writing two
     different known values through pymunk (a disc body: no rotation, centre of gravity at its
-    position) and reading them back from memory. Velocity and force must be found at exactly one
+    position) and reading them back from memory. The velocity must be found at exactly one
     offset; the position is also the translation of the body's transform, further on, so the first
     of its offsets (Chipmunk's ``cpBody.p``, which its integrator moves) is taken.
     """
     ffi = _ffi()
     found = []
-    for field in ("position", "velocity", "force"):
+    for field in ("position", "velocity"):
         offsets = set()
         for value in ((1.25e-3, -7.5e4), (-3.5e2, 6.0625)):
             body = pymunk.Body(1.0, math.inf)
@@ -235,11 +235,11 @@ def set_last_substep(space: pymunk.Space, h: float) -> None:
         _lib().cpSpaceSetCurrentTimeStep(space._space, h)
 
 
-def add_begin_callback(space: pymunk.Space, type_a: int, type_b: int, address: int, data_address: int) -> None:
-    """Make Chipmunk call the C function at ``address`` (``void(cpArbiter *, cpSpace *, void *)``) when a
-    contact of shapes of collision types ``type_a`` and ``type_b`` begins, with ``data_address`` as its data.
-    Needs `internals`."""
+def add_pre_solve_callback(space: pymunk.Space, type_a: int, type_b: int, address: int, data_address: int) -> None:
+    """Make Chipmunk call the C function at ``address`` in every step a contact of shapes of collision types
+    ``type_a`` and ``type_b`` lasts (before it solves the contact), with ``data_address`` as its data. Needs
+    `internals`."""
     ffi = _ffi()
     handler = _lib().cpSpaceAddCollisionHandler(space._space, type_a, type_b)
-    handler.beginFunc = ffi.cast(_BEGIN, address)
+    handler.preSolveFunc = ffi.cast(_CALLBACK, address)
     handler.userData = ffi.cast("void *", data_address)

@@ -1,18 +1,21 @@
-"""The collision rule (`qdots.restitution`) run by Chipmunk: compiled begin callbacks and their memory.
+"""The collision rule (`qdots.restitution`) run by Chipmunk: compiled pre-solve callbacks and their memory.
 
 Chipmunk's contact solver applies a coefficient of restitution with zero friction, which is Eq 2.5: dot
-shapes have friction 0 and a ``begin`` callback sets the arbiter's restitution for the step in which
-a contact starts. Chipmunk recomputes the restitution of a *lasting* contact every step as the
-product of the two shapes' elasticities; dot shapes therefore carry elasticity 0: a contact that
-persists beyond its first step is a resting or pressed contact, and the thesis treats slow impacts
-(below ``sticking_speed``) as perfectly inelastic.
+shapes have friction 0, and a callback sets each contact's restitution. The thesis draws one restitution
+per impact, and an impact is any moment two dots approach at contact, whether their contact is new or has
+lasted (a kick drives a dot into a neighbour it already touches). The callback therefore runs in every
+step a contact lasts (Chipmunk's ``preSolve``, before it solves the contact from the velocities the
+step began with): when the dots approach, the rule gives the restitution (a draw, or 0 below the
+sticking speed) and counts an impact; a resting or parting contact gets 0. (Until 0.3 the rule ran
+only in a contact's first step, and a lasting contact was perfectly inelastic: every kick into a
+touching neighbour was absorbed, one reason why films of unequal masses came out colder and more
+cohesive than the thesis's model; see `qdots.engine.stepping` for the other.)
 
-Speed. A film makes ~10 new contacts per Chipmunk step, most of them touching dots that part and
-meet again at less than 1 px/s. A Python callback costs ~6 us per contact (a third of Chipmunk's
-step on a 300-dot film), so the rule is compiled (`impact_elasticity`) and Chipmunk calls it
-through a C function pointer (~0.1 us). The callback reads the two bodies' velocities and the
-contact normal from Chipmunk's memory (`qdots.engine.chipmunk.internals`); without them (an untested
-pymunk), the same compiled rule runs from a Python callback (slower, same numbers).
+Speed. A film makes hundreds of contacts per Chipmunk step. A Python callback costs ~6 us per contact,
+so the rule is compiled (`impact_elasticity`) and Chipmunk calls it through a C function pointer
+(~0.1 us). The callback reads the two bodies' velocities and the contact normal from Chipmunk's memory
+(`qdots.engine.chipmunk.internals`); without them (an untested pymunk), the same compiled rule runs from
+a Python callback (slower, same numbers).
 """
 
 from __future__ import annotations
@@ -28,7 +31,7 @@ from numba import carray
 from labrig.compiled import c_callback, jit, pointer
 
 from ..restitution import Restitution, impact_normal
-from .chipmunk import DOT, VELOCITY, WALL, add_begin_callback, internals
+from .chipmunk import DOT, VELOCITY, WALL, add_pre_solve_callback, internals
 
 
 # -- the collision record: one float64 array the callbacks read and write ----------------------
@@ -39,6 +42,9 @@ MEAN, STD, STICKING_SPEED, WALL_ELASTICITY = 0, 1, 2, 3
 KEY, DRAWS, DOT_DOT, STUCK, DOT_WALL = 4, 5, 6, 7, 8
 ARBITER_WORDS, ARBITER_E, ARBITER_NORMAL, ARBITER_BODY_A, ARBITER_BODY_B, BODY_VELOCITY = 9, 10, 11, 12, 13, 14
 SLOTS = 15
+#: Slowest approach, px/s, that is an impact: a lasting contact whose solve left the dots closing more slowly
+#: (round-off) is resting, not a new impact.
+RESTING = 1e-9
 
 
 @jit(inline=True)
@@ -63,8 +69,9 @@ def elasticity_of_impact(record, approach):
 
 
 @c_callback("void(voidptr, voidptr, voidptr)")
-def dot_dot_begin(arbiter, space, data):
-    """Chipmunk's begin callback of a dot-dot contact (``data``: a record array)."""
+def dot_dot_pre_solve(arbiter, space, data):
+    """Chipmunk's pre-solve callback of a dot-dot contact, every step it lasts: an impact (the dots approach)
+    gets the rule's restitution (a draw, or 0 below the sticking speed); a resting or parting contact 0."""
     words = carray(data, SLOTS, np.uint64)
     record = carray(data, SLOTS, np.float64)
     n = np.int64(words[ARBITER_WORDS])
@@ -72,19 +79,30 @@ def dot_dot_begin(arbiter, space, data):
     arbiter_floats = carray(arbiter, n, np.float64)
     va = carray(pointer(arbiter_words[words[ARBITER_BODY_A]] + words[BODY_VELOCITY]), 2, np.float64)
     vb = carray(pointer(arbiter_words[words[ARBITER_BODY_B]] + words[BODY_VELOCITY]), 2, np.float64)
-    k = words[ARBITER_NORMAL]  # the normal from body a to body b (Chipmunk's own order, unswapped)
+    k = words[ARBITER_NORMAL]
     approach = (va[0] - vb[0]) * arbiter_floats[k] + (va[1] - vb[1]) * arbiter_floats[k + np.uint64(1)]
-    arbiter_floats[words[ARBITER_E]] = impact_elasticity(record, words, approach)
+    arbiter_floats[words[ARBITER_E]] = impact_elasticity(record, words, approach) if approach > RESTING else 0.0
 
 
 @c_callback("void(voidptr, voidptr, voidptr)")
-def dot_wall_begin(arbiter, space, data):
-    """Chipmunk's begin callback of a dot-wall contact: the wall's restitution."""
+def dot_wall_pre_solve(arbiter, space, data):
+    """Chipmunk's pre-solve callback of a dot-wall contact, every step it lasts: an impact gets the wall's
+    restitution (counted), a resting or parting contact 0."""
     words = carray(data, SLOTS, np.uint64)
     record = carray(data, SLOTS, np.float64)
-    arbiter_floats = carray(arbiter, np.int64(words[ARBITER_WORDS]), np.float64)
-    words[DOT_WALL] += np.uint64(1)
-    arbiter_floats[words[ARBITER_E]] = record[WALL_ELASTICITY]
+    n = np.int64(words[ARBITER_WORDS])
+    arbiter_words = carray(arbiter, n, np.uint64)
+    arbiter_floats = carray(arbiter, n, np.float64)
+    va = carray(pointer(arbiter_words[words[ARBITER_BODY_A]] + words[BODY_VELOCITY]), 2, np.float64)
+    k = words[ARBITER_NORMAL]
+    # the wall is static: its velocity is 0 (its body may be either of the arbiter's two)
+    vb = carray(pointer(arbiter_words[words[ARBITER_BODY_B]] + words[BODY_VELOCITY]), 2, np.float64)
+    approach = (va[0] - vb[0]) * arbiter_floats[k] + (va[1] - vb[1]) * arbiter_floats[k + np.uint64(1)]
+    if approach > RESTING:
+        words[DOT_WALL] += np.uint64(1)
+        arbiter_floats[words[ARBITER_E]] = record[WALL_ELASTICITY]
+    else:
+        arbiter_floats[words[ARBITER_E]] = 0.0
 
 
 def stream_key(rng: np.random.Generator) -> int:
@@ -154,7 +172,7 @@ class CollisionRecord:
 
 def install_handlers(space: pymunk.Space, rule: Restitution, record: CollisionRecord,
                      compiled: bool | None = None) -> CollisionRecord:
-    """Make ``space`` apply ``rule`` to every new dot-dot and dot-wall contact, counting in ``record``.
+    """Make ``space`` apply ``rule`` to every dot-dot and dot-wall impact, counting them in ``record``.
 
     ``record`` must live as long as ``space`` (Chipmunk keeps its address). ``compiled=False``
     runs the same rule from Python callbacks (the fallback; tests compare the two).
@@ -163,20 +181,25 @@ def install_handlers(space: pymunk.Space, rule: Restitution, record: CollisionRe
     if compiled is None:
         compiled = record.compiled
     if compiled:
-        for (a, b), callback in (((DOT, DOT), dot_dot_begin), ((DOT, WALL), dot_wall_begin)):
-            add_begin_callback(space, a, b, callback.address, record.array.ctypes.data)
+        for (a, b), callback in (((DOT, DOT), dot_dot_pre_solve), ((DOT, WALL), dot_wall_pre_solve)):
+            add_pre_solve_callback(space, a, b, callback.address, record.array.ctypes.data)
         return record
     array = record.array
 
-    def dot_dot(arbiter: pymunk.Arbiter, space: pymunk.Space, data: object) -> None:
+    def approach(arbiter: pymunk.Arbiter) -> float:
         shape_a, shape_b = arbiter.shapes
         va, vb, n = shape_a.body.velocity, shape_b.body.velocity, arbiter.normal
-        arbiter.restitution = elasticity_of_impact(array, (va.x - vb.x) * n.x + (va.y - vb.y) * n.y)
+        return (va.x - vb.x) * n.x + (va.y - vb.y) * n.y
+
+    def dot_dot(arbiter: pymunk.Arbiter, space: pymunk.Space, data: object) -> None:
+        speed = approach(arbiter)
+        arbiter.restitution = elasticity_of_impact(array, speed) if speed > RESTING else 0.0
 
     def dot_wall(arbiter: pymunk.Arbiter, space: pymunk.Space, data: object) -> None:
-        record.dot_wall += 1
-        arbiter.restitution = rule.wall
+        impact = approach(arbiter) > RESTING
+        record.dot_wall += impact
+        arbiter.restitution = rule.wall if impact else 0.0
 
-    space.on_collision(DOT, DOT, begin=dot_dot)
-    space.on_collision(DOT, WALL, begin=dot_wall)
+    space.on_collision(DOT, DOT, pre_solve=dot_dot)
+    space.on_collision(DOT, WALL, pre_solve=dot_wall)
     return record

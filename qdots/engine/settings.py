@@ -19,6 +19,8 @@ from ..units import THESIS_KICK_INTERVAL
 OVERLAP_CORRECTION = 0.3
 #: Time step range, s: the thesis's frame is 0.02 s; below 1e-7 s a second takes ten million steps.
 DT_RANGE = (1e-7, 0.1)
+#: The thesis's frame, s: its time step (the thermal kicks' interval too).
+THESIS_FRAME = THESIS_KICK_INTERVAL
 #: Most Chipmunk sub-steps per time step and solver iterations per sub-step.
 MAX_SUBSTEPS = 1000
 MAX_ITERATIONS = 1000
@@ -32,21 +34,30 @@ MAX_HASH_CELLS = 10_000_000
 MAX_NEAR_GAP = 2000.0
 #: Longest interval between passes over the far van der Waals pairs, s.
 MAX_FAR_INTERVAL = 1e4
+#: The engines: Chipmunk's impulse solver, the thesis's event-driven hard discs.
+ENGINES = ("chipmunk", "event")
+#: Most collisions the event engine resolves in one frame.
+MAX_EVENTS = 1_000_000_000
+#: Largest gap the event engine keeps between discs at contact, mean radii.
+MAX_BUFFER = 1e-2
 
 
 @dataclass(frozen=True)
 class EngineSettings:
-    """The speed/accuracy knobs of the engine.
+    """The numerical knobs of the engine, and which engine.
 
     Parameters
     ----------
     dt : float
-        Time step, s, in `DT_RANGE`; the forces are applied once per step. On the thesis's films a longer
-        step is not much cheaper: at 5 ms the overlap tolerance splits it into 2.2 Chipmunk sub-steps on
-        average (1.11 at 2.5 ms), because the step's van der Waals pull closes neighbours that are
-        a few thousandths of a px apart by about ``a dt^2``. fig2-2 then runs only 1.25x faster, and its
-        mean neighbour count moves by +0.05 from the converged value (5.9 SE over 8 seeds; ``python -m
-        benchmarks --only fig2_2_realtime``).
+        Time step, s, in `DT_RANGE`: the forces change the velocities once per step, at its start, as the
+        thesis's frame did. The default is the thesis's frame, 20 ms (`THESIS_FRAME`), and with it the
+        thesis's model: its van der Waals proxy is a velocity change per frame, ``min(a dt/2, sqrt(g a)/2)``,
+        whose cap and whose impulses depend on the frame. A shorter step approaches the proxy's continuous
+        limit (an acceleration ``a/2``) instead, a different model that binds dots of unequal mass more
+        strongly: fig2-6's d^3 film at sigma 15 % kept one aggregate at 2.5 ms (interior fraction 0.74,
+        mean speed 4 px/s) where the thesis's 20 ms frame breaks it up (0.44, 26 px/s; the event-driven
+        engine 0.45, 27 px/s; seed 154). Contacts are resolved in sub-steps (``overlap_tolerance``)
+        whatever the step.
     substeps : int
         Fewest Chipmunk steps per time step, in [1, `MAX_SUBSTEPS`]. More sub-steps resolve contacts
         more finely at proportional cost.
@@ -60,10 +71,8 @@ class EngineSettings:
         Most sub-steps a step may take for ``overlap_tolerance``, in [1, `MAX_SUBSTEPS`] (``substeps``
         when that is more). A bound on the cost of a step, reached only by very fast dots, and the
         run warns when a capped step leaves a dot moving more than `qdots.motion.SAFE_TRAVEL` radii
-        per sub-step. Scenes of very light dots may need more: the light dots of a 1000:1 mass mixture
-        under thermal kicks move ~600 px/s (1 radius of 1.5 px per 2.5 ms step) and need ~200
-        (capped at 64 they overlapped by 9.4 % at 10 solver iterations, 0.7 % at the default 5;
-        at 256 by 0.6 %; `qdots.hard_cases`).
+        per sub-step. Very light dots need many: those of a 1000:1 mass mixture under thermal kicks move
+        ~600 px/s, a radius of 1.5 px in 2.5 ms (`qdots.hard_cases`).
     iterations : int
         Solver iterations per sub-step, in [1, `MAX_ITERATIONS`] (pymunk's default is 10). Two-body
         impacts are exact with any count; simultaneous impacts of three or more dots converge with
@@ -92,19 +101,33 @@ class EngineSettings:
         every ``far_interval`` (`qdots.VanDerWaals`). Beyond the default 4 px the thesis proxy's pull is
         under 2.5 % of its pull at contact.
     far_interval : float, optional
-        Seconds between the passes over the far van der Waals pairs, in (0, `MAX_FAR_INTERVAL`]: each gives
-        the far pairs' pull over the interval at once, in the step that holds the interval's middle
-        (multiple time stepping, in the impulse form of r-RESPA; the thesis gave every pair's pull once
-        per 20 ms frame). None: every pair every step.
+        Seconds between the passes over the far van der Waals pairs when the step is shorter than the
+        thesis's frame, in (0, `MAX_FAR_INTERVAL`]: each gives the far pairs' pull over the interval at
+        once, at the start of the step that follows the interval's middle, where the dots were at the
+        middle (multiple time stepping, in the impulse form of r-RESPA). None (default): every pair every
+        step, as the thesis pulled every pair once per frame.
     tune_allocator : bool
         Raise glibc's allocator thresholds when the simulation is built (`qdots.engine.allocator`): speed
         only, never results.
+    kind : {"chipmunk", "event"}
+        The engine. ``"chipmunk"`` (default): Chipmunk's impulse solver in sub-steps planned for
+        ``overlap_tolerance`` (`qdots.engine.ChipmunkEngine`); it reads every knob above. ``"event"``: the
+        thesis's own algorithm, exact hard discs event by event within frames of ``dt`` at whose start the
+        forces act (`qdots.engine.EventEngine`); it reads ``dt``, ``max_events``, ``buffer`` and the van der
+        Waals pair list's ``pair_skin`` (every van der Waals pair is pulled every frame, as in the thesis).
+    max_events : int
+        Most collisions the event engine resolves in one frame, in [1, `MAX_EVENTS`] (the thesis's cap:
+        2,500); a frame that reaches it leaves the rest of the frame unmoved, as the thesis's loop did,
+        and the run counts it (`EventEngine.capped_frames`).
+    buffer : float
+        Gap the event engine keeps between discs at contact, in mean radii, in (0, `MAX_BUFFER`] (the
+        thesis: a millionth of the mean radius added to every radius).
     """
 
-    dt: float = 2.5e-3
+    dt: float = THESIS_FRAME
     substeps: int = 1
     overlap_tolerance: float | None = 0.005
-    max_substeps: int = 64
+    max_substeps: int = 512
     iterations: int = 5
     collision_slop: float = 0.01
     collision_bias: float | None = None
@@ -112,8 +135,11 @@ class EngineSettings:
     threads: int = 1
     pair_skin: float = 6.0
     near_gap: float = 4.0
-    far_interval: float | None = THESIS_KICK_INTERVAL
+    far_interval: float | None = None
     tune_allocator: bool = True
+    kind: str = "chipmunk"
+    max_events: int = 2500
+    buffer: float = 1e-6
 
     #: Declarations of the fields: checks and file comments (`labrig.params`).
     PARAMS: ClassVar[dict[str, Param]] = {
@@ -139,6 +165,10 @@ class EngineSettings:
                               doc="time between passes over the farther van der Waals pairs",
                               unset="every pair every step"),
         "tune_allocator": Param("bool", doc="raise glibc's allocator thresholds (speed only)"),
+        "kind": Param("str", choices=ENGINES, doc="the engine: Chipmunk's solver or the thesis's events"),
+        "max_events": Param("int", 1, MAX_EVENTS, doc="most collisions the event engine resolves in a frame"),
+        "buffer": Param("float", 0.0, MAX_BUFFER, low_open=True, unit="mean radii",
+                        doc="gap the event engine keeps between discs at contact"),
     }
 
     def __post_init__(self) -> None:

@@ -16,7 +16,7 @@ from .base import Force, StepContext, instants_in_step
 
 MODELS = ("thesis", "hamaker")
 #: What the force does at gaps below ``min_gap``.
-CONTACTS = ("hold", "zero")
+CONTACTS = ("zero", "hold")
 #: Largest range R0 and gap, px (the thesis's R0 is 15 px, one mean diameter).
 MAX_RANGE = 1000.0
 #: Largest Hamaker constant, mean-dot mass px^2/s^2 (the default is about 2e4).
@@ -187,15 +187,13 @@ class VanDerWaals(Force):
         ``forceDistanceThresh = 0.1``).
     max_gap : float, optional
         No force beyond this gap, px. Default ``2 * r0`` (thesis).
-    contact : {"hold", "zero"}
-        Force on pairs closer than ``min_gap``. ``"zero"`` is the thesis's
-        rule. With an event-driven engine the thesis kept touching dots at a
-        1e-6 gap and resolved every re-contact exactly; with Chipmunk's soft
-        contacts the zero rule makes touching pairs chatter (contact lost and
-        re-made every step, a Python ``begin`` callback each time).
-        ``"hold"`` (default) evaluates the force at ``min_gap`` instead, so
-        contacts persist; it deepens the pair well by the force at
-        ``min_gap`` times ``min_gap``, about 2 % of the well.
+    contact : {"zero", "hold"}
+        Force on pairs closer than ``min_gap``. ``"zero"`` (default): none, the thesis's rule ("no force
+        outside 0.1 <= g < 30 px"): touching dots do not pull each other, so only a kick or an impact
+        drives them together. ``"hold"``: the force at ``min_gap``, which presses every touching pair
+        together at every step (each press an impact of the collision rule); it deepens the pair well by
+        the force at ``min_gap`` times ``min_gap``, about 2 % of the well. (Until 0.3 "hold" was the
+        default, to keep Chipmunk's contacts from chattering under a Python callback per re-contact.)
     offset : float, optional
         The thesis proxy's offset ``b``, px. Default: as the Java computes it from ``r0``, ``min_gap`` and
         the sticking speed of the simulation's collision rule (`thesis_offset`; -5.49 px for the
@@ -214,7 +212,7 @@ class VanDerWaals(Force):
         "min_gap": Param("float", 0.0, MAX_RANGE, low_open=True, unit="px", doc="closer counts as contact"),
         "max_gap": Param("float", 0.0, 2 * MAX_RANGE, low_open=True, unit="px", optional=True,
                          doc="no force beyond this gap", rule="above min_gap", unset="2 r0"),
-        "contact": Param("str", choices=CONTACTS, doc='force below min_gap ("hold": the force at min_gap, "zero": none)'),
+        "contact": Param("str", choices=CONTACTS, doc='force below min_gap ("zero": none, "hold": the force at min_gap)'),
         "offset": Param("float", -MAX_RANGE, MAX_RANGE, unit="px", optional=True, doc="the proxy's b",
                         rule="below min_gap", unset="from restitution.sticking_speed"),
     }
@@ -227,7 +225,7 @@ class VanDerWaals(Force):
         strength: float | None = None,
         min_gap: float = 0.1,
         max_gap: float | None = None,
-        contact: str = "hold",
+        contact: str = "zero",
         offset: float | None = None,
     ):
         p = self.PARAMS
@@ -298,16 +296,24 @@ class VanDerWaals(Force):
         if rebuilt:  # every pair that can come within near_gap before the next rebuild
             cache["near"] = pairs_closer(ctx.x, ctx.y, cache["radii"], pairs.i, pairs.j, settings.near_gap + pairs.skin)
         self._pull(ctx, *cache["near"], settings.near_gap, False, ctx.dt)
-        intervals = instants_in_step(ctx.time + 0.5 * settings.far_interval, ctx.dt, settings.far_interval)
+        # the far pass: at the start of the step that follows each interval's middle (the middles in
+        # (time - dt, time]), its pull over the interval, where the dots were at the (last) middle
+        interval = settings.far_interval
+        intervals = instants_in_step(ctx.time - ctx.dt + 0.5 * interval, ctx.dt, interval)
         if intervals:
-            self._pull(ctx, pairs.i, pairs.j, self.max_gap, True, intervals * settings.far_interval)
+            lag = ctx.time - (math.floor((ctx.time + 0.5 * interval) / interval + 1e-9) - 0.5) * interval
+            x = ctx.x - ctx.velocity[:, 0] * lag
+            y = ctx.y - ctx.velocity[:, 1] * lag
+            self._pull(ctx, pairs.i, pairs.j, self.max_gap, True, intervals * interval, x, y)
 
-    def _pull(self, ctx: StepContext, i, j, gap_to: float, far: bool, seconds: float) -> None:
+    def _pull(self, ctx: StepContext, i, j, gap_to: float, far: bool, seconds: float, x=None, y=None) -> None:
         """Add the pull over ``seconds`` of the pairs ``i, j`` closer than ``gap_to``: the part pulled every
-        step (``far`` False) or the far pass's part."""
+        step (``far`` False) or the far pass's part; at the dots' positions ``x, y`` (default: ``ctx``'s)."""
         cache = ctx.cache
+        x = ctx.x if x is None else x
+        y = ctx.y if y is None else y
         fade_to = ctx.settings.near_gap if cache["split"] else self.max_gap
         fade_from = NEAR_FADE * fade_to if cache["split"] else fade_to
-        add_pair_kicks(ctx.x, ctx.y, i, j, cache["radii"], cache["inv_mass"],
+        add_pair_kicks(x, y, i, j, cache["radii"], cache["inv_mass"],
                        HAMAKER if self.model == "hamaker" else THESIS, self.r0, cache["offset"], cache["strength"],
                        self.min_gap, gap_to, fade_from, fade_to, far, self.contact == "zero", seconds, ctx.dv)

@@ -1,10 +1,13 @@
-"""The engine layer (issue 42): the engine owns each run, the physics holds no run state, one module touches
-pymunk's internals, an untested pymunk runs on its public API, and the allocator is tuned only on request."""
+"""The Chipmunk adapter (`qdots.engine.chipmunk`, `qdots.engine.bodies`): bulk reads and writes of the bodies
+and direct stepping give pymunk's own numbers, it is the only module that touches pymunk's internals, an
+untested pymunk runs on the public API, and the allocator is tuned only on request."""
 
 from __future__ import annotations
 
 import ast
+import math
 import os
+import re
 import subprocess
 import sys
 import textwrap
@@ -16,80 +19,106 @@ import pymunk
 import pytest
 
 import qdots
-from qdots.experiment import Experiment
-from labrig.validate import InputError
+from qdots.engine import bodies as body_io
 from qdots.engine import chipmunk
+from qdots.engine.bodies import BodyArrays
+from qdots.engine.chipmunk import advance, internals
 
 ROOT = Path(__file__).resolve().parent.parent
 
 
-# ---------------------------------------------------------------- one force object, several simulations
-def film(n: int, seed: int) -> qdots.Scene:
-    """``n`` dots of mixed sizes and masses on a square lattice at 17 px pitch, moving at ~30 px/s."""
+# ---------------------------------------------------------------- bulk access to the bodies, direct stepping
+def dots_space(n=40, seed=0):
+    """A space with ``n`` free discs at random places and speeds (no walls), and their bodies."""
     rng = np.random.default_rng(seed)
-    side = int(np.ceil(np.sqrt(n)))
-    positions = 20.0 + 17.0 * np.argwhere(np.ones((side, side)))[:n].astype(float)
-    return qdots.Scene(box=(40.0 + 17.0 * side, 40.0 + 17.0 * side), positions=positions,
-                       radii=rng.uniform(5.5, 8.0, n), masses=rng.uniform(0.5, 2.0, n),
-                       velocities=rng.normal(0.0, 30.0, (n, 2)))
+    space = pymunk.Space()
+    bodies = []
+    for _ in range(n):
+        body = pymunk.Body(float(rng.uniform(0.5, 2.0)), math.inf)
+        body.position = tuple(rng.uniform(0.0, 200.0, 2))
+        body.velocity = tuple(rng.normal(0.0, 30.0, 2))
+        space.add(body, pymunk.Circle(body, float(rng.uniform(2.0, 6.0))))
+        bodies.append(body)
+    return space, bodies
 
 
-SCENES = (film(100, 1), film(4, 2))
-STEPS = 200
+def test_the_body_fields_are_found_in_chipmunks_memory():
+    found = internals()
+    assert found is not None, "pymunk's body layout changed: the step falls back to pymunk.batch"
+    offsets = found.body_offsets
+    assert len(set(offsets.tolist())) == 2 and all(offset % 8 == 0 for offset in offsets.tolist())
 
 
-def thermal_forces() -> list[qdots.Force]:
-    return [qdots.VanDerWaals(), qdots.ThermalKicks(), qdots.Langevin(gamma=0.5)]
+@pytest.mark.parametrize("direct", [True, False], ids=["direct", "pymunk.batch"])
+def test_reads_and_velocity_changes_equal_pymunks_own_accessors(direct, monkeypatch):
+    if not direct:
+        monkeypatch.setattr(body_io, "internals", lambda: None)
+    space, bodies = dots_space()
+    io = BodyArrays(space, bodies)
+    assert io.direct is direct
+    space.step(0.01)  # positions and velocities as Chipmunk's integrator leaves them
+    expected = np.array([(*b.position, *b.velocity) for b in bodies])
+    rows = io.read_rows()
+    assert np.array_equal(rows, expected) and not rows.flags.writeable
+    dv = np.random.default_rng(1).normal(0.0, 100.0, (len(bodies), 2))
+    io.add_velocities(dv, expected[:, 2:])
+    assert np.array_equal([tuple(b.velocity) for b in bodies], expected[:, 2:] + dv)
 
 
-def simulations(forces_of) -> list[qdots.Simulation]:
-    """A simulation of each of `SCENES` with the forces ``forces_of(k)`` (k: the scene's index)."""
-    return [qdots.Simulation(scene, forces_of(k), seed=10 + k) for k, scene in enumerate(SCENES)]
+def test_direct_velocity_changes_step_like_pymunks_velocity_setter():
+    dv = np.random.default_rng(2).normal(0.0, 1e3, (40, 2))
+    boards = []
+    for direct in (True, False):
+        space, bodies = dots_space(seed=3)
+        if direct:
+            io = BodyArrays(space, bodies)
+            io.add_velocities(dv, io.read()[1])
+        else:
+            for body, change in zip(bodies, dv):
+                body.velocity = tuple(np.asarray(body.velocity) + change)
+        space.step(0.01)
+        boards.append(np.array([(*b.position, *b.velocity) for b in bodies]))
+    assert np.array_equal(*boards)
 
 
-def boards(sims) -> list[tuple]:
-    return [(sim.state().positions, sim.state().velocities, sim.collisions.to_dict()) for sim in sims]
+def test_direct_chipmunk_steps_equal_pymunks_step():
+    boards = []
+    for direct in (True, False):
+        space, bodies = dots_space(seed=4)
+        space.step(1e-3)  # clears what pymunk checks on new bodies
+        if direct:
+            advance(space, 1e-3, 50)
+        else:
+            for _ in range(50):
+                space.step(1e-3)
+        boards.append(np.array([(*b.position, *b.velocity) for b in bodies]))
+    assert np.array_equal(*boards)
 
 
-def assert_same_boards(got, expected) -> None:
-    for (positions, velocities, counts), (positions0, velocities0, counts0) in zip(got, expected):
-        np.testing.assert_array_equal(positions, positions0)
-        np.testing.assert_array_equal(velocities, velocities0)
-        assert counts == counts0
+def test_a_space_with_pending_python_work_steps_through_pymunk():
+    space, bodies = dots_space(n=3, seed=5)
+    ran = []
+    space.add_post_step_callback(lambda s, key: ran.append(key), "probe")
+    advance(space, 1e-3, 2)
+    assert ran == ["probe"]
 
 
-@pytest.fixture(scope="module")
-def references():
-    """Each scene run on its own, with its own fresh force objects."""
-    sims = simulations(lambda k: thermal_forces())
-    for sim in sims:
-        sim.step(STEPS)
-    assert sims[0].collisions.dot_dot > 20 and sims[0].force_cache(sims[0].forces[0])["pairs"].i.size
-    return boards(sims)
+def test_a_run_is_the_same_through_pymunk_batch(monkeypatch):
+    def film(direct):
+        rng = np.random.default_rng(6)
+        grid = np.array([(x, y) for x in range(20, 200, 20) for y in range(20, 200, 20)], float)
+        scene = qdots.Scene(box=(220, 220), positions=grid, radii=np.full(len(grid), 7.5),
+                            velocities=rng.normal(0, 20, grid.shape))
+        sim = qdots.Simulation(scene, [qdots.VanDerWaals(), qdots.ThermalKicks()], seed=6)
+        assert sim.engine.io.direct is direct
+        sim.run(0.5)
+        return sim.state()
 
-
-def test_one_force_object_serves_several_simulations_at_once(references):
-    """Interleaved steps of two different scenes through ONE VanDerWaals, ThermalKicks and Langevin object
-    each: bit for bit the runs each scene makes with forces of its own (the force once cached the other
-    scene's radii, and the run stopped with a RunawayError)."""
-    shared = thermal_forces()
-    sims = simulations(lambda k: shared)
-    assert all(a is b for a, b in zip(sims[0].forces, sims[1].forces))
-    for _ in range(STEPS):
-        for sim in sims:
-            sim.step()
-    assert_same_boards(boards(sims), references)
-
-
-def test_one_force_object_serves_several_simulations_in_turn(references):
-    shared = thermal_forces()
-    sims = simulations(lambda k: shared)
-    for sim in sims:
-        sim.step(STEPS)
-    assert_same_boards(boards(sims), references)
-    again = simulations(lambda k: shared)[0]  # and a later simulation of the first scene
-    again.step(STEPS)
-    assert_same_boards(boards([again]), references[:1])
+    direct = film(True)
+    monkeypatch.setattr(body_io, "internals", lambda: None)  # the bulk reads and writes alone fall back
+    fallback = film(False)
+    assert np.array_equal(direct.positions, fallback.positions)
+    assert np.array_equal(direct.velocities, fallback.velocities)
 
 
 # ---------------------------------------------------------------- one module reaches into pymunk
@@ -148,7 +177,7 @@ def test_the_scan_sees_each_way_of_reaching_in(tmp_path):
     assert len(pymunk_internals_used(module)) == 6, pymunk_internals_used(module)
 
 
-# ---------------------------------------------------------------- an untested pymunk: the public API
+# ---------------------------------------------------------------- an untested pymunk: the public API, one warning
 def small_collider() -> tuple[qdots.Simulation, dict]:
     """12 dots in a 120 px box with vdW and kicks at a fixed sub-step, run 0.5 s; (simulation, its board)."""
     rng = np.random.default_rng(3)
@@ -189,6 +218,14 @@ def test_tested_pymunk_versions():
     assert not chipmunk.pymunk_tested("seven") and not chipmunk.pymunk_tested("7")
 
 
+def test_the_pymunk_pin_is_the_tested_range():
+    """pyproject pins the pymunk versions the adapter was tested with; others run on the public API."""
+    text = (ROOT / "pyproject.toml").read_text()
+    low, high = re.search(r'"pymunk>=(\d+\.\d+),<(\d+\.\d+)"', text).groups()
+    assert chipmunk.pymunk_tested(low + ".0") and not chipmunk.pymunk_tested(high + ".0")
+    assert chipmunk.pymunk_tested(pymunk.version)
+
+
 # ---------------------------------------------------------------- the allocator: tuned only on request
 ALLOCATOR_PROBE = """
 import qdots
@@ -210,51 +247,3 @@ def test_importing_qdots_leaves_the_allocator_alone_and_a_simulation_tunes_it_on
     run = subprocess.run([sys.executable, "-c", ALLOCATOR_PROBE], cwd=ROOT, env=env, capture_output=True,
                          text=True, timeout=120)
     assert run.returncode == 0 and run.stdout.strip() == "probed", run.stderr[-3000:]
-
-
-# ---------------------------------------------------------------- the sub-step count of a fixed step
-@pytest.mark.parametrize("n_forces", [0, 1, 2, 3])
-def test_a_fixed_step_takes_its_sub_steps_whatever_the_number_of_forces(n_forces):
-    """At a fixed sub-step (``overlap_tolerance=None``) every step takes ``substeps`` sub-steps; forces that add
-    nothing leave the run as it is without them."""
-    scene = qdots.Scene(box=(200.0, 100.0), positions=[[60.0, 50.0], [140.0, 50.0]], radii=[7.5, 7.5],
-                        velocities=[[80.0, 3.0], [-70.0, 0.0]])
-    sims = [qdots.Simulation(scene, [qdots.Drag(0.0, 0.0) for _ in range(k)], seed=1, substeps=3,
-                             overlap_tolerance=None) for k in (0, n_forces)]
-    for sim in sims:
-        sim.step(400)  # one impact and a few bounces
-        assert (sim.substeps_taken, sim.engine.last_substeps) == (1200, 3)
-    assert sims[1].collisions.to_dict() == sims[0].collisions.to_dict() and sims[0].collisions.dot_dot == 1
-    np.testing.assert_array_equal(sims[1].state().positions, sims[0].state().positions)
-    np.testing.assert_array_equal(sims[1].state().velocities, sims[0].state().velocities)
-
-
-# ---------------------------------------------------------------- the sticking speed is the collision rule's
-def test_a_rule_that_never_sticks_and_the_thesis_proxy():
-    """The proxy's offset b derives from the rule's sticking speed, which may be 0 (an elastic gas); 0.2's force
-    had its own, above 0. A van der Waals run under such a rule is refused in one line before it starts, or
-    runs: it does not die inside a step. An offset given to the force does not depend on the rule."""
-    scene = qdots.Scene(box=(100.0, 100.0), positions=[[30.0, 50.0], [60.0, 50.0]], radii=[7.5, 7.5])
-    rule = qdots.Restitution(sticking_speed=0.0)
-    with pytest.raises(InputError, match=r"^VanDerWaals derives the thesis proxy's offset b from "
-                                         r"restitution.sticking_speed, which is 0"):
-        qdots.Simulation(scene, [qdots.VanDerWaals()], restitution=rule, seed=0)
-    sim = qdots.Simulation(scene, [qdots.VanDerWaals()], seed=0)
-    with pytest.raises(InputError, match="restitution.sticking_speed"):
-        sim.restitution = rule
-    assert sim.restitution.sticking_speed == 1.0  # the refused rule did not replace the old one
-    with pytest.raises(InputError, match=r"^forces\[0\]: VanDerWaals derives"):
-        Experiment(restitution=rule)
-    given = qdots.Simulation(scene, [qdots.VanDerWaals(offset=-5.0)], restitution=rule, seed=0)
-    given.run(0.05)
-    assert given.state().velocities[0, 0] > 0.0  # pulled toward the other dot
-
-
-def test_the_pymunk_pin_is_the_tested_range():
-    """pyproject pins the pymunk versions the adapter was tested with; others run on the public API."""
-    import re
-
-    text = (Path(__file__).parent.parent / "pyproject.toml").read_text()
-    low, high = re.search(r'"pymunk>=(\d+\.\d+),<(\d+\.\d+)"', text).groups()
-    assert chipmunk.pymunk_tested(low + ".0") and not chipmunk.pymunk_tested(high + ".0")
-    assert chipmunk.pymunk_tested(pymunk.version)

@@ -1,0 +1,127 @@
+"""Plain helpers the test files share: oracles, writers, file builders and the checks of a command's exit.
+
+Pytest's fixtures and hooks are in conftest.py; this is an ordinary module. Test files import it as
+``from helpers import ...``: pytest puts this directory on ``sys.path`` (the rootdir-based "prepend" import
+mode, tests/ having no ``__init__.py``), whether it runs from the repository root, from tests/, or as
+``python -m pytest tests/...``.
+"""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.spatial import cKDTree
+
+import qdots
+from labrig.tomlfile import toml_value
+
+GRAVITY_SCENE = """
+name = "{name}"
+[board]
+width = 100.0
+height = 100.0
+[deposition]
+n_dots = 12
+interval = 0.0
+settle = {settle}
+[restitution]
+wall = 0.0
+[[forces]]
+type = "Gravity"
+"""
+
+
+# -- oracles and boards ---------------------------------------------------------------------------
+
+def worst_overlap(positions, radii):
+    """Worst (r_i + r_j - d) / ((r_i + r_j)/2) over all pairs (a test oracle, brute force for small N)."""
+    positions = np.asarray(positions)
+    pairs = cKDTree(positions).query_pairs(2 * radii.max(), output_type="ndarray")
+    if not len(pairs):
+        return 0.0
+    i, j = pairs.T
+    d = np.linalg.norm(positions[i] - positions[j], axis=1)
+    rsum = radii[i] + radii[j]
+    return max(0.0, float(((rsum - d) / (rsum / 2)).max()))
+
+
+def lone_dot(velocity=(0.0, 0.0), mass=1.0, position=(1000.0, 1000.0)) -> qdots.Scene:
+    """One dot of radius 5 px at ``position`` (px), moving at ``velocity`` (px/s), in a 2000 x 2000 px box."""
+    return qdots.Scene(box=(2000.0, 2000.0), positions=[position], radii=[5.0], masses=[mass],
+                       velocities=[velocity])
+
+
+class TimeRecorder:
+    """A writer for `qdots.Simulation.attach` that keeps the time of each state it is given, every ``every``
+    steps."""
+
+    def __init__(self, every: int):
+        self.every = every
+        self.times = []
+
+    def write(self, state):
+        self.times.append(state.time)
+
+
+# -- files ------------------------------------------------------------------------------------------
+
+def to_toml(tree: dict) -> str:
+    """The text of a parameter file holding ``tree``: its values, then a ``[table]`` per dict and a
+    ``[[table]]`` per dict of a list of dicts. A ValueError for a value TOML cannot hold."""
+    lines, tables = [], []
+    for key, value in tree.items():
+        if isinstance(value, dict):
+            tables.append((f"[{key}]", value))
+        elif isinstance(value, list) and value and all(isinstance(v, dict) for v in value):
+            tables += [(f"[[{key}]]", item) for item in value]
+        else:
+            lines.append(f"{key} = {toml_value(value)}")
+    for header, table in tables:
+        lines.append(header)
+        lines += [f"{k} = {toml_value(v)}" for k, v in table.items()]
+    return "\n".join(lines) + "\n"
+
+
+def gravity_scene_file(directory: Path, name: str = "grav", settle: float = 3.0) -> Path:
+    """``directory/NAME.toml``: 12 dots dropped at once on a 100 x 100 px board under gravity onto an inelastic
+    floor, left to settle ``settle`` s."""
+    path = directory / f"{name}.toml"
+    path.write_text(GRAVITY_SCENE.format(name=name, settle=settle))
+    return path
+
+
+def refused_file(load, path, content, match, **options) -> str:
+    """Write ``content`` (text or bytes) to ``path``; ``load(path, **options)`` must raise a ValueError matching
+    ``match`` whose message starts with the path. Returns the message."""
+    if isinstance(content, bytes):
+        path.write_bytes(content)
+    else:
+        path.write_text(content)
+    with pytest.raises(ValueError, match=match) as error:
+        load(path, **options)
+    assert str(error.value).startswith(str(path))
+    return str(error.value)
+
+
+# -- command lines ----------------------------------------------------------------------------------
+
+def one_line_error(capsys, prog="qdots"):
+    """The ``PROG: error: ...`` line a refused command printed last (after any progress bars, which also go to
+    stderr): one line, no traceback."""
+    err = capsys.readouterr().err.strip().split("\r")[-1]
+    assert err.startswith(f"{prog}: error:") and "\n" not in err and "Traceback" not in err, err
+    return err
+
+
+def run_ok(main, argv, capsys):
+    """``main(argv)`` must exit 0; what it printed (``capsys.readouterr()``)."""
+    assert main(argv) == 0
+    return capsys.readouterr()
+
+
+def refused_run(main, path, text, capsys, prog="qdots"):
+    """``PROG run`` of a file holding ``text`` (results into ``out`` beside it): exit status 2 and a one-line
+    error, returned."""
+    path.write_text(text)
+    assert main(["run", str(path), "--out", str(path.parent / "out")]) == 2
+    return one_line_error(capsys, prog)
