@@ -12,6 +12,8 @@ BENCHMARKS = [
     "qdots_model_cost",
     "qdots_peers",
     "qdots_hard_cases",
+    "qdots_engines",
+    "qdots_event_choices",
     "engine_overhead",
     "fig2_2_realtime",
     "analysis",

@@ -9,6 +9,7 @@ is compared is what the text states: trends, with their lines in ``seed/thesis.t
 from __future__ import annotations
 
 import itertools
+import math
 from types import SimpleNamespace
 
 import matplotlib
@@ -35,7 +36,7 @@ matplotlib.use("Agg")
 
 
 def board_measures(state) -> dict[str, float]:
-    """The packing numbers this chapter quotes for one board."""
+    """The packing numbers this chapter quotes for one board, and its mean dot speed (px/s)."""
     summary = packing_summary(state)
     hexatic = hexatic_order(state)
     _, sizes = clusters(state)
@@ -43,7 +44,22 @@ def board_measures(state) -> dict[str, float]:
             "spacing": summary["mean_spacing"], "local_psi6": hexatic.local_order,
             "global_psi6": hexatic.global_order, "aggregates": float(np.sum(sizes >= AGGREGATE)),
             "largest": float(sizes[0] / sizes.sum()) if sizes.size else np.nan,
+            "singles": float(np.sum(sizes == 1)),
+            "speed": float(np.hypot(*state.velocities.T).mean()) if state.n_dots else np.nan,
             "overlap": summary["max_overlap"]}
+
+
+#: The free films whose masses scale as d^3 (the other mass model of the thesis's text, `reproduce.films`).
+SCALED = "free, mass ~ d^3"
+#: The engines whose films are compared, the thesis's algorithm first (`qdots.engine.ENGINES`).
+ENGINES = ("event", "chipmunk")
+#: How each engine is named in the report.
+ENGINE_NAMES = {"event": "event engine (the thesis's algorithm)", "chipmunk": "Chipmunk engine (the default)"}
+#: The measures compared between the engines: key, label, digits.
+COMPARED = (("interior", "interior fraction", 3), ("neighbours", "mean neighbours (interior)", 2),
+            ("local_psi6", "local psi6", 3), ("global_psi6", "global psi6", 3),
+            ("aggregates", f"aggregates (>= {AGGREGATE} dots)", 1), ("largest", "largest cluster (share)", 2),
+            ("singles", "single dots", 1), ("spacing", "mean gap (px)", 2), ("speed", "mean speed (px/s)", 1))
 
 
 class Films:
@@ -99,22 +115,38 @@ def fig2_2(films: Films) -> Item:
         Quote(153, "We observe that the uniform sample exhibits strong hexagonal packing in three distinct grains. "
                    "The large distribution sample exhibits no defined lattice structure and there exist many small "
                    "clusters.")])
-    boards = _boards_figure(films, "free", (0.0, 0.15), ("a) sigma 0", "b) sigma 15 %"))
-    item.results = [Figure("reproduce_fig2_2", boards,
-                           f"Fig 2-2 a, b: the boards of seed {films.seeds[0]}; {films.scale()}."),
+    fig = MplFigure(figsize=(15, 5.6))
+    for k, (family, sigma, title) in enumerate((("free", 0.0, "a) sigma 0"), ("free", 0.15, "b) sigma 15 %, equal masses"),
+                                                (SCALED, 0.15, "c) sigma 15 %, masses ~ d^3"))):
+        ax = fig.add_subplot(1, 3, k + 1)
+        draw_state(films.board(family, sigma), ax=ax, key=True)
+        ax.set_title(f"{title} (seed {films.seeds[0]})")
+    fig.tight_layout()
+    item.results = [Figure("reproduce_fig2_2", fig,
+                           f"Fig 2-2 a, b, and b with masses ~ d^3 (c): the boards of seed {films.seeds[0]}; {films.scale()}."),
                     _measure_table(films, "Fig 2-2: mean +- standard error over seeds",
-                                   [("a) sigma 0", "free", 0.0), ("b) sigma 15 %", "free", 0.15)])]
-    psi0, psi15 = films.stat("free", 0.0, "local_psi6"), films.stat("free", 0.15, "local_psi6")
-    agg0, agg15 = films.stat("free", 0.0, "aggregates"), films.stat("free", 0.15, "aggregates")
-    order_lost = psi15[0] < psi0[0] and apart(psi0, psi15)
-    small_clusters = agg15[0] >= 3 and apart(agg0, agg15)
-    item.verdict = "reproduced" if order_lost and small_clusters else "partly reproduced" if order_lost else "differs"
-    item.why = (f"local psi6 falls from {pm(*psi0)} (sigma 0) to {pm(*psi15)} (sigma 15 %): the loss of lattice "
-                f"order {'reproduces' if order_lost else 'does not reproduce'}. Aggregates of >= {AGGREGATE} dots: "
-                f"{pm(*agg0, 1)} at sigma 0, {pm(*agg15, 1)} at sigma 15 %, so the 'many small clusters' "
-                f"{'reproduce' if small_clusters else 'do not reproduce: the film is one cohesive aggregate'}. "
-                f"Grains: global psi6 {pm(*films.stat('free', 0.0, 'global_psi6'))} against local "
-                f"{pm(*psi0)} at sigma 0 (one grain gives equal values; misoriented grains a lower global value).")
+                                   [("a) sigma 0", "free", 0.0), ("b) sigma 15 %, equal masses", "free", 0.15),
+                                    ("c) sigma 15 %, masses ~ d^3", SCALED, 0.15)])]
+    psi0 = films.stat("free", 0.0, "local_psi6")
+    agg0 = films.stat("free", 0.0, "aggregates")
+    found = {}
+    for family, masses in (("free", "equal masses"), (SCALED, "masses ~ d^3")):
+        psi15, agg15 = films.stat(family, 0.15, "local_psi6"), films.stat(family, 0.15, "aggregates")
+        singles = films.stat(family, 0.15, "singles")
+        found[masses] = (psi15[0] < psi0[0] and apart(psi0, psi15), agg15[0] >= 3 and apart(agg0, agg15),
+                         psi15, agg15, singles)
+    order_lost = any(v[0] for v in found.values())
+    clusters_in = [masses for masses, v in found.items() if v[0] and v[1]]
+    item.verdict = "reproduced" if clusters_in else "partly reproduced" if order_lost else "differs"
+    item.why = (f"at sigma 0 local psi6 {pm(*psi0)}, {pm(*agg0, 1)} aggregates of >= {AGGREGATE} dots; at sigma 15 % "
+                + "; ".join(f"with {masses} local psi6 {pm(*v[2])}, {pm(*v[3], 1)} aggregates and {pm(*v[4], 1)} "
+                            f"single dots (order {'lost' if v[0] else 'not lost'}, "
+                            f"{'many small clusters' if v[1] else 'one cohesive aggregate'})"
+                            for masses, v in found.items())
+                + (f". The thesis's picture (order lost and many small clusters) is the film with "
+                   f"{' and with '.join(clusters_in)}" if clusters_in else ". No mass model gives many small clusters")
+                + f". Grains: global psi6 {pm(*films.stat('free', 0.0, 'global_psi6'))} against local {pm(*psi0)} "
+                  "at sigma 0 (one grain gives equal values; misoriented grains a lower global value).")
     return item
 
 
@@ -162,31 +194,37 @@ def fig2_4(films: Films) -> Item:
     for ax, measure, ylabel, title in zip(axes, ("interior", "neighbours"),
                                           ("proportion of interior dots", "mean neighbours of interior dots"),
                                           ("a) interior dots (>= 5 neighbours)", "b) neighbours of interior dots")):
-        for family, marker in (("free", "o"), ("grating", "s")):
+        for family, marker, label in (("free", "o", "free, equal masses"), (SCALED, "^", "free, masses ~ d^3"),
+                                      ("grating", "s", "grating, masses ~ d^3")):
             _sigma_curve(ax, films, family, measure, marker=marker,
-                         label=f"{family} ({films.board(family, 0.0).n_dots} dots)")
+                         label=f"{label} ({films.board('free' if family == SCALED else family, 0.0).n_dots} dots)")
         ax.set(xlabel="sigma (% of mean diameter)", ylabel=ylabel, title=title)
         ax.legend()
     fig.tight_layout()
-    table = Table("Fig 2-4: mean +- standard error over seeds", ["sigma (%)", "interior, free", "interior, grating",
-                                                                 "neighbours, free", "neighbours, grating"])
+    table = Table("Fig 2-4: mean +- standard error over seeds (free masses ~ d^3 at sigma 0: the equal-mass films, "
+                  "every dot then has the mean mass)",
+                  ["sigma (%)", "interior, free", "interior, free d^3", "interior, grating",
+                   "neighbours, free", "neighbours, free d^3", "neighbours, grating"])
     for s in SIGMAS:
-        table.rows.append([f"{100 * s:g}"] + [pm(*films.stat(f, s, m)) for m in ("interior", "neighbours")
-                                              for f in ("free", "grating")])
+        table.rows.append([f"{100 * s:g}"] + [pm(*films.stat("free" if f == SCALED and s == 0 else f, s, m))
+                                              for m in ("interior", "neighbours") for f in ("free", SCALED, "grating")])
     item.results = [Figure("reproduce_fig2_4", fig, f"Fig 2-4 a, b; error bars: standard error over {len(films.seeds)} "
                                                     f"seeds. {films.scale()}."), table]
-    verdicts = []
-    for family in ("free", "grating"):
-        a, b = films.stat(family, 0.0, "interior"), films.stat(family, 0.15, "interior")
-        verdicts.append((family, a, b, b[0] < a[0] and apart(a, b)))
-    g, f = films.stat("grating", 0.15, "interior"), films.stat("free", 0.15, "interior")
-    mitigated = g[0] > f[0] and apart(g, f)
-    falls = all(v[3] for v in verdicts)
-    item.verdict = ("reproduced" if falls and mitigated else "partly reproduced" if falls or mitigated else "differs")
-    item.why = "; ".join(f"{family}: interior fraction {pm(*a)} at sigma 0, {pm(*b)} at 15 % "
-                         f"({'falls' if ok else 'does not fall beyond 2 SE'})" for family, a, b, ok in verdicts)
-    item.why += (f"; at 15 % the grating's {pm(*g)} is {'above' if mitigated else 'not above'} the free film's "
-                 f"{pm(*f)} beyond 2 SE.")
+    verdicts, g = [], films.stat("grating", 0.15, "interior")
+    for family, label in (("free", "free, equal masses"), (SCALED, "free, masses ~ d^3"), ("grating", "grating")):
+        a, b = films.stat("free" if family == SCALED else family, 0.0, "interior"), films.stat(family, 0.15, "interior")
+        mitigated = family != "grating" and g[0] > b[0] and apart(g, b)
+        verdicts.append((label, a, b, b[0] < a[0] and apart(a, b), mitigated))
+    free_falls = [v for v in verdicts[:2] if v[3]]
+    mitigated = [v for v in free_falls if v[4]]
+    item.verdict = ("reproduced" if mitigated and verdicts[2][3] else "partly reproduced" if mitigated or free_falls
+                    else "differs")
+    item.why = "; ".join(f"{label}: interior fraction {pm(*a)} at sigma 0, {pm(*b)} at 15 % "
+                         f"({'falls' if falls else 'does not fall beyond 2 SE'}"
+                         + (f"; the grating's {pm(*g)} is {'above' if above else 'not above'} it beyond 2 SE)"
+                            if label != "grating" else ")") for label, a, b, falls, above in verdicts)
+    item.why += (". The fall and its mitigation by the grating are those of the films with masses ~ d^3"
+                 if any(v[0] == "free, masses ~ d^3" for v in mitigated) else "") + "."
     return item
 
 
@@ -294,9 +332,62 @@ def fig2_6(films: Films) -> Item:
     return item
 
 
+def engines_item(films: dict) -> Item:
+    """Every film point and measure on both engines: mean +- SE and whether they agree within 2 combined SE."""
+    item = Item("engines", "The two engines side by side: every chapter-2 film", [
+        Quote(102, "7. Find the first collision that will occur within the remainder of the time step."),
+        Quote(105, "10. Resolve the single collision and mark any dots involved as needing their next collision to "
+                   "be calculated. Subtract the time needed for this collision from the time left in the time step.")])
+    event, chipmunk = films["event"], films["chipmunk"]
+    points = sorted({(family, sigma) for family, sigma, _ in event.boards})
+    table = Table("Each film point: event engine / Chipmunk engine, mean +- standard error over seeds; "
+                  "'differs' where they are more than 2 combined standard errors apart",
+                  ["film", *(label for _, label, _ in COMPARED)])
+    differing = []
+    for family, sigma in points:
+        row = [f"{family}, sigma {100 * sigma:g} %"]
+        for measure, label, digits in COMPARED:
+            a, b = event.stat(family, sigma, measure), chipmunk.stat(family, sigma, measure)
+            split = apart(a, b)
+            if split:
+                differing.append(f"{family} sigma {100 * sigma:g} % {label}")
+            row.append(f"{pm(*a, digits)} / {pm(*b, digits)}" + (" (differs)" if split else ""))
+        table.rows.append(row)
+    compared = len(points) * len(COMPARED)
+    item.results = [table]
+    item.verdict = "engines agree" if not differing else "engines differ"
+    chance = compared * math.erfc(2 / math.sqrt(2))  # pairs beyond 2 SE by chance alone, for normal means
+    item.why = (f"{compared - len(differing)} of {compared} point-measure pairs agree within 2 combined standard "
+                f"errors ({event.scale()}); chance alone puts about {chance:.0f} beyond 2 SE"
+                + (f"; apart: {'; '.join(differing)}." if differing else "."))
+    return item
+
+
+def on_both_engines(make, films: dict) -> Item:
+    """The item ``make(films)`` made on each engine, merged: the verdict is the event engine's (the thesis's own
+    model; what it says about the thesis), the reason gives both, and every figure and table is shown for both."""
+    items = {engine: make(films[engine]) for engine in ENGINES}
+    merged = items["event"]
+    merged.why = " ".join(f"{ENGINE_NAMES[engine].capitalize()}: {item.verdict}; {item.why}"
+                          for engine, item in items.items())
+    results = []
+    for engine, item in items.items():
+        for result in item.results:
+            if isinstance(result, Figure):
+                result.name, result.caption = f"{result.name}_{engine}", f"{ENGINE_NAMES[engine]}. {result.caption}"
+            else:
+                result.title = f"{ENGINE_NAMES[engine]}: {result.title}"
+            results.append(result)
+    merged.results = results
+    return merged
+
+
 def chapter2(boards: dict, quick: bool, only=None) -> list[Item]:
-    """Every chapter-2 item (or those whose key is in ``only``)."""
-    films = Films(boards)
-    makers = {"fig2-2": lambda: fig2_2(films), "fig2-3": lambda: fig2_3(films), "fig2-4": lambda: fig2_4(films),
-              "fig2-5": lambda: fig2_5(films, quick), "fig2-6": lambda: fig2_6(films)}
+    """Every chapter-2 item (or those whose key is in ``only``), each on both engines; ``boards`` by engine."""
+    films = {engine: Films(boards[engine]) for engine in ENGINES}
+    makers = {"engines": lambda: engines_item(films),
+              "fig2-2": lambda: on_both_engines(fig2_2, films), "fig2-3": lambda: on_both_engines(fig2_3, films),
+              "fig2-4": lambda: on_both_engines(fig2_4, films),
+              "fig2-5": lambda: on_both_engines(lambda f: fig2_5(f, quick), films),
+              "fig2-6": lambda: on_both_engines(fig2_6, films)}
     return make_items(makers, only)

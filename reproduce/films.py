@@ -42,16 +42,20 @@ LABEL_SIGMA = ", sigma "
 FAMILY_SIGMAS = {"free": SIGMAS, "grating": SIGMAS, "bimodal": (0.0,), "free, mass ~ d^3": SIGMAS[1:]}
 
 
-def film_sweep(seeds: int) -> Sweep:
-    """Every film of chapter 2 at ``seeds`` seeds (154, 155, ...: the Java's seed first)."""
+def film_sweep(seeds: int, engine: str = "chipmunk") -> Sweep:
+    """Every film of chapter 2 at ``seeds`` seeds (154, 155, ...: the Java's seed first), run by ``engine``
+    (`qdots.engine.ENGINES`)."""
     labels = {(family, sigma): f"{family}{LABEL_SIGMA}{sigma:g}"
               for family in FAMILIES for sigma in FAMILY_SIGMAS[family]}
     points = [{"label": label, "name": label, **FAMILIES[family], "deposition.sigma": sigma}
               for (family, sigma), label in labels.items()]
-    return Sweep(base=experiment_to_dict(PRESETS["fig2-2"][0]), points=points, seeds=seeds)
+    base = experiment_to_dict(PRESETS["fig2-2"][0])
+    base["engine"] = {**base.get("engine", {}), "kind": engine}
+    return Sweep(base=base, points=points, seeds=seeds)
 
 
-def run_films(out: Path, *, seeds: int, quick: float | None, workers: int, progress: bool = True) -> dict:
+def run_films(out: Path, *, seeds: int, quick: float | None, workers: int, engine: str = "chipmunk",
+              progress: bool = True) -> dict:
     """Run (or resume) the film sweep in ``out``; its boards by ``(family, sigma, seed)``.
 
     Parameters
@@ -60,6 +64,8 @@ def run_films(out: Path, *, seeds: int, quick: float | None, workers: int, progr
         Sweep directory (run records, final states, table); kept between calls.
     seeds : int
         Seeds per point (>= 1).
+    engine : str
+        The engine that runs the films (`qdots.engine.ENGINES`).
     quick : float or None
         Scale every experiment with `qdots.Experiment.quick` (None: full size).
     workers : int
@@ -72,7 +78,7 @@ def run_films(out: Path, *, seeds: int, quick: float | None, workers: int, progr
     dict
         ``{"boards": {(family, sigma, seed): State}, "rows": table rows, "wall_s": summed run time}``.
     """
-    result = run_sweep(film_sweep(seeds), ExperimentRunner(quick=quick), out, workers=workers, state=True,
+    result = run_sweep(film_sweep(seeds, engine), ExperimentRunner(quick=quick), out, workers=workers, state=True,
                        progress=progress)
     failed = [row["error"] for row in result.rows if row["status"] != "ok"]
     if failed:

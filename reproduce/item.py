@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 #: The verdicts an item may reach.
-VERDICTS = ("reproduced", "partly reproduced", "differs", "the thesis was wrong")
+VERDICTS = ("reproduced", "partly reproduced", "differs", "the thesis was wrong", "engines agree", "engines differ")
 
 
 @dataclass

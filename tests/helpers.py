@@ -125,3 +125,16 @@ def refused_run(main, path, text, capsys, prog="qdots"):
     path.write_text(text)
     assert main(["run", str(path), "--out", str(path.parent / "out")]) == 2
     return one_line_error(capsys, prog)
+
+
+def refused(call, *words) -> str:
+    """``call()`` raises `labrig.validate.InputError` in one line that holds every one of ``words``; its message."""
+    from labrig.validate import InputError
+
+    with pytest.raises(InputError) as caught:
+        call()
+    message = str(caught.value)
+    assert "\n" not in message, message
+    for word in words:
+        assert word in message, (word, message)
+    return message

@@ -13,7 +13,6 @@ import numpy as np
 import pytest
 
 import qdots
-from labrig.validate import InputError
 from qdots import hard_cases
 from qdots.analysis import lqe, lqe_thesis, packing, report, structure
 from qdots.analysis.forster import TAU_NS, exciton_network
@@ -27,16 +26,7 @@ from qdots.scene import MAX_DOTS, MAX_SEGMENTS, Scene, grating_segments
 from qdots.engine.settings import EngineSettings
 from qdots.simulation import MAX_STEPS
 
-
-def refused(call, *words):
-    """``call()`` raises InputError in one line that holds every one of ``words``."""
-    with pytest.raises(InputError) as caught:
-        call()
-    message = str(caught.value)
-    assert "\n" not in message, message
-    for word in words:
-        assert word in message, (word, message)
-    return message
+from helpers import refused
 
 
 def board(positions, radii=7.5, box=None):

@@ -18,16 +18,9 @@ from qdots.geometry import (DiscTree, VerletPairs, clashing_pairs, clear_of_wall
                             wall_clearances, worst_overlap, worst_wall_overlap)
 from qdots.placement import hexagonal_lattice
 
+from helpers import refused
+
 ROOT = pathlib.Path(__file__).resolve().parents[1]
-
-
-def refused(call, *words):
-    with pytest.raises(InputError) as caught:
-        call()
-    message = str(caught.value)
-    assert "\n" not in message, message
-    for word in words:
-        assert word in message, (word, message)
 
 
 def grid(n, spacing=1.0):

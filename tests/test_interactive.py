@@ -20,6 +20,7 @@ import planarize  # noqa: E402
 import qdots  # noqa: E402
 from planarize.interactive import ThicknessExplorer, nearest_snapshot  # noqa: E402
 from qdots.analysis import packing_summary  # noqa: E402
+from labrig.validate import InputError  # noqa: E402
 from labrig.widgets import require_widgets, widget_figure  # noqa: E402
 from qdots.interactive import LiveBoard  # noqa: E402
 from qdots.interactive.live import Knobs, LiveRun  # noqa: E402
@@ -319,3 +320,21 @@ def test_nearest_snapshot(hill_run):
         ThicknessExplorer(dataclasses.replace(hill_run, snapshots=[]))
     with pytest.raises(ValueError, match="finite"):
         nearest_snapshot(hill_run, float("nan"))
+
+
+def test_the_engine_knob_switches_the_running_board_to_the_event_engine_and_back():
+    live = LiveRun(seed=3, frame_steps=5)
+    live.drop(20, 15.0, 0.1, 0.1)
+    for _ in range(4):
+        live.advance()
+    live.set(engine="event")
+    assert type(live.sim.engine).__name__ == "EventEngine" and live.sim.settings.kind == "event"
+    dropped, impacts = live.sim.n_dots, live.sim.collisions.dot_dot
+    for _ in range(30):
+        live.advance()
+    assert live.sim.n_dots == 20 > dropped and live.sim.collisions.dot_dot >= impacts  # the count goes on
+    live.set(engine="chipmunk")
+    live.advance()
+    assert type(live.sim.engine).__name__ == "ChipmunkEngine" and live.sim.time == pytest.approx(3.5)
+    with pytest.raises(InputError, match="engine must be one of 'chipmunk', 'event'"):
+        live.set(engine="lammps")

@@ -1,6 +1,6 @@
 """``python -m reproduce``: the report it writes, ``--only`` merging, resuming the film sweep, bad input.
 
-The whole quick pipeline (every item, 24 scaled-down film runs, ~40 s) is marked slow; the CLI
+The whole quick pipeline (every item, 24 scaled-down film runs on each engine) is marked slow; the CLI
 contract and one planarize item run by default.
 """
 
@@ -88,10 +88,15 @@ def test_whole_quick_set_writes_every_item_and_resumes_the_films(tmp_path):
     run = reproduce("--quick", "--out", str(tmp_path), "--runs", str(runs))
     assert run.returncode == 0, run.stderr[-3000:]
     store = check_report(tmp_path, ITEMS)
-    assert store["films"]["runs"] == 24
-    records = sorted((runs / "films-quick" / "runs").iterdir())
-    stamps = {p.name: p.stat().st_mtime_ns for p in records}
+    assert store["films"]["runs"] == 2 * 24  # both engines
+
+    def stamps():
+        return {p: p.stat().st_mtime_ns for engine in ("event", "chipmunk")
+                for p in (runs / f"films-quick-{engine}" / "runs").iterdir()}
+
+    before = stamps()
+    assert len(before) == 48
     run = reproduce("--quick", "--only", "fig2-4", "--out", str(tmp_path), "--runs", str(runs))
     assert run.returncode == 0, run.stderr[-3000:]
-    assert {p.name: p.stat().st_mtime_ns for p in (runs / "films-quick" / "runs").iterdir()} == stamps  # none re-run
+    assert stamps() == before  # none re-run
     assert json.loads((tmp_path / "reproduction.json").read_text())["items"].keys() == store["items"].keys()

@@ -175,3 +175,16 @@ def test_failed_runs_give_exit_status_1(tmp_path, capsys, monkeypatch):
     assert all(r["error"] == "RuntimeError: deposition blew up" and r["attempts"] == 2 for r in failed)
     assert err.count("failed: RuntimeError: deposition blew up") == 4
     assert all(r["status"] == "ok" for r in rows if r["deposition.sigma"] == 0.0)
+
+
+def test_the_engine_is_a_sweep_axis_and_each_run_is_that_engines(tmp_path):
+    sweep = Sweep(base=experiment_to_dict(TINY), axes={"engine.kind": ["chipmunk", "event"]}, seeds=1)
+    result = run_sweep(sweep, ExperimentRunner(), tmp_path, workers=1, state=True, progress=False)
+    rows = {row["engine.kind"]: row for row in result.rows}
+    assert sorted(rows) == ["chipmunk", "event"] and all(row["status"] == "ok" for row in rows.values())
+    for kind, row in rows.items():  # the same film by the other engine is the same experiment run differently
+        again = run_experiment(dataclasses.replace(TINY, seed=row["seed"],
+                                                   engine=TINY.engine.replace(kind=kind))).state()
+        saved = qdots.read_state(tmp_path / row["state_file"])
+        np.testing.assert_array_equal(saved.positions, again.positions)
+    assert not np.array_equal(*(qdots.read_state(tmp_path / row["state_file"]).positions for row in rows.values()))

@@ -123,6 +123,8 @@ def finish(sim: Simulation, files: OutputSet, stem: str, wall: float, extra: dic
         "mean_neighbours_interior": summary["mean_neighbours_interior"],
         OVERLAP_COLUMN: 100 * summary["max_overlap"],
         "escaped_dots": summary["escaped_dots"],
+        # event engine: frames of this run that reached max_events (their rest unmoved, as the thesis's loop)
+        "capped_frames": getattr(sim.engine, "capped_frames", ""),
         "kinetic_energy": summary["kinetic_energy"],
         "state_file": f"{stem}.npz",
     }

@@ -68,19 +68,26 @@ def elasticity_of_impact(record, approach):
     return impact_elasticity(record, record.view(np.uint64), approach)
 
 
-@c_callback("void(voidptr, voidptr, voidptr)")
-def dot_dot_pre_solve(arbiter, space, data):
-    """Chipmunk's pre-solve callback of a dot-dot contact, every step it lasts: an impact (the dots approach)
-    gets the rule's restitution (a draw, or 0 below the sticking speed); a resting or parting contact 0."""
-    words = carray(data, SLOTS, np.uint64)
-    record = carray(data, SLOTS, np.float64)
+@jit(inline=True)
+def contact_approach(arbiter, words):
+    """``(floats, approach)``: the arbiter's memory as float64 words and the speed (px/s) at which its two
+    bodies approach along its normal (a wall's static body has velocity 0, on either side)."""
     n = np.int64(words[ARBITER_WORDS])
     arbiter_words = carray(arbiter, n, np.uint64)
     arbiter_floats = carray(arbiter, n, np.float64)
     va = carray(pointer(arbiter_words[words[ARBITER_BODY_A]] + words[BODY_VELOCITY]), 2, np.float64)
     vb = carray(pointer(arbiter_words[words[ARBITER_BODY_B]] + words[BODY_VELOCITY]), 2, np.float64)
     k = words[ARBITER_NORMAL]
-    approach = (va[0] - vb[0]) * arbiter_floats[k] + (va[1] - vb[1]) * arbiter_floats[k + np.uint64(1)]
+    return arbiter_floats, (va[0] - vb[0]) * arbiter_floats[k] + (va[1] - vb[1]) * arbiter_floats[k + np.uint64(1)]
+
+
+@c_callback("void(voidptr, voidptr, voidptr)")
+def dot_dot_pre_solve(arbiter, space, data):
+    """Chipmunk's pre-solve callback of a dot-dot contact, every step it lasts: an impact (the dots approach)
+    gets the rule's restitution (a draw, or 0 below the sticking speed); a resting or parting contact 0."""
+    words = carray(data, SLOTS, np.uint64)
+    record = carray(data, SLOTS, np.float64)
+    arbiter_floats, approach = contact_approach(arbiter, words)
     arbiter_floats[words[ARBITER_E]] = impact_elasticity(record, words, approach) if approach > RESTING else 0.0
 
 
@@ -90,14 +97,7 @@ def dot_wall_pre_solve(arbiter, space, data):
     restitution (counted), a resting or parting contact 0."""
     words = carray(data, SLOTS, np.uint64)
     record = carray(data, SLOTS, np.float64)
-    n = np.int64(words[ARBITER_WORDS])
-    arbiter_words = carray(arbiter, n, np.uint64)
-    arbiter_floats = carray(arbiter, n, np.float64)
-    va = carray(pointer(arbiter_words[words[ARBITER_BODY_A]] + words[BODY_VELOCITY]), 2, np.float64)
-    k = words[ARBITER_NORMAL]
-    # the wall is static: its velocity is 0 (its body may be either of the arbiter's two)
-    vb = carray(pointer(arbiter_words[words[ARBITER_BODY_B]] + words[BODY_VELOCITY]), 2, np.float64)
-    approach = (va[0] - vb[0]) * arbiter_floats[k] + (va[1] - vb[1]) * arbiter_floats[k + np.uint64(1)]
+    arbiter_floats, approach = contact_approach(arbiter, words)
     if approach > RESTING:
         words[DOT_WALL] += np.uint64(1)
         arbiter_floats[words[ARBITER_E]] = record[WALL_ELASTICITY]

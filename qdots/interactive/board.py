@@ -30,6 +30,7 @@ from labrig.widgets import require_widgets, widget_figure
 
 from ..presets import GRATING_WIDTH
 from ..render import BoardArtists
+from ..engine.settings import ENGINES
 from .live import GRAVITY_MODES, LiveRun
 
 #: Largest canvas, inches a side: 2,000 px at matplotlib's 100 dpi, wider than a notebook's page (every
@@ -108,6 +109,8 @@ class LiveBoard:
             "gravity": w.ToggleButtons(options=GRAVITY_MODES, value=knobs.gravity, description="gravity",
                                        style={"button_width": "auto"}),
             "gravity_magnitude": w.FloatText(knobs.gravity_magnitude, description="g (px/s²)", **text),
+            "engine": w.ToggleButtons(options=ENGINES, value=knobs.engine, description="engine",
+                                      style={"button_width": "auto"}),
             "frame_steps": w.IntSlider(self.live.frame_steps, min=1, max=500, description="steps/frame", **slider),
             **{name: w.FloatText(value, description=name[5:], **text) for name, value in
                (("wall_x0", width / 2), ("wall_y0", 0.0), ("wall_x1", width / 2), ("wall_y1", height / 2))},
@@ -142,7 +145,7 @@ class LiveBoard:
 
     def _connect(self) -> None:
         c, b = self.controls, self.buttons
-        for name in ("dt", "elasticity", "vdw_r0", "thermal", "drag", "gravity", "gravity_magnitude"):
+        for name in ("dt", "elasticity", "vdw_r0", "thermal", "drag", "gravity", "gravity_magnitude", "engine"):
             c[name].observe(lambda change, name=name: self._turn(name, change["new"]), "value")
         c["frame_steps"].observe(lambda change: setattr(self.live, "frame_steps", int(change["new"])), "value")
         b["start"].on_click(lambda _: self._act(self.start))
@@ -159,7 +162,7 @@ class LiveBoard:
 
     def _layout(self, w):
         c, b = self.controls, self.buttons
-        knobs = w.VBox([c[k] for k in ("dt", "elasticity", "vdw_r0", "thermal", "drag", "gravity",
+        knobs = w.VBox([c[k] for k in ("engine", "dt", "elasticity", "vdw_r0", "thermal", "drag", "gravity",
                                         "gravity_magnitude", "frame_steps")])
         build = w.VBox([  # two fields a row at most: the tab fits the 340 px column
             w.HBox([c["wall_x0"], c["wall_y0"]]), w.HBox([c["wall_x1"], c["wall_y1"]]),

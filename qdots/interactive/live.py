@@ -41,7 +41,7 @@ from ..io import checkpoint
 from ..protocols import deposit
 from ..geometry import worst_wall_overlap
 from ..scene import MAX_DOTS, Scene, grating_segments
-from ..engine.settings import DT_RANGE, EngineSettings
+from ..engine.settings import DT_RANGE, ENGINES, EngineSettings
 from ..restitution import Restitution
 from ..simulation import Simulation
 from ..state import State
@@ -78,6 +78,9 @@ class Knobs:
         toward the centre of the board.
     gravity_magnitude : float
         Acceleration, px/s^2 (>= 0; thesis 750).
+    engine : {"chipmunk", "event"}
+        The engine that moves the dots (`qdots.EngineSettings.kind`): Chipmunk's soft contacts or the
+        thesis's event-driven exact hard discs. It can be switched while the board runs.
     """
 
     dt: float = EngineSettings.dt
@@ -87,6 +90,7 @@ class Knobs:
     drag: float = 0.0
     gravity: str = "none"
     gravity_magnitude: float = THESIS_GRAVITY
+    engine: str = EngineSettings.kind
 
     def __post_init__(self) -> None:
         for name, high, unit in (("dt", DT_RANGE[1], "s"), ("elasticity", 1.0, ""), ("vdw_r0", MAX_RANGE, "px"),
@@ -95,6 +99,7 @@ class Knobs:
             low = DT_RANGE[0] if name == "dt" else 0.0
             object.__setattr__(self, name, real(name, getattr(self, name), low, high, unit=unit))
         choice("gravity", self.gravity, GRAVITY_MODES)
+        choice("engine", self.engine, ENGINES)
 
     def forces(self, box: tuple[float, float]) -> list:
         """Fresh force objects for a board of size ``box`` (px); a knob at 0 adds no force."""
@@ -138,8 +143,8 @@ class LiveRun:
     frame_steps : int
         Time steps per `advance`, in [1, `MAX_FRAME_STEPS`].
     engine : qdots.EngineSettings, optional
-        The engine's other settings (``substeps``, ``iterations``, ...); the time step is the
-        ``dt`` knob.
+        The engine's other settings (``substeps``, ``iterations``, ...); the time step and the engine's
+        kind are the ``dt`` and ``engine`` knobs.
     """
 
     def __init__(self, scene: Scene | None = None, knobs: Knobs | None = None, *, seed=None,
@@ -157,7 +162,7 @@ class LiveRun:
         self.frame_steps = count("frame_steps", frame_steps, 1, MAX_FRAME_STEPS)
         sim_seed, drop_seed = np.random.SeedSequence(seed).spawn(2)
         self.sim = Simulation(scene, self.knobs.forces(scene.box), restitution=Restitution(mean=self.knobs.elasticity),
-                              seed=sim_seed, engine=engine.replace(dt=self.knobs.dt))
+                              seed=sim_seed, engine=engine.replace(dt=self.knobs.dt, kind=self.knobs.engine))
         self._drop_rng = np.random.default_rng(drop_seed)
         self._drops: collections.deque[_Drop] = collections.deque()
         self._next_drop = -np.inf
@@ -181,8 +186,8 @@ class LiveRun:
             raise InputError(f"unknown knob {unknown[0]!r} (knobs: {', '.join(names)})")
         knobs = dataclasses.replace(self.knobs, **changes)
         sim, old = self.sim, self.knobs
-        if knobs.dt != old.dt:
-            sim.settings = sim.settings.replace(dt=knobs.dt)
+        if (knobs.dt, knobs.engine) != (old.dt, old.engine):
+            sim.settings = sim.settings.replace(dt=knobs.dt, kind=knobs.engine)
         if knobs.elasticity != old.elasticity:
             sim.restitution = dataclasses.replace(sim.restitution, mean=knobs.elasticity)
         forces = knobs.forces(sim.scene.box)
