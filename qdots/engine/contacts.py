@@ -31,6 +31,7 @@ from numba import carray
 from labrig.compiled import c_callback, jit, pointer
 
 from ..restitution import Restitution, impact_normal
+from .allocator import tune_allocator
 from .chipmunk import DOT, VELOCITY, WALL, add_pre_solve_callback, internals
 
 
@@ -203,3 +204,12 @@ def install_handlers(space: pymunk.Space, rule: Restitution, record: CollisionRe
     space.on_collision(DOT, DOT, pre_solve=dot_dot)
     space.on_collision(DOT, WALL, pre_solve=dot_wall)
     return record
+
+
+def start_run(walls: np.ndarray, settings, key: int) -> tuple[np.ndarray, CollisionRecord]:
+    """What every engine does first: the allocator tuning when ``settings.tune_allocator`` asks for it
+    (`qdots.engine.allocator`), the walls as a contiguous (M, 4) array (px), and a fresh collision record whose
+    draws follow ``key``."""
+    if settings.tune_allocator:
+        tune_allocator()
+    return np.ascontiguousarray(walls, dtype=float).reshape(-1, 4), CollisionRecord(key)

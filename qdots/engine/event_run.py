@@ -18,8 +18,7 @@ import numpy as np
 from ..forces.base import StepContext
 from ..geometry import pairs_within
 from ..restitution import Restitution
-from .allocator import tune_allocator
-from .contacts import CollisionRecord
+from .contacts import start_run
 from .events import CAPPED, REBUILD, advance_events, fastest, neighbour_table
 from .settings import EngineSettings
 
@@ -39,11 +38,9 @@ class EventEngine:
 
     def __init__(self, walls: np.ndarray, restitution: Restitution, settings: EngineSettings, key: int,
                  positions: np.ndarray, velocities: np.ndarray, radii: np.ndarray, masses: np.ndarray):
-        if settings.tune_allocator:
-            tune_allocator()
-        self.walls = np.ascontiguousarray(walls, dtype=float).reshape(-1, 4)
-        #: Counts of impacts and the position in the elasticity draws (`qdots.engine.contacts.CollisionRecord`).
-        self.collisions = CollisionRecord(key)
+        self.walls, self.collisions = start_run(walls, settings, key)
+        #: ``collisions``: counts of impacts and the position in the elasticity draws
+        #: (`qdots.engine.contacts.CollisionRecord`).
         self.collisions.set_rule(restitution)
         #: Wall-clock seconds spent in the forces and in the events, accumulated over all frames.
         self.timings = {"forces": 0.0, "events": 0.0}

@@ -13,10 +13,9 @@ from __future__ import annotations
 import numpy as np
 
 from ..restitution import Restitution
-from .allocator import tune_allocator
 from .bodies import BodyArrays
 from .chipmunk import add_discs, new_space, tune_space
-from .contacts import CollisionRecord, install_handlers
+from .contacts import install_handlers, start_run
 from .settings import EngineSettings
 from .stepping import Stepper
 
@@ -42,11 +41,9 @@ class ChipmunkEngine:
 
     def __init__(self, walls: np.ndarray, restitution: Restitution, settings: EngineSettings, key: int,
                  positions: np.ndarray, velocities: np.ndarray, radii: np.ndarray, masses: np.ndarray):
-        if settings.tune_allocator:
-            tune_allocator()
-        self.walls = np.ascontiguousarray(walls, dtype=float).reshape(-1, 4)
-        #: Counts of impacts and the position in the elasticity draws (`qdots.engine.contacts.CollisionRecord`).
-        self.collisions = CollisionRecord(key)
+        self.walls, self.collisions = start_run(walls, settings, key)
+        #: ``collisions``: counts of impacts and the position in the elasticity draws
+        #: (`qdots.engine.contacts.CollisionRecord`).
         #: Wall-clock seconds spent in the force phase (bulk read, sub-step plan, kicks, force write) and in
         #: Chipmunk's steps (which include the collision callbacks), accumulated over all steps.
         self.timings = {"forces": 0.0, "pymunk": 0.0}
