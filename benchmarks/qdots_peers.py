@@ -164,7 +164,7 @@ def loop_row(n: int, rounds: int) -> dict:
     scene = loose_film(n)
     # every vdW pair every step on both sides: the loop writes out that model (the far-pair split is
     # an approximation of its own, measured in qdots_knobs)
-    forces = [qdots.VanDerWaals(), qdots.ThermalKicks(), qdots.Drag()]
+    forces = [qdots.VanDerWaals(contact="hold"), qdots.ThermalKicks(), qdots.Drag()]  # the model the loop writes
     vector = qdots.Simulation(scene, forces, seed=1, far_interval=None)
     plain = qdots.Simulation(scene, [], seed=1, far_interval=None)
     loop = LoopForces(plain.engine.space, *forces, plain.settings, plain.restitution)
