@@ -115,13 +115,15 @@ def _edges(state, n: int):
     return colours, widths
 
 
-def key_entries(state) -> tuple[list, list[str], str]:
+def key_entries(state, unit: str = "px") -> tuple[list, list[str], str]:
     """The key of a board's size colours (and heavy dots): legend handles, labels and a title.
 
     The colours follow `size_colours` with its defaults: ``m`` the mean diameter and ``s`` the
     standard deviation of the diameters, px. A dot is fully red at ``d >= m + s``, fully blue at
     ``d <= m - s`` and pure green at ``d = m``; sizes in between mix. Heavy dots (`heavy_dots`)
     have a thick dark edge.
+
+    ``unit`` names the length unit of the board's coordinates (px, or nm for a board drawn to scale).
 
     Returns
     -------
@@ -139,11 +141,11 @@ def key_entries(state) -> tuple[list, list[str], str]:
 
     if d.size and s > 1e-12 * m:
         handles = [dot((1.0, 0.0, 0.0)), dot((0.0, 1.0, 0.0)), dot((0.0, 0.0, 1.0))]
-        labels = [f"red: large, d \u2265 m + s = {m + s:.3g} px", f"green: mean size, d = m = {m:.3g} px",
-                  f"blue: small, d \u2264 m \u2212 s = {m - s:.3g} px"]
-        title = f"colour by diameter d (mean m, std s = {s:.2g} px; mixed in between)"
+        labels = [f"red: large, d \u2265 m + s = {m + s:.3g} {unit}", f"green: mean size, d = m = {m:.3g} {unit}",
+                  f"blue: small, d \u2264 m \u2212 s = {m - s:.3g} {unit}"]
+        title = f"colour by diameter d (mean m, std s = {s:.2g} {unit}; mixed in between)"
     else:
-        handles, labels = [dot((0.0, 1.0, 0.0))], [f"green: all one size, d = {m:.3g} px"]
+        handles, labels = [dot((0.0, 1.0, 0.0))], [f"green: all one size, d = {m:.3g} {unit}"]
         title = "colour by diameter d"
     heavy = heavy_dots(getattr(state, "masses", None), state.radii)
     if heavy.any():
@@ -152,12 +154,13 @@ def key_entries(state) -> tuple[list, list[str], str]:
     return handles, labels, title
 
 
-def add_key(ax, state, **legend):
+def add_key(ax, state, unit: str = "px", **legend):
     """Put the key of `key_entries` on ``ax`` (under its x label by default); returns the Legend.
 
-    ``legend`` overrides `matplotlib.axes.Axes.legend` arguments (``loc``, ``bbox_to_anchor``, ...).
+    ``unit`` names the length unit of the board's coordinates; ``legend`` overrides
+    `matplotlib.axes.Axes.legend` arguments (``loc``, ``bbox_to_anchor``, ...).
     """
-    handles, labels, title = key_entries(state)
+    handles, labels, title = key_entries(state, unit)
     below = ax.transAxes + ScaledTranslation(0.0, -0.5, ax.figure.dpi_scale_trans)  # 0.5 in: under the x label
     options = {"loc": "upper center", "bbox_to_anchor": (0.5, 0.0), "bbox_transform": below, "ncol": 1,
                "fontsize": "small", "title_fontsize": "small", "frameon": False, "handletextpad": 0.3,

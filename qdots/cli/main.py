@@ -137,6 +137,97 @@ def _add_analyze(subparsers) -> None:
     p.add_argument("--seed", type=int_in(0, MAX_SEED), default=0, help="seed of the trap draws (default 0)")
 
 
+def _add_image_options(p) -> None:
+    """The arguments of the commands that read a micrograph (``measure``, ``compare``)."""
+    from ..micrograph.detect import POLARITIES, PROFILES
+    from ..micrograph.scale import MAX_NM_PER_PX
+
+    p.add_argument("image", type=Path, metavar="IMAGE",
+                   help="micrograph: .tif/.tiff, .png, .jpg, .bmp, .gif, or .dm3/.dm4/.emd/.ser (qdots[microscope])")
+    p.add_argument("--out", type=Path, default=None, metavar="DIR", help="output directory (default: beside IMAGE)")
+    p.add_argument("--name", default=None, help="stem of the files written (default: IMAGE's stem)")
+    scale = p.add_mutually_exclusive_group()
+    scale.add_argument("--nm-per-px", type=float_in(0.0, MAX_NM_PER_PX, low_open=True, high_open=False), default=None,
+                       metavar="S", help="scale, nm per pixel, when the file's metadata has none")
+    scale.add_argument("--scale-bar", default=None, metavar="LENGTH",
+                       help="length of the scale bar drawn on the image, such as 200nm or 0.5um: the scale is read "
+                            "off the bar (the command says what it found)")
+    p.add_argument("--polarity", choices=POLARITIES, default="auto",
+                   help="dots darker (dark) or lighter (light) than the background; auto decides and says how")
+    p.add_argument("--invert", action="store_const", const="light", dest="polarity",
+                   help="the dots are lighter than the background (same as --polarity light)")
+    p.add_argument("--profile", choices=list(PROFILES), default="auto",
+                   help="the dots' contrast profile: sphere (projected), disc (flat), or auto (fitted when the "
+                        "dots show enough background around them, else sphere)")
+    p.add_argument("--page", type=int_in(0, 100_000), default=0, help="page of a multi-page file (default 0)")
+
+
+def _add_measure(subparsers) -> None:
+    p = add_command(subparsers, "measure", _run_measure, "find the dots of a micrograph and measure the film")
+    _add_image_options(p)
+    p.add_argument("--no-lqe", action="store_true", help="skip the film LQE (the slowest part on large films)")
+
+
+def _add_compare(subparsers) -> None:
+    from ..engine import ENGINES
+    from ..micrograph.compare import MAX_COMPARE_DOTS, MAX_SEEDS
+
+    p = add_command(subparsers, "compare", _run_compare, "measure a micrograph and simulate the film beside it")
+    _add_image_options(p)
+    p.add_argument("--seeds", type=int_in(1, MAX_SEEDS), default=3, help="simulated films (default 3)")
+    p.add_argument("--dots", type=int_in(2, MAX_COMPARE_DOTS), default=300,
+                   help="dots of each simulated film (default 300, the thesis's)")
+    p.add_argument("--engine", choices=list(ENGINES), default="chipmunk", help="engine of the simulation")
+
+
+def _run_measure(args: argparse.Namespace) -> int:
+    """Read a micrograph, find every dot (touching ones included) with sub-pixel centres and fitted
+    diameters, and write a state file (for qdots analyze and render), an overlay picture and a
+    summary table of the thesis's metrics: coverage, size and spread, interior fraction,
+    neighbours, psi6, aggregates, g(r) and the film LQE. Dots cut by the image edge are measured and
+    flagged; the neighbourhood metrics use only dots whose neighbourhood is inside the picture."""
+    from labrig.cli import print_table
+
+    from ..micrograph.measure import measure, summary_rows
+
+    film = measure(args.image, args.out, name=args.name, nm_per_px=args.nm_per_px, scale_bar=args.scale_bar,
+                   polarity=args.polarity, profile=args.profile, page=args.page, lqe=not args.no_lqe)
+    print_table(f"{args.image}:", summary_rows(film.summary))
+    out = args.image.parent if args.out is None else args.out
+    stem = film_stem(args)
+    print(f"wrote {out / f'{stem}.npz'}, {out / f'{stem}_detections.png'}, {out / f'{stem}_summary.csv'}")
+    return 0
+
+
+def film_stem(args: argparse.Namespace) -> str:
+    from labrig.files import slug
+
+    return slug(args.name if args.name is not None else args.image.stem)
+
+
+def _run_compare(args: argparse.Namespace) -> int:
+    """Measure a micrograph (as qdots measure), build the thesis's deposition with the film's size
+    spread and coverage (masses ~ d^3, 15 px mean diameter, the board sized for the coverage), run it
+    for several seeds, and write the side-by-side figure, the table of every metric (image against
+    simulation mean +- SE) and the experiment file it ran (edit it and run it with qdots run)."""
+    from labrig.cli import print_table
+
+    from ..micrograph.compare import compare, table_rows
+
+    comparison = compare(args.image, args.out, name=args.name, nm_per_px=args.nm_per_px, scale_bar=args.scale_bar,
+                         polarity=args.polarity, profile=args.profile, page=args.page, seeds=args.seeds,
+                         n_dots=args.dots, engine=args.engine, progress=True)
+    exp = comparison.experiment
+    print_table(f"{args.image} against {len(comparison.states)} simulated films ({exp.deposition.n_dots} dots, "
+                f"{exp.board.width:.0f} x {exp.board.height:.0f} px, {comparison.nm_per_board_px:.3g} nm per px, "
+                f"{exp.engine.kind} engine):", table_rows(comparison))
+    out = args.image.parent if args.out is None else args.out
+    stem = film_stem(args)
+    print(f"wrote {out / f'{stem}_compare.png'}, {out / f'{stem}_compare.csv'}, {out / f'{stem}_compare.toml'} "
+          f"and the boards ({stem}.npz, {stem}_sim-SEED.npz)")
+    return 0
+
+
 def _add_sweep(subparsers) -> None:
     from .sweep import add_sweep_command
 
@@ -215,7 +306,8 @@ def _run_render(args: argparse.Namespace) -> int:
 
 
 #: The subcommands, in the order `--help` lists them.
-COMMANDS = [_add_demo, _add_run, _add_preset, _add_resume, _add_render, _add_analyze, _add_sweep, _add_sweep_plot]
+COMMANDS = [_add_demo, _add_run, _add_preset, _add_resume, _add_render, _add_analyze, _add_measure, _add_compare,
+            _add_sweep, _add_sweep_plot]
 build_parser, main = command_line("qdots", "Quantum-dot monolayer packing simulator (pymunk).", COMMANDS)
 
 

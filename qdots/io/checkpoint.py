@@ -34,6 +34,7 @@ import math
 import os
 from pathlib import Path
 
+import numpy as np
 import pymunk
 
 from labrig.archive import read_archive, write_archive
@@ -62,11 +63,12 @@ MAX_ARRAY_BYTES = {"positions": MAX_DOTS * 2 * 8, "velocities": MAX_DOTS * 2 * 8
                    "masses": MAX_DOTS * 8, "segments": MAX_SEGMENTS * 4 * 8}
 
 
-def save(sim: Simulation, path: str | os.PathLike) -> Path:
+def save(sim: Simulation, path: str | os.PathLike, extra: dict | None = None) -> Path:
     """Write ``sim``'s board and everything needed to resume it to ``path`` (.npz), atomically.
 
     The simulation is re-seated afterwards (see the module docstring). Every board a simulation
     produces is saved and loads back, whatever its overlaps or dots that left an open board.
+    ``extra`` adds keys to the metadata (JSON values; readers that do not know them ignore them).
 
     Returns
     -------
@@ -94,11 +96,32 @@ def save(sim: Simulation, path: str | os.PathLike) -> Path:
         "rng": sim.rng.bit_generator.state,
         "collisions": sim.collisions.to_dict(),
     }
+    for key, value in (extra or {}).items():
+        if key in metadata:
+            raise ValueError(f"extra metadata may not replace {key!r}")
+        metadata[key] = value
     arrays = {"positions": state.positions, "velocities": state.velocities, "radii": state.radii,
               "masses": state.masses, "segments": scene.segments}
     path = write_archive(path, metadata, arrays)
     sim.reseat()
     return path
+
+
+def save_board(state: State, path: str | os.PathLike, extra: dict | None = None) -> Path:
+    """Write a board that no simulation produced (a film measured on a micrograph) as a state file.
+
+    The file is an ordinary state file at time 0 of a simulation of that board with no forces and the
+    default engine and collision rule: `read_state` reads it, ``qdots analyze`` and ``qdots render`` too,
+    and `load` would start a run from it. ``extra`` adds metadata keys (see `save`).
+    """
+    scene = Scene(box=tuple(state.box), positions=state.positions, radii=state.radii, masses=state.masses,
+                  velocities=state.velocities, segments=np.zeros((0, 4)), closed=state.closed, from_engine=True)
+    return save(Simulation(scene, [], seed=0), path, extra)
+
+
+def read_metadata(path: str | os.PathLike) -> dict:
+    """The metadata of a state file (checked as `read_state` checks it), including any ``extra`` keys."""
+    return _read(path)[0]
 
 
 def _field(metadata: dict, key: str):

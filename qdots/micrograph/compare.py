@@ -1,0 +1,232 @@
+"""``qdots compare``: the simulation that matches a measured film, run, and set beside it.
+
+`matching_experiment` builds the thesis's deposition (random arrival one dot per second, 100 s to
+settle, van der Waals attraction and thermal kicks, masses ~ d^3) with the film's measured size
+spread and coverage: ``n_dots`` dots of mean diameter 15 px (the thesis's) on a square board whose
+side gives the film's coverage, ``L = sqrt(n pi d^2 (1 + sigma^2) / (4 coverage))``. One board px
+is then ``mean diameter (nm) / 15`` nm: the stated scale of the simulated film. `compare_film` runs
+it for several seeds and measures every film as the image was measured (`film_metrics`, the film
+LQE), so the table gives the image's value beside the simulation's mean +- standard error.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from labrig.validate import InputError, choice, count
+
+from ..experiment import Board, Deposition, Experiment, default_forces, run_experiment
+from ..presets import MEAN_DIAMETER, THESIS_SEED
+from .film import film_metrics, film_state
+from .measure import LQE_DRAWS, MeasuredFilm, measure_image, save_overlay_axes
+
+#: Metrics of the comparison table: (key, label, digits).
+METRICS = (("coverage", "coverage", 3), ("size_spread", "size spread sigma", 3),
+           ("interior_fraction", "interior fraction (>= 5 neighbours)", 3), ("mean_neighbours", "mean neighbours", 2),
+           ("psi6_local", "psi6 local", 3), ("psi6_global", "psi6 global", 3), ("aggregates", "aggregates (>= 5 dots)", 1),
+           ("largest_share", "largest cluster (share)", 3), ("single_dots", "single dots (per 100 dots)", 1),
+           ("gr_peak_diameters", "g(r) first peak (mean diameters)", 2), ("lqe", "film LQE", 3))
+#: Metrics the simulation is given (not predictions): the board is built to match them.
+MATCHED = ("coverage", "size_spread")
+#: Most seeds and dots of one comparison.
+MAX_SEEDS, MAX_COMPARE_DOTS = 100, 5000
+#: Largest coverage a simulated board is asked to take (random deposition jams near 0.55-0.6).
+MAX_COVERAGE = 0.55
+
+
+@dataclass(frozen=True)
+class Comparison:
+    """A measured film and the simulations of it.
+
+    Attributes
+    ----------
+    film : MeasuredFilm
+    experiment : Experiment
+        The experiment run (its seed the first one's).
+    nm_per_board_px : float
+        nm per px of the simulated board.
+    simulations : list of qdots.Simulation
+        The run of each seed (``qdots.io.checkpoint.save`` writes them resumable).
+    states : list of qdots.State
+        The final board of each seed.
+    runs : list of dict
+        The metrics of each seed's film.
+    table : list of dict
+        One row per metric: ``metric``, ``label``, ``image``, ``simulation`` (mean), ``standard_error``,
+        ``seeds``, ``matched`` (the simulation was built to match it: coverage and size spread).
+    """
+
+    film: MeasuredFilm
+    experiment: Experiment
+    nm_per_board_px: float
+    simulations: list
+    states: list
+    runs: list
+    table: list
+
+
+def matching_experiment(film: MeasuredFilm, n_dots: int = 300, engine: str = "chipmunk", seed: int = THESIS_SEED,
+                        name: str | None = None) -> tuple[Experiment, float]:
+    """The thesis's deposition with the film's size spread and coverage, and nm per board px (see the module)."""
+    from ..engine import ENGINES
+
+    n_dots = count("dots", n_dots, 2, MAX_COMPARE_DOTS)
+    engine = choice("engine", engine, tuple(ENGINES))
+    s = film.summary
+    sigma = float(s["size_spread"])
+    coverage = float(s["coverage"])
+    if not (math.isfinite(sigma) and math.isfinite(coverage) and coverage > 0):
+        raise InputError(f"the film has no measured size spread or coverage (sigma {sigma}, coverage {coverage}): "
+                         "too few whole dots to simulate it")
+    sigma = min(max(sigma, 0.0), 0.5)
+    asked = min(coverage, MAX_COVERAGE)
+    side = math.sqrt(n_dots * math.pi * MEAN_DIAMETER**2 * (1.0 + sigma**2) / (4.0 * asked))
+    deposition = Deposition(protocol="random", n_dots=n_dots, mean_diameter=MEAN_DIAMETER, sigma=sigma,
+                            mass_model="volume", interval=1.0, settle=100.0)
+    exp = Experiment(name=name or f"film of {film.image.source}", seed=seed, board=Board(side, side, True),
+                     deposition=deposition, forces=default_forces())
+    exp = exp.replace(engine=exp.engine.replace(kind=engine))
+    scale = s["mean_diameter_nm"] / MEAN_DIAMETER if math.isfinite(s["nm_per_px"]) else math.nan
+    return exp, scale
+
+
+def simulated_metrics(state) -> dict:
+    """`film_metrics` of a simulated board, with its coverage (disc area over board area) and film LQE."""
+    from ..analysis.lqe import film_lqe
+
+    out = film_metrics(state)
+    out["coverage"] = float(np.sum(np.pi * np.asarray(state.radii) ** 2) / (state.box[0] * state.box[1]))
+    out["lqe"] = film_lqe(state, draws=LQE_DRAWS, seed=0).mean
+    return out
+
+
+def per_hundred(metrics: dict) -> dict:
+    """``single_dots`` as dots per 100 dots (films of different sizes compare)."""
+    return {**metrics, "single_dots": 100.0 * metrics["single_dots"] / max(metrics["dots"], 1)}
+
+
+def compare_film(film: MeasuredFilm, seeds: int = 3, n_dots: int = 300, engine: str = "chipmunk",
+                 progress: bool = False, name: str | None = None) -> Comparison:
+    """Run `matching_experiment` for ``seeds`` seeds (the thesis's 154, 155, ...) and tabulate image against
+    simulation (mean +- standard error over the seeds)."""
+    seeds = count("seeds", seeds, 1, MAX_SEEDS)
+    exp, scale = matching_experiment(film, n_dots, engine, name=name)
+    sims, states, runs = [], [], []
+    for k in range(seeds):
+        sim = run_experiment(exp.replace(seed=exp.seed + k), progress=progress)
+        state = sim.state()
+        sims.append(sim)
+        states.append(state)
+        runs.append(per_hundred(simulated_metrics(state)))
+    image = per_hundred(film.summary)
+    table = []
+    for key, label, _ in METRICS:
+        values = np.array([run[key] for run in runs], dtype=float)
+        finite = values[np.isfinite(values)]
+        mean = float(finite.mean()) if finite.size else math.nan
+        se = float(finite.std(ddof=1) / math.sqrt(finite.size)) if finite.size > 1 else math.nan
+        table.append({"metric": key, "label": label, "image": float(image.get(key, math.nan)), "simulation": mean,
+                      "standard_error": se, "seeds": int(finite.size), "matched": key in MATCHED})
+    return Comparison(film, exp, scale, sims, states, runs, table)
+
+
+def table_rows(comparison: Comparison) -> list[tuple[str, str]]:
+    """(label, text) rows: image value, simulation mean +- SE."""
+    digits = {key: d for key, _, d in METRICS}
+    rows = []
+    for row in comparison.table:
+        d = digits[row["metric"]]
+        se = f" +- {row['standard_error']:.{d}f}" if math.isfinite(row["standard_error"]) else ""
+        given = "   (set to match)" if row["matched"] else ""
+        rows.append((row["label"], f"image {row['image']:.{d}f}   simulation {row['simulation']:.{d}f}{se}{given}"))
+    return rows
+
+
+def save_side_by_side(comparison: Comparison, path, dpi: int = 120) -> Path:
+    """`side_by_side_figure`, written atomically to ``path``."""
+    from labrig.figures import save_figure
+
+    return save_figure(side_by_side_figure(comparison), path, dpi=dpi)
+
+
+def side_by_side_figure(comparison: Comparison):
+    """The image with its detections beside the first simulated film, both at the same nm scale (a
+    matplotlib Figure)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    from ..render import add_key, draw_state
+
+    film = comparison.film
+    h, w = film.image.shape
+    nm = film.nm_per_px if film.nm_per_px is not None else 1.0
+    unit = "nm" if film.nm_per_px is not None else "image px"
+    scale = comparison.nm_per_board_px if math.isfinite(comparison.nm_per_board_px) else film.summary[
+        "mean_diameter_px"] / MEAN_DIAMETER
+    state = comparison.states[0]
+    board = replace(state, positions=state.positions * scale, radii=state.radii * scale,
+                    box=(state.box[0] * scale, state.box[1] * scale), walls=state.walls * scale)
+    extent = max(w * nm, h * nm, *board.box)
+    fig = Figure(figsize=(14, 8.6))
+    FigureCanvasAgg(fig)
+    left, right = fig.subplots(1, 2)
+    save_overlay_axes(film, left, extent_nm=(w * nm, h * nm))
+    left.set_xlim(0, extent)
+    left.set_ylim(extent, 0)
+    left.set_title(f"{film.image.source}: {film.summary['dots']} dots measured", fontsize="medium")
+    draw_state(board, ax=right, show_time=False)
+    right.set_xlim(0, extent)
+    right.set_ylim(0, extent)
+    exp = comparison.experiment
+    right.set_title(f"simulated: {exp.deposition.n_dots} dots, sigma {exp.deposition.sigma:.3f}, masses ~ d^3, "
+                    f"{exp.engine.kind} engine, seed {exp.seed}", fontsize="medium")
+    for ax in (left, right):
+        ax.set_aspect("equal")
+        ax.set_xlabel(unit)
+        ax.set_ylabel(unit)
+    add_key(right, board, unit, loc="upper center", bbox_to_anchor=(0.5, -0.1), bbox_transform=right.transAxes)
+    detected = film.detection
+    sized = film_state(detected.centres[~detected.cut] * nm, detected.diameters[~detected.cut] * nm, (h * nm, w * nm))
+    add_key(left, sized, unit, loc="upper center", bbox_to_anchor=(0.5, -0.1), bbox_transform=left.transAxes)
+    fig.subplots_adjust(left=0.06, right=0.98, top=0.94, bottom=0.2, wspace=0.15)
+    return fig
+
+
+def compare(path: str | os.PathLike, out: str | os.PathLike | None = None, *, name: str | None = None,
+            nm_per_px=None, scale_bar: str | None = None, polarity: str = "auto", profile: str = "auto",
+            page: int = 0, seeds: int = 3, n_dots: int = 300, engine: str = "chipmunk",
+            progress: bool = False) -> Comparison:
+    """Measure an image, simulate it, and write as one set into ``out`` (default beside the image):
+    the measurement's files (`qdots.micrograph.measure.measure`), ``NAME_compare.toml`` (the experiment run,
+    to edit and run again with ``qdots run``), ``NAME_compare.png`` (side by side), ``NAME_compare.csv``
+    (the table) and ``NAME_sim-SEED.npz`` (each simulated board)."""
+    from labrig.files import OutputSet, slug, write_csv
+
+    from ..io import checkpoint
+    from ..io.experiment_file import save_experiment
+    from .measure import save_overlay, state_metadata
+
+    path = Path(path)
+    stem = slug(name if name is not None else path.stem)
+    count("seeds", seeds, 1, MAX_SEEDS)
+    count("dots", n_dots, 2, MAX_COMPARE_DOTS)
+    film = measure_image(path, nm_per_px=nm_per_px, scale_bar=scale_bar, polarity=polarity, profile=profile,
+                         page=page)
+    comparison = compare_film(film, seeds=seeds, n_dots=n_dots, engine=engine, progress=progress, name=stem)
+    out = path.parent if out is None else Path(out)
+    with OutputSet(out, f"{stem}_compare") as files:
+        checkpoint.save_board(film.state, files.stage(f"{stem}.npz"), state_metadata(film))
+        save_overlay(film, files.stage(f"{stem}_detections.png"))
+        write_csv(files.stage(f"{stem}_summary.csv"), [film.summary])
+        save_experiment(comparison.experiment, files.stage(f"{stem}_compare.toml"))
+        for k, sim in enumerate(comparison.simulations):
+            checkpoint.save(sim, files.stage(f"{stem}_sim-{comparison.experiment.seed + k}.npz"),
+                            {"simulated_film_of": film.image.source, "nm_per_board_px": comparison.nm_per_board_px})
+        save_side_by_side(comparison, files.stage(f"{stem}_compare.png"))
+        write_csv(files.stage(f"{stem}_compare.csv"), comparison.table)
+    return comparison

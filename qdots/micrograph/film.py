@@ -1,0 +1,108 @@
+"""A measured film as a qdots board, and the thesis's metrics of it with the image's edge taken into account.
+
+The board (`film_state`) holds the detected dots in image pixels with ``y`` pointing up (row 0 at
+the top of the picture is ``y = H``), as every qdots board does, so `qdots.render` draws it the
+right way up. Velocities are zero (an image has none); masses are proportional to the volume,
+``(d / mean d)^3``, a dot's mass being that of its material.
+
+The image's edge cuts the film. `complete_neighbourhood` marks the dots whose every possible
+neighbour (the thesis's text rule: surface gap under one mean radius) lies inside the picture: a dot
+whose centre is at least ``r_i + r_max + r_mean`` from each edge of the picture. The metrics of a
+dot's neighbourhood (interior fraction, mean neighbours, psi6) are averaged over those dots only;
+the cut dots themselves take part as neighbours. Sizes are averaged over the dots the edge does
+not cut. Clusters are counted as they are seen (one cut by the edge may continue outside).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..analysis.packing import INTERIOR_MIN_NEIGHBOURS, neighbour_counts
+from ..analysis.structure import clusters, hexatic_order, radial_distribution
+from ..state import State
+
+#: A cluster of at least this many dots is an aggregate (as in the reproduction of thesis Fig 2-2).
+AGGREGATE = 5
+
+
+def film_state(centres: np.ndarray, diameters: np.ndarray, image_shape: tuple[int, int]) -> State:
+    """The board of dots at image ``centres`` ((column, row), px) with ``diameters`` (px) on an open board of
+    the image's size, ``y`` up, at rest, masses ``(d / mean d)^3``."""
+    h, w = image_shape
+    centres = np.asarray(centres, dtype=float).reshape(-1, 2)
+    radii = 0.5 * np.asarray(diameters, dtype=float)
+    positions = np.column_stack([centres[:, 0], h - centres[:, 1]])
+    masses = (radii / radii.mean()) ** 3 if radii.size else np.zeros(0)
+    return State(time=0.0, positions=positions, velocities=np.zeros_like(positions), radii=radii, masses=masses,
+                 box=(float(w), float(h)), walls=np.zeros((0, 4)), closed=False)
+
+
+def complete_neighbourhood(state, window: tuple[float, float, float, float] | None = None) -> np.ndarray:
+    """Dots all of whose possible neighbours (text rule) lie inside ``window`` ((x0, y0, x1, y1) in the board's
+    coordinates; default the whole box): bool array (N,)."""
+    positions = np.asarray(state.positions, dtype=float)
+    radii = np.asarray(state.radii, dtype=float)
+    if radii.size == 0:
+        return np.zeros(0, dtype=bool)
+    x0, y0, x1, y1 = (0.0, 0.0, *state.box) if window is None else window
+    reach = radii + radii.max() + radii.mean()
+    x, y = positions[:, 0], positions[:, 1]
+    return (x - reach >= x0) & (x + reach <= x1) & (y - reach >= y0) & (y + reach <= y1)
+
+
+def film_metrics(state, measured: np.ndarray | None = None, complete: np.ndarray | None = None,
+                 nm_per_px: float | None = None) -> dict:
+    """The thesis's packing figures of a film, edge-aware.
+
+    Parameters
+    ----------
+    state : State
+    measured : bool array (N,), optional
+        Dots whose size is measured whole (default all): the size statistics use these.
+    complete : bool array (N,), optional
+        Dots whose neighbourhood is whole (default all): the neighbourhood metrics use these.
+    nm_per_px : float, optional
+        Scale; sizes are also given in nm when known.
+
+    Returns
+    -------
+    dict
+        ``dots``, ``dots_sized``, ``dots_complete``; ``mean_diameter_px``, ``sd_diameter_px``,
+        ``size_spread`` (SD / mean, the thesis's sigma) and in nm when the scale is known;
+        ``interior_fraction`` (>= 5 neighbours), ``mean_neighbours``, ``psi6_local``, ``psi6_global``;
+        ``aggregates`` (clusters of >= 5 dots), ``largest_share``, ``single_dots``;
+        ``gr_peak_diameters`` (first peak of g(r) in mean diameters).
+    """
+    n = len(state.radii)
+    measured = np.ones(n, dtype=bool) if measured is None else np.asarray(measured, dtype=bool)
+    complete = np.ones(n, dtype=bool) if complete is None else np.asarray(complete, dtype=bool)
+    d = 2.0 * np.asarray(state.radii, dtype=float)
+    sized = d[measured]
+    out = {"dots": n, "dots_sized": int(measured.sum()), "dots_complete": int(complete.sum())}
+    mean = float(sized.mean()) if sized.size else math.nan
+    sd = float(sized.std(ddof=1)) if sized.size > 1 else math.nan
+    out.update(mean_diameter_px=mean, sd_diameter_px=sd, size_spread=sd / mean if sized.size > 1 else math.nan)
+    if nm_per_px is not None:
+        out.update(mean_diameter_nm=mean * nm_per_px, sd_diameter_nm=sd * nm_per_px)
+    counts = neighbour_counts(state) if n else np.zeros(0, dtype=int)
+    hexatic = hexatic_order(state) if n else None
+    inner = complete & (counts > 0)
+    out.update(
+        interior_fraction=float(np.mean(counts[complete] >= INTERIOR_MIN_NEIGHBOURS)) if complete.any() else math.nan,
+        mean_neighbours=float(counts[complete].mean()) if complete.any() else math.nan,
+        psi6_local=float(np.abs(hexatic.psi[inner]).mean()) if inner.any() else math.nan,
+        psi6_global=float(abs(hexatic.psi[inner].mean())) if inner.any() else math.nan,
+    )
+    _, sizes = clusters(state) if n else (None, np.zeros(0, dtype=int))
+    out.update(aggregates=int(np.sum(sizes >= AGGREGATE)), largest_share=float(sizes[0] / n) if n else math.nan,
+               single_dots=int(np.sum(sizes == 1)))
+    peak = math.nan
+    if n >= 2:
+        rdf = radial_distribution(state, r_max=min(4.0 * mean, *state.box) if math.isfinite(mean) else None, bins=80)
+        finite = np.isfinite(rdf.g)
+        if finite.any():
+            peak = float(rdf.r[finite][np.argmax(rdf.g[finite])] / mean)
+    out["gr_peak_diameters"] = peak
+    return out

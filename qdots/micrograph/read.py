@@ -1,0 +1,221 @@
+"""Reading a micrograph: one grey image and its scale, through the ecosystem's readers.
+
+Formats and readers (none hand-written):
+
+=====================================  ===========================================================
+``.tif``, ``.tiff`` (8/16/32-bit,      tifffile; the scale from ImageJ metadata (``unit`` nm or
+multi-page)                            micron, with the X resolution in pixels per unit)
+``.png``, ``.jpg``, ``.jpeg``,         Pillow (through which imageio reads these); no scale
+``.bmp``, ``.gif``
+``.dm3``, ``.dm4`` (Gatan), ``.emd``,  rosettasciio (``pip install "qdots[microscope]"``); the
+``.ser`` (FEI TIA)                     scale from the file's calibrated axes
+=====================================  ===========================================================
+
+Each reader is asked for the image's declared size first; an image of more than `MAX_PIXELS`
+pixels (or a side of more than `MAX_SIDE`) is refused before its pixels are read. Colour is
+turned into grey as the mean of the channels; the result is float64.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from labrig.files import existing_file
+from labrig.validate import InputError, count
+
+#: Largest image side, px, and largest number of pixels (a 8192 x 8192 image; float64: 512 MiB).
+MAX_SIDE = 65_536
+MAX_PIXELS = 8192 * 8192
+#: nm in one unit of a file's scale.
+UNIT_NM = {"nm": 1.0, "nanometer": 1.0, "nanometre": 1.0, "um": 1e3, "µm": 1e3, "micron": 1e3,
+           "microns": 1e3, "micrometer": 1e3, "micrometre": 1e3, "mm": 1e6, "pm": 1e-3, "a": 0.1, "å": 0.1,
+           "angstrom": 0.1}
+TIFF = (".tif", ".tiff")
+PILLOW = (".png", ".jpg", ".jpeg", ".bmp", ".gif")
+#: rosettasciio's reader module for each microscope format.
+MICROSCOPE = {".dm3": "digitalmicrograph", ".dm4": "digitalmicrograph", ".emd": "emd", ".ser": "tia"}
+SUFFIXES = TIFF + PILLOW + tuple(MICROSCOPE)
+
+
+@dataclass(frozen=True)
+class Micrograph:
+    """A grey image and what its file says about it.
+
+    Attributes
+    ----------
+    pixels : ndarray, shape (H, W), float64
+        Grey values as stored (not rescaled); row 0 is the top of the picture.
+    nm_per_px : float or None
+        The file's own scale, nm per pixel, or None when it has none.
+    source : str
+        The file's name.
+    page : int
+        Which page (or image) of the file this is.
+    pages : int
+        How many the file holds.
+    """
+
+    pixels: np.ndarray
+    nm_per_px: float | None
+    source: str
+    page: int = 0
+    pages: int = 1
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return self.pixels.shape
+
+
+def check_size(height: int, width: int, path) -> None:
+    """Refuse an image of `MAX_PIXELS` pixels or more, or of a side outside [2, `MAX_SIDE`], before reading it."""
+    if height < 2 or width < 2:
+        raise InputError(f"{path}: the image is {width} x {height} px; a micrograph needs at least 2 x 2 px")
+    if height > MAX_SIDE or width > MAX_SIDE or height * width > MAX_PIXELS:
+        raise InputError(f"{path}: the image declares {width} x {height} px, more than the {MAX_PIXELS:,} pixels "
+                         f"(sides <= {MAX_SIDE:,}) allowed; crop or bin it first")
+
+
+def nm_per_unit(unit, path) -> float | None:
+    """nm in one ``unit`` (a length unit's name as files write it), or None when it is not a length."""
+    if not isinstance(unit, str):
+        return None
+    return UNIT_NM.get(unit.strip().lower())
+
+
+def grey(pixels: np.ndarray, path) -> np.ndarray:
+    """``pixels`` as a 2-D float64 grey image: colour channels (last axis of 3 or 4) averaged, alpha dropped."""
+    a = np.asarray(pixels)
+    if a.ndim == 3 and a.shape[-1] in (3, 4):
+        a = a[..., :3].astype(float).mean(axis=-1)
+    if a.ndim != 2:
+        raise InputError(f"{path}: expected a 2-D grey or colour image, got an array of shape {a.shape}")
+    if not np.issubdtype(a.dtype, np.number) or np.issubdtype(a.dtype, np.complexfloating):
+        raise InputError(f"{path}: pixels of type {a.dtype} are not grey values")
+    return a.astype(float)
+
+
+def _read_tiff(path: Path, page: int) -> tuple[np.ndarray, float | None, int]:
+    import tifffile
+
+    with tifffile.TiffFile(path) as tif:
+        pages = len(tif.pages)
+        page = count("page", page, 0, pages - 1)
+        tiff_page = tif.pages[page]
+        shape = tiff_page.shape
+        height, width = (shape[0], shape[1]) if len(shape) >= 2 else (1, shape[0] if shape else 0)
+        if len(shape) >= 3 and shape[0] in (3, 4) and shape[-1] not in (3, 4):  # planar colour
+            height, width = shape[1], shape[2]
+        check_size(height, width, path)
+        pixels = tiff_page.asarray()
+        if pixels.ndim == 3 and pixels.shape[0] in (3, 4) and pixels.shape[-1] not in (3, 4):
+            pixels = np.moveaxis(pixels, 0, -1)
+        scale = None
+        imagej = tif.imagej_metadata or {}
+        per_unit = nm_per_unit(imagej.get("unit"), path)
+        resolution = tiff_page.tags.get("XResolution")
+        if per_unit is not None and resolution is not None:
+            numerator, denominator = resolution.value
+            if numerator > 0 and denominator > 0:
+                scale = per_unit * denominator / numerator  # the tag is pixels per unit
+    return pixels, scale, pages
+
+
+def _read_pillow(path: Path, page: int) -> tuple[np.ndarray, None, int]:
+    from PIL import Image
+
+    try:
+        image = Image.open(path)  # reads the header only
+    except Image.DecompressionBombError:  # Pillow's own bound, twice its MAX_IMAGE_PIXELS, above ours
+        raise InputError(f"{path}: the image declares more than {2 * Image.MAX_IMAGE_PIXELS:,} pixels; at most "
+                         f"{MAX_PIXELS:,} are read (crop or bin it first)") from None
+    with image:
+        width, height = image.size
+        check_size(height, width, path)
+        pages = getattr(image, "n_frames", 1)
+        image.seek(count("page", page, 0, pages - 1))
+        image.load()
+        if image.mode == "P":
+            image = image.convert("RGB")
+        pixels = np.asarray(image)
+    return pixels, None, pages
+
+
+def _read_microscope(path: Path, page: int) -> tuple[np.ndarray, float | None, int]:
+    import importlib
+
+    try:
+        reader = importlib.import_module(f"rsciio.{MICROSCOPE[path.suffix.lower()]}").file_reader
+    except ImportError:
+        raise InputError(f"{path}: reading {path.suffix} files needs rosettasciio: pip install \"qdots[microscope]\""
+                         ) from None
+    signals = [s for s in reader(str(path), lazy=True) if np.ndim(s["data"]) >= 2]
+    if not signals:
+        raise InputError(f"{path}: the file holds no 2-D image")
+    signal = signals[count("page", page, 0, len(signals) - 1)]
+    data = signal["data"]
+    if data.ndim != 2:
+        raise InputError(f"{path}: image {page} has shape {tuple(data.shape)}; qdots measures 2-D images "
+                         "(pick one frame of a stack first)")
+    check_size(int(data.shape[0]), int(data.shape[1]), path)
+    pixels = np.asarray(data.compute() if hasattr(data, "compute") else data)
+    axes = signal.get("axes", [])
+    scale = None
+    if len(axes) >= 2:
+        per_unit = nm_per_unit(axes[-1].get("units"), path)
+        step = axes[-1].get("scale")
+        if per_unit is not None and isinstance(step, (int, float)) and math.isfinite(step) and step > 0:
+            scale = per_unit * float(step)
+    return pixels, scale, len(signals)
+
+
+def read_micrograph(path: str | os.PathLike, page: int = 0) -> Micrograph:
+    """Read one grey image (and its scale, when the file has one) from a micrograph file.
+
+    Parameters
+    ----------
+    path : path-like
+        A TIFF, PNG, JPEG, BMP or GIF image, or a Gatan (.dm3, .dm4), EMD or TIA (.ser) file.
+    page : int
+        Which page of a multi-page file (default the first).
+
+    Returns
+    -------
+    Micrograph
+
+    Raises
+    ------
+    labrig.validate.InputError
+        One line naming what is wrong: not an image, a truncated file, too small or too large an
+        image (refused before its pixels are read), constant or all-NaN pixels.
+    """
+    path = existing_file(path, "micrograph")
+    suffix = path.suffix.lower()
+    try:
+        if suffix in TIFF:
+            pixels, scale, pages = _read_tiff(path, page)
+        elif suffix in MICROSCOPE:
+            pixels, scale, pages = _read_microscope(path, page)
+        else:
+            pixels, scale, pages = _read_pillow(path, page)
+    except InputError:
+        raise
+    except (OSError, ValueError, SyntaxError, EOFError, KeyError, IndexError, TypeError) as exc:
+        known = "" if suffix in SUFFIXES else f" (qdots reads {', '.join(SUFFIXES)})"
+        raise InputError(f"{path}: not a readable image{known}: {type(exc).__name__}: "
+                         f"{str(exc).splitlines()[0] if str(exc) else 'no details'}") from None
+    image = grey(pixels, path)
+    check_size(*image.shape, path)
+    finite = np.isfinite(image)
+    if not finite.any():
+        raise InputError(f"{path}: every pixel is NaN or infinite")
+    if not finite.all():
+        raise InputError(f"{path}: {int(image.size - finite.sum()):,} pixels are NaN or infinite; "
+                         "fill or crop them out first")
+    if float(image.max()) == float(image.min()):
+        raise InputError(f"{path}: every pixel has the value {float(image.min()):g}: there is nothing to measure")
+    return Micrograph(image, scale, path.name, int(page), int(pages))

@@ -1,0 +1,138 @@
+"""Synthetic micrographs of known boards: the ground truth `detect_dots` is measured against.
+
+`render_micrograph` draws dots as a bright-field TEM shows them: each dot removes a share
+``c_i (1 - rho^2 / r_i^2)^p`` of the local illumination (``p = 1/2``: a projected sphere, the
+default; ``p = 0``: a flat disc), the contrast ``c_i`` spread dot to dot, the illumination falling
+across the image, the picture blurred and noisy. `dense_board` and `sparse_board` give touching
+films and scattered dots of a chosen size spread.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy import ndimage
+
+from labrig.validate import InputError, count, generator, real
+
+#: Largest synthetic image side, px.
+MAX_SIDE = 8192
+
+
+def dense_board(width: float, height: float, mean_diameter: float, sigma: float, seed=0, vacancies: float = 0.1
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """A touching film: a hexagonal lattice of spacing 1.02 mean diameters, ``vacancies`` of its sites empty,
+    diameters drawn from N(mean, sigma mean) and cut to [0.5 mean, spacing], each dot shifted at random
+    within its site (so no two overlap and many touch). Returns centres (N, 2) and diameters (N,), px."""
+    rng = generator("seed", seed)
+    spacing = 1.02 * mean_diameter
+    rows = int(height / (spacing * math.sqrt(3) / 2)) + 2
+    cols = int(width / spacing) + 2
+    j, i = np.mgrid[0:rows, 0:cols]
+    x = (i + 0.5 * (j % 2)) * spacing
+    y = j * spacing * math.sqrt(3) / 2
+    centres = np.column_stack([x.ravel(), y.ravel()])
+    centres = centres[rng.random(len(centres)) >= vacancies]
+    d = np.clip(rng.normal(mean_diameter, sigma * mean_diameter, len(centres)), 0.5 * mean_diameter, spacing)
+    room = 0.5 * (spacing - d)
+    angle = rng.uniform(0, 2 * math.pi, len(centres))
+    shift = room * rng.random(len(centres))
+    centres = centres + np.column_stack([np.cos(angle), np.sin(angle)]) * shift[:, None]
+    inside = (centres[:, 0] > -0.5 * d) & (centres[:, 0] < width + 0.5 * d) & (centres[:, 1] > -0.5 * d) & (
+        centres[:, 1] < height + 0.5 * d)
+    return centres[inside], d[inside]
+
+
+def sparse_board(width: float, height: float, mean_diameter: float, sigma: float, coverage: float = 0.15, seed=0,
+                 gap: float = 0.3) -> tuple[np.ndarray, np.ndarray]:
+    """Scattered dots: random positions, at least ``gap`` mean diameters apart surface to surface, until
+    ``coverage`` of the area is covered (or no more fit). Returns centres (N, 2) and diameters (N,), px."""
+    from scipy.spatial import cKDTree
+
+    rng = generator("seed", seed)
+    target = coverage * width * height / (math.pi * mean_diameter**2 / 4)
+    tries = count("dots", int(20 * target) + 20, 1, 10_000_000)
+    x = rng.uniform(0, width, (tries, 2)) * [1.0, height / width]
+    d = np.clip(rng.normal(mean_diameter, sigma * mean_diameter, tries), 0.5 * mean_diameter, 1.5 * mean_diameter)
+    kept: list[int] = []
+    reach = (1.5 + gap) * mean_diameter
+    tree_points = np.zeros((0, 2))
+    tree = None
+    for k in range(tries):
+        if len(kept) >= target:
+            break
+        if tree is not None:
+            near = tree.query_ball_point(x[k], reach)
+            if any(np.hypot(*(x[k] - tree_points[m])) < 0.5 * (d[k] + d[kept[m]]) + gap * mean_diameter for m in near):
+                continue
+        kept.append(k)
+        if len(kept) % 64 == 1 or tree is None:
+            tree_points = x[kept]
+            tree = cKDTree(tree_points)
+        else:
+            tree_points = x[kept]
+            tree = cKDTree(tree_points)
+    return x[kept], d[kept]
+
+
+def render_micrograph(centres, diameters, shape: tuple[int, int], *, profile: float = 0.5, contrast: float = 0.6,
+                      contrast_spread: float = 0.12, blur: float = 1.0, illumination: float = 0.3,
+                      noise: float = 0.05, dark: bool = True, seed=0) -> np.ndarray:
+    """A grey micrograph of dots at ``centres`` ((x, y) = (column, row), px) with ``diameters`` (px).
+
+    Parameters
+    ----------
+    shape : (int, int)
+        ``(H, W)``, px (each side in [2, `MAX_SIDE`]).
+    profile : float
+        ``p`` of the dots' absorption profile ``(1 - rho^2/r^2)^p``: 0.5 a projected sphere, 0 a flat disc.
+    contrast : float
+        Mean share of the light a dot's centre removes, in (0, 1).
+    contrast_spread : float
+        Relative standard deviation of the contrast from dot to dot (the issue's 10-15 %).
+    blur : float
+        Gaussian blur, px.
+    illumination : float
+        Fall of the illumination from one corner to the opposite one, as a share of its maximum.
+    noise : float
+        Standard deviation of the additive Gaussian noise, in units of the mean background level.
+    dark : bool
+        Dark dots on a light background (bright field), else light on dark.
+
+    Returns
+    -------
+    ndarray, shape (H, W), float64
+    """
+    h, w = (count("shape", v, 2, MAX_SIDE) for v in shape)
+    real("contrast", contrast, 0.0, 1.0, low_open=True, high_open=True)
+    real("noise", noise, 0.0, 10.0)
+    real("blur", blur, 0.0, 50.0)
+    rng = generator("seed", seed)
+    centres = np.asarray(centres, dtype=float).reshape(-1, 2)
+    radii = 0.5 * np.asarray(diameters, dtype=float).reshape(-1)
+    if len(radii) != len(centres):
+        raise InputError(f"centres and diameters differ in length: {len(centres)} and {len(radii)}")
+    c = np.clip(contrast * (1.0 + contrast_spread * rng.standard_normal(len(radii))), 0.05, 0.95)
+    absorbed = np.zeros((h, w))
+    sub = 4  # 4 x 4 samples per pixel
+    offsets = (np.arange(sub) + 0.5) / sub
+    for (x, y), r, ci in zip(centres, radii, c):
+        r0, r1 = max(0, int(y - r)), min(h, math.ceil(y + r) + 1)
+        c0, c1 = max(0, int(x - r)), min(w, math.ceil(x + r) + 1)
+        if r0 >= r1 or c0 >= c1:
+            continue
+        yy = (np.arange(r0, r1)[:, None] + offsets[None, :]).reshape(-1)
+        xx = (np.arange(c0, c1)[:, None] + offsets[None, :]).reshape(-1)
+        u2 = ((xx[None, :] - x) ** 2 + (yy[:, None] - y) ** 2) / (r * r)
+        f = np.where(u2 < 1.0, np.maximum(1.0 - u2, 0.0) ** profile if profile > 0 else 1.0, 0.0)
+        f = f.reshape(r1 - r0, sub, c1 - c0, sub).mean(axis=(1, 3))
+        absorbed[r0:r1, c0:c1] = np.maximum(absorbed[r0:r1, c0:c1], ci * f)
+    yy, xx = np.mgrid[0:h, 0:w]
+    light = 1.0 - illumination * (xx / max(w - 1, 1) + yy / max(h - 1, 1)) / 2.0
+    image = light * (1.0 - absorbed)
+    if not dark:
+        image = light * (0.2 + absorbed)
+    if blur > 0:
+        image = ndimage.gaussian_filter(image, blur)
+    return image + noise * float(np.mean(light)) * rng.standard_normal((h, w))

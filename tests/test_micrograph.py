@@ -1,0 +1,295 @@
+"""Micrographs: reading, scale, detection against synthetic truth, the real TEM image, outputs, bad input."""
+
+from __future__ import annotations
+
+import struct
+import zlib
+from pathlib import Path
+
+import numpy as np
+import pytest
+from helpers import one_line_error, refused
+from PIL import Image
+from scipy.spatial import cKDTree
+
+from qdots.cli import main
+from qdots.io import checkpoint
+from qdots.micrograph.detect import detect_dots
+from qdots.micrograph.film import complete_neighbourhood, film_metrics, film_state
+from qdots.micrograph.measure import measure_image
+from qdots.micrograph.read import MAX_PIXELS, read_micrograph
+from qdots.micrograph.scale import find_scale_bar, parse_length, scale_from_bar
+from qdots.micrograph.synthetic import dense_board, render_micrograph, sparse_board
+
+ROOT = Path(__file__).resolve().parent.parent
+TEM = ROOT.parent / "shared" / "data" / "micrographs" / "nanoparticle_film_tem.png"
+
+
+def score(detection, centres, diameters):
+    """Recall and precision (a match within 0.3 diameters), median |diameter error| / d and median position
+    error (px) over the true dots the image edge does not cut."""
+    h, w = detection.image_shape
+    inside = ((centres[:, 0] - diameters / 2 >= 0) & (centres[:, 1] - diameters / 2 >= 0)
+              & (centres[:, 0] + diameters / 2 <= w) & (centres[:, 1] + diameters / 2 <= h))
+    distance, nearest = cKDTree(detection.centres).query(centres)
+    found = distance < 0.3 * diameters
+    back, truth = cKDTree(centres).query(detection.centres)
+    precision = float(np.mean((back < 0.3 * diameters[truth])[~detection.cut]))
+    both = found & inside & ~detection.cut[nearest]
+    size = np.abs(detection.diameters[nearest[both]] - diameters[both]) / diameters[both]
+    return float(found[inside].mean()), precision, float(np.median(size)), float(np.median(distance[both]))
+
+
+@pytest.mark.parametrize("board", [sparse_board, dense_board])
+def test_dots_of_a_synthetic_micrograph_at_moderate_noise_are_found_and_sized(board):
+    centres, diameters = board(384, 384, 15.0, 0.1, seed=3)
+    image = render_micrograph(centres, diameters, (384, 384), noise=0.05, seed=4)
+    detection = detect_dots(image)
+    recall, precision, size, position = score(detection, centres, diameters)
+    assert recall >= 0.98 and precision >= 0.98
+    assert size <= 0.035 if board is dense_board else size <= 0.02
+    assert position <= 0.5
+    assert detection.dark and "automatic" in detection.polarity
+    assert detection.shape == 0.5  # projected spheres recognised
+
+
+def test_light_dots_flat_discs_and_uneven_light_are_measured():
+    centres, diameters = sparse_board(320, 320, 18.0, 0.12, seed=5)
+    image = render_micrograph(centres, diameters, (320, 320), profile=0.0, dark=False, illumination=0.5,
+                              noise=0.03, seed=6)
+    detection = detect_dots(image)
+    assert not detection.dark and detection.polarity.startswith("light dots (automatic")
+    assert detection.shape == 0.0
+    recall, precision, size, position = score(detection, centres, diameters)
+    assert recall >= 0.98 and precision >= 0.98 and size <= 0.03 and position <= 0.5
+    given = detect_dots(image, polarity="light", profile="disc")
+    assert given.polarity == "light dots (given)" and given.profile == "disc (given)"
+
+
+def test_cut_dots_are_flagged_and_kept_out_of_neighbourhood_metrics():
+    centres = np.array([[5.0, 50.0], [60.0, 60.0], [75.0, 60.0], [67.5, 73.0]])
+    diameters = np.full(4, 15.0)
+    detection = detect_dots(render_micrograph(centres, diameters, (120, 120), noise=0.01, seed=1))
+    assert detection.n_dots == 4
+    order = np.argsort(detection.centres[:, 0])
+    assert detection.cut[order].tolist() == [True, False, False, False]
+    state = film_state(detection.centres, detection.diameters, detection.image_shape)
+    complete = complete_neighbourhood(state)
+    assert not complete[order[0]] and complete[order[1:]].all()
+    metrics = film_metrics(state, measured=~detection.cut, complete=complete)
+    assert metrics["dots_sized"] == 3 and metrics["dots_complete"] == 3
+    assert metrics["mean_neighbours"] == pytest.approx(2.0)  # the triangle; the cut dot is far from it
+
+
+def test_a_frame_around_the_image_is_not_picture():
+    centres, diameters = sparse_board(200, 200, 15.0, 0.05, seed=2)
+    image = render_micrograph(centres, diameters, (200, 200), noise=0.02, seed=2)
+    framed = np.pad(image, 4, constant_values=0.0)
+    detection = detect_dots(framed)
+    assert detection.window == (4, 4, 204, 204)
+    recall, precision, _, position = score(detection, centres + 4.0, diameters)
+    assert recall >= 0.98 and precision >= 0.98 and position <= 0.5
+
+
+def test_a_scale_bar_is_found_measured_and_left_out():
+    centres, diameters = sparse_board(300, 300, 15.0, 0.05, seed=7)
+    image = render_micrograph(centres, diameters, (300, 300), noise=0.02, seed=7)
+    image[270:276, 180:280] = image.min() - 0.2  # a solid black bar 100 px long
+    bar = find_scale_bar(image)
+    assert bar.length_px == 100 and bar.box == (180, 270, 280, 276) and bar.dark
+    nm_per_px, _ = scale_from_bar(image, "0.5um")
+    assert nm_per_px == pytest.approx(5.0)
+    assert parse_length("200 nm") == 200.0 and parse_length("2µm") == 2000.0 and parse_length("15A") == 1.5
+    detection = detect_dots(image, ignore=bar.mask(image.shape))
+    x, y = detection.centres.T
+    assert not np.any((x > 178) & (x < 282) & (y > 268) & (y < 278))  # the bar is not a row of dots
+    clear = np.hypot(np.clip(centres[:, 0], 180, 280) - centres[:, 0], np.clip(centres[:, 1], 270, 276)
+                     - centres[:, 1]) > diameters
+    recall = score(detection, centres[clear], diameters[clear])[0]
+    assert recall >= 0.98
+
+
+@pytest.mark.parametrize("text", ["200", "nm", "-5nm", "0nm", "200 parsec", "1e999nm"])
+def test_bad_scale_bar_lengths_are_refused(text):
+    refused(lambda: parse_length(text), "scale_bar")
+
+
+def test_tiff_pages_depths_and_imagej_scale_are_read(tmp_path):
+    tifffile = pytest.importorskip("tifffile")
+    centres, diameters = sparse_board(160, 160, 15.0, 0.05, seed=8)
+    image = render_micrograph(centres, diameters, (160, 160), noise=0.02, seed=8)
+    as16 = np.clip(image * 40000, 0, 65535).astype(np.uint16)
+    path = tmp_path / "film.tif"
+    tifffile.imwrite(path, np.stack([as16, as16[::-1]]), imagej=True, resolution=(1 / 0.8, 1 / 0.8),
+                     metadata={"unit": "nm"})
+    first = read_micrograph(path)
+    assert first.pages == 2 and first.nm_per_px == pytest.approx(0.8) and first.shape == (160, 160)
+    np.testing.assert_array_equal(read_micrograph(path, page=1).pixels, as16[::-1].astype(float))
+    plain = tmp_path / "plain8.tif"
+    tifffile.imwrite(plain, (image * 200).clip(0, 255).astype(np.uint8))
+    assert read_micrograph(plain).nm_per_px is None
+    refused(lambda: read_micrograph(path, page=2), "page")
+
+
+def test_a_microscope_file_is_read_with_its_calibration(tmp_path):
+    pytest.importorskip("h5py")
+    emd = pytest.importorskip("rsciio.emd")
+    data = np.random.default_rng(0).random((64, 80)).astype(np.float32)
+    axes = [{"name": name, "size": size, "scale": 0.025, "offset": 0.0, "units": "µm", "navigate": False}
+            for name, size in (("y", 64), ("x", 80))]
+    emd.file_writer(str(tmp_path / "film.emd"), {"data": data, "axes": axes, "metadata": {"General": {"title": "f"}, "Signal": {"signal_type": ""}},
+                                                  "original_metadata": {}})
+    m = read_micrograph(tmp_path / "film.emd")
+    assert m.shape == (64, 80) and m.nm_per_px == pytest.approx(25.0)
+    np.testing.assert_allclose(m.pixels, data)
+
+
+def test_colour_jpeg_is_read_as_grey(tmp_path):
+    rgb = np.zeros((40, 50, 3), dtype=np.uint8)
+    rgb[..., 0], rgb[..., 1], rgb[..., 2] = 30, 60, 90
+    rgb[10:20, 10:20] = 200
+    Image.fromarray(rgb).save(tmp_path / "c.jpg", quality=95)
+    m = read_micrograph(tmp_path / "c.jpg")
+    assert m.shape == (40, 50) and abs(m.pixels[0, 0] - 60) < 3 and abs(m.pixels[15, 15] - 200) < 3
+
+
+def png_declaring(width: int, height: int) -> bytes:
+    """A PNG header that declares ``width`` x ``height`` grey pixels and holds none."""
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data) & 0xFFFFFFFF)
+    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", width, height, 8, 0, 0, 0, 0))
+            + chunk(b"IEND", b""))
+
+
+def test_bad_images_are_refused_in_one_line(tmp_path):
+    (tmp_path / "text.png").write_text("not an image")
+    refused(lambda: read_micrograph(tmp_path / "text.png"), "not a readable image")
+    good = tmp_path / "good.png"
+    Image.fromarray((np.random.default_rng(0).random((64, 64)) * 255).astype(np.uint8)).save(good)
+    (tmp_path / "cut.png").write_bytes(good.read_bytes()[:200])
+    refused(lambda: read_micrograph(tmp_path / "cut.png"), "not a readable image")
+    (tmp_path / "zero.png").write_bytes(png_declaring(0, 0))
+    refused(lambda: read_micrograph(tmp_path / "zero.png"), "not a readable image")
+    Image.fromarray(np.zeros((1, 30), dtype=np.uint8)).save(tmp_path / "line.png")
+    refused(lambda: read_micrograph(tmp_path / "line.png"), "30 x 1 px", "at least 2 x 2")
+    Image.fromarray(np.full((20, 20), 7, dtype=np.uint8)).save(tmp_path / "flat.png")
+    refused(lambda: read_micrograph(tmp_path / "flat.png"), "every pixel has the value 7")
+    for side, words in ((100_000, ("more than",)), (9000, ("9000 x 9000",))):
+        (tmp_path / "huge.png").write_bytes(png_declaring(side, side))
+        refused(lambda: read_micrograph(tmp_path / "huge.png"), *words)
+    assert 9000 * 9000 > MAX_PIXELS
+    tifffile = pytest.importorskip("tifffile")
+    tifffile.imwrite(tmp_path / "nan.tif", np.full((8, 8), np.nan, dtype=np.float32))
+    refused(lambda: read_micrograph(tmp_path / "nan.tif"), "every pixel is NaN")
+    with pytest.raises(FileNotFoundError, match="missing.png"):
+        read_micrograph(tmp_path / "missing.png")
+
+
+@pytest.mark.parametrize("scale", [0.0, -1.0, float("nan"), float("inf")])
+def test_bad_scales_are_refused(tmp_path, scale):
+    centres, diameters = sparse_board(100, 100, 12.0, 0.05, seed=1)
+    path = tmp_path / "f.png"
+    Image.fromarray((render_micrograph(centres, diameters, (100, 100), seed=1) * 200).clip(0, 255)
+                    .astype(np.uint8)).save(path)
+    refused(lambda: measure_image(path, nm_per_px=scale, lqe=False), "nm_per_px")
+
+
+def test_an_image_without_dots_or_scale_bar_writes_nothing(tmp_path, capsys):
+    noise = (np.random.default_rng(1).normal(128, 5, (128, 128))).clip(0, 255).astype(np.uint8)
+    Image.fromarray(noise).save(tmp_path / "empty.png")
+    out = tmp_path / "out"
+    assert main(["measure", str(tmp_path / "empty.png"), "--out", str(out)]) == 2
+    assert "no dots found" in one_line_error(capsys)
+    assert not out.exists()
+    assert main(["measure", str(tmp_path / "empty.png"), "--out", str(out), "--scale-bar", "100nm"]) == 2
+    assert "no scale bar found" in one_line_error(capsys)
+    assert not out.exists()
+
+
+def test_measure_writes_a_state_analyze_and_render_read(tmp_path, capsys):
+    centres, diameters = dense_board(240, 200, 14.0, 0.1, seed=9)
+    image = render_micrograph(centres, diameters, (200, 240), noise=0.04, seed=9)
+    Image.fromarray((image * 220).clip(0, 255).astype(np.uint8)).save(tmp_path / "film.png")
+    out = tmp_path / "out"
+    printed = capsys.readouterr() if main(["measure", str(tmp_path / "film.png"), "--out", str(out),
+                                           "--nm-per-px", "0.5"]) == 0 else pytest.fail("measure failed")
+    assert "interior fraction" in printed.out and "0.5 nm/px (given)" in printed.out
+    assert sorted(p.name for p in out.iterdir()) == ["film.npz", "film_detections.png", "film_summary.csv"]
+    state = checkpoint.read_state(out / "film.npz")
+    metadata = checkpoint.read_metadata(out / "film.npz")["micrograph"]
+    assert metadata["nm_per_px"] == 0.5 and metadata["image"] == "film.png"
+    assert np.all(state.velocities == 0) and state.box == (240.0, 200.0)
+    assert main(["analyze", str(out / "film.npz")]) == 0
+    assert main(["render", str(out / "film.npz"), "--out", str(tmp_path / "r.png")]) == 0
+    assert (tmp_path / "r.png").stat().st_size > 0
+
+
+def test_compare_runs_the_matching_experiment(tmp_path, capsys):
+    from qdots.io.experiment_file import load_experiment
+
+    centres, diameters = sparse_board(200, 200, 15.0, 0.1, coverage=0.3, seed=10)
+    image = render_micrograph(centres, diameters, (200, 200), noise=0.03, seed=10)
+    Image.fromarray((image * 220).clip(0, 255).astype(np.uint8)).save(tmp_path / "film.png")
+    out = tmp_path / "cmp"
+    assert main(["compare", str(tmp_path / "film.png"), "--out", str(out), "--nm-per-px", "2", "--dots", "12",
+                 "--seeds", "2", "--engine", "event"]) == 0
+    printed = capsys.readouterr().out
+    assert "image" in printed and "simulation" in printed and "+-" in printed
+    names = sorted(p.name for p in out.iterdir())
+    assert names == ["film.npz", "film_compare.csv", "film_compare.png", "film_compare.toml", "film_detections.png",
+                     "film_sim-154.npz", "film_sim-155.npz", "film_summary.csv"]
+    exp = load_experiment(out / "film_compare.toml")
+    assert exp.deposition.n_dots == 12 and exp.deposition.mass_model == "volume" and exp.engine.kind == "event"
+    assert exp.deposition.sigma == pytest.approx(0.1, abs=0.03)
+    assert checkpoint.load(out / "film_sim-155.npz").state().n_dots == 12
+
+
+# -- the real micrograph ---------------------------------------------------------------------------------------------
+# Tolerances established by hand once, on the image itself (no ground truth comes with it):
+# * Count: two 300 x 300 px crops counted by eye on an enlarged picture: x 600-900, y 0-300 px holds 54
+#   particles, x 300-600, y 400-700 px holds 41 (fused pairs counted as two where a waist shows).
+# * Diameter: ten particles with background on both sides, picked by eye in the first crop; each one's
+#   half-contrast width (halfway between its core and the background, both read off the Gaussian-smoothed
+#   image) measured along a row and a column, and the width along the line that crosses no neighbour kept.
+# * Scale: the bar is 127 px long (read off the image).
+HAND_COUNTS = {(600, 900, 0, 300): 54, (300, 600, 400, 700): 41}
+HAND_WIDTHS = {(691, 236): 29.0, (680, 264): 31.9, (818, 154): 30.9, (850, 242): 29.85, (763, 250): 30.4,
+               (628, 138): 31.0, (705, 87): 32.7, (678, 39): 28.95, (647, 42): 28.3, (708, 206): 33.8}
+
+
+@pytest.fixture(scope="module")
+def tem_film():
+    if not TEM.exists():
+        pytest.skip(f"the shared test micrograph is not beside the project ({TEM.name})")
+    return measure_image(TEM, scale_bar="200nm")
+
+
+def test_the_real_micrograph_matches_counts_and_sizes_taken_by_hand(tem_film):
+    film = tem_film
+    assert film.bar.length_px == 127 and film.nm_per_px == pytest.approx(200 / 127)
+    assert film.detection.dark and film.detection.shape == 0.0  # flat dark discs
+    centres = film.detection.centres
+    for (x0, x1, y0, y1), hand in HAND_COUNTS.items():
+        found = int(np.sum((centres[:, 0] >= x0) & (centres[:, 0] < x1) & (centres[:, 1] >= y0) & (centres[:, 1] < y1)))
+        assert abs(found - hand) <= 0.1 * hand, (found, hand)
+    measured = []
+    for (x, y), width in HAND_WIDTHS.items():
+        distance = np.hypot(centres[:, 0] - x, centres[:, 1] - y)
+        k = int(np.argmin(distance))
+        assert distance[k] < 3.0
+        assert abs(film.detection.diameters[k] - width) <= 0.06 * width, ((x, y), film.detection.diameters[k], width)
+        measured.append(film.detection.diameters[k])
+    assert np.mean(measured) == pytest.approx(np.mean(list(HAND_WIDTHS.values())), rel=0.03)
+    s = film.summary
+    assert s["mean_diameter_nm"] == pytest.approx(np.mean(list(HAND_WIDTHS.values())) * 200 / 127, rel=0.06)
+    assert 0.35 < s["coverage"] < 0.5 and s["dots_cut_by_edge"] > 20
+
+
+def test_the_real_micrograph_overlay_is_written(tem_film, tmp_path):
+    from qdots.micrograph.measure import save_overlay
+
+    path = save_overlay(tem_film, tmp_path / "tem_detections.png")
+    with Image.open(path) as picture:
+        assert picture.size[0] >= 900 and picture.size[1] >= 900
+        grey = np.asarray(picture.convert("RGB"), dtype=float)
+    assert grey.std() > 20  # a picture, not a blank page
