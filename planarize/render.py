@@ -15,6 +15,7 @@ from pathlib import Path
 import matplotlib
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.cm import ScalarMappable
 from matplotlib.colors import LightSource, Normalize
 from matplotlib.figure import Figure
 
@@ -53,7 +54,8 @@ def draw_slice(run: Anodization, ax=None, *, index: int | None = None, axis: int
     """Thesis Fig 3-8: a slice through the surfaces before and after.
 
     Metal squares, oxide circles; open symbols the initial surfaces, filled
-    the final ones.
+    the final ones (before any oxide the two initial surfaces are one, drawn once with both
+    symbols). The key sits under the axes, where it covers no curve.
 
     Parameters
     ----------
@@ -83,18 +85,22 @@ def draw_slice(run: Anodization, ax=None, *, index: int | None = None, axis: int
     def line(surface: Surface) -> np.ndarray:
         return surface.z[:, index] if axis == 0 else surface.z[index, :]
 
-    series = [(run.initial, METAL, "none", "metal, initial"), (initial_oxide(run), OXIDE, "none", "oxide, initial"),
-              (run.metal, METAL, None, f"metal, {run.thickness:.3g} nm oxide"),
-              (run.oxide, OXIDE, None, f"oxide, {run.thickness:.3g} nm oxide")]
-    for surface, style, face, label in series:
-        ax.plot(coord, line(surface), linestyle="-", linewidth=0.6, markersize=5, color=style["color"],
+    start = initial_oxide(run)
+    same = start.shape == run.initial.shape and np.array_equal(line(start), line(run.initial))
+    series = [(run.initial, METAL, "none", "metal and oxide, initial (one surface: no oxide yet)" if same
+               else "metal, initial", 7 if same else 5),
+              (start, OXIDE, "none", "_nolegend_" if same else "oxide, initial", 4 if same else 5),
+              (run.metal, METAL, None, f"metal, after {run.thickness:.3g} nm of oxide", 5),
+              (run.oxide, OXIDE, None, f"oxide, after {run.thickness:.3g} nm of oxide", 5)]
+    for surface, style, face, label, size in series:
+        ax.plot(coord, line(surface), linestyle="-", linewidth=0.6, markersize=size, color=style["color"],
                 marker=style["marker"], markerfacecolor=face if face else style["color"], label=label)
     ax.set_xlabel(f"{'x' if axis == 0 else 'y'} (nm)")
     ax.set_ylabel("z (nm)")
     across = run.initial.y[index] if axis == 0 else run.initial.x[index]
     ax.set_title(f"slice at {'y' if axis == 0 else 'x'} = {across:.3g} nm")
-    if legend:
-        ax.legend(fontsize="small")
+    if legend:  # under the axes, where it covers no curve
+        ax.legend(fontsize="small", loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=2, frameon=False)
     return ax
 
 
@@ -277,14 +283,25 @@ def snapshots_figure(run: Anodization, which: str = "oxide", *, cmap: str = "vir
                          f"{MAX_PANELS} a figure takes (draw a selection of them)")
     columns = count("columns", columns, 1, MAX_PANELS)
     half = surface_scale([s for s, _ in panels])
-    columns = len(kinds) * max(1, columns // len(kinds))
+    columns = min(len(kinds) * max(1, columns // len(kinds)), len(panels))
     rows = math.ceil(len(panels) / columns)
-    fig = Figure(figsize=(4 * min(columns, len(panels)), 3.4 * rows))
+    spare = rows * columns > len(panels)  # the colour bar goes into the first empty cell, else beside the grid
+    fig = Figure(figsize=(4 * columns + (0.0 if spare else 1.0), 3.4 * rows))
     FigureCanvasAgg(fig)
+    grid = fig.add_gridspec(rows, columns + (0 if spare else 1),
+                            width_ratios=[1.0] * columns + ([] if spare else [0.06]))
     for k, (surface, title) in enumerate(panels):
-        draw_surface(surface, fig.add_subplot(rows, min(columns, len(panels)), k + 1, projection="3d"),
+        draw_surface(surface, fig.add_subplot(grid[k // columns, k % columns], projection="3d"),
                      half_range=half, cmap=cmap, title=title)
-    fig.tight_layout()
+    if spare:
+        cell = fig.add_subplot(grid[len(panels) // columns, len(panels) % columns])
+        cell.set_axis_off()
+        cax = cell.inset_axes((0.45, 0.1, 0.07, 0.8))
+    else:
+        cax = fig.add_subplot(grid[:, -1])
+    bar = fig.colorbar(ScalarMappable(Normalize(-half, half), cmap), cax=cax)
+    bar.set_label("height above the surface's own mean (nm)")
+    fig.subplots_adjust(left=0.02, right=0.95, top=0.94, bottom=0.06, wspace=0.15, hspace=0.25)
     return fig
 
 
@@ -292,7 +309,7 @@ def snapshots_figure(run: Anodization, which: str = "oxide", *, cmap: str = "vir
 
 def slice_figure(run: Anodization, title: str | None = None) -> Figure:
     """Fig 3-8 as a Figure (no pyplot state)."""
-    fig = Figure(figsize=(6, 4))
+    fig = Figure(figsize=(6.5, 4.8))
     FigureCanvasAgg(fig)
     ax = draw_slice(run, fig.add_subplot())
     if title:
@@ -355,8 +372,11 @@ HOLD_S = 1.0
 
 
 def thickness_label(which: str, thickness: float) -> str:
-    """Title of a surface at an oxide ``thickness`` (nm): ``"oxide, 1.001 nm oxide"``."""
-    return f"{which}, {thickness:.{THICKNESS_DIGITS}g} nm oxide"
+    """Title of a surface at an oxide ``thickness`` (nm): ``"oxide after 1.001 nm of oxide"``, or
+    ``"oxide, initial surface"`` before any oxide."""
+    if thickness == 0:
+        return f"{which}, initial surface"
+    return f"{which} after {thickness:.{THICKNESS_DIGITS}g} nm of oxide"
 
 
 def movie_frames(run: Anodization, which: str = "oxide") -> list[tuple[Surface, float]]:

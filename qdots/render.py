@@ -81,7 +81,10 @@ def heavy_dots(masses, radii) -> np.ndarray:
 
     A dot is heavy when its mass exceeds both the mean dot mass (1) and the mass a dot of its size
     has under the steepest size-based mass model, ``(d / mean d)^3`` (``mass_model = "volume"``),
-    by more than `HEAVY_MARGIN` (5 %; mean d is the board's). So no dot of the ``"equal"``,
+    by more than `HEAVY_MARGIN` (5 %; mean d is the board's), and also exceeds by that margin the
+    board's own volume law, ``c d^3`` with ``c`` the lower quartile of the dots' mass per ``d^3`` (so a
+    small board whose mean diameter is a few per cent off the nominal one of its masses has no heavy
+    dot: the heavy half of a bimodal board never reaches that quartile). So no dot of the ``"equal"``,
     ``"area"`` or ``"volume"`` models is heavy, and under ``"bimodal"`` (thesis Fig 2-6b,
     Table 2.1) the heavy dots are those given ``heavy_mass``, except a heavy dot so large that its
     size alone would make it as heavy (``1.05 (d / mean d)^3 >= heavy_mass``).
@@ -104,7 +107,10 @@ def heavy_dots(masses, radii) -> np.ndarray:
     if m.size != r.size:
         raise InputError(f"masses and radii must have the same length, got {m.size} and {r.size}")
     by_size = np.maximum(1.0, (r / r.mean()) ** 3)
-    return m > by_size * (1.0 + HEAVY_MARGIN)
+    # and heavier than the board's own volume law: the lightest quarter's mass per r^3 (a board whose masses
+    # follow d^3 about a nominal diameter a few per cent off its mean has no heavy dot)
+    law = np.quantile(m / r**3, 0.25) * r**3
+    return (m > by_size * (1.0 + HEAVY_MARGIN)) & (m > law * (1.0 + HEAVY_MARGIN))
 
 
 def _edges(state, n: int):
@@ -250,20 +256,69 @@ def draw_state(state, ax=None, colours=None, show_time: bool = True, key: bool =
     return ax
 
 
-def save_png(state, path, dpi: int = 100) -> Path:
-    """Write a picture of the board to ``path`` (PNG, 6 x 6 in at ``dpi``, at most `labrig.figures.MAX_DPI`), atomically.
+def nice_length(limit: float) -> float:
+    """The largest 1, 2 or 5 times a power of ten that is at most ``limit`` (> 0): a scale bar's length."""
+    power = 10.0 ** math.floor(math.log10(limit))
+    return max(k * power for k in (1.0, 2.0, 5.0) if k * power <= limit)
 
-    Axes in px, with the key of the size colours and of the heavy dots below the board.
+
+#: A still picture zooms to the occupied region when that is less than this share of the board.
+ZOOM_BELOW = 0.5
+
+
+def occupied_region(state) -> tuple[float, float, float, float]:
+    """``(x0, y0, x1, y1)``, px: the dots and the walls inside the board, one mean diameter around them,
+    within the board (the whole board when it holds neither)."""
+    w, h = (float(v) for v in state.box)
+    positions = np.asarray(state.positions, dtype=float).reshape(-1, 2)
+    radii = np.asarray(state.radii, dtype=float).reshape(-1)
+    walls = np.asarray(getattr(state, "walls", np.zeros((0, 4))), dtype=float).reshape(-1, 4)
+    on_edge = (((walls[:, 0] == walls[:, 2]) & np.isin(walls[:, 0], (0.0, w)))
+               | ((walls[:, 1] == walls[:, 3]) & np.isin(walls[:, 1], (0.0, h))))
+    inner = walls[~on_edge].reshape(-1, 2)
+    low = np.concatenate([positions - radii[:, None], inner])
+    high = np.concatenate([positions + radii[:, None], inner])
+    if low.size == 0:
+        return 0.0, 0.0, w, h
+    pad = 2.0 * float(radii.mean()) if radii.size else 0.02 * max(w, h)
+    x0, y0 = np.maximum(low.min(axis=0) - pad, 0.0)
+    x1, y1 = np.minimum(high.max(axis=0) + pad, (w, h))
+    return float(x0), float(y0), float(x1), float(y1)
+
+
+def save_png(state, path, dpi: int = 100) -> Path:
+    """Write a picture of the board to ``path`` (PNG at ``dpi``, at most `labrig.figures.MAX_DPI`), atomically.
+
+    Axes in px, with the key of the size colours and of the heavy dots below the board. A board whose
+    dots and inner walls fill less than `ZOOM_BELOW` of it (a grating channel, a small deposit) is shown
+    zoomed to them (`occupied_region`; the title says so): on 6 x 6 in, or 10 in wide for a flat region.
 
     Returns
     -------
     pathlib.Path
         The path written.
     """
-    fig = Figure(figsize=(6, 6))
-    FigureCanvasAgg(fig)
-    ax = fig.add_axes((0.14, 0.27, 0.76, 0.66))
+    w, h = (float(v) for v in state.box)
+    x0, y0, x1, y1 = occupied_region(state)
+    zoom = (x1 - x0) * (y1 - y0) < ZOOM_BELOW * w * h and x1 > x0 and y1 > y0
+    if not zoom:
+        x0, y0, x1, y1 = 0.0, 0.0, w, h
+    aspect = (y1 - y0) / max(x1 - x0, 1e-12)
+    if aspect >= 0.6:
+        fig = Figure(figsize=(6, 6))
+        FigureCanvasAgg(fig)
+        ax = fig.add_axes((0.14, 0.27, 0.76, 0.66))
+    else:  # a flat region: 10 in wide, as tall as it needs
+        board_in = 10.0 * 0.76 * aspect
+        fig = Figure(figsize=(10.0, board_in + 2.3))
+        FigureCanvasAgg(fig)
+        ax = fig.add_axes((0.14, 1.75 / (board_in + 2.3), 0.76, board_in / (board_in + 2.3)))
     draw_state(state, ax, key=True)
+    if zoom:
+        ax.set_xlim(x0, x1)
+        ax.set_ylim(y0, y1)
+        ax.set_title(f"{ax.get_title()}  (zoomed to the dots and walls: x {x0:.0f}-{x1:.0f}, y {y0:.0f}-{y1:.0f} "
+                     f"of a {w:.0f} x {h:.0f} px board)", fontsize="small")
     return save_figure(fig, path, dpi, format="png")
 
 
@@ -307,16 +362,42 @@ class MovieWriter(FigureMovie):
         self.every = int(every)
         self.wall_seconds = 0.0
         super().__init__(path, fps, size_px)
-        ax = self.figure.add_axes((0.02, 0.02, 0.96, 0.91))
+        ax = self.figure.add_axes((0.02, 0.1, 0.96, 0.84))
         ax.set_axis_off()
         self._board = BoardArtists(ax)
+        self._bar = self._bar_label = self._key = None
+
+    def _legend(self, state) -> None:
+        """Under the board: a scale bar of a round length in px (and in mean diameters) and the size key."""
+        fig, ax = self.figure, self._board.ax
+        w = float(state.box[0])
+        length = nice_length(0.25 * w)
+        x0, x1 = (ax.transData + fig.transFigure.inverted()).transform([(0.0, 0.0), (length, 0.0)])[:, 0]
+        d = 2.0 * np.asarray(state.radii, dtype=float)
+        m, sd = (float(d.mean()), float(d.std())) if d.size else (0.0, 0.0)
+        size = f" = {length / m:.3g} mean diameters" if m > 0 else ""
+        if sd > 1e-12 * m:
+            key = f"red: d \u2265 {m + sd:.3g} px, green: {m:.3g} px, blue: \u2264 {m - sd:.3g} px"
+        else:
+            key = f"green: all {m:.3g} px" if m > 0 else ""
+        if heavy_dots(getattr(state, "masses", None), state.radii).any():
+            key += "; dark edge: heavy"
+        if self._bar is None:
+            self._bar = Line2D([x0, x1], [0.05, 0.05], transform=fig.transFigure, color="black", linewidth=3)
+            fig.add_artist(self._bar)
+            self._bar_label = fig.text(x0, 0.065, "", fontsize="small", va="bottom")
+            self._key = fig.text(0.98, 0.03, "", fontsize="small", ha="right", va="bottom")
+        self._bar.set_xdata([x0, x1])
+        self._bar_label.set_text(f"{length:g} px{size}")
+        self._key.set_text(key)
 
     def write(self, state) -> None:
-        """Render ``state`` and append it as one frame."""
+        """Render ``state`` (with a scale bar and the size key under it) and append it as one frame."""
         if self.closed:
             raise InputError(f"MovieWriter for {self.path} is closed")
         start = time.perf_counter()
         self._board.draw(state)
+        self._legend(state)
         self.add_frame()
         self.wall_seconds += time.perf_counter() - start
 

@@ -114,7 +114,8 @@ def test_movie_frames_are_labelled_with_the_state_shown_and_end_at_the_final_sta
     frames = render.movie_frames(run)
     assert [t for _, t in frames] == [shot.thickness for shot in run.snapshots]
     assert frames[-1][1] == run.thickness and frames[-1][0] == run.oxide
-    assert render.thickness_label("oxide", 1.0006103826481292) == "oxide, 1.001 nm oxide"
+    assert render.thickness_label("oxide", 1.0006103826481292) == "oxide after 1.001 nm of oxide"
+    assert render.thickness_label("metal", 0.0) == "metal, initial surface"
     # snapshots that stop short of the end: the final state is appended
     short = planarize.anodize(planarize.surfaces.hill(refine=1), 0.5, planarize.Model(step=0.05), record=2,
                               snapshots=[0.0, 0.2])

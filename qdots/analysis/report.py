@@ -8,6 +8,8 @@ from pathlib import Path
 
 import numpy as np
 from matplotlib import colormaps
+from matplotlib.cm import ScalarMappable
+from matplotlib.colors import Normalize
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
@@ -134,8 +136,10 @@ def save_report_png(state, report: BoardReport, path, dpi: int = 100) -> Path:
     FigureCanvasAgg(fig)
     ax = fig.subplots(2, 2)
     cmap = colormaps["viridis"]
+    scale = ScalarMappable(Normalize(0.0, 1.0), cmap)
     draw_state(state, ax=ax[0, 0], colours=cmap(np.abs(report.hexatic.psi)), show_time=False)
     ax[0, 0].set_title(f"|psi6| per dot (global {report.summary['psi6_global']:.2f})")
+    fig.colorbar(scale, ax=ax[0, 0], shrink=0.8, label="|psi6| (1: a perfect hexagon of neighbours)")
     if report.rdf is not None:
         ax[0, 1].plot(report.rdf.r, report.rdf.g)
         ax[0, 1].axhline(1.0, color="0.6", linewidth=0.8)
@@ -150,6 +154,7 @@ def save_report_png(state, report: BoardReport, path, dpi: int = 100) -> Path:
         colours[report.lqe.first_traps] = (0, 0, 0, 1)
         draw_state(state, ax=ax[1, 1], colours=colours, show_time=False)
         ax[1, 1].set_title(f"emission probability per dot (traps black), LQE {report.lqe.mean:.3f}")
+        fig.colorbar(scale, ax=ax[1, 1], shrink=0.8, label="probability that an exciton born here is emitted")
     else:
         ax[1, 1].set_axis_off()
     fig.tight_layout()

@@ -157,15 +157,11 @@ def summary_rows(summary: dict) -> list[tuple[str, str]]:
     return rows
 
 
-def nice_length(limit: float) -> float:
-    """The largest 1, 2 or 5 times a power of ten that is at most ``limit`` (> 0)."""
-    power = 10.0 ** math.floor(math.log10(limit))
-    return max(m * power for m in (1.0, 2.0, 5.0) if m * power <= limit)
-
-
 def draw_scale_bar(ax, nm_per_px: float | None, width_px: float, height_px: float, y_down: bool = True) -> None:
     """A white-on-black scale bar of a round length (about a fifth of the width) in the lower left corner."""
     from matplotlib.patches import Rectangle
+
+    from ..render import nice_length
 
     if nm_per_px is None or not math.isfinite(nm_per_px):
         return
