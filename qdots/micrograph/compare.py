@@ -23,7 +23,7 @@ from labrig.validate import InputError, choice, count
 from ..experiment import Board, Deposition, Experiment, default_forces, run_experiment
 from ..presets import MEAN_DIAMETER, THESIS_SEED
 from .film import film_metrics, film_state
-from .measure import LQE_DRAWS, MeasuredFilm, measure_image, save_overlay_axes
+from .measure import MeasuredFilm, lqe_draws, measure_image, save_overlay_axes
 
 #: Metrics of the comparison table: (key, label, digits).
 METRICS = (("coverage", "coverage", 3), ("size_spread", "size spread sigma", 3),
@@ -101,7 +101,7 @@ def simulated_metrics(state) -> dict:
 
     out = film_metrics(state)
     out["coverage"] = float(np.sum(np.pi * np.asarray(state.radii) ** 2) / (state.box[0] * state.box[1]))
-    out["lqe"] = film_lqe(state, draws=LQE_DRAWS, seed=0).mean
+    out["lqe"] = film_lqe(state, draws=lqe_draws(state.n_dots), seed=0).mean
     return out
 
 

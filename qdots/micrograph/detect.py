@@ -1,29 +1,32 @@
 """Finding every dot of a micrograph, touching ones included: centres and diameters to a fraction of a pixel.
 
-Four stages, each a maintained library's tool except the profile fit:
+Five stages, each a maintained library's tool except the profile fit:
 
 1. **Segment.** The image is scaled to [0, 1] by its 0.5 and 99.5 percentiles, smoothed (Gaussian,
    1 px), and split by Otsu's threshold (scikit-image). The illumination is then flattened: the
-   background level is estimated away from the dots by a normalised Gaussian convolution (width
-   four dot diameters), the image divided by it and thresholded again.
+   background level is estimated away from the dots (at half resolution) by a normalised Gaussian
+   convolution four typical radii wide, the image divided by it and thresholded again. Dark or light
+   dots: given, or the phase whose objects away from the edge are the larger round ones.
 2. **Split touching dots.** The distance transform of the dot pixels (scipy.ndimage), smoothed by
-   1 px, has one maximum per dot, even where two dots fuse with hardly a neck; its maxima at least
-   0.6 typical radii apart (`peak_local_max`) seed a watershed of the negative distance
-   (scikit-image), which cuts each aggregate at its necks.
-   Objects whose inscribed radius is under a third of the typical one (text, scale-bar strokes,
-   debris) are not dots.
+   1 px, has one maximum per dot; its maxima at least 0.6 typical radii apart (`spaced_maxima`) seed
+   a watershed of the negative distance (scikit-image), which cuts each aggregate at its necks. A
+   region that is clearly two or more fused dots with no neck (large and elongated) is split by
+   k-means (`split_fused`). Objects whose inscribed radius is under a third of the typical one
+   (text, scale-bar strokes, debris) are not dots.
 3. **Centre.** The centroid of each dot's watershed region; for a dot cut by the image edge, the
-   centre of its distance-transform maximum (the point farthest from the visible rim), which stays
-   the disc's centre when part of the disc is outside the image.
+   point of its region farthest from the visible rim, which stays the disc's centre when part of
+   the disc is outside the image.
 4. **Diameter from the radial profile.** A threshold puts the edge of a projected sphere (whose
    contrast falls as ``sqrt(1 - rho^2/r^2)``) well inside the true edge (13 % of the diameter at
    half contrast). Instead each dot's azimuthally averaged profile, over its region grown by 0.6
    radii into the background (`skimage.segmentation.expand_labels`), is fitted by
-   ``B - C f_p(rho / r)`` blurred by a Gaussian of width ``s``, with ``f_p(u) = (1 - u^2)^p``
-   (``p = 0``: a flat disc; ``p = 1/2``: a projected sphere), ``B`` the local background and
-   ``C``, ``r`` per dot (a compiled search over r in steps of 0.25 %, refined by a parabola). The
-   shape ``p`` and the blur ``s`` are chosen once per image, by the least residual over up to
-   400 whole dots.
+   ``B - C f_p(rho / r)`` blurred by a 2-D Gaussian of width ``s``, with ``f_p(u) = (1 - u^2)^p``
+   (``p = 0``: a flat disc; ``p = 1/2``: a projected sphere), ``B`` the local background and ``C``,
+   ``r`` per dot (`fit_profiles`: a compiled search over r, refined by a parabola). The blur ``s``
+   is chosen once per image by the least residual over up to `SHAPE_SAMPLE` whole dots, the shape
+   ``p`` from the curvature of the dots' centres (`central_curvature`), or given.
+5. **Noise.** A dot must stand out of the noise (`signal_to_noise`), and an image's dots must have a
+   median contrast of several pixel-noise deviations (`MIN_CONTRAST`): noise alone finds no dots.
 
 Coordinates are image pixels: ``x`` the column, ``y`` the row, pixel ``(row, col)`` covering
 ``[col, col + 1) x [row, row + 1)``, so the image spans ``[0, W] x [0, H]``.
@@ -55,12 +58,16 @@ BLURS = (0.0, 0.5, 1.0, 1.5, 2.0, 3.0, 4.0)
 MIN_SIGNAL, MIN_CONTRAST = 8.0, 2.5
 #: Radius search of the profile fit, in units of the segmented radius, and its step.
 FIT_LOW, FIT_HIGH, FIT_STEP = 0.6, 1.5, 0.0025
+#: The radius search first tries every COARSE-th step.
+COARSE = 6
 #: Radial bin width of the profiles, px.
 BIN = 0.5
 #: The centre of a dot, where its curvature is measured (`central_curvature`), in radii.
 CENTRE = 0.5
 #: Most dots the shape and blur are chosen from.
-SHAPE_SAMPLE = 400
+SHAPE_SAMPLE = 250
+#: Image-wide statistics (percentiles, noise) use every SUBSAMPLE-th pixel.
+SUBSAMPLE = 3
 #: An object is a dot when its inscribed radius is at least this share of the typical radius.
 MIN_INSCRIBED = 1.0 / 3.0
 #: A region whose area is more than this many times the disc of its inscribed radius, and whose long axis is
@@ -138,8 +145,8 @@ class Detection:
 
 def scaled(image: np.ndarray, ignore: np.ndarray | None = None) -> np.ndarray:
     """``image`` mapped to [0, 1] by its 0.5 and 99.5 percentiles (outside ``ignore``), clipped."""
-    values = image[~ignore] if ignore is not None else image
-    low, high = np.percentile(values, [0.5, 99.5])
+    values = image[~ignore] if ignore is not None else image.ravel()
+    low, high = np.percentile(values[::SUBSAMPLE], [0.5, 99.5])
     if high <= low:
         low, high = float(values.min()), float(values.max())
     return np.clip((image - low) / (high - low), 0.0, 1.0)
@@ -147,21 +154,27 @@ def scaled(image: np.ndarray, ignore: np.ndarray | None = None) -> np.ndarray:
 
 def background_level(image: np.ndarray, background: np.ndarray, width: float) -> np.ndarray:
     """The background level everywhere: a Gaussian (``width`` px) average of ``image`` over the ``background``
-    pixels only (normalised convolution); where none is near, the median of all of them."""
-    weight = ndimage.gaussian_filter(background.astype(float), width, mode="nearest")
-    level = ndimage.gaussian_filter(np.where(background, image, 0.0), width, mode="nearest")
+    pixels only (normalised convolution); where none is near, the median of all of them. Computed on a grid
+    coarser by ``width / 4`` (the level varies over ``width``) and interpolated back."""
+    step = max(1, int(width / 4))
+    small = (slice(None, None, step), slice(None, None, step))
+    weight = ndimage.gaussian_filter(background[small].astype(float), width / step, mode="nearest")
+    level = ndimage.gaussian_filter(np.where(background, image, 0.0)[small], width / step, mode="nearest")
     fallback = float(np.median(image[background])) if background.any() else float(np.median(image))
     with np.errstate(invalid="ignore", divide="ignore"):
-        return np.where(weight > 1e-3, level / weight, fallback)
+        coarse = np.where(weight > 1e-3, level / weight, fallback)
+    if step == 1:
+        return coarse
+    rows = np.minimum(np.arange(image.shape[0]) / step, coarse.shape[0] - 1)
+    cols = np.minimum(np.arange(image.shape[1]) / step, coarse.shape[1] - 1)
+    return ndimage.map_coordinates(coarse, np.meshgrid(rows, cols, indexing="ij"), order=1, mode="nearest")
 
 
-def typical_radius(mask: np.ndarray) -> float:
-    """The radius of a typical object of ``mask``: the median of the distance-transform maxima
-    that reach half the 90th percentile of them (text strokes and noise fall below), px."""
-    from skimage.feature import peak_local_max
-
-    distance = ndimage.distance_transform_edt(mask)
-    peaks = distance[tuple(peak_local_max(distance, min_distance=2, threshold_abs=1.0, exclude_border=False).T)]
+def typical_radius(distance: np.ndarray) -> float:
+    """The radius of a typical object, from the distance transform of the objects' pixels: the median of
+    its maxima (over 5 x 5 px) that reach half the 90th percentile of them (text strokes and noise fall
+    below), px."""
+    peaks = distance[(distance >= 1.0) & (distance == ndimage.maximum_filter(distance, size=5))]
     if peaks.size == 0:
         return 0.0
     high = np.percentile(peaks, 90)
@@ -174,7 +187,7 @@ def inner_components(mask: np.ndarray) -> np.ndarray:
     if n == 0:
         return np.zeros(0)
     edge = np.unique(np.concatenate([labels[0], labels[-1], labels[:, 0], labels[:, -1]]))
-    inscribed = ndimage.maximum(ndimage.distance_transform_edt(mask), labels, np.arange(1, n + 1))
+    inscribed, _ = label_maxima(labels, ndimage.distance_transform_edt(mask), n)
     keep = ~np.isin(np.arange(1, n + 1), edge)
     return np.asarray(inscribed)[keep]
 
@@ -182,7 +195,7 @@ def inner_components(mask: np.ndarray) -> np.ndarray:
 def pixel_noise(image: np.ndarray, ignore: np.ndarray) -> float:
     """Standard deviation of the pixel noise of ``image``: the median absolute deviation of
     ``image - gaussian(image, 1 px)`` (where white noise keeps 0.872 of its deviation), robust to edges."""
-    residual = (image - ndimage.gaussian_filter(image, 1.0))[~ignore]
+    residual = (image - ndimage.gaussian_filter(image, 1.0))[~ignore][::SUBSAMPLE]
     return 1.4826 * float(np.median(np.abs(residual - np.median(residual)))) / 0.872
 
 
@@ -221,9 +234,8 @@ def split_fused(labels: np.ndarray, distance: np.ndarray) -> np.ndarray:
     n = int(labels.max())
     if n == 0:
         return labels
-    index = np.arange(1, n + 1)
     area = np.bincount(labels.ravel(), minlength=n + 1)[1:]
-    inscribed = np.asarray(ndimage.maximum(distance, labels, index))
+    inscribed, _ = label_maxima(labels, distance, n)
     ratio = area / np.maximum(math.pi * inscribed**2, 1.0)
     fused = np.flatnonzero(ratio > FUSED_AREA) + 1
     if fused.size == 0:
@@ -283,7 +295,8 @@ def decide_polarity(smooth: np.ndarray, threshold: float, polarity: str) -> tupl
         return polarity == "dark", f"{polarity} dots (given)"
     scores = []
     for dark in (True, False):
-        radii = inner_components(smooth < threshold if dark else smooth >= threshold)
+        half = smooth[::2, ::2]  # half resolution is enough to tell round objects from gaps
+        radii = 2.0 * inner_components(half < threshold if dark else half >= threshold)
         radii = radii[radii >= 2.0]
         scores.append(float(np.median(radii)) if radii.size >= 3 else 0.0)
     if scores[0] == scores[1] == 0.0:
@@ -379,8 +392,8 @@ def fit_profiles(sums, counts, level, free, start, table, blur, low, high, step,
 
     ``sums[i, b]`` and ``counts[i, b]`` are the summed values and pixel counts of dot ``i``'s bin ``b``
     (radius ``(b + 1/2) bin_width``); ``start[i]`` is its segmented radius; ``level[i]`` its background
-    (``B``, unless ``free``: then fitted). r runs over ``start * [low, high]`` in steps of ``step`` and is
-    refined by a parabola through the best three.
+    (``B``, unless ``free``: then fitted). r runs over ``start * [low, high]`` in steps of ``COARSE * step``,
+    then in steps of ``step`` around the best of those, and is refined by a parabola through the best three.
     """
     n = sums.shape[0]
     k_max = int((high - low) / step) + 1
@@ -390,14 +403,22 @@ def fit_profiles(sums, counts, level, free, start, table, blur, low, high, step,
     residual = np.full(n, np.inf)
     errors = np.empty(k_max)
     for i in range(n):
-        best = -1
-        for k in range(k_max):
+        errors[:] = np.inf
+        coarse = -1
+        for k in range(0, k_max, COARSE):  # every COARSE-th radius, then every one around the best of them
             r = start[i] * (low + k * step)
             errors[k] = _fit_one(sums, counts, i, level[i], free, table, blur / r, r, bin_width)[2]
-            if errors[k] < np.inf and (best < 0 or errors[k] < errors[best]):
-                best = k
-        if best < 0:
+            if errors[k] < np.inf and (coarse < 0 or errors[k] < errors[coarse]):
+                coarse = k
+        if coarse < 0:
             continue
+        best = coarse
+        for k in range(max(0, coarse - COARSE), min(k_max, coarse + COARSE + 1)):
+            if k % COARSE != 0:
+                r = start[i] * (low + k * step)
+                errors[k] = _fit_one(sums, counts, i, level[i], free, table, blur / r, r, bin_width)[2]
+            if errors[k] < errors[best]:
+                best = k
         shift = 0.0
         if 0 < best < k_max - 1 and errors[best - 1] < np.inf and errors[best + 1] < np.inf:
             curve = errors[best - 1] - 2.0 * errors[best] + errors[best + 1]
@@ -444,6 +465,55 @@ def predicted_curvature(shape: float, relative_blur: float) -> float:
     inner = u <= CENTRE
     beta, alpha = np.polyfit(u[inner] ** 2, row[inner], 1, w=np.sqrt(u[inner] + 1e-3))
     return float(-beta / alpha)
+
+
+@jit
+def label_maxima(labels, values, n):
+    """Largest value of each region 1 .. ``n`` of ``labels`` and its flat index (-inf and -1 where empty)."""
+    best = np.full(n, -np.inf)
+    where = np.full(n, -1, dtype=np.int64)
+    flat_labels = labels.ravel()
+    flat_values = values.ravel()
+    for k in range(flat_labels.size):
+        label = flat_labels[k]
+        if label > 0 and flat_values[k] > best[label - 1]:
+            best[label - 1] = flat_values[k]
+            where[label - 1] = k
+    return best, where
+
+
+def spaced_maxima(values: np.ndarray, spacing: int, floor: float) -> np.ndarray:
+    """Local maxima of ``values`` above ``floor``, at least ``spacing`` px apart: (row, col) of each, highest
+    kept first (as `skimage.feature.peak_local_max` with ``min_distance``; a plateau gives one point)."""
+    from scipy.spatial import cKDTree
+
+    y, x = np.ogrid[-spacing:spacing + 1, -spacing:spacing + 1]
+    top = (values > floor) & (values == ndimage.maximum_filter(values, footprint=x * x + y * y <= spacing * spacing))
+    rows, cols = np.nonzero(top)
+    if rows.size == 0:
+        return np.zeros((0, 2), dtype=np.intp)
+    order = np.argsort(-values[rows, cols], kind="stable")
+    points = np.column_stack([rows[order], cols[order]])
+    keep = np.ones(len(points), dtype=bool)
+    for i, j in sorted(cKDTree(points).query_pairs(spacing - 1e-9)):  # i < j: j is the lower one
+        if keep[i]:
+            keep[j] = False
+    return points[keep]
+
+
+def region_properties(labels: np.ndarray) -> dict:
+    """``label``, ``area``, ``centroid-0`` (row), ``centroid-1`` (column) and ``edge`` (touches the image's
+    edge) of regions 1 .. max of ``labels``, by counting (as `skimage.measure.regionprops_table`, faster)."""
+    n = int(labels.max())
+    flat = labels.ravel()
+    rows, cols = np.divmod(np.arange(flat.size), labels.shape[1])
+    area = np.bincount(flat, minlength=n + 1)[1:].astype(float)
+    safe = np.maximum(area, 1.0)
+    edge = np.zeros(n + 1, dtype=bool)
+    edge[np.concatenate([labels[0], labels[-1], labels[:, 0], labels[:, -1]])] = True
+    return {"label": np.arange(1, n + 1), "area": area,
+            "centroid-0": np.bincount(flat, rows, n + 1)[1:] / safe,
+            "centroid-1": np.bincount(flat, cols, n + 1)[1:] / safe, "edge": edge[1:]}
 
 
 def radial_profiles(image, regions, centres, n_bins: int):
@@ -510,12 +580,11 @@ def detect_dots(image, polarity: str = "auto", profile: str = "auto", ignore: np
 
 def _detect(image: np.ndarray, polarity: str, profile: str, ignore: np.ndarray) -> Detection:
     """`detect_dots` on an image without a frame; ``cut`` marks the dots whose watershed region touches its edge."""
-    from skimage.feature import peak_local_max
     from skimage.filters import threshold_otsu
-    from skimage.measure import regionprops_table
     from skimage.segmentation import expand_labels, watershed
 
-    smooth = ndimage.gaussian_filter(scaled(image, ignore), 1.0)
+    unit = scaled(image, ignore)
+    smooth = ndimage.gaussian_filter(unit, 1.0)
     if float(smooth[~ignore].max() - smooth[~ignore].min()) < 1e-6:
         return _empty(image.shape, polarity, 0)
     threshold = threshold_otsu(smooth[~ignore])
@@ -523,23 +592,29 @@ def _detect(image: np.ndarray, polarity: str, profile: str, ignore: np.ndarray) 
     if not dark:
         smooth = 1.0 - smooth
         threshold = 1.0 - threshold
-    mask = (smooth < threshold) & ~ignore
-    radius = typical_radius(mask)
+    # flatten the illumination (its level away from the dots, found at half resolution), then threshold again
+    half = (slice(None, None, 2), slice(None, None, 2))
+    mask = (smooth[half] < threshold) & ~ignore[half]
+    radius = 2.0 * typical_radius(ndimage.distance_transform_edt(mask))
     if radius < 0.5 * MIN_DIAMETER:
         return _empty(image.shape, how, 0)
-    # flatten the illumination (its level away from the dots), then threshold again
-    away = ~ndimage.binary_dilation(mask, iterations=max(2, int(0.3 * radius))) & ~ignore
-    level = background_level(smooth, away, 8.0 * radius) if away.any() else np.full(image.shape, float(np.median(smooth)))
+    away = ~ndimage.binary_dilation(mask, iterations=max(1, int(0.15 * radius))) & ~ignore[half]
+    if away.any():
+        coarse = background_level(smooth[half], away, 4.0 * radius)
+        rows = np.minimum(np.arange(image.shape[0]) / 2.0, coarse.shape[0] - 1)
+        cols = np.minimum(np.arange(image.shape[1]) / 2.0, coarse.shape[1] - 1)
+        level = ndimage.map_coordinates(coarse, np.meshgrid(rows, cols, indexing="ij"), order=1, mode="nearest")
+    else:
+        level = np.full(image.shape, float(np.median(smooth)))
     flat = smooth / np.maximum(level, 1e-6)
     threshold = threshold_otsu(flat[~ignore])
     mask = fill_small_holes((flat < threshold) & ~ignore, 0.03 * math.pi * radius**2)
-    radius = typical_radius(mask)
+    distance = ndimage.distance_transform_edt(mask)
+    radius = typical_radius(distance)
     if radius < 0.5 * MIN_DIAMETER:
         return _empty(image.shape, how, 0)
     # split touching dots: a watershed of the distance transform from its maxima at least 0.6 radii apart
-    distance = ndimage.distance_transform_edt(mask)
-    peaks = peak_local_max(ndimage.gaussian_filter(distance, 1.0), min_distance=max(2, round(0.6 * radius)),
-                           threshold_abs=0.5, exclude_border=False, labels=ndimage.label(mask)[0])
+    peaks = spaced_maxima(ndimage.gaussian_filter(distance, 1.0), max(2, round(0.6 * radius)), 0.5)
     deep = distance[tuple(peaks.T)] >= MIN_INSCRIBED * radius
     rejected = int(np.count_nonzero(~deep))
     peaks = peaks[deep]
@@ -550,15 +625,16 @@ def _detect(image: np.ndarray, polarity: str, profile: str, ignore: np.ndarray) 
     markers[tuple(peaks.T)] = np.arange(1, n + 1)
     labels = watershed(-distance, markers, mask=mask)
     labels = split_fused(labels, distance)
-    props = regionprops_table(labels, properties=("label", "centroid", "area", "bbox"))
+    props = region_properties(labels)
     h, w = image.shape
     centres = np.column_stack([props["centroid-1"] + 0.5, props["centroid-0"] + 0.5])
-    peak = np.asarray(ndimage.maximum_position(distance, labels, props["label"]), dtype=float).reshape(-1, 2)
+    deepest, where = label_maxima(labels, distance, len(props["label"]))
+    peak = np.column_stack(np.divmod(where, labels.shape[1])).astype(float)
     peak = peak[:, ::-1] + 0.5
-    touches = ((props["bbox-0"] == 0) | (props["bbox-1"] == 0) | (props["bbox-2"] == h) | (props["bbox-3"] == w))
+    touches = props["edge"]
     centres[touches] = peak[touches]
     start = np.sqrt(props["area"] / math.pi)
-    start[touches] = np.asarray(ndimage.maximum(distance, labels, props["label"]))[touches] + 0.5
+    start[touches] = deepest[touches] + 0.5
     # fit each dot's radial profile
     grow = max(2, math.ceil(0.6 * radius))
     regions = expand_labels(labels, distance=grow)
@@ -598,7 +674,7 @@ def _detect(image: np.ndarray, polarity: str, profile: str, ignore: np.ndarray) 
     _, shape, blur = best
     fitted, background, contrast, _ = fit_profiles(sums, counts, base, True, start, profile_table(shape), blur,
                                                    FIT_LOW, FIT_HIGH, FIT_STEP, BIN)
-    noise = pixel_noise(scaled(image, ignore), ignore)
+    noise = pixel_noise(unit, ignore)
     good = np.isfinite(fitted) & (contrast > 0)
     good[good] = signal_to_noise(sums[good], counts[good], fitted[good], background[good], noise) >= MIN_SIGNAL
     if not good.any() or float(np.median(contrast[good])) < MIN_CONTRAST * noise:

@@ -24,8 +24,14 @@ from .film import complete_neighbourhood, film_metrics, film_state
 from .read import Micrograph, read_micrograph
 from .scale import ScaleBar, check_nm_per_px, find_scale_bar, scale_from_bar
 
-#: Trap draws of the film LQE (as ``qdots analyze``).
-LQE_DRAWS = 8
+#: Trap draws of the film LQE (as ``qdots analyze``) on films of up to LQE_DOTS dots; larger films take
+#: fewer (at least 2: their standard error is small anyway, and a draw costs seconds at 10^4 dots).
+LQE_DRAWS, LQE_DOTS = 8, 2000
+
+
+def lqe_draws(n_dots: int) -> int:
+    """Trap draws of the film LQE of a film of ``n_dots`` dots: 8 up to 2,000 dots, then fewer, at least 2."""
+    return max(2, min(LQE_DRAWS, LQE_DRAWS * LQE_DOTS // max(n_dots, 1)))
 
 
 @dataclass(frozen=True)
@@ -124,8 +130,9 @@ def measure_image(path: str | os.PathLike, *, nm_per_px=None, scale_bar: str | N
                "dots_cut_by_edge": int(detection.cut.sum()), "coverage": detection.coverage()}
     summary.update(film_metrics(state, measured=~detection.cut, complete=complete, nm_per_px=scale))
     if lqe:
-        average = film_lqe(state, draws=LQE_DRAWS, seed=0)
-        summary.update(lqe=average.mean, lqe_standard_error=average.standard_error)
+        draws = lqe_draws(state.n_dots)
+        average = film_lqe(state, draws=draws, seed=0)
+        summary.update(lqe=average.mean, lqe_standard_error=average.standard_error, lqe_trap_draws=draws)
     return MeasuredFilm(image, detection, state, complete, scale, how, bar, summary)
 
 
@@ -152,7 +159,8 @@ def summary_rows(summary: dict) -> list[tuple[str, str]]:
         ("g(r) first peak", f"{s['gr_peak_diameters']:.2f} mean diameters"),
     ]
     if "lqe" in s:
-        rows.append(("film LQE (traps 1/3, R_F = mean d)", f"{s['lqe']:.4f} +- {s['lqe_standard_error']:.4f}"))
+        rows.append(("film LQE (traps 1/3, R_F = mean d)", f"{s['lqe']:.4f} +- {s['lqe_standard_error']:.4f} "
+                                                           f"({s['lqe_trap_draws']} trap draws)"))
     rows.append(("objects that are not dots", f"{s['rejected_objects']} (text, scale-bar strokes, debris)"))
     return rows
 
