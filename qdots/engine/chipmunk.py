@@ -152,6 +152,33 @@ def _arbiter_layout() -> dict | None:
             "body_a": offsets["body_a"] // 8, "body_b": offsets["body_b"] // 8}
 
 
+def impact_layout() -> dict | None:
+    """Where Chipmunk keeps what a callback needs to move an impact's bodies back to the instant of contact
+    (`qdots.engine.at_contact`, a prototype off by default); None without `internals` or when the layout is not
+    as expected.
+
+    Returns ``{"contacts": word index of the arbiter's contact array pointer, "state": word index of its state
+    (``CP_ARBITER_STATE_FIRST_COLLISION`` is 0, in the word's low 32 bits), "r1", "r2": word indices of a
+    contact's two offsets from its bodies' centres, "inverse_mass": byte offset of a body's 1/m}``.
+    """
+    if internals() is None:
+        return None
+    ffi = _ffi()
+    arbiter, contact = ffi.typeof("struct cpArbiter"), ffi.typeof("struct cpContact")
+    offsets = {"contacts": ffi.offsetof(arbiter, "contacts"), "state": ffi.offsetof(arbiter, "state"),
+               "r1": ffi.offsetof(contact, "r1"), "r2": ffi.offsetof(contact, "r2")}
+    if any(offset % 8 for offset in offsets.values()):
+        return None
+    found = set()
+    for mass in (2.0, 8.0):  # 1/m written by pymunk, found in memory as the mass's inverse next to the mass
+        body = pymunk.Body(mass, math.inf)
+        memory = np.frombuffer(ffi.buffer(ffi.cast("char *", body._body), 256), dtype=np.float64)
+        found.add(tuple(8 * k for k in range(1, len(memory)) if (memory[k - 1], memory[k]) == (mass, 1.0 / mass)))
+    if len(found) != 1 or len(at := found.pop()) != 1:
+        return None
+    return {**{name: offset // 8 for name, offset in offsets.items()}, "inverse_mass": at[0]}
+
+
 # -- the space -----------------------------------------------------------------------------------
 
 def tune_space(space: pymunk.Space, settings: EngineSettings) -> None:

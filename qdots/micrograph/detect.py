@@ -51,7 +51,7 @@ PROFILES = {"auto": None, "sphere": 0.5, "disc": 0.0}
 SHAPES = (0.0, 0.25, 0.5)
 #: ``profile="auto"`` keeps the sphere unless another shape's curvature matches by this much more (`central_curvature`).
 CURVATURE_MARGIN = 0.05
-BLURS = (0.0, 0.5, 1.0, 1.5, 2.0, 3.0, 4.0)
+BLURS = (0.0, 0.5, 1.0, 1.25, 1.5, 1.75, 2.0, 2.5, 3.0, 4.0)
 #: A dot must stand this clearly out of the noise (`signal_to_noise`), and the dots of an image must have a
 #: median contrast of at least `MIN_CONTRAST` times the pixel noise (`pixel_noise`; noise alone gives 1.7-2.2,
 #: synthetic films at noise 0.3 of the background 2.8-3.4).
