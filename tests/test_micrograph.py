@@ -293,3 +293,14 @@ def test_the_real_micrograph_overlay_is_written(tem_film, tmp_path):
         assert picture.size[0] >= 900 and picture.size[1] >= 900
         grey = np.asarray(picture.convert("RGB"), dtype=float)
     assert grey.std() > 20  # a picture, not a blank page
+
+
+def test_coverage_is_the_union_of_the_discs_on_the_pixel_grid():
+    from dataclasses import replace
+
+    base = detect_dots(render_micrograph([[50.0, 50.0]], [20.0], (100, 100), noise=0.01, seed=1))
+    one = replace(base, centres=np.array([[50.0, 50.0]]), diameters=np.array([20.0]))
+    assert one.coverage() == pytest.approx(np.pi * 100 / 10_000, rel=0.02)
+    twice = replace(base, centres=np.array([[50.0, 50.0], [50.0, 50.0], [0.0, 0.0]]),
+                    diameters=np.array([20.0, 20.0, 20.0]))  # a repeat adds nothing; a corner disc a quarter
+    assert twice.coverage() == pytest.approx(1.25 * np.pi * 100 / 10_000, rel=0.02)

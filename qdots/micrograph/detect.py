@@ -49,6 +49,8 @@ POLARITIES = ("auto", "dark", "light")
 #: Dot profiles by name (the exponent p), the shapes tried by ``profile="auto"``, and blur widths s (px).
 PROFILES = {"auto": None, "sphere": 0.5, "disc": 0.0}
 SHAPES = (0.0, 0.25, 0.5)
+#: ``profile="auto"`` measures the shape on at least this many whole dots (else assumes a sphere).
+MIN_SHAPE_DOTS = 10
 #: ``profile="auto"`` keeps the sphere unless another shape's curvature matches by this much more (`central_curvature`).
 CURVATURE_MARGIN = 0.05
 BLURS = (0.0, 0.5, 1.0, 1.25, 1.5, 1.75, 2.0, 2.5, 3.0, 4.0)
@@ -130,17 +132,21 @@ class Detection:
 
     def coverage(self) -> float:
         """Fraction of the image inside the fitted discs (their union, on the pixel grid)."""
-        h, w = self.image_shape
-        covered = np.zeros((h, w), dtype=bool)
-        for (x, y), d in zip(self.centres, self.diameters):
-            r = 0.5 * d
-            r0, r1 = max(0, int(y - r)), min(h, math.ceil(y + r) + 1)
-            c0, c1 = max(0, int(x - r)), min(w, math.ceil(x + r) + 1)
-            if r0 >= r1 or c0 >= c1:
-                continue
-            yy, xx = np.mgrid[r0:r1, c0:c1]
-            covered[r0:r1, c0:c1] |= (xx + 0.5 - x) ** 2 + (yy + 0.5 - y) ** 2 <= r * r
+        covered = np.zeros(self.image_shape, dtype=np.bool_)
+        paint_discs(covered, np.ascontiguousarray(self.centres, dtype=float), 0.5 * np.asarray(self.diameters, float))
         return float(covered.mean())
+
+
+@jit
+def paint_discs(covered, centres, radii):
+    """Set the pixels of ``covered`` whose centres lie inside any disc (``centres`` (x, y), ``radii``, px)."""
+    h, w = covered.shape
+    for k in range(len(radii)):
+        x, y, r = centres[k, 0], centres[k, 1], radii[k]
+        for row in range(max(0, int(y - r)), min(h, int(y + r) + 2)):
+            for col in range(max(0, int(x - r)), min(w, int(x + r) + 2)):
+                if (col + 0.5 - x) ** 2 + (row + 0.5 - y) ** 2 <= r * r:
+                    covered[row, col] = True
 
 
 def scaled(image: np.ndarray, ignore: np.ndarray | None = None) -> np.ndarray:
@@ -288,15 +294,15 @@ def frame_width(image: np.ndarray) -> tuple[int, int, int, int]:
     return top, bottom, left, right
 
 
-def decide_polarity(smooth: np.ndarray, threshold: float, polarity: str) -> tuple[bool, str]:
+def decide_polarity(smooth: np.ndarray, threshold: float, polarity: str, subsample: int = 2) -> tuple[bool, str]:
     """Whether the dots are the dark phase, and why: given, or (``"auto"``) the phase whose components away
     from the image edge are the larger round objects (median inscribed radius over components of >= 2 px)."""
     if polarity != "auto":
         return polarity == "dark", f"{polarity} dots (given)"
     scores = []
     for dark in (True, False):
-        half = smooth[::2, ::2]  # half resolution is enough to tell round objects from gaps
-        radii = 2.0 * inner_components(half < threshold if dark else half >= threshold)
+        coarse = smooth[::subsample, ::subsample]  # half resolution is enough to tell round objects from gaps
+        radii = subsample * inner_components(coarse < threshold if dark else coarse >= threshold)
         radii = radii[radii >= 2.0]
         scores.append(float(np.median(radii)) if radii.size >= 3 else 0.0)
     if scores[0] == scores[1] == 0.0:
@@ -587,14 +593,16 @@ def _detect(image: np.ndarray, polarity: str, profile: str, ignore: np.ndarray) 
     smooth = ndimage.gaussian_filter(unit, 1.0)
     if float(smooth[~ignore].max() - smooth[~ignore].min()) < 1e-6:
         return _empty(image.shape, polarity, 0)
-    threshold = threshold_otsu(smooth[~ignore])
-    dark, how = decide_polarity(smooth, threshold, polarity)
-    if not dark:
-        smooth = 1.0 - smooth
-        threshold = 1.0 - threshold
-    # flatten the illumination (its level away from the dots, found at half resolution), then threshold again
+    # a first look at half resolution, the broad fall of the light (over a sixth of the image) taken out
     half = (slice(None, None, 2), slice(None, None, 2))
-    mask = (smooth[half] < threshold) & ~ignore[half]
+    first = smooth[half] - ndimage.gaussian_filter(smooth[half], max(image.shape) / 12.0, mode="nearest")
+    first += float(np.mean(smooth[half]))
+    threshold = threshold_otsu(first[~ignore[half]])
+    dark, how = decide_polarity(first, threshold, polarity, subsample=1)
+    if not dark:
+        smooth, first, threshold = 1.0 - smooth, 1.0 - first, 1.0 - threshold
+    # flatten the illumination (its level away from the dots, found at half resolution), then threshold again
+    mask = (first < threshold) & ~ignore[half]
     radius = 2.0 * typical_radius(ndimage.distance_transform_edt(mask))
     if radius < 0.5 * MIN_DIAMETER:
         return _empty(image.shape, how, 0)
@@ -657,7 +665,11 @@ def _detect(image: np.ndarray, polarity: str, profile: str, ignore: np.ndarray) 
             fits.append(fit[0])
         k = int(np.argmin(totals))
         blurs[shape], radii[shape] = BLURS[k], fits[k]
-    if profile == "auto":
+    fitted = min(int(np.isfinite(radii[p]).sum()) for p in shapes)
+    if profile == "auto" and fitted < MIN_SHAPE_DOTS:
+        shape, how_shape = PROFILES["sphere"], (f"sphere (assumed: {fitted} whole dots, fewer than the "
+                                                f"{MIN_SHAPE_DOTS} the shape is measured on)")
+    elif profile == "auto":
         measured = {p: central_curvature(sums[sample], counts[sample], radii[p]) for p in shapes}
         predicted = {p: predicted_curvature(p, blurs[p] / float(np.nanmedian(radii[p]))) for p in shapes}
         miss = {p: abs(measured[p] - predicted[p]) if math.isfinite(measured[p]) else math.inf for p in shapes}
