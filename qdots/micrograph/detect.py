@@ -46,6 +46,9 @@ from labrig.validate import InputError, choice
 
 #: Polarity choices: dots darker than the background (bright-field TEM), lighter, or decided from the image.
 POLARITIES = ("auto", "dark", "light")
+#: ``polarity="auto"`` takes the dots to be light only when the light phase's round objects are this many
+#: times larger than the dark phase's (a dense dark film's vacancies make light objects too).
+LIGHT_EVIDENCE = 2.0
 #: Dot profiles by name (the exponent p), the shapes tried by ``profile="auto"``, and blur widths s (px).
 PROFILES = {"auto": None, "sphere": 0.5, "disc": 0.0}
 SHAPES = (0.0, 0.25, 0.5)
@@ -294,22 +297,25 @@ def frame_width(image: np.ndarray) -> tuple[int, int, int, int]:
     return top, bottom, left, right
 
 
-def decide_polarity(smooth: np.ndarray, threshold: float, polarity: str, subsample: int = 2) -> tuple[bool, str]:
-    """Whether the dots are the dark phase, and why: given, or (``"auto"``) the phase whose components away
-    from the image edge are the larger round objects (median inscribed radius over components of >= 2 px)."""
+def decide_polarity(smooth: np.ndarray, threshold: float, polarity: str, scale: float = 1.0) -> tuple[bool, str]:
+    """Whether the dots are the dark phase, and why: given, or (``"auto"``) dark, as bright-field micrographs
+    show them, unless the light phase's components away from the image edge are clearly the larger round
+    objects (median inscribed radius over components of >= 2 px, `LIGHT_EVIDENCE` times the dark phase's).
+    ``scale``: image px per px of ``smooth`` (2 for a half-resolution image)."""
     if polarity != "auto":
         return polarity == "dark", f"{polarity} dots (given)"
     scores = []
     for dark in (True, False):
-        coarse = smooth[::subsample, ::subsample]  # half resolution is enough to tell round objects from gaps
-        radii = subsample * inner_components(coarse < threshold if dark else coarse >= threshold)
+        radii = scale * inner_components(smooth < threshold if dark else smooth >= threshold)
         radii = radii[radii >= 2.0]
         scores.append(float(np.median(radii)) if radii.size >= 3 else 0.0)
-    if scores[0] == scores[1] == 0.0:
-        return True, "dark dots (automatic: neither phase has round objects away from the edge; assumed bright field)"
-    dark = scores[0] >= scores[1]
-    return dark, (f"{'dark' if dark else 'light'} dots (automatic: objects of inscribed radius "
-                  f"{max(scores):.1f} px against {min(scores):.1f} px in the other phase)")
+    dark_score, light_score = scores
+    if light_score > LIGHT_EVIDENCE * dark_score:
+        return False, (f"light dots (automatic: objects of inscribed radius {light_score:.1f} px away from the edge, "
+                       f"against {dark_score:.1f} px in the dark phase)")
+    return True, (f"dark dots (automatic: objects of inscribed radius {dark_score:.1f} px away from the edge, "
+                  f"against {light_score:.1f} px in the light phase; dark unless the light phase's are "
+                  f"{LIGHT_EVIDENCE:g} times larger, as bright field shows dots)")
 
 
 @functools.cache
@@ -598,7 +604,7 @@ def _detect(image: np.ndarray, polarity: str, profile: str, ignore: np.ndarray) 
     first = smooth[half] - ndimage.gaussian_filter(smooth[half], max(image.shape) / 12.0, mode="nearest")
     first += float(np.mean(smooth[half]))
     threshold = threshold_otsu(first[~ignore[half]])
-    dark, how = decide_polarity(first, threshold, polarity, subsample=1)
+    dark, how = decide_polarity(first, threshold, polarity, scale=2.0)
     if not dark:
         smooth, first, threshold = 1.0 - smooth, 1.0 - first, 1.0 - threshold
     # flatten the illumination (its level away from the dots, found at half resolution), then threshold again
