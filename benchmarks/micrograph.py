@@ -19,11 +19,9 @@ from __future__ import annotations
 import time
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from qdots.micrograph.detect import detect_dots
-from qdots.micrograph.film import complete_neighbourhood, film_metrics, film_state
-from qdots.micrograph.synthetic import dense_board, render_micrograph, sparse_board
+from qdots.micrograph.synthetic import dense_board, render_micrograph, score_detection, sparse_board
 
 from .report import Figure, Headline, Table, cli
 
@@ -31,31 +29,6 @@ NOISES = (0.0, 0.02, 0.05, 0.1, 0.2, 0.3)
 #: The goals of the issue at moderate noise (0.05): recall, precision, diameter error, position error (px),
 #: interior-fraction error, seconds for 2048 x 2048.
 GOALS = {"recall": 0.98, "precision": 0.98, "diameter": 0.03, "position": 0.5, "interior": 0.02, "seconds": 5.0}
-
-
-def errors(detection, centres, diameters) -> dict:
-    """Recall, precision, median size and position errors, interior-fraction error (see the module)."""
-    h, w = detection.image_shape
-    inside = ((centres[:, 0] - diameters / 2 >= 0) & (centres[:, 1] - diameters / 2 >= 0)
-              & (centres[:, 0] + diameters / 2 <= w) & (centres[:, 1] + diameters / 2 <= h))
-    distance, nearest = cKDTree(detection.centres).query(centres)
-    found = distance < 0.3 * diameters
-    back, truth = cKDTree(centres).query(detection.centres)
-    both = found & inside & ~detection.cut[nearest]
-    size = np.abs(detection.diameters[nearest[both]] - diameters[both]) / diameters[both]
-    true_state = film_state(centres, diameters, (h, w))
-    measured_state = film_state(detection.centres, detection.diameters, (h, w))
-    window = (0.0, 0.0, float(w), float(h))
-    true_cut = ~inside
-    true_interior = film_metrics(true_state, ~true_cut, complete_neighbourhood(true_state, window))["interior_fraction"]
-    interior = film_metrics(measured_state, ~detection.cut,
-                            complete_neighbourhood(measured_state, window))["interior_fraction"]
-    return {"recall": float(found[inside].mean()),
-            "precision": float(np.mean((back < 0.3 * diameters[truth])[~detection.cut])),
-            "diameter": float(np.median(size)), "bias": float(np.median((detection.diameters[nearest[both]]
-                                                                         - diameters[both]) / diameters[both])),
-            "position": float(np.median(distance[both])), "interior": interior - true_interior,
-            "true_interior": true_interior}
 
 
 def case(board: str, noise: float, side: int, seed: int = 1) -> dict:
@@ -66,7 +39,7 @@ def case(board: str, noise: float, side: int, seed: int = 1) -> dict:
     detection = detect_dots(image)
     seconds = time.perf_counter() - start
     return {"board": board, "noise": noise, "dots": len(diameters), "seconds": seconds, "p": detection.shape,
-            **errors(detection, centres, diameters)}
+            **score_detection(detection, centres, diameters)}
 
 
 def timing_2048(repeats: int) -> dict:
@@ -95,7 +68,7 @@ def timing_2048(repeats: int) -> dict:
             measure_image(path, nm_per_px=1.0, lqe=True)
             times["measure_lqe"].append(time.perf_counter() - start)
     return {"dots": len(diameters), "found": detection.n_dots, "film_dots": film.summary["dots"],
-            **{k: min(v) for k, v in times.items()}, **errors(detection, centres, diameters)}
+            **{k: min(v) for k, v in times.items()}, **score_detection(detection, centres, diameters)}
 
 
 def run(quick: bool) -> list:

@@ -10,7 +10,6 @@ import numpy as np
 import pytest
 from helpers import one_line_error, refused
 from PIL import Image
-from scipy.spatial import cKDTree
 
 from qdots.cli import main
 from qdots.io import checkpoint
@@ -19,25 +18,16 @@ from qdots.micrograph.film import complete_neighbourhood, film_metrics, film_sta
 from qdots.micrograph.measure import measure_image
 from qdots.micrograph.read import MAX_PIXELS, read_micrograph
 from qdots.micrograph.scale import find_scale_bar, parse_length, scale_from_bar
-from qdots.micrograph.synthetic import dense_board, render_micrograph, sparse_board
+from qdots.micrograph.synthetic import dense_board, render_micrograph, score_detection, sparse_board
 
 ROOT = Path(__file__).resolve().parent.parent
 TEM = ROOT.parent / "shared" / "data" / "micrographs" / "nanoparticle_film_tem.png"
 
 
 def score(detection, centres, diameters):
-    """Recall and precision (a match within 0.3 diameters), median |diameter error| / d and median position
-    error (px) over the true dots the image edge does not cut."""
-    h, w = detection.image_shape
-    inside = ((centres[:, 0] - diameters / 2 >= 0) & (centres[:, 1] - diameters / 2 >= 0)
-              & (centres[:, 0] + diameters / 2 <= w) & (centres[:, 1] + diameters / 2 <= h))
-    distance, nearest = cKDTree(detection.centres).query(centres)
-    found = distance < 0.3 * diameters
-    back, truth = cKDTree(centres).query(detection.centres)
-    precision = float(np.mean((back < 0.3 * diameters[truth])[~detection.cut]))
-    both = found & inside & ~detection.cut[nearest]
-    size = np.abs(detection.diameters[nearest[both]] - diameters[both]) / diameters[both]
-    return float(found[inside].mean()), precision, float(np.median(size)), float(np.median(distance[both]))
+    """Recall, precision, median |diameter error| / d and median position error (px) (`score_detection`)."""
+    s = score_detection(detection, centres, diameters)
+    return s["recall"], s["precision"], s["diameter"], s["position"]
 
 
 @pytest.mark.parametrize("board", [sparse_board, dense_board])

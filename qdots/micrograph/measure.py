@@ -159,8 +159,8 @@ def summary_rows(summary: dict) -> list[tuple[str, str]]:
         ("g(r) first peak", f"{s['gr_peak_diameters']:.2f} mean diameters"),
     ]
     if "lqe" in s:
-        rows.append(("film LQE (traps 1/3, R_F = mean d)", f"{s['lqe']:.4f} +- {s['lqe_standard_error']:.4f} "
-                                                           f"({s['lqe_trap_draws']} trap draws)"))
+        lqe = f"{s['lqe']:.4f} +- {s['lqe_standard_error']:.4f} ({s['lqe_trap_draws']} trap draws)"
+        rows.append(("film LQE (traps 1/3, R_F = mean d)", lqe))
     rows.append(("objects that are not dots", f"{s['rejected_objects']} (text, scale-bar strokes, debris)"))
     return rows
 

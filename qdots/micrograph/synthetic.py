@@ -13,8 +13,11 @@ import math
 
 import numpy as np
 from scipy import ndimage
+from scipy.spatial import cKDTree
 
 from labrig.validate import InputError, count, generator, real
+
+from .film import complete_neighbourhood, film_metrics, film_state
 
 #: Largest synthetic image side, px.
 MAX_SIDE = 8192
@@ -48,8 +51,6 @@ def sparse_board(width: float, height: float, mean_diameter: float, sigma: float
                  gap: float = 0.3) -> tuple[np.ndarray, np.ndarray]:
     """Scattered dots: random positions, at least ``gap`` mean diameters apart surface to surface, until
     ``coverage`` of the area is covered (or no more fit). Returns centres (N, 2) and diameters (N,), px."""
-    from scipy.spatial import cKDTree
-
     rng = generator("seed", seed)
     target = coverage * width * height / (math.pi * mean_diameter**2 / 4)
     tries = count("dots", int(20 * target) + 20, 1, 10_000_000)
@@ -67,12 +68,8 @@ def sparse_board(width: float, height: float, mean_diameter: float, sigma: float
             if any(np.hypot(*(x[k] - tree_points[m])) < 0.5 * (d[k] + d[kept[m]]) + gap * mean_diameter for m in near):
                 continue
         kept.append(k)
-        if len(kept) % 64 == 1 or tree is None:
-            tree_points = x[kept]
-            tree = cKDTree(tree_points)
-        else:
-            tree_points = x[kept]
-            tree = cKDTree(tree_points)
+        tree_points = x[kept]
+        tree = cKDTree(tree_points)
     return x[kept], d[kept]
 
 
@@ -136,3 +133,41 @@ def render_micrograph(centres, diameters, shape: tuple[int, int], *, profile: fl
     if blur > 0:
         image = ndimage.gaussian_filter(image, blur)
     return image + noise * float(np.mean(light)) * rng.standard_normal((h, w))
+
+
+def score_detection(detection, centres, diameters) -> dict:
+    """A detection against the true dots it was rendered from.
+
+    A true dot is found when a detection lies within 0.3 of its diameter; a detection is right when a
+    true dot lies within 0.3 of that dot's diameter. Sizes and positions are compared over the true dots
+    the image edge does not cut (nor the detector flags as cut); the interior fraction of the detected
+    film against the true board's, both with `qdots.micrograph.film.complete_neighbourhood`'s edge rule.
+
+    Returns
+    -------
+    dict
+        ``recall``, ``precision`` (of the uncut detections), ``diameter`` (median |d - d_true| / d_true),
+        ``bias`` (median of the signed error), ``position`` (median centre distance, px), ``interior``
+        (detected minus true interior fraction) and ``true_interior``.
+    """
+    h, w = detection.image_shape
+    inside = ((centres[:, 0] - diameters / 2 >= 0) & (centres[:, 1] - diameters / 2 >= 0)
+              & (centres[:, 0] + diameters / 2 <= w) & (centres[:, 1] + diameters / 2 <= h))
+    distance, nearest = cKDTree(detection.centres).query(centres)
+    found = distance < 0.3 * diameters
+    back, truth = cKDTree(centres).query(detection.centres)
+    both = found & inside & ~detection.cut[nearest]
+    size = np.abs(detection.diameters[nearest[both]] - diameters[both]) / diameters[both]
+    true_state = film_state(centres, diameters, (h, w))
+    measured_state = film_state(detection.centres, detection.diameters, (h, w))
+    window = (0.0, 0.0, float(w), float(h))
+    true_cut = ~inside
+    true_interior = film_metrics(true_state, ~true_cut, complete_neighbourhood(true_state, window))["interior_fraction"]
+    interior = film_metrics(measured_state, ~detection.cut,
+                            complete_neighbourhood(measured_state, window))["interior_fraction"]
+    return {"recall": float(found[inside].mean()),
+            "precision": float(np.mean((back < 0.3 * diameters[truth])[~detection.cut])),
+            "diameter": float(np.median(size)), "bias": float(np.median((detection.diameters[nearest[both]]
+                                                                         - diameters[both]) / diameters[both])),
+            "position": float(np.median(distance[both])), "interior": interior - true_interior,
+            "true_interior": true_interior}
