@@ -139,7 +139,8 @@ def _add_analyze(subparsers) -> None:
 
 def _add_image_options(p) -> None:
     """The arguments of the commands that read a micrograph (``measure``, ``compare``)."""
-    from ..micrograph.detect import POLARITIES, PROFILES
+    from ..micrograph.profiles import PROFILES
+    from ..micrograph.segment import POLARITIES
     from ..micrograph.scale import MAX_NM_PER_PX
 
     p.add_argument("image", type=Path, metavar="IMAGE",

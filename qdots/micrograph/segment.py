@@ -1,0 +1,249 @@
+"""Dot pixels from a grey image: scaling, illumination, threshold phases, polarity, splitting and noise.
+
+The building blocks of `qdots.micrograph.detect`; each works on whole arrays (scipy.ndimage, scikit-image)
+or, where a library would sort or loop in Python, in a compiled loop.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy import ndimage
+
+from labrig.compiled import jit
+
+from .profiles import BIN
+
+#: Polarity choices: dots darker than the background (bright-field TEM), lighter, or decided from the image.
+POLARITIES = ("auto", "dark", "light")
+#: ``polarity="auto"`` takes the dots to be light only when the light phase's round objects are this many
+#: times larger than the dark phase's (a dense dark film's vacancies make light objects too).
+LIGHT_EVIDENCE = 2.0
+#: A dot must stand this clearly out of the noise (`signal_to_noise`), and the dots of an image must have a
+#: median contrast of at least `MIN_CONTRAST` times the pixel noise (`pixel_noise`; noise alone gives 1.7-2.2,
+#: synthetic films at noise 0.3 of the background 2.8-3.4).
+MIN_SIGNAL, MIN_CONTRAST = 8.0, 2.5
+#: Image-wide statistics (percentiles, noise) use every SUBSAMPLE-th pixel.
+SUBSAMPLE = 3
+#: An object is a dot when its inscribed radius is at least this share of the typical radius.
+MIN_INSCRIBED = 1.0 / 3.0
+#: A region whose area is more than this many times the disc of its inscribed radius, and whose long axis is
+#: this many times its short one (square root of the ratio of its second moments), is fused dots (`split_fused`).
+#: Two discs of radius r with centres r apart: area 1.61 pi r^2, elongation 1.41 (1.2 r: 1.72 and 1.56).
+FUSED_AREA, FUSED_ELONGATION = 1.6, 1.4
+
+
+def scaled(image: np.ndarray, ignore: np.ndarray | None = None) -> np.ndarray:
+    """``image`` mapped to [0, 1] by its 0.5 and 99.5 percentiles (outside ``ignore``), clipped."""
+    values = image[~ignore] if ignore is not None else image.ravel()
+    low, high = np.percentile(values[::SUBSAMPLE], [0.5, 99.5])
+    if high <= low:
+        low, high = float(values.min()), float(values.max())
+    return np.clip((image - low) / (high - low), 0.0, 1.0)
+
+
+def background_level(image: np.ndarray, background: np.ndarray, width: float) -> np.ndarray:
+    """The background level everywhere: a Gaussian (``width`` px) average of ``image`` over the ``background``
+    pixels only (normalised convolution); where none is near, the median of all of them. Computed on a grid
+    coarser by ``width / 4`` (the level varies over ``width``) and interpolated back."""
+    step = max(1, int(width / 4))
+    small = (slice(None, None, step), slice(None, None, step))
+    weight = ndimage.gaussian_filter(background[small].astype(float), width / step, mode="nearest")
+    level = ndimage.gaussian_filter(np.where(background, image, 0.0)[small], width / step, mode="nearest")
+    fallback = float(np.median(image[background])) if background.any() else float(np.median(image))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        coarse = np.where(weight > 1e-3, level / weight, fallback)
+    if step == 1:
+        return coarse
+    rows = np.minimum(np.arange(image.shape[0]) / step, coarse.shape[0] - 1)
+    cols = np.minimum(np.arange(image.shape[1]) / step, coarse.shape[1] - 1)
+    return ndimage.map_coordinates(coarse, np.meshgrid(rows, cols, indexing="ij"), order=1, mode="nearest")
+
+
+def typical_radius(distance: np.ndarray) -> float:
+    """The radius of a typical object, from the distance transform of the objects' pixels: the median of
+    its maxima (over 5 x 5 px) that reach half the 90th percentile of them (text strokes and noise fall
+    below), px."""
+    peaks = distance[(distance >= 1.0) & (distance == ndimage.maximum_filter(distance, size=5))]
+    if peaks.size == 0:
+        return 0.0
+    high = np.percentile(peaks, 90)
+    return float(np.median(peaks[peaks >= 0.5 * high]))
+
+
+def inner_components(mask: np.ndarray) -> np.ndarray:
+    """Inscribed radius of each connected component of ``mask`` that does not touch the image edge, px."""
+    labels, n = ndimage.label(mask)
+    if n == 0:
+        return np.zeros(0)
+    edge = np.unique(np.concatenate([labels[0], labels[-1], labels[:, 0], labels[:, -1]]))
+    inscribed, _ = label_maxima(labels, ndimage.distance_transform_edt(mask), n)
+    keep = ~np.isin(np.arange(1, n + 1), edge)
+    return np.asarray(inscribed)[keep]
+
+
+def pixel_noise(image: np.ndarray, ignore: np.ndarray) -> float:
+    """Standard deviation of the pixel noise of ``image``: the median absolute deviation of
+    ``image - gaussian(image, 1 px)`` (where white noise keeps 0.872 of its deviation), robust to edges."""
+    residual = (image - ndimage.gaussian_filter(image, 1.0))[~ignore][::SUBSAMPLE]
+    return 1.4826 * float(np.median(np.abs(residual - np.median(residual)))) / 0.872
+
+
+def signal_to_noise(sums, counts, radius, background, noise: float) -> np.ndarray:
+    """How clearly each dot stands out of the noise: its background less its mean within 0.7 radii, over the
+    noise of that mean (``noise / sqrt(pixels)``). Blobs of noise alone score about 2."""
+    rho = (np.arange(sums.shape[1]) + 0.5) * BIN
+    inner = rho[None, :] < 0.7 * radius[:, None]
+    n = (counts * inner).sum(axis=1)
+    mean = (sums * inner).sum(axis=1) / np.maximum(n, 1)
+    return (background - mean) * np.sqrt(n) / max(noise, 1e-12)
+
+
+def fill_small_holes(mask: np.ndarray, largest: float) -> np.ndarray:
+    """``mask`` with its holes of at most ``largest`` pixels filled (bright specks inside a dark dot)."""
+    holes, n = ndimage.label(~mask)
+    if n == 0:
+        return mask
+    sizes = np.bincount(holes.ravel(), minlength=n + 1)
+    small = sizes <= largest
+    small[0] = False
+    return mask | small[holes]
+
+
+def split_fused(labels: np.ndarray, distance: np.ndarray) -> np.ndarray:
+    """Split regions that are two or more fused dots with no neck between them.
+
+    A region whose area exceeds `FUSED_AREA` times the disc of its inscribed radius ``r_m``, and which
+    is elongated (`FUSED_ELONGATION`; an irregular single dot is round), holds
+    ``k = max(2, round(area / (0.86 pi r_m^2)))`` dots (two discs of radius r whose centres are at least
+    r apart, as fused dots are split here); its pixels are split among them by k-means (`scipy.cluster.vq.kmeans2`,
+    started from points spread along the region's long axis). Returns new labels (1 .. n)."""
+    from scipy.cluster.vq import ClusterError, kmeans2
+    from skimage.segmentation import relabel_sequential
+
+    n = int(labels.max())
+    if n == 0:
+        return labels
+    area = np.bincount(labels.ravel(), minlength=n + 1)[1:]
+    inscribed, _ = label_maxima(labels, distance, n)
+    ratio = area / np.maximum(math.pi * inscribed**2, 1.0)
+    fused = np.flatnonzero(ratio > FUSED_AREA) + 1
+    if fused.size == 0:
+        return labels
+    out = labels.copy()
+    following = n + 1
+    boxes = ndimage.find_objects(labels)
+    for k in fused:
+        box = boxes[k - 1]
+        rows, cols = np.nonzero(labels[box] == k)
+        points = np.column_stack([rows, cols]).astype(float)
+        parts = max(2, round(ratio[k - 1] / 0.86))
+        centre = points.mean(axis=0)
+        values, vectors = np.linalg.eigh(np.cov((points - centre).T))
+        if values[-1] < FUSED_ELONGATION**2 * max(values[0], 1e-12):
+            continue  # round: one irregular dot, not fused ones
+        along = (points - centre) @ vectors[:, -1]
+        starts = centre + np.outer(np.linspace(-0.5, 0.5, parts) * (along.max() - along.min()), vectors[:, -1])
+        try:
+            _, assigned = kmeans2(points, starts, minit="matrix", iter=20, missing="raise")
+        except ClusterError:  # a part came out empty: leave the region whole
+            continue
+        for part in range(1, parts):
+            chosen = assigned == part
+            if chosen.any():
+                out[box][rows[chosen], cols[chosen]] = following
+                following += 1
+    relabelled, _, _ = relabel_sequential(out)
+    return relabelled
+
+
+def frame_width(image: np.ndarray) -> tuple[int, int, int, int]:
+    """Rows and columns of a constant frame around ``image`` (a border some programs draw): the number of
+    top, bottom, left and right lines, each of one value equal to the corner's, that are not picture."""
+    corner = image[0, 0]
+    h, w = image.shape
+
+    def run(lines) -> int:
+        k = 0
+        for line in lines:
+            if not np.all(line == corner):
+                break
+            k += 1
+        return k
+
+    top = run(image[i] for i in range(h // 4))
+    bottom = run(image[h - 1 - i] for i in range(h // 4))
+    left = run(image[:, j] for j in range(w // 4))
+    right = run(image[:, w - 1 - j] for j in range(w // 4))
+    return top, bottom, left, right
+
+
+def decide_polarity(smooth: np.ndarray, threshold: float, polarity: str, scale: float = 1.0) -> tuple[bool, str]:
+    """Whether the dots are the dark phase, and why: given, or (``"auto"``) dark, as bright-field micrographs
+    show them, unless the light phase's components away from the image edge are clearly the larger round
+    objects (median inscribed radius over components of >= 2 px, `LIGHT_EVIDENCE` times the dark phase's).
+    ``scale``: image px per px of ``smooth`` (2 for a half-resolution image)."""
+    if polarity != "auto":
+        return polarity == "dark", f"{polarity} dots (given)"
+    scores = []
+    for dark in (True, False):
+        radii = scale * inner_components(smooth < threshold if dark else smooth >= threshold)
+        radii = radii[radii >= 2.0]
+        scores.append(float(np.median(radii)) if radii.size >= 3 else 0.0)
+    dark_score, light_score = scores
+    if light_score > LIGHT_EVIDENCE * dark_score:
+        return False, (f"light dots (automatic: objects of inscribed radius {light_score:.1f} px away from the edge, "
+                       f"against {dark_score:.1f} px in the dark phase)")
+    return True, (f"dark dots (automatic: objects of inscribed radius {dark_score:.1f} px away from the edge, "
+                  f"against {light_score:.1f} px in the light phase; dark unless the light phase's are "
+                  f"{LIGHT_EVIDENCE:g} times larger, as bright field shows dots)")
+
+
+@jit
+def label_maxima(labels, values, n):
+    """Largest value of each region 1 .. ``n`` of ``labels`` and its flat index (-inf and -1 where empty)."""
+    best = np.full(n, -np.inf)
+    where = np.full(n, -1, dtype=np.int64)
+    flat_labels = labels.ravel()
+    flat_values = values.ravel()
+    for k in range(flat_labels.size):
+        label = flat_labels[k]
+        if label > 0 and flat_values[k] > best[label - 1]:
+            best[label - 1] = flat_values[k]
+            where[label - 1] = k
+    return best, where
+
+
+def spaced_maxima(values: np.ndarray, spacing: int, floor: float) -> np.ndarray:
+    """Local maxima of ``values`` above ``floor``, at least ``spacing`` px apart: (row, col) of each, highest
+    kept first (as `skimage.feature.peak_local_max` with ``min_distance``; a plateau gives one point)."""
+    from scipy.spatial import cKDTree
+
+    y, x = np.ogrid[-spacing:spacing + 1, -spacing:spacing + 1]
+    top = (values > floor) & (values == ndimage.maximum_filter(values, footprint=x * x + y * y <= spacing * spacing))
+    rows, cols = np.nonzero(top)
+    if rows.size == 0:
+        return np.zeros((0, 2), dtype=np.intp)
+    order = np.argsort(-values[rows, cols], kind="stable")
+    points = np.column_stack([rows[order], cols[order]])
+    keep = np.ones(len(points), dtype=bool)
+    for i, j in sorted(cKDTree(points).query_pairs(spacing - 1e-9)):  # i < j: j is the lower one
+        if keep[i]:
+            keep[j] = False
+    return points[keep]
+
+
+def region_properties(labels: np.ndarray) -> dict:
+    """``label``, ``area``, ``centroid-0`` (row), ``centroid-1`` (column) and ``edge`` (touches the image's
+    edge) of regions 1 .. max of ``labels``, by counting (as `skimage.measure.regionprops_table`, faster)."""
+    n = int(labels.max())
+    flat = labels.ravel()
+    rows, cols = np.divmod(np.arange(flat.size), labels.shape[1])
+    area = np.bincount(flat, minlength=n + 1)[1:].astype(float)
+    safe = np.maximum(area, 1.0)
+    edge = np.zeros(n + 1, dtype=bool)
+    edge[np.concatenate([labels[0], labels[-1], labels[:, 0], labels[:, -1]])] = True
+    return {"label": np.arange(1, n + 1), "area": area,
+            "centroid-0": np.bincount(flat, rows, n + 1)[1:] / safe,
+            "centroid-1": np.bincount(flat, cols, n + 1)[1:] / safe, "edge": edge[1:]}
