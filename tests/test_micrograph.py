@@ -119,6 +119,9 @@ def test_tiff_pages_depths_and_imagej_scale_are_read(tmp_path):
     tifffile.imwrite(plain, (image * 200).clip(0, 255).astype(np.uint8))
     assert read_micrograph(plain).nm_per_px is None
     refused(lambda: read_micrograph(path, page=2), "page")
+    film = measure_image(path, nm_per_px=2.0, lqe=False)  # the file's own scale wins, and the table says so
+    assert film.nm_per_px == pytest.approx(0.8) and "not used" in film.summary["scale"]
+    refused(lambda: measure_image(path, nm_per_px=-1.0, lqe=False), "nm_per_px")
 
 
 def test_a_microscope_file_is_read_with_its_calibration(tmp_path):

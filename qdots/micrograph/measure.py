@@ -22,7 +22,7 @@ from labrig.validate import InputError
 from .detect import Detection, detect_dots
 from .film import complete_neighbourhood, film_metrics, film_state
 from .read import Micrograph, read_micrograph
-from .scale import ScaleBar, check_nm_per_px, find_scale_bar, scale_from_bar
+from .scale import ScaleBar, check_nm_per_px, find_scale_bar, parse_length, scale_from_bar
 
 #: Trap draws of the film LQE (as ``qdots analyze``) on films of up to LQE_DOTS dots; larger films take
 #: fewer (at least 2: their standard error is small anyway, and a draw costs seconds at 10^4 dots).
@@ -71,7 +71,8 @@ def settle_scale(image: Micrograph, nm_per_px=None, scale_bar: str | None = None
     long (such as ``"200nm"``). Returns (nm per px or None, where it came from, the bar if one was found)."""
     bar = find_scale_bar(image.pixels)
     if image.nm_per_px is not None:
-        return image.nm_per_px, f"{image.nm_per_px:.4g} nm/px from the file's metadata", bar
+        given = "" if nm_per_px is None and scale_bar is None else " (the scale given is not used: the file has one)"
+        return image.nm_per_px, f"{image.nm_per_px:.4g} nm/px from the file's metadata{given}", bar
     if nm_per_px is not None:
         value = check_nm_per_px(nm_per_px)
         return value, f"{value:.4g} nm/px (given)", bar
@@ -112,6 +113,10 @@ def measure_image(path: str | os.PathLike, *, nm_per_px=None, scale_bar: str | N
     """
     from ..analysis.lqe import film_lqe
 
+    if nm_per_px is not None:  # bad scales are refused before the image is read, even when the file has one
+        check_nm_per_px(nm_per_px)
+    if scale_bar is not None:
+        parse_length(scale_bar)
     image = read_micrograph(path, page)
     scale, how, bar = settle_scale(image, nm_per_px, scale_bar)
     ignore = bar.mask(image.shape) if bar is not None else None
