@@ -13,6 +13,7 @@ from scipy import ndimage
 
 from labrig.compiled import jit
 
+from ..geometry import pairs_within
 from .profiles import BIN
 
 #: Polarity choices: dots darker than the background (bright-field TEM), lighter, or decided from the image.
@@ -218,8 +219,6 @@ def label_maxima(labels, values, n):
 def spaced_maxima(values: np.ndarray, spacing: int, floor: float) -> np.ndarray:
     """Local maxima of ``values`` above ``floor``, at least ``spacing`` px apart: (row, col) of each, highest
     kept first (as `skimage.feature.peak_local_max` with ``min_distance``; a plateau gives one point)."""
-    from scipy.spatial import cKDTree
-
     y, x = np.ogrid[-spacing:spacing + 1, -spacing:spacing + 1]
     top = (values > floor) & (values == ndimage.maximum_filter(values, footprint=x * x + y * y <= spacing * spacing))
     rows, cols = np.nonzero(top)
@@ -227,8 +226,10 @@ def spaced_maxima(values: np.ndarray, spacing: int, floor: float) -> np.ndarray:
         return np.zeros((0, 2), dtype=np.intp)
     order = np.argsort(-values[rows, cols], kind="stable")
     points = np.column_stack([rows[order], cols[order]])
+    first, second = pairs_within(points[:, 1].astype(float), points[:, 0].astype(float), spacing - 1e-9)
+    low, high = np.minimum(first, second), np.maximum(first, second)
     keep = np.ones(len(points), dtype=bool)
-    for i, j in sorted(cKDTree(points).query_pairs(spacing - 1e-9)):  # i < j: j is the lower one
+    for i, j in zip(*(part[np.lexsort((high, low))] for part in (low, high))):  # the higher one (i) first
         if keep[i]:
             keep[j] = False
     return points[keep]

@@ -13,10 +13,10 @@ import math
 
 import numpy as np
 from scipy import ndimage
-from scipy.spatial import cKDTree
 
 from labrig.validate import InputError, count, generator, real
 
+from ..geometry import clashing_pairs
 from .film import complete_neighbourhood, film_metrics, film_state
 
 #: Largest synthetic image side, px.
@@ -50,27 +50,25 @@ def dense_board(width: float, height: float, mean_diameter: float, sigma: float,
 def sparse_board(width: float, height: float, mean_diameter: float, sigma: float, coverage: float = 0.15, seed=0,
                  gap: float = 0.3) -> tuple[np.ndarray, np.ndarray]:
     """Scattered dots: random positions, at least ``gap`` mean diameters apart surface to surface, until
-    ``coverage`` of the area is covered (or no more fit). Returns centres (N, 2) and diameters (N,), px."""
+    ``coverage`` of the area is covered (or no more fit). Returns centres (N, 2) and diameters (N,), px.
+
+    Candidates are drawn at once and taken in order, each unless it clashes with one taken before
+    (`qdots.geometry.clashing_pairs`)."""
     rng = generator("seed", seed)
     target = coverage * width * height / (math.pi * mean_diameter**2 / 4)
     tries = count("dots", int(20 * target) + 20, 1, 10_000_000)
     x = rng.uniform(0, width, (tries, 2)) * [1.0, height / width]
     d = np.clip(rng.normal(mean_diameter, sigma * mean_diameter, tries), 0.5 * mean_diameter, 1.5 * mean_diameter)
-    kept: list[int] = []
-    reach = (1.5 + gap) * mean_diameter
-    tree_points = np.zeros((0, 2))
-    tree = None
+    a, b = clashing_pairs(x, 0.5 * d, gap * mean_diameter)
+    earlier = [[] for _ in range(tries)]  # the clashing candidates drawn before each one
+    for first, second in zip(np.minimum(a, b), np.maximum(a, b)):
+        earlier[second].append(first)
+    taken = np.zeros(tries, dtype=bool)
     for k in range(tries):
-        if len(kept) >= target:
+        if taken.sum() >= target:
             break
-        if tree is not None:
-            near = tree.query_ball_point(x[k], reach)
-            if any(np.hypot(*(x[k] - tree_points[m])) < 0.5 * (d[k] + d[kept[m]]) + gap * mean_diameter for m in near):
-                continue
-        kept.append(k)
-        tree_points = x[kept]
-        tree = cKDTree(tree_points)
-    return x[kept], d[kept]
+        taken[k] = not any(taken[m] for m in earlier[k])
+    return x[taken], d[taken]
 
 
 def render_micrograph(centres, diameters, shape: tuple[int, int], *, profile: float = 0.5, contrast: float = 0.6,
@@ -150,6 +148,8 @@ def score_detection(detection, centres, diameters) -> dict:
         ``bias`` (median of the signed error), ``position`` (median centre distance, px), ``interior``
         (detected minus true interior fraction) and ``true_interior``.
     """
+    from scipy.spatial import cKDTree  # nearest neighbours between two sets (no pair search)
+
     h, w = detection.image_shape
     inside = ((centres[:, 0] - diameters / 2 >= 0) & (centres[:, 1] - diameters / 2 >= 0)
               & (centres[:, 0] + diameters / 2 <= w) & (centres[:, 1] + diameters / 2 <= h))
