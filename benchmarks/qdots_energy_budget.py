@@ -14,8 +14,9 @@ an `qdots.energy_budget.EnergyBudget` attached: the free film with masses ~ d^3 
   difference is the engine's: energy removed in frame 1, pull injected in frame 2.
   The identical-board test also runs Chipmunk at a 3x and a 10x smaller ``overlap_tolerance`` (how far the plan
   lets a dot travel into a contact in one sub-step, the default 0.005 radii).
-* The same for **Chipmunk with impacts resolved at contact** (`qdots.engine.at_contact`, a prototype, off by
-  default): every impact moved back to where the impact at the instant of contact would have left the pair.
+* Chipmunk both ways: impacts resolved at contact (``impacts = "contact"``, the default: every impact
+  moved to where the impact at the instant of contact leaves the pair, `qdots.engine.contacts`) and where
+  Chipmunk finds them, overlapped (``impacts = "overlap"``, the 0.3 engine).
 
 Run: ``python -m benchmarks.qdots_energy_budget [--quick] [--figures DIR]`` (about 15 minutes on this machine,
 one process).
@@ -34,7 +35,6 @@ import qdots
 from qdots.analysis import packing_summary
 from qdots.energy_budget import EnergyBudget
 from qdots.analysis.structure import clusters
-from qdots.engine.at_contact import resolve_at_contact
 from qdots.experiment import build_simulation, populate
 from qdots.presets import get_preset
 
@@ -42,12 +42,14 @@ from .report import Figure, Headline, Note, Table, cli
 
 #: The films: (label, sigma, mass model).
 FILMS = (("masses ~ d^3, sigma 10 %", 0.10, "volume"), ("equal masses, sigma 0", 0.0, "equal"))
-#: The engines compared: (label, engine kind, impacts at contact).
-ENGINES = (("event", "event", False), ("Chipmunk", "chipmunk", False),
-           ("Chipmunk, impacts at contact (prototype)", "chipmunk", True))
-#: Further Chipmunk settings run in the identical-board test only: (label, kind, at contact, overlap tolerance).
-TOLERANCES = (("Chipmunk, overlap_tolerance 0.0015", "chipmunk", False, 0.0015),
-              ("Chipmunk, overlap_tolerance 0.0005", "chipmunk", False, 0.0005))
+#: The engines compared: (label, engine kind, engine settings changed from the defaults).
+ENGINES = (("event", "event", {}), ("Chipmunk, impacts overlapped (0.3)", "chipmunk", {"impacts": "overlap"}),
+           ("Chipmunk, impacts at contact (default)", "chipmunk", {}))
+#: Further Chipmunk settings run in the identical-board test only, as in `ENGINES`.
+TOLERANCES = (("Chipmunk overlapped, overlap_tolerance 0.0015", "chipmunk",
+               {"impacts": "overlap", "overlap_tolerance": 0.0015}),
+              ("Chipmunk overlapped, overlap_tolerance 0.0005", "chipmunk",
+               {"impacts": "overlap", "overlap_tolerance": 0.0005}))
 #: Mass classes of a film whose masses differ: terciles of d^3 for diameters ~ N(15, sigma 15) px.
 TERCILE = 0.4307
 CLASSES = ("light third", "middle third", "heavy third")
@@ -67,12 +69,10 @@ def mass_edges(sigma: float, model: str) -> tuple:
 def build(sigma: float, model: str, seed: int, engine: tuple, quick: bool):
     """The film's experiment and a simulation on ``engine`` with a budget attached (nothing run yet)."""
     base = next(exp for exp in get_preset("fig2-2", quick=0.1 if quick else False) if exp.deposition.sigma == 0.0)
-    _, kind, at_contact = engine
+    _, kind, changes = engine
     exp = base.replace(seed=seed, deposition=dataclasses.replace(base.deposition, sigma=sigma, mass_model=model),
-                       engine=base.engine.replace(kind=kind))
+                       engine=base.engine.replace(kind=kind, **changes))
     sim = build_simulation(exp)
-    if at_contact:
-        resolve_at_contact(sim.engine)
     budget = EnergyBudget(mass_edges(sigma, model)).attach(sim)
     return exp, sim, budget
 
@@ -117,14 +117,11 @@ def film(sigma: float, model: str, seed: int, engine: tuple, quick: bool) -> dic
 def paired(board, sigma: float, model: str, engine: tuple, seed: int) -> np.ndarray:
     """From ``board``, `PAIRED_FRAMES` frames on ``engine`` with the film's forces and ``seed``: per frame, the pull
     injected, the kicks injected and the energy removed (per dot), shape (3, frames)."""
-    _, kind, at_contact = engine[:3]
-    tolerance = {"overlap_tolerance": engine[3]} if len(engine) > 3 else {}
+    _, kind, changes = engine
     scene = qdots.Scene(box=board.box, positions=board.positions, radii=board.radii, masses=board.masses,
                         velocities=board.velocities, from_engine=True)
     sim = qdots.Simulation(scene, [qdots.VanDerWaals(), qdots.ThermalKicks()], seed=seed,
-                           engine=qdots.EngineSettings(kind=kind, **tolerance))
-    if at_contact:
-        resolve_at_contact(sim.engine)
+                           engine=qdots.EngineSettings(kind=kind, **changes))
     budget = EnergyBudget(mass_edges(sigma, model)).attach(sim)
     sim.run(PAIRED_FRAMES * sim.dt)
     budget.finish(sim)
@@ -212,18 +209,19 @@ def run(quick: bool) -> list:
              "plus a cross term that averages to zero); the van der Waals pull injects about ten times more, and the "
              "collisions remove what both inject (removed / injected is 1 within the seed spread): the temperature is "
              "set by how much the pull injects for a given board. From identical boards and identical kicks, one "
-             "frame of the default Chipmunk engine leaves the dots placed so that the next pull injects more: every "
-             "impact is resolved only once the discs overlap, from the overlapped position, which leaves each pair "
-             "that bounced (1 + e) times the overlap closer than the impact at contact does, and the proxy, which "
-             "acts only from 0.1 px and is steepest there, then slows fewer separating pairs. Resolving each impact "
-             "at contact (the prototype) removes the excess and the films' extra heat."),
+             "frame of Chipmunk resolving impacts where it finds them (the 0.3 engine) leaves the dots placed so that "
+             "the next pull injects more: every impact is resolved only once the discs overlap, from the overlapped "
+             "position, which leaves each pair that bounced (1 + e) times the overlap closer than the impact at "
+             "contact does, and the proxy, which acts only from 0.1 px and is steepest there, then slows fewer "
+             "separating pairs. Resolving each impact at contact (the default) removes the excess and the films' "
+             "extra heat."),
     ]
 
 
 def budget_figure(runs: dict, seeds) -> Figure:
     """Mean-speed histories (mean +- SE band), and injected and removed per frame by mass class, for each film."""
     fig = MplFigure(figsize=(13, 9.5))
-    colours = {"event": "tab:blue", "Chipmunk": "tab:red", "Chipmunk, impacts at contact (prototype)": "tab:green"}
+    colours = dict(zip((engine for engine, _, _ in ENGINES), ("tab:blue", "tab:red", "tab:green")))
     for col, (label, sigma, model) in enumerate(FILMS):
         ax = fig.add_subplot(2, 2, col + 1)
         for engine, _, _ in ENGINES:

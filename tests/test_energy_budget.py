@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 
 import qdots
+from labrig.validate import InputError
+from qdots.engine.contacts import install_handlers
 from qdots.energy_budget import EnergyBudget
-from qdots.engine.at_contact import resolve_at_contact
 
 ENGINES = ("event", "chipmunk")
 EDGES = (0.9, 1.1)
@@ -88,18 +89,20 @@ def test_dots_added_between_frames_keep_the_books_closed():
     assert len(sim.forces) == 2
 
 
+@pytest.mark.parametrize("compiled", [True, False])
 @pytest.mark.parametrize("e", [1.0, 0.8])
 @pytest.mark.parametrize("masses", [(1.0, 1.0), (0.5, 2.0)])
-def test_the_prototype_leaves_a_bounced_pair_where_the_exact_collision_does(e, masses):
-    """Default Chipmunk resolves the impact once the discs overlap and leaves the pair (1 + e) overlap closer; the
-    prototype moves it back to where the impact at contact leaves it (the event engine's, to its buffer)."""
-    def gaps(kind, at_contact):
+def test_impacts_at_contact_leave_a_bounced_pair_where_the_exact_collision_does(e, masses, compiled):
+    """Chipmunk resolving an impact where it finds it (``impacts = "overlap"``) leaves the pair (1 + e) overlap
+    closer; at contact (the default) moves it to where the impact at contact leaves it (the event engine's, to
+    its buffer), with the compiled callbacks and with the Python fallback."""
+    def gaps(kind, impacts):
         scene = qdots.Scene(box=(200.0, 200.0), positions=[(92.49, 100.0), (107.51, 100.0)], radii=[7.5, 7.5],
                             masses=masses, velocities=[(6.0, 0.0), (-4.0, 0.0)])
         sim = qdots.Simulation(scene, [], restitution=qdots.Restitution(mean=e), seed=1,
-                               engine=qdots.EngineSettings(kind=kind))
-        if at_contact:
-            resolve_at_contact(sim.engine)
+                               engine=qdots.EngineSettings(kind=kind, impacts=impacts))
+        if kind == "chipmunk" and not compiled:
+            install_handlers(sim.engine.space, sim.restitution, sim.collisions, impacts == "contact", compiled=False)
         out = []
         for _ in range(2):
             sim.step(1)
@@ -108,6 +111,33 @@ def test_the_prototype_leaves_a_bounced_pair_where_the_exact_collision_does(e, m
         assert sim.collisions.dot_dot == 1
         return np.array(out)
 
-    exact, default, prototype = gaps("event", False), gaps("chipmunk", False), gaps("chipmunk", True)
-    assert np.all(exact - default > 0.02)  # the default's deficit: (1 + e) times the overlap, less its correction
-    np.testing.assert_allclose(prototype, exact, atol=1e-4)
+    exact, overlapped, at_contact = gaps("event", "contact"), gaps("chipmunk", "overlap"), gaps("chipmunk", "contact")
+    assert np.all(exact - overlapped > 0.02)  # the deficit: (1 + e) times the overlap, less its correction
+    np.testing.assert_allclose(at_contact, exact, atol=1e-4)
+
+
+def test_a_wall_impact_at_contact_moves_the_dot_only():
+    """At a wall the whole move is the dot's: it leaves the wall where the exact collision leaves it."""
+    def gap(kind):
+        scene = qdots.Scene(box=(100.0, 100.0), positions=[(7.51, 50.0)], radii=[7.5], velocities=[(-8.0, 0.0)])
+        sim = qdots.Simulation(scene, [], seed=1, engine=qdots.EngineSettings(kind=kind))
+        sim.step(2)
+        assert sim.collisions.dot_wall == 1
+        return sim.state().positions[0, 0] - 7.5
+
+    np.testing.assert_allclose(gap("chipmunk"), gap("event"), atol=1e-4)
+
+
+def test_the_impacts_setting_is_checked_and_changes_a_live_engine():
+    with pytest.raises(InputError, match="impacts"):
+        qdots.EngineSettings(impacts="late")
+    scene = qdots.Scene(box=(200.0, 200.0), positions=[(92.49, 100.0), (107.51, 100.0)], radii=[7.5, 7.5],
+                        velocities=[(6.0, 0.0), (-4.0, 0.0)])
+    ends = []
+    for switch in (False, True):
+        sim = qdots.Simulation(scene, [], seed=1, engine=qdots.EngineSettings(impacts="overlap"))
+        if switch:
+            sim.settings = sim.settings.replace(impacts="contact")
+        sim.step(2)
+        ends.append(sim.state().positions[1, 0] - sim.state().positions[0, 0])
+    assert ends[1] - ends[0] > 0.02

@@ -152,21 +152,23 @@ def _arbiter_layout() -> dict | None:
             "body_a": offsets["body_a"] // 8, "body_b": offsets["body_b"] // 8}
 
 
+@functools.cache
 def impact_layout() -> dict | None:
-    """Where Chipmunk keeps what a callback needs to move an impact's bodies back to the instant of contact
-    (`qdots.engine.at_contact`, a prototype off by default); None without `internals` or when the layout is not
-    as expected.
+    """Where Chipmunk keeps what a callback needs to move an impact's bodies to the instant of contact
+    (`qdots.engine.contacts`); None without `internals` or when the layout is not as expected.
 
-    Returns ``{"contacts": word index of the arbiter's contact array pointer, "state": word index of its state
-    (``CP_ARBITER_STATE_FIRST_COLLISION`` is 0, in the word's low 32 bits), "r1", "r2": word indices of a
-    contact's two offsets from its bodies' centres, "inverse_mass": byte offset of a body's 1/m}``.
+    Returns ``{"contacts": word index of the arbiter's contact array pointer, "r1", "r2": word indices of a
+    contact's two offsets from its bodies' centres, "inverse_mass": byte offset of a body's 1/m, "translation":
+    byte offset of the translation of a body's transform}``. Chipmunk's ``cpBodyGetPosition`` (pymunk's
+    ``Body.position``, ``pymunk.batch``) reads that translation, which its integrator sets from ``cpBody.p``
+    at the next step: a callback that moves ``p`` writes both.
     """
     if internals() is None:
         return None
     ffi = _ffi()
     arbiter, contact = ffi.typeof("struct cpArbiter"), ffi.typeof("struct cpContact")
-    offsets = {"contacts": ffi.offsetof(arbiter, "contacts"), "state": ffi.offsetof(arbiter, "state"),
-               "r1": ffi.offsetof(contact, "r1"), "r2": ffi.offsetof(contact, "r2")}
+    offsets = {"contacts": ffi.offsetof(arbiter, "contacts"), "r1": ffi.offsetof(contact, "r1"),
+               "r2": ffi.offsetof(contact, "r2")}
     if any(offset % 8 for offset in offsets.values()):
         return None
     found = set()
@@ -176,7 +178,24 @@ def impact_layout() -> dict | None:
         found.add(tuple(8 * k for k in range(1, len(memory)) if (memory[k - 1], memory[k]) == (mass, 1.0 / mass)))
     if len(found) != 1 or len(at := found.pop()) != 1:
         return None
-    return {**{name: offset // 8 for name, offset in offsets.items()}, "inverse_mass": at[0]}
+    translation = _translation_offset(int(internals().body_offsets[POSITION]))
+    if translation is None:
+        return None
+    return {**{name: offset // 8 for name, offset in offsets.items()}, "inverse_mass": at[0], "translation": translation}
+
+
+def _translation_offset(position: int) -> int | None:
+    """Byte offset of the translation of a body's transform: the one other place a disc body's position is
+    found, after ``cpBody.p``, and the one ``Body.position`` reads (checked by writing there); None if not so."""
+    ffi = _ffi()
+    body = pymunk.Body(1.0, math.inf)
+    body.position = (3.25, -1.5e3)
+    memory = np.frombuffer(ffi.buffer(ffi.cast("char *", body._body), 256), dtype=np.float64)
+    at = [8 * k for k in range(len(memory) - 1) if (memory[k], memory[k + 1]) == (3.25, -1.5e3)]
+    if len(at) != 2 or at[0] != position:
+        return None
+    memory[at[1] // 8: at[1] // 8 + 2] = (7.75, 2.5)
+    return at[1] if tuple(body.position) == (7.75, 2.5) else None
 
 
 # -- the space -----------------------------------------------------------------------------------

@@ -16,6 +16,25 @@ so the rule is compiled (`impact_elasticity`) and Chipmunk calls it through a C 
 (~0.1 us). The callback reads the two bodies' velocities and the contact normal from Chipmunk's memory
 (`qdots.engine.chipmunk.internals`); without them (an untested pymunk), the same compiled rule runs from
 a Python callback (slower, same numbers).
+
+Impacts at the instant of contact (``EngineSettings.impacts = "contact"``, the default).
+Chipmunk sees a contact only once two discs overlap: positions move first in each sub-step, then the
+contacts are found, then the velocities solved. An impact at approach speed ``u`` is therefore found
+late, when the sub-step's motion has pushed the discs ``delta = min(overlap, u h)`` into each other
+(``h`` the sub-step, which the sub-step plan keeps ``u h`` below ``overlap_tolerance`` radii), and the
+bounce would start from there. The thesis's model resolves it at contact (its steps 4-11): by the end of
+the sub-step the pair would have separated again by ``e delta``. So every impact would leave the pair
+``(1 + e) delta`` closer than the model, and with the thesis's van der Waals proxy that is not a small
+error: the proxy acts only at gaps >= 0.1 px and is steepest just above that, so pairs that bounce from
+too close are pulled too hard in the next frame, which injected 11-14 % more energy than the model and
+left the films hotter and, with masses ~ d^3, more fragmented (docs/engines.md, "Energy budget"). The
+callback therefore moves the two bodies of every impact apart along the normal by ``(1 + e) delta``,
+shared in inverse proportion to their masses (all of it on the dot at a wall), where the impact at
+contact would have left them; velocities are not touched. A lasting contact that a kick drives together
+again is moved by what this sub-step's approach made (``u h``), not by its older overlap, which Chipmunk's
+position correction handles. Each impact is moved from the positions at which Chipmunk found it: a dot
+with two impacts in one sub-step gets both moves. ``impacts = "overlap"`` keeps Chipmunk's own late
+resolution (the 0.3 engine).
 """
 
 from __future__ import annotations
@@ -32,17 +51,19 @@ from labrig.compiled import c_callback, jit, pointer
 
 from ..restitution import Restitution, impact_normal
 from .allocator import tune_allocator
-from .chipmunk import DOT, VELOCITY, WALL, add_pre_solve_callback, internals
+from .chipmunk import DOT, POSITION, VELOCITY, WALL, add_pre_solve_callback, impact_layout, internals
 
 
 # -- the collision record: one float64 array the callbacks read and write ----------------------
 
-#: Slots of `CollisionRecord.array`. Float slots: the rule. Integer slots (the same memory read
-#: as uint64): the stream key, the counts, and where Chipmunk keeps what the callbacks read.
-MEAN, STD, STICKING_SPEED, WALL_ELASTICITY = 0, 1, 2, 3
-KEY, DRAWS, DOT_DOT, STUCK, DOT_WALL = 4, 5, 6, 7, 8
-ARBITER_WORDS, ARBITER_E, ARBITER_NORMAL, ARBITER_BODY_A, ARBITER_BODY_B, BODY_VELOCITY = 9, 10, 11, 12, 13, 14
-SLOTS = 15
+#: Slots of `CollisionRecord.array`. Float slots: the rule and the current sub-step (s). Integer slots (the
+#: same memory read as uint64): the stream key, the counts, whether impacts are moved to contact, and where
+#: Chipmunk keeps what the callbacks read.
+MEAN, STD, STICKING_SPEED, WALL_ELASTICITY, SUBSTEP = 0, 1, 2, 3, 4
+KEY, DRAWS, DOT_DOT, STUCK, DOT_WALL, AT_CONTACT = 5, 6, 7, 8, 9, 10
+ARBITER_WORDS, ARBITER_E, ARBITER_NORMAL, ARBITER_BODY_A, ARBITER_BODY_B, BODY_VELOCITY = 11, 12, 13, 14, 15, 16
+ARBITER_CONTACTS, CONTACT_R1, CONTACT_R2, BODY_POSITION, BODY_INVERSE_MASS, BODY_TRANSLATION = 17, 18, 19, 20, 21, 22
+SLOTS = 23
 #: Slowest approach, px/s, that is an impact: a lasting contact whose solve left the dots closing more slowly
 #: (round-off) is resting, not a new impact.
 RESTING = 1e-9
@@ -70,40 +91,68 @@ def elasticity_of_impact(record, approach):
 
 
 @jit(inline=True)
-def contact_approach(arbiter, words):
-    """``(floats, approach)``: the arbiter's memory as float64 words and the speed (px/s) at which its two
-    bodies approach along its normal (a wall's static body has velocity 0, on either side)."""
+def resolve_contact(arbiter, data, wall):
+    """The rule on one contact, every step it lasts: an impact (the bodies approach along the normal) gets the
+    rule's restitution (a dot-dot draw or 0 below the sticking speed; the wall's) and is counted, and, with
+    `AT_CONTACT`, its bodies are moved to where the impact at contact leaves them (the module's docstring); a
+    resting or parting contact gets 0."""
+    words = carray(data, SLOTS, np.uint64)
+    record = carray(data, SLOTS, np.float64)
     n = np.int64(words[ARBITER_WORDS])
     arbiter_words = carray(arbiter, n, np.uint64)
     arbiter_floats = carray(arbiter, n, np.float64)
-    va = carray(pointer(arbiter_words[words[ARBITER_BODY_A]] + words[BODY_VELOCITY]), 2, np.float64)
-    vb = carray(pointer(arbiter_words[words[ARBITER_BODY_B]] + words[BODY_VELOCITY]), 2, np.float64)
+    body_a = arbiter_words[words[ARBITER_BODY_A]]
+    body_b = arbiter_words[words[ARBITER_BODY_B]]
+    va = carray(pointer(body_a + words[BODY_VELOCITY]), 2, np.float64)
+    vb = carray(pointer(body_b + words[BODY_VELOCITY]), 2, np.float64)
     k = words[ARBITER_NORMAL]
-    return arbiter_floats, (va[0] - vb[0]) * arbiter_floats[k] + (va[1] - vb[1]) * arbiter_floats[k + np.uint64(1)]
+    nx = arbiter_floats[k]
+    ny = arbiter_floats[k + np.uint64(1)]
+    approach = (va[0] - vb[0]) * nx + (va[1] - vb[1]) * ny
+    if not approach > RESTING:
+        arbiter_floats[words[ARBITER_E]] = 0.0
+        return
+    if wall:
+        words[DOT_WALL] += np.uint64(1)
+        e = record[WALL_ELASTICITY]
+    else:
+        e = impact_elasticity(record, words, approach)
+    arbiter_floats[words[ARBITER_E]] = e
+    if words[AT_CONTACT] == np.uint64(0):
+        return
+    contact = carray(pointer(arbiter_words[words[ARBITER_CONTACTS]]), 4, np.float64)
+    pa = carray(pointer(body_a + words[BODY_POSITION]), 2, np.float64)
+    pb = carray(pointer(body_b + words[BODY_POSITION]), 2, np.float64)
+    r1 = words[CONTACT_R1]
+    r2 = words[CONTACT_R2]
+    gap = ((pb[0] + contact[r2]) - (pa[0] + contact[r1])) * nx \
+        + ((pb[1] + contact[r2 + np.uint64(1)]) - (pa[1] + contact[r1 + np.uint64(1)])) * ny
+    made = min(-gap, approach * record[SUBSTEP])
+    if not made > 0.0:
+        return
+    ia = carray(pointer(body_a + words[BODY_INVERSE_MASS]), 1, np.float64)[0]
+    ib = carray(pointer(body_b + words[BODY_INVERSE_MASS]), 1, np.float64)[0]
+    shift = (1.0 + e) * made / (ia + ib)
+    pa[0] -= ia * shift * nx
+    pa[1] -= ia * shift * ny
+    pb[0] += ib * shift * nx
+    pb[1] += ib * shift * ny
+    for body, p in ((body_a, pa), (body_b, pb)):  # Body.position reads it until the next step sets it from p (a disc)
+        t = carray(pointer(body + words[BODY_TRANSLATION]), 2, np.float64)
+        t[0] = p[0]
+        t[1] = p[1]
 
 
 @c_callback("void(voidptr, voidptr, voidptr)")
 def dot_dot_pre_solve(arbiter, space, data):
-    """Chipmunk's pre-solve callback of a dot-dot contact, every step it lasts: an impact (the dots approach)
-    gets the rule's restitution (a draw, or 0 below the sticking speed); a resting or parting contact 0."""
-    words = carray(data, SLOTS, np.uint64)
-    record = carray(data, SLOTS, np.float64)
-    arbiter_floats, approach = contact_approach(arbiter, words)
-    arbiter_floats[words[ARBITER_E]] = impact_elasticity(record, words, approach) if approach > RESTING else 0.0
+    """Chipmunk's pre-solve callback of a dot-dot contact, every step it lasts (`resolve_contact`)."""
+    resolve_contact(arbiter, data, False)
 
 
 @c_callback("void(voidptr, voidptr, voidptr)")
 def dot_wall_pre_solve(arbiter, space, data):
-    """Chipmunk's pre-solve callback of a dot-wall contact, every step it lasts: an impact gets the wall's
-    restitution (counted), a resting or parting contact 0."""
-    words = carray(data, SLOTS, np.uint64)
-    record = carray(data, SLOTS, np.float64)
-    arbiter_floats, approach = contact_approach(arbiter, words)
-    if approach > RESTING:
-        words[DOT_WALL] += np.uint64(1)
-        arbiter_floats[words[ARBITER_E]] = record[WALL_ELASTICITY]
-    else:
-        arbiter_floats[words[ARBITER_E]] = 0.0
+    """Chipmunk's pre-solve callback of a dot-wall contact, every step it lasts (`resolve_contact`)."""
+    resolve_contact(arbiter, data, True)
 
 
 def stream_key(rng: np.random.Generator) -> int:
@@ -128,12 +177,15 @@ class CollisionRecord:
         self.array = np.zeros(SLOTS)
         self._words = self.array.view(np.uint64)
         self.key = key
-        found = internals()
-        if found is not None:
+        found, layout = internals(), impact_layout()
+        if found is not None and layout is not None:
             for slot, name in ((ARBITER_WORDS, "words"), (ARBITER_E, "e"), (ARBITER_NORMAL, "normal"),
                                (ARBITER_BODY_A, "body_a"), (ARBITER_BODY_B, "body_b")):
                 self._words[slot] = found.arbiter[name]
-            self._words[BODY_VELOCITY] = found.body_offsets[VELOCITY]
+            self._words[[BODY_VELOCITY, BODY_POSITION]] = found.body_offsets[[VELOCITY, POSITION]]
+            for slot, name in ((ARBITER_CONTACTS, "contacts"), (CONTACT_R1, "r1"), (CONTACT_R2, "r2"),
+                               (BODY_INVERSE_MASS, "inverse_mass"), (BODY_TRANSLATION, "translation")):
+                self._words[slot] = layout[name]
 
     def _get(slot):
         return property(lambda self: int(self._words[slot]),
@@ -166,19 +218,32 @@ class CollisionRecord:
         return float(elasticity_of_impact(self.array.copy(), float(approach)))
 
     @property
+    def substep(self) -> float:
+        """The current Chipmunk sub-step, s (set by the stepper before it steps: impacts at contact read it)."""
+        return float(self.array[SUBSTEP])
+
+    @substep.setter
+    def substep(self, h: float) -> None:
+        self.array[SUBSTEP] = h
+
+    @property
     def compiled(self) -> bool:
-        """True when Chipmunk calls the compiled callbacks directly (`qdots.engine.chipmunk.internals`)."""
-        return internals() is not None
+        """True when Chipmunk calls the compiled callbacks directly (`qdots.engine.chipmunk.internals` and
+        `qdots.engine.chipmunk.impact_layout`)."""
+        return internals() is not None and impact_layout() is not None
 
 
-def install_handlers(space: pymunk.Space, rule: Restitution, record: CollisionRecord,
+def install_handlers(space: pymunk.Space, rule: Restitution, record: CollisionRecord, at_contact: bool = True,
                      compiled: bool | None = None) -> CollisionRecord:
     """Make ``space`` apply ``rule`` to every dot-dot and dot-wall impact, counting them in ``record``.
 
-    ``record`` must live as long as ``space`` (Chipmunk keeps its address). ``compiled=False``
-    runs the same rule from Python callbacks (the fallback; tests compare the two).
+    ``at_contact``: move each impact's bodies to where the impact at contact leaves them (the module's
+    docstring; `EngineSettings.impacts`). ``record`` must live as long as ``space`` (Chipmunk keeps its
+    address) and its `CollisionRecord.substep` must be the sub-step Chipmunk takes. ``compiled=False`` runs the
+    same rule from Python callbacks (the fallback; tests compare the two).
     """
     record.set_rule(rule)
+    record._words[AT_CONTACT] = bool(at_contact)
     if compiled is None:
         compiled = record.compiled
     if compiled:
@@ -187,22 +252,28 @@ def install_handlers(space: pymunk.Space, rule: Restitution, record: CollisionRe
         return record
     array = record.array
 
-    def approach(arbiter: pymunk.Arbiter) -> float:
+    def resolve(arbiter: pymunk.Arbiter, wall: bool) -> None:
         shape_a, shape_b = arbiter.shapes
-        va, vb, n = shape_a.body.velocity, shape_b.body.velocity, arbiter.normal
-        return (va.x - vb.x) * n.x + (va.y - vb.y) * n.y
+        a, b, n = shape_a.body, shape_b.body, arbiter.normal
+        speed = (a.velocity.x - b.velocity.x) * n.x + (a.velocity.y - b.velocity.y) * n.y
+        if not speed > RESTING:
+            arbiter.restitution = 0.0
+            return
+        if wall:
+            record.dot_wall += 1
+            e = rule.wall
+        else:
+            e = elasticity_of_impact(array, speed)
+        arbiter.restitution = e
+        made = min(-min(point.distance for point in arbiter.contact_point_set.points), speed * record.substep)
+        if at_contact and made > 0.0:
+            ia, ib = (1.0 / body.mass if body.body_type == pymunk.Body.DYNAMIC else 0.0 for body in (a, b))
+            shift = (1.0 + e) * made / (ia + ib)
+            a.position -= n * (ia * shift)
+            b.position += n * (ib * shift)
 
-    def dot_dot(arbiter: pymunk.Arbiter, space: pymunk.Space, data: object) -> None:
-        speed = approach(arbiter)
-        arbiter.restitution = elasticity_of_impact(array, speed) if speed > RESTING else 0.0
-
-    def dot_wall(arbiter: pymunk.Arbiter, space: pymunk.Space, data: object) -> None:
-        impact = approach(arbiter) > RESTING
-        record.dot_wall += impact
-        arbiter.restitution = rule.wall if impact else 0.0
-
-    space.on_collision(DOT, DOT, pre_solve=dot_dot)
-    space.on_collision(DOT, WALL, pre_solve=dot_wall)
+    space.on_collision(DOT, DOT, pre_solve=lambda arbiter, space, data: resolve(arbiter, False))
+    space.on_collision(DOT, WALL, pre_solve=lambda arbiter, space, data: resolve(arbiter, True))
     return record
 
 

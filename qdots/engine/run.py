@@ -48,6 +48,7 @@ class ChipmunkEngine:
         #: Chipmunk's steps (which include the collision callbacks), accumulated over all steps.
         self.timings = {"forces": 0.0, "pymunk": 0.0}
         self._restitution = restitution
+        self._at_contact = settings.impacts == "contact"
         self._stepper: Stepper | None = None
         self.build(settings, positions, velocities, radii, masses)
 
@@ -58,12 +59,13 @@ class ChipmunkEngine:
         collision record and the timings carry over.
         """
         self.space = new_space(self.walls, settings)
+        self._at_contact = settings.impacts == "contact"
         self._bodies = []
         self.radii = np.zeros(0)
         self.masses = np.zeros(0)
         self._stepper = None
         self.add_dots(positions, velocities, radii, masses)
-        install_handlers(self.space, self._restitution, self.collisions)
+        install_handlers(self.space, self._restitution, self.collisions, self._at_contact)
 
     def add_dots(self, positions, velocities, radii, masses) -> None:
         """Add dots to the space (validated by the caller); the forces' caches are emptied."""
@@ -73,7 +75,7 @@ class ChipmunkEngine:
         self.radii.setflags(write=False)
         self.masses.setflags(write=False)
         old = self._stepper
-        self._stepper = Stepper(self.space, self._bodies, self.radii, self.masses, self.walls)
+        self._stepper = Stepper(self.space, self._bodies, self.radii, self.masses, self.walls, self.collisions)
         if old is not None and old.space is self.space:  # same space: Chipmunk's contact impulses carry over
             self._stepper.previous = old.previous
         self.io: BodyArrays = self._stepper.io
@@ -87,11 +89,14 @@ class ChipmunkEngine:
     def set_restitution(self, rule: Restitution) -> None:
         """Apply ``rule`` to the contacts that begin from now on."""
         self._restitution = rule
-        install_handlers(self.space, rule, self.collisions)
+        install_handlers(self.space, rule, self.collisions, self._at_contact)
 
     def tune(self, settings: EngineSettings) -> None:
-        """Apply the knobs that change on a live space (iterations, slop, bias)."""
+        """Apply the knobs that change on a live space (iterations, slop, bias, where impacts are resolved)."""
         tune_space(self.space, settings)
+        if (settings.impacts == "contact") != self._at_contact:
+            self._at_contact = settings.impacts == "contact"
+            install_handlers(self.space, self._restitution, self.collisions, self._at_contact)
 
     def forget_forces(self) -> None:
         """Empty every force's cache (the forces, or the settings their numerics read, changed)."""

@@ -38,6 +38,8 @@ MAX_FAR_INTERVAL = 1e4
 ENGINES = ("chipmunk", "event")
 #: Most collisions the event engine may be allowed in one frame.
 MAX_EVENTS = 1_000_000_000
+#: Where the Chipmunk engine resolves an impact (`EngineSettings.impacts`).
+IMPACTS = ("contact", "overlap")
 #: The event engine's default cap on a frame's collisions (`EngineSettings.max_events`).
 FRAME_EVENTS = 1_000_000
 #: The Java's cap (``maxIterations = 2500``): ``max_events = THESIS_EVENTS`` runs the thesis's loop as it was.
@@ -84,6 +86,13 @@ class EngineSettings:
         round-off at 10 and 30 (`tests/test_engine_collisions.py`); set 10 or more where energy
         must be conserved. 5 gives the thesis's films the packing metrics and overlaps of 10,
         ~1.1x faster (``python -m benchmarks --only qdots_knobs fig2_2_realtime``).
+    impacts : {"contact", "overlap"}
+        Where the Chipmunk engine resolves an impact. ``"contact"`` (default): where the discs met, as the
+        thesis's model does: each impact's pair is moved to where the impact at contact leaves it
+        (`qdots.engine.contacts`). ``"overlap"``: where Chipmunk finds it, the sub-step's overlap into the
+        contact, which leaves every bounced pair ``(1 + e)`` times that overlap too close; with the thesis's
+        van der Waals proxy that made films ~10 % hotter and, with masses ~ d^3, more fragmented
+        (docs/engines.md): the 0.3 engine.
     collision_slop : float
         Overlap Chipmunk tolerates without correcting, px, in [0, `MAX_SLOP`] (pymunk's default
         0.1 px is 1.3 % of a mean radius, ours 0.01 px).
@@ -138,6 +147,7 @@ class EngineSettings:
     overlap_tolerance: float | None = 0.005
     max_substeps: int = 512
     iterations: int = 5
+    impacts: str = "contact"
     collision_slop: float = 0.01
     collision_bias: float | None = None
     spatial_hash: tuple[float, int] | None = None
@@ -159,6 +169,7 @@ class EngineSettings:
                                    unset="always `substeps`"),
         "max_substeps": Param("int", 1, MAX_SUBSTEPS, doc="most Chipmunk steps per time step for overlap_tolerance"),
         "iterations": Param("int", 1, MAX_ITERATIONS, doc="solver iterations per sub-step"),
+        "impacts": Param("str", choices=IMPACTS, doc="where Chipmunk resolves an impact: at contact or overlapped"),
         "collision_slop": Param("float", 0.0, MAX_SLOP, unit="px", doc="overlap left uncorrected"),
         "collision_bias": Param("float", 0.0, 1.0, high_open=True, optional=True,
                                 doc="fraction of an overlap left after 1 s",

@@ -182,10 +182,13 @@ class Stepper:
     radii, masses : ndarray, shape (N,)
     walls : ndarray, shape (M, 4)
         Static segments (box edges included when the board is closed), px.
+    record : qdots.engine.contacts.CollisionRecord, optional
+        The collision callbacks' record, told each sub-step's length before Chipmunk steps.
     """
 
-    def __init__(self, space, bodies, radii: np.ndarray, masses: np.ndarray, walls: np.ndarray):
+    def __init__(self, space, bodies, radii: np.ndarray, masses: np.ndarray, walls: np.ndarray, record=None):
         self.space = space
+        self.record = record
         self.io = BodyArrays(space, bodies)
         n = len(bodies)
         self.radii, self.masses = radii, masses
@@ -246,6 +249,8 @@ class Stepper:
         if h != self._bias_h:
             self.space.collision_bias = settings.bias_for(h)
             set_last_substep(self.space, h)
+            if self.record is not None:
+                self.record.substep = h
             self._bias_h = h
         middle = perf_counter()
         advance(self.space, h, k)
