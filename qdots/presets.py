@@ -1,18 +1,18 @@
 """The thesis's runs as `Experiment` presets (Appendix A, ``FileDepositer``).
 
-=================  ============================================================================
-``fig2-2``         300 free dots on 600 x 600 px, sigma 0 and 0.15, equal masses
-                   (``runAttractionComparison``: ``runRandomAttraction(15, s, 300, false)``).
-``fig2-3``         150 dots in a grating 6 lattice spacings wide (77.94 px), sigma 0 and 0.15,
-                   masses ~ d^3 (``runAttractionGrating``: ``runRandomAttractionGrating(..., true)``).
-``fig2-6``         equal vs d^3 masses at sigma 0, 0.05, 0.10, 0.15 (Fig 2-6a), and uniform size
-                   with half the dots twice as heavy (Fig 2-6b, Table 2.1,
-                   ``runRandomAttractionBimodal(15, 0, 15, 0, 2.0, 300, false)``).
-``centre-gravity`` ``runCentralSuite(500)``: 500 dots dropped on a ring around the centre, pulled
-                   in at 750 px/s^2 (``setGravity(25)`` x 30 px), drag ``setFriction(0.1, 0.1)``;
-                   sigma 0 and 0.15, 0.5 s between dots, 15 s to settle (``advance(15000)``;
-                   the Java comment says 100 s).
-=================  ============================================================================
+==================  ============================================================================
+``fig2-2``          300 free dots on 600 x 600 px, sigma 0 and 0.15, equal masses
+                    (``runAttractionComparison``: ``runRandomAttraction(15, s, 300, false)``).
+``fig2-3``          150 dots in a grating 6 lattice spacings wide (77.94 px), sigma 0 and 0.15,
+                    masses ~ d^3 (``runAttractionGrating``: ``runRandomAttractionGrating(..., true)``).
+``fig2-6``          equal vs d^3 masses at sigma 0, 0.05, 0.10, 0.15 (Fig 2-6a), and uniform size
+                    with half the dots twice as heavy (Fig 2-6b, Table 2.1,
+                    ``runRandomAttractionBimodal(15, 0, 15, 0, 2.0, 300, false)``).
+``centre-gravity``  ``runCentralSuite(500)``: 500 dots dropped on a ring around the centre, pulled
+                    in at 750 px/s^2 (``setGravity(25)`` x 30 px), drag ``setFriction(0.1, 0.1)``;
+                    sigma 0 and 0.15, 0.5 s between dots, 15 s to settle (``advance(15000)``;
+                    the Java comment says 100 s).
+==================  ============================================================================
 
 Figure runs set gravity and friction to zero (``setGravity(0)``,
 ``setFriction(0, 0)``): only van der Waals attraction and thermal kicks act.

@@ -12,6 +12,7 @@ between a *feature* of the metal at ``m`` and a feature of the oxide, over these
     * the point ``m`` and the inside of an oxide triangle or of a half-diagonal
       (the triangle edges from a cell corner to the cell centre);
     * a metal triangle or half-diagonal at ``m`` and an oxide point.
+
     Together with the thesis pairs this is the exact distance from ``m`` to
     the oxide surface, plus the exact distance from oxide points to the
     part of the metal surface around ``m``.
@@ -25,17 +26,17 @@ the oxide features touching it, and the metal features at ``m`` against the anch
 kernel (`planarize.engines.kernels`) evaluates them into *slots*, one per feature pair, laid out
 here and nowhere else:
 
-====================  ===========  =============================================================
-slots                 constant     feature pair
-====================  ===========  =============================================================
-0                     `POINT`      the anchor oxide point
+====================  ======================  ========================================================
+slots                 constant                feature pair
+====================  ======================  ========================================================
+0                     `POINT`                 the anchor oxide point
 1-4                   `OXIDE_SEGMENTS`        oxide segments from the anchor, one per `EDGE_DIRECTIONS`
 5-8                   `METAL_SEGMENTS`        metal segments from ``m``, against the anchor point
 9-12 (exact)          `OXIDE_HALF_DIAGONALS`  oxide half-diagonals at the anchor, one per `QUADRANTS`
 13-20 (exact)         `OXIDE_TRIANGLES`       two oxide triangles per quadrant at the anchor
 21-24 (exact)         `METAL_HALF_DIAGONALS`  metal half-diagonals at ``m``, against the anchor point
 25-32 (exact)         `METAL_TRIANGLES`       two metal triangles per quadrant at ``m``, likewise
-====================  ===========  =============================================================
+====================  ======================  ========================================================
 """
 
 from __future__ import annotations

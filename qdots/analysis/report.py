@@ -127,7 +127,7 @@ def table_rows(summary: dict) -> list[tuple[str, str]]:
 
 
 def save_report_png(state, report: BoardReport, path, dpi: int = 100) -> Path:
-    """Four panels: |psi6| per dot, g(r), fill within radius, exciton yield per dot; 12 x 10.5 in at ``dpi``
+    """Four panels: ``|psi6|`` per dot, g(r), fill within radius, exciton yield per dot; 12 x 10.5 in at ``dpi``
     (at most `labrig.figures.MAX_DPI`), written atomically."""
     from ..render import draw_state
 

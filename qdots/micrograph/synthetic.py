@@ -144,7 +144,7 @@ def score_detection(detection, centres, diameters) -> dict:
     Returns
     -------
     dict
-        ``recall``, ``precision`` (of the uncut detections), ``diameter`` (median |d - d_true| / d_true),
+        ``recall``, ``precision`` (of the uncut detections), ``diameter`` (median ``|d - d_true| / d_true``),
         ``bias`` (median of the signed error), ``position`` (median centre distance, px), ``interior``
         (detected minus true interior fraction) and ``true_interior``.
     """
