@@ -16,7 +16,7 @@ an `qdots.energy_budget.EnergyBudget` attached: the free film with masses ~ d^3 
   lets a dot travel into a contact in one sub-step, the default 0.005 radii).
 * Chipmunk both ways: impacts resolved at contact (``impacts = "contact"``, the default: every impact
   moved to where the impact at the instant of contact leaves the pair, `qdots.engine.contacts`) and where
-  Chipmunk finds them, overlapped (``impacts = "overlap"``, the 0.3 engine).
+  Chipmunk finds them, overlapped (``impacts = "overlap"``, the earlier default).
 
 Run: ``python -m benchmarks.qdots_energy_budget [--quick] [--figures DIR]`` (about 15 minutes on this machine,
 one process).
@@ -43,7 +43,7 @@ from .report import Figure, Headline, Note, Table, cli
 #: The films: (label, sigma, mass model).
 FILMS = (("masses ~ d^3, sigma 10 %", 0.10, "volume"), ("equal masses, sigma 0", 0.0, "equal"))
 #: The engines compared: (label, engine kind, engine settings changed from the defaults).
-ENGINES = (("event", "event", {}), ("Chipmunk, impacts overlapped (0.3)", "chipmunk", {"impacts": "overlap"}),
+ENGINES = (("event", "event", {}), ("Chipmunk, impacts overlapped (earlier default)", "chipmunk", {"impacts": "overlap"}),
            ("Chipmunk, impacts at contact (default)", "chipmunk", {}))
 #: Further Chipmunk settings run in the identical-board test only, as in `ENGINES`.
 TOLERANCES = (("Chipmunk overlapped, overlap_tolerance 0.0015", "chipmunk",
@@ -209,7 +209,7 @@ def run(quick: bool) -> list:
              "plus a cross term that averages to zero); the van der Waals pull injects about ten times more, and the "
              "collisions remove what both inject (removed / injected is 1 within the seed spread): the temperature is "
              "set by how much the pull injects for a given board. From identical boards and identical kicks, one "
-             "frame of Chipmunk resolving impacts where it finds them (the 0.3 engine) leaves the dots placed so that "
+             "frame of Chipmunk resolving impacts where it finds them (the earlier default) leaves the dots placed so that "
              "the next pull injects more: every impact is resolved only once the discs overlap, from the overlapped "
              "position, which leaves each pair that bounced (1 + e) times the overlap closer than the impact at "
              "contact does, and the proxy, which acts only from 0.1 px and is steepest there, then slows fewer "

@@ -341,26 +341,49 @@ def engines_item(films: dict) -> Item:
     event, chipmunk = films["event"], films["chipmunk"]
     points = sorted({(family, sigma) for family, sigma, _ in event.boards})
     table = Table("Each film point: event engine / Chipmunk engine, mean +- standard error over seeds; "
-                  "'differs' where they are more than 2 combined standard errors apart",
+                  "'beyond 2 SE' where they are more than 2 combined standard errors apart",
                   ["film", *(label for _, label, _ in COMPARED)])
-    differing = []
+    compared = len(points) * len(COMPARED)
+    allowed, bound, pooled_bound = agreement_bounds(compared, len(COMPARED))
+    differing, far, z = [], [], {measure: [] for measure, _, _ in COMPARED}
     for family, sigma in points:
         row = [f"{family}, sigma {100 * sigma:g} %"]
         for measure, label, digits in COMPARED:
             a, b = event.stat(family, sigma, measure), chipmunk.stat(family, sigma, measure)
+            se = math.hypot(a[1], b[1])
+            z[measure].append((b[0] - a[0]) / se if se > 0 else 0.0)
             split = apart(a, b)
             if split:
                 differing.append(f"{family} sigma {100 * sigma:g} % {label}")
-            row.append(f"{pm(*a, digits)} / {pm(*b, digits)}" + (" (differs)" if split else ""))
+            if apart(a, b, bound):
+                far.append(differing[-1])
+            row.append(f"{pm(*a, digits)} / {pm(*b, digits)}" + (" (beyond 2 SE)" if split else ""))
         table.rows.append(row)
-    compared = len(points) * len(COMPARED)
+    pooled = {measure: sum(values) / math.sqrt(len(values)) for measure, values in z.items()}
+    table.rows.append(["all points: Chipmunk - event, pooled z", *(f"{pooled[m]:+.2f}" for m, _, _ in COMPARED)])
+    biased = [label for measure, label, _ in COMPARED if abs(pooled[measure]) > pooled_bound]
     item.results = [table]
-    item.verdict = "engines agree" if not differing else "engines differ"
-    chance = compared * math.erfc(2 / math.sqrt(2))  # pairs beyond 2 SE by chance alone, for normal means
+    item.verdict = "engines agree" if len(differing) <= allowed and not far and not biased else "engines differ"
     item.why = (f"{compared - len(differing)} of {compared} point-measure pairs agree within 2 combined standard "
-                f"errors ({event.scale()}); chance alone puts about {chance:.0f} beyond 2 SE"
-                + (f"; apart: {'; '.join(differing)}." if differing else "."))
+                f"errors ({event.scale()}). If the engines gave the same films, chance alone would put up to "
+                f"{allowed} pairs beyond 2 SE (19 times in 20), none beyond {bound:.2f} SE, and no measure's pooled "
+                f"z (its differences in SE summed over the {len(points)} points, over sqrt {len(points)}) beyond "
+                f"{pooled_bound:.2f} (each 1 time in 20 over all)"
+                + (f"; beyond 2 SE: {'; '.join(differing)}" if differing else "")
+                + (f"; beyond {bound:.2f} SE: {'; '.join(far)}" if far else "")
+                + (f"; pooled z beyond {pooled_bound:.2f}: {', '.join(biased)}" if biased else "") + ".")
     return item
+
+
+def agreement_bounds(compared: int, measures: int) -> tuple[int, float, float]:
+    """For ``compared`` independent comparisons of equal means over ``measures`` measures: the most that lie beyond
+    2 combined standard errors 19 times in 20 (binomial); the number of standard errors that any one exceeds only
+    1 time in 20; the pooled z that any measure's exceeds only 1 time in 20 (both two-sided, Bonferroni)."""
+    from scipy.stats import binom, norm
+
+    beyond_2 = math.erfc(2 / math.sqrt(2))
+    return (int(binom.ppf(0.95, compared, beyond_2)), float(norm.isf(0.025 / compared)),
+            float(norm.isf(0.025 / measures)))
 
 
 def on_both_engines(make, films: dict) -> Item:

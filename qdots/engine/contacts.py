@@ -34,7 +34,7 @@ contact would have left them; velocities are not touched. A lasting contact that
 again is moved by what this sub-step's approach made (``u h``), not by its older overlap, which Chipmunk's
 position correction handles. Each impact is moved from the positions at which Chipmunk found it: a dot
 with two impacts in one sub-step gets both moves. ``impacts = "overlap"`` keeps Chipmunk's own late
-resolution (the 0.3 engine).
+resolution (the earlier default).
 """
 
 from __future__ import annotations

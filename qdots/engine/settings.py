@@ -92,7 +92,7 @@ class EngineSettings:
         (`qdots.engine.contacts`). ``"overlap"``: where Chipmunk finds it, the sub-step's overlap into the
         contact, which leaves every bounced pair ``(1 + e)`` times that overlap too close; with the thesis's
         van der Waals proxy that made films ~10 % hotter and, with masses ~ d^3, more fragmented
-        (docs/engines.md): the 0.3 engine.
+        (docs/engines.md): the earlier default.
     collision_slop : float
         Overlap Chipmunk tolerates without correcting, px, in [0, `MAX_SLOP`] (pymunk's default
         0.1 px is 1.3 % of a mean radius, ours 0.01 px).
