@@ -7,7 +7,7 @@ with the same forces, collision rule and seed; only how the dots collide differs
 * **Figure scenes**: the ``fig2-2`` preset at sigma 0 (equal masses) and at sigma 15 % with masses ~ d^3
   (the ``fig2-6`` setting), full size (300 dots, 600 x 600 px, one dot per second, 100 s settle), seed 154:
   wall time, simulated seconds per wall second, worst overlap, and the packing numbers at the end. One seed
-  says nothing about agreement: that is `python -m reproduce` (its first section, 5 seeds per point).
+  says nothing about agreement: that is `python -m reproduce` (its first section; the report runs 10 seeds per point).
 * **Large boards**: 3,000 and 30,000 dots (7.5 px, a jittered 17 px lattice, velocities N(0, 10) px/s) under
   the thesis's forces, run for 2 s (3,000) and 0.4 s (30,000) from the same start by both engines: wall per
   simulated second, worst overlap, collisions per frame, frames that reached the event cap (the default,
