@@ -51,8 +51,9 @@ KEY = "nanodisorder"
 LINE_START = "*Executed with nanodisorder "
 #: Default longest time a cell may run, s.
 CELL_TIMEOUT = 4 * 3600
-#: Strings that say a stored output or widget state holds a path on the machine that ran it.
-MACHINE_PATHS = ("/work/", "/tmp/", "/root/", "/home/", "/Users/", "/private/var/", "site-packages", "C:\\")
+#: What says a stored output or widget state holds a path on the machine that ran it: an absolute path of two or
+#: more parts (``/a/b``: not a URL's, a fraction's or a unit's slash), a Windows drive path, an installed package.
+MACHINE_PATH = re.compile(r"(?<![\w.:/~-])/(?:[\w.-]+/)+[\w.-]*|\b[A-Za-z]:\\|site-packages")
 #: Output types whose data is text (pictures are base64, where such strings occur by chance).
 TEXT_TYPES = ("text/", "application/json", "application/javascript", "application/vnd.jupyter.widget-view+json")
 WIDGET_STATE = "application/vnd.jupyter.widget-state+json"
@@ -138,10 +139,10 @@ def machine_paths(notebook: dict) -> list[str]:
     def look(where: str, texts) -> None:
         for text in texts:
             text = "".join(text) if isinstance(text, list) else text
-            hits = [p for p in MACHINE_PATHS if p in text]
-            if hits:
-                start = max(0, text.find(hits[0]) - 30)
-                found.append(f"{where} holds a machine path ({hits[0]!r}): ...{text[start:start + 90]!r}...")
+            hit = MACHINE_PATH.search(text)
+            if hit:
+                start = max(0, hit.start() - 30)
+                found.append(f"{where} holds a machine path ({hit.group()!r}): ...{text[start:start + 90]!r}...")
                 return
 
     for index, cell in enumerate(notebook.get("cells", [])):
