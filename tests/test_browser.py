@@ -43,7 +43,7 @@ FIGURE_CELLS = {
     "01_packing.ipynb": ["import matplotlib.pyplot as plt", "experiments = get_preset(",
                          "fig, axes = plt.subplots(2, 2"],
     "02_analysis_lqe.ipynb": ["SEEDS = ", "def hex_board("],
-    "03_planarize_hill.ipynb": ["runs = {name: planarize.anodize(", "render.draw_slice(run, ax)"],
+    "03_planarize_hill.ipynb": ["runs = {name: planarize.anodize(", "render.draw_slice(run, ax, legend=False)"],
     "04_planarize_ta.ipynb": ["SIZE, THICKNESS, STEP, SNAPS", "render.snapshots_figure(ta_run)",
                               "render.draw_history(ta_run, axes"],
     # Fig 3-11 is a Figure returned by render.snapshots_figure before pyplot was used in the kernel:
