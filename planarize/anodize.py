@@ -18,6 +18,7 @@ from labrig.validate import InputError, available_memory, count, flag, real, rea
 
 from .engines import engine_settings
 from .engines.base import check_oxide
+from .engines.continuum import Continuum
 from .metrics import history_row
 from .model import Model
 from .surface import Surface
@@ -136,7 +137,7 @@ def _model_and_engine(model, engine):
     return model, engine_settings(engine)
 
 
-def anodize(metal: Surface, thickness: float, model: Model | None = None, engine: str | object = "fast", *,
+def anodize(metal: Surface, thickness: float, model: Model | None = None, engine: str | object = "continuum", *,
             record=50, snapshots=None, oxide: Surface | None = None, progress: bool = False,
             observer: Callable | None = None, max_seconds: float | None = None) -> Anodization:
     """Oxidize ``metal`` until the oxide is ``thickness`` nm thick everywhere (thesis section 3.3).
@@ -152,9 +153,13 @@ def anodize(metal: Surface, thickness: float, model: Model | None = None, engine
         The physics: ``k_exp``, ``step``, ``distance``, ``volume`` (`planarize.Model`; default ``Model()``).
         The step must not exceed the thickness.
     engine : str or engine settings
-        ``"fast"`` (default; `planarize.engines.Fast` for its settings: batch tolerance, interacting
-        candidates, threads), ``"reference"`` (the thesis's sequential algorithm) or ``"matlab"`` (the
-        reference with the Matlab listings' shortcuts, to measure what they cost).
+        ``"continuum"`` (default; `planarize.engines.Continuum` for its settings: ``rtol``, the
+        discretization error aimed at): the limit of the thesis's rule as grid and step shrink, computed
+        at two resolutions so that every run states its discretization error (history columns
+        ``*_error_nm``, `planarize.resolution`). ``"fast"`` (`planarize.engines.Fast`: batch tolerance,
+        interacting candidates, threads), ``"reference"`` (the thesis's sequential algorithm) or
+        ``"matlab"`` (the reference with the Matlab listings' shortcuts): the thesis's discrete algorithm
+        at the given grid and ``model.step``.
     record : int or sequence of float
         Thicknesses (nm) at which to add a history row, or a count ``n`` (at most `MAX_RECORD`) for
         ``n + 1`` evenly spaced ones from 0 to ``thickness``. A row is taken as soon as the smallest
@@ -192,18 +197,43 @@ def anodize(metal: Surface, thickness: float, model: Model | None = None, engine
     rows_at = thickness_targets(record, thickness, "record", MAX_RECORD)
     shots_at = thickness_targets([0.0, thickness] if snapshots is None else snapshots, thickness, "snapshots",
                                  MAX_RECORD, empty=True)
+    if isinstance(settings, Continuum):
+        from .resolution import converge
+
+        if oxide is not None:
+            raise InputError("the continuum engine starts from bare metal: oxide must be None (continue an "
+                             "existing oxide with engine=\"fast\")")
+        return converge(metal, thickness, model, settings, rows_at, shots_at, progress=progress, observer=observer,
+                        max_seconds=max_seconds)
     n = metal.z.size
     within_memory("the run", run_bytes(n, len(rows_at), len(shots_at)), available_memory())
     sim = settings.build(metal, oxide, model)
     parameters = {"engine": settings.name, "thickness": thickness, "step": model.step, "k_exp": model.k_exp,
                   "distance": model.distance, "volume": model.volume, "boundary": metal.boundary,
                   "shape": list(metal.shape), "spacing": list(metal.spacing), **settings.options()}
-    history: list[dict] = []
-    shots: list[Snapshot] = []
-    start = time.perf_counter()
     # no loop without a bound: a run of n points takes ~thickness / step point updates each (measured
     # 0.2-1.3x), far fewer sweeps; many times that means the engine stopped making progress
     max_sweeps = 100 * n * (math.ceil(thickness / model.step) + 1) + 1000
+    table, shots, complete = record_run(sim, thickness, rows_at, shots_at, max_sweeps=max_sweeps,
+                                        bar=_progress(thickness) if progress else None, observer=observer,
+                                        max_seconds=max_seconds)
+    return Anodization(parameters, table, shots, metal, sim.metal(), sim.oxide(), sim.distances(), complete)
+
+
+def record_run(sim, thickness: float, rows_at: np.ndarray, shots_at: np.ndarray, *, max_sweeps: int, bar=None,
+               observer: Callable | None = None, max_seconds: float | None = None) -> tuple[dict, list, bool]:
+    """Advance the engine ``sim`` to ``thickness`` (nm), taking a history row at each of ``rows_at`` and a
+    `Snapshot` at each of ``shots_at``; returns (history table, snapshots, complete).
+
+    An engine that can stop at a given thickness (the continuum engine) is advanced to each target
+    exactly; a sweep of the thesis's engines oxidizes the points at the smallest distance, and a row is
+    taken as soon as the smallest distance has reached its thickness. ``bar`` (a progress bar in nm),
+    ``observer`` and ``max_seconds`` as in `anodize`; ``max_sweeps`` bounds the loop.
+    """
+    history: list[dict] = []
+    shots: list[Snapshot] = []
+    start = time.perf_counter()
+    targets = np.unique(np.concatenate([rows_at, shots_at, [thickness]]))
 
     def catch_up(final: bool) -> None:
         reached = sim.thickness
@@ -214,7 +244,6 @@ def anodize(metal: Surface, thickness: float, model: Model | None = None, engine
 
     if observer is not None:
         observer(sim)
-    bar = _progress(thickness) if progress else None
     shown = time.perf_counter()
     complete = True
     while sim.thickness < thickness:
@@ -223,12 +252,12 @@ def anodize(metal: Surface, thickness: float, model: Model | None = None, engine
             complete = False
             break
         if sim.iterations >= max_sweeps:
-            raise RuntimeError(f"the {settings.name} engine made no progress: {sim.iterations:,} sweeps reached "
+            raise RuntimeError(f"the {sim.name} engine made no progress: {sim.iterations:,} sweeps reached "
                                f"{sim.thickness:.6g} of {thickness:g} nm")
-        sim.advance()
+        sim.advance(float(targets[np.searchsorted(targets, sim.thickness, side="right")]))
         if not np.isfinite(sim.thickness):
             raise InputError(f"the distances became non-finite at {sim.iterations} sweeps: the surface or the "
-                             f"model (k_exp {model.k_exp:g}, step {model.step:g} nm) is outside the model's range")
+                             f"model (k_exp {sim.k_exp:g}) is outside the model's range")
         if observer is not None:
             observer(sim)
         if bar is not None and time.perf_counter() - shown > 0.2:
@@ -244,11 +273,11 @@ def anodize(metal: Surface, thickness: float, model: Model | None = None, engine
         bar.update(min(sim.thickness, thickness) - bar.n)
         bar.close()
     table = {key: np.array([row[key] for row in history]) for key in history[0]}
-    return Anodization(parameters, table, shots, metal, sim.metal(), sim.oxide(), sim.distances(), complete)
+    return table, shots, complete
 
 
-def _progress(total: float):
+def _progress(total: float, desc: str = "oxide"):
     from labrig.progress import progress_bar
 
-    return progress_bar(total, unit="nm", desc="oxide", bar_format="{l_bar}{bar}| {n:.3g}/{total:.3g} nm "
+    return progress_bar(total, unit="nm", desc=desc, bar_format="{l_bar}{bar}| {n:.3g}/{total:.3g} nm "
                                                                    "[{elapsed}<{remaining}]")

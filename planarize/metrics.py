@@ -30,7 +30,8 @@ HISTORY_COLUMNS = {
     "thickness_nm": "smallest metal-oxide distance when recorded (the thesis's oxide thickness)",
     "distance_mean_nm": "mean metal-oxide distance",
     "distance_std_nm": "standard deviation of the metal-oxide distances (the thesis's error bars)",
-    "metal_rms_nm": "RMS of the metal heights (Eq 3.8)",
+    "metal_rms_nm": "RMS of the metal heights (Eq 3.8; the continuum engine: over the surface's area, Eq 3.8's "
+                    "limit as the grid refines)",
     "metal_zrange_nm": "z-range of the metal heights (Eq 3.7)",
     "oxide_rms_nm": "RMS of the oxide heights",
     "oxide_zrange_nm": "z-range of the oxide heights",
@@ -41,11 +42,24 @@ HISTORY_COLUMNS = {
     "point_updates": "metal-point oxidations so far",
     "wall_s": "wall time since the start of the run, s",
 }
+#: The columns whose discretization error a continuum run estimates, each with an ``_error_nm`` column
+#: beside it (`planarize.resolution`).
+ESTIMATED = ("metal_rms_nm", "metal_zrange_nm", "oxide_rms_nm", "oxide_zrange_nm")
+HISTORY_COLUMNS.update({column.replace("_nm", "_error_nm"): f"estimated discretization error of {column} "
+                        "(continuum engine: from the run at half its resolution, Richardson's estimate)"
+                        for column in ESTIMATED})
+
+
+def roughness(metal, oxide) -> dict:
+    """RMS (Eq 3.8) and z-range (Eq 3.7) of the metal and oxide heights, nm, as history columns."""
+    return {"metal_rms_nm": rms(metal), "metal_zrange_nm": z_range(metal),
+            "oxide_rms_nm": rms(oxide), "oxide_zrange_nm": z_range(oxide)}
 
 
 def history_row(engine, target: float, wall: float) -> dict:
     """One history row (`HISTORY_COLUMNS`) for the current state of ``engine``."""
     d = engine.D
+    rough = engine.roughness()
     lost = engine.metal_lost()
     gained = engine.oxide_gained()
     expected = (engine.k_exp - 1.0) * lost
@@ -58,10 +72,7 @@ def history_row(engine, target: float, wall: float) -> dict:
         "thickness_nm": float(d.min()),
         "distance_mean_nm": float(d.mean()),
         "distance_std_nm": float(d.std()),
-        "metal_rms_nm": rms(engine.zm),
-        "metal_zrange_nm": z_range(engine.zm),
-        "oxide_rms_nm": rms(engine.zo),
-        "oxide_zrange_nm": z_range(engine.zo),
+        **rough,
         "metal_lost_nm3": lost,
         "oxide_gained_nm3": gained,
         "volume_error": float(volume_error),

@@ -17,6 +17,11 @@ from labrig.validate import choice, real
 DISTANCES = ("thesis", "exact")
 #: Volume accounting: exact for the piecewise-linear surface, or the thesis's equal weights.
 VOLUME_RULES = ("exact", "thesis")
+#: Where the oxide grows: the thesis's rule (each bit of metal becomes oxide at its nearest oxide point,
+#: so the volume balances at every point), or "conformal" (the metal recedes at one speed everywhere and
+#: the oxide is its conformal coat: the volume balances over the whole surface). Only the continuum
+#: engine computes "conformal".
+RULES = ("thesis", "conformal")
 #: Oxide volume per metal volume: at least 1 (an oxide that takes less room than its metal does not
 #: planarize), at most 5 (the Pilling-Bedworth ratios of real metals lie between about 0.5 and 4;
 #: Ta2O5 2.3, Nb2O5 2.7, WO3 3.4, Al2O3 ~1.3).
@@ -42,18 +47,26 @@ class Model:
     volume : {"exact", "thesis"}
         Volume accounting: exact for the piecewise-linear surface (edge points of an open grid
         carry half the area), or the thesis's equal weights (exact on periodic grids only).
+    rule : {"thesis", "conformal"}
+        Where the oxide grows (`RULES`): the thesis's rule, or the plain reading of "metal preserved,
+        oxide conformal" (uniform recession of the metal; continuum engine only).
+
+    ``step``, ``distance`` and ``volume`` are numerical choices of the thesis's discrete algorithm
+    (the reference, Matlab and fast engines); the continuum engine computes their common limit.
     """
 
     k_exp: float = 2.3
     step: float = 0.01
     distance: str = "thesis"
     volume: str = "exact"
+    rule: str = "thesis"
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "k_exp", real("k_exp", self.k_exp, *K_EXP_RANGE))
         object.__setattr__(self, "step", real("step", self.step, 0.0, MAX_STEP, low_open=True, unit="nm"))
         choice("distance", self.distance, DISTANCES)
         choice("volume", self.volume, VOLUME_RULES)
+        choice("rule", self.rule, RULES)
 
     def replace(self, **changes) -> "Model":
         """A copy with some fields changed, validated again."""

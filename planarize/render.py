@@ -136,7 +136,9 @@ def draw_history(run: Anodization, axes=None, *, errorbars: bool = True, log: bo
 
     The x axis is the oxide thickness reached (the smallest metal-oxide
     distance); horizontal error bars are the standard deviation of the
-    metal-oxide distances (the spread of the oxide's thickness).
+    metal-oxide distances (the spread of the oxide's thickness: none on the continuum engine, whose
+    oxide is exactly as thick everywhere), vertical ones the continuum engine's estimate of its
+    discretization error (`planarize.resolution`).
 
     Parameters
     ----------
@@ -144,7 +146,7 @@ def draw_history(run: Anodization, axes=None, *, errorbars: bool = True, log: bo
     axes : pair of matplotlib.axes.Axes, optional
         Where to draw RMS and z-range. Default: a new pyplot figure with two panels.
     errorbars : bool
-        Draw the horizontal error bars.
+        Draw the error bars.
     log : bool
         Logarithmic y axes (Fig 3-12: an exponential decay is a straight line), with limits from the
         data and at least two labelled ticks (`log_axis`); values of 0 are left out. Default: linear from 0.
@@ -162,7 +164,8 @@ def draw_history(run: Anodization, axes=None, *, errorbars: bool = True, log: bo
     xerr = h["distance_std_nm"] if errorbars else None
     for ax, measure, label in zip(axes, ("rms", "zrange"), ("RMS (nm)", "z-range (nm)")):
         for name, style in (("metal", METAL), ("oxide", OXIDE)):
-            ax.errorbar(x, h[f"{name}_{measure}_nm"], xerr=xerr, color=style["color"], marker=style["marker"],
+            yerr = h.get(f"{name}_{measure}_error_nm") if errorbars else None
+            ax.errorbar(x, h[f"{name}_{measure}_nm"], xerr=xerr, yerr=yerr, color=style["color"], marker=style["marker"],
                         markersize=4, linewidth=1, capsize=2, elinewidth=0.6, label=name)
         ax.set_xlabel("oxide thickness (nm)")
         ax.set_ylabel(label)

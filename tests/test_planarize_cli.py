@@ -29,7 +29,9 @@ def test_scene_writes_every_file(hill_run, capsys):
     names = sorted(p.name for p in hill_run.iterdir())
     assert names == sorted(stem + suffix for suffix in (*FILES, ".mp4"))
     run = load_run(hill_run / f"{stem}.npz")
-    assert run.initial.shape == (5, 5) and run.parameters["step"] == 0.04 and run.thickness >= 1.0
+    assert run.initial.shape == (5, 5) and run.parameters["rtol"] == 0.08 and run.thickness >= 1.0
+    assert run.parameters["engine"] == "continuum" and run.parameters["estimated_error"] <= 0.08
+    assert np.all(np.isfinite(run.history["oxide_rms_error_nm"]))
     with open(hill_run / f"{stem}_history.csv", newline="") as stream:
         rows = list(csv.DictReader(stream))
     assert [float(r["oxide_rms_nm"]) for r in rows] == pytest.approx(run.history["oxide_rms_nm"].tolist())
@@ -46,8 +48,13 @@ def test_run_reproduces_the_scene_file_and_overrides_the_engine(hill_run, tmp_pa
     assert again.oxide == first.oxide and np.array_equal(again.history["metal_rms_nm"], first.history["metal_rms_nm"])
     assert main(["run", str(scene), "--out", str(tmp_path / "ref"), "--engine", "reference"]) == 0
     reference = load_run(tmp_path / "ref" / "hill_quick_0.25.npz")
-    assert reference.parameters["engine"] == "reference"
-    assert reference.history["oxide_rms_nm"][-1] == pytest.approx(first.history["oxide_rms_nm"][-1], abs=0.01)
+    assert reference.parameters["engine"] == "reference" and reference.parameters["step"] == 0.04
+    assert main(["run", str(scene), "--out", str(tmp_path / "fast"), "--engine", "fast"]) == 0
+    fast = load_run(tmp_path / "fast" / "hill_quick_0.25.npz")
+    assert reference.history["oxide_rms_nm"][-1] == pytest.approx(fast.history["oxide_rms_nm"][-1], abs=0.01)
+    assert main(["run", str(scene), "--out", str(tmp_path / "loose"), "--rtol", "0.5"]) == 0
+    loose = load_run(tmp_path / "loose" / "hill_quick_0.25.npz")
+    assert loose.parameters["rtol"] == 0.5 and loose.parameters["refine"] <= first.parameters["refine"]
 
 
 def test_scene_save_writes_the_named_scene(tmp_path, capsys):
@@ -66,7 +73,7 @@ def test_import_runs_a_height_map(tmp_path, capsys):
     assert sorted(p.name for p in out.iterdir()) == sorted("afm" + s for s in FILES)
     run = load_run(out / "afm.npz")
     np.testing.assert_allclose(run.initial.z, z)
-    assert run.parameters["step"] == 0.01  # z-range 1 nm / 100
+    assert load_scene(out / "afm.toml").run.step == 0.01  # z-range 1 nm / 100
     assert "metal RMS" in capsys.readouterr().out
     scene = load_scene(out / "afm.toml")  # the provenance copy re-runs from anywhere
     assert scene.surface.params["path"] == str((tmp_path / "afm.csv").resolve())

@@ -220,7 +220,7 @@ def test_load_heights_checks_its_options_before_opening_the_file(tmp_path):
     ({"max_seconds": 0}, r"max_seconds must be > 0 s, got 0"),
     ({"max_seconds": math.inf}, r"max_seconds must be > 0 s, got inf"),
     ({"model": "thesis"}, r"model must be a planarize.Model, got str"),
-    ({"engine": "slow"}, r"engine must be one of 'fast', 'reference', 'matlab'"),
+    ({"engine": "slow"}, r"engine must be one of 'continuum', 'fast', 'reference', 'matlab'"),
     ({"thickness": -1.0}, r"thickness must be in \[0, 1e6\] nm, got -1.0"),
     ({"thickness": math.nan}, r"thickness must be in \[0, 1e6\] nm, got nan"),
     ({"thickness": "1"}, r"thickness must be a number in \[0, 1e6\] nm, got '1'"),
@@ -255,9 +255,9 @@ def test_the_memory_of_a_run_counts_the_engine_snapshots_and_history(monkeypatch
     assert run_bytes(hill.z.size, 52, 2) - need == HISTORY_ROW_BYTES
     assert run_bytes(hill.z.size, 51, 3) - need == 24 * hill.z.size  # metal, oxide and distances
     monkeypatch.setattr(anodize_module, "available_memory", lambda: need - 1)
-    refused(lambda: anodize(hill, 0.01, Model(step=0.01)), "the run would need about .* GiB of memory, more than")
+    refused(lambda: anodize(hill, 0.01, Model(step=0.01), "fast"), "the run would need about .* GiB of memory, more than")
     monkeypatch.setattr(anodize_module, "available_memory", lambda: need)
-    assert anodize(hill, 0.01, Model(step=0.01)).complete
+    assert anodize(hill, 0.01, Model(step=0.01), "fast").complete
 
 
 def test_grids_are_bounded_before_they_are_made():

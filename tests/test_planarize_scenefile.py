@@ -24,8 +24,9 @@ def test_tricky_values_round_trip_exactly(tmp_path):
     scenes = [
         PlanarizeScene('odd "name" \\ é', seed=7, surface=SurfaceSpec("random_roughness", {
             "size": 300.0, "scales": [[100.0, 0.1 + 0.2], [20.0, 1 / 3]], "refine": 2, "boundary": "periodic"}),
-            run=RunSettings(thickness=1 / 3, step=0.1 + 0.2, k_exp=1.3, tolerance=1e-17, record=[0.0, 0.1, 1 / 3],
-                            snapshots=[], distance="exact", volume="thesis")),
+            run=RunSettings(thickness=1 / 3, step=0.1 + 0.2, k_exp=1.3, engine="fast", tolerance=1e-17,
+                            record=[0.0, 0.1, 1 / 3], snapshots=[], distance="exact", volume="thesis")),
+        PlanarizeScene("conformal", run=RunSettings(rule="conformal", rtol=0.1 + 0.2)),
         PlanarizeScene("file", surface=SurfaceSpec("file", {"path": str(tmp_path / "z.npy"), "unit": "um",
                                                             "spacing": [0.5, 0.25], "level": True}),
                        run=RunSettings(engine="reference")),
@@ -70,11 +71,13 @@ def test_quick_scales_step_and_refinement():
 
 def test_scene_runs_with_overrides():
     run = SCENES["hill"].quick(0.25).anodize(thickness=0.3, record=3)
-    assert run.parameters["step"] == 0.04 and run.initial.shape == (5, 5) and len(run.history["target_nm"]) == 4
+    assert run.parameters["rtol"] == 0.08 and run.initial.shape == (5, 5) and len(run.history["target_nm"]) == 4
+    fast = SCENES["hill"].replace(run={"engine": "fast"}).quick(0.25).anodize(thickness=0.3, record=3)
+    assert fast.parameters["step"] == 0.04 and fast.parameters["engine"] == "fast"
     assert SCENES["hill"].replace(run={"engine": "reference"}).run.options()["engine"] == Reference()
     with pytest.raises(ValueError, match="settings of the fast engine"):  # never silently dropped
         SCENES["hill"].replace(run={"engine": "reference", "tolerance": 0.1})
-    options = SCENES["hill"].replace(run={"interacting": "together", "tolerance": 0.02}).run.options()
+    options = SCENES["hill"].replace(run={"engine": "fast", "interacting": "together", "tolerance": 0.02}).run.options()
     assert options["engine"] == Fast(tolerance=0.02, interacting="together")
     assert options["model"] == Model(step=0.01, k_exp=2.3)
 
@@ -105,8 +108,13 @@ def test_scene_runs_with_overrides():
     ("[run]\nengine = 'gpu'", r"run.engine must be one of"),
     ("[run]\ndistance = 'far'", r"run.distance must be one of 'thesis', 'exact'"),
     ("[run]\nvolume = 'mean'", r"run.volume must be one of 'exact', 'thesis'"),
-    ("[run]\ntolerance = -1", r"run.tolerance must be in \[0, "),
-    ("[run]\ninteracting = 'first'", r"run.interacting must be one of 'wait', 'together'"),
+    ("[run]\nengine = 'fast'\ntolerance = -1", r"run.tolerance must be in \[0, "),
+    ("[run]\nengine = 'fast'\ninteracting = 'first'", r"run.interacting must be one of 'wait', 'together'"),
+    ("[run]\ntolerance = 0.1", r"run.tolerance and interacting are settings of the fast engine"),
+    ("[run]\nengine = 'fast'\nrtol = 0.1", r"run.rtol is a setting of the continuum engine"),
+    ("[run]\nrtol = 0", r"run.rtol must be in \[0.0001, 1\]"),
+    ("[run]\nrule = 'uniform'", r"run.rule must be one of 'thesis', 'conformal'"),
+    ("[run]\nengine = 'reference'\nrule = 'conformal'", r"run.rule 'conformal' is computed by the continuum engine only"),
     ("[run]\nrecord = 0", r"run.record must be an integer in \[1, 100,000\]"),
     ("[run]\nrecord = 'all'", r"run.record must be an integer or a list of numbers"),
     ("[run]\nsnapshots = [0, 5]", r"run.snapshots must hold numbers in \[0, 1\] nm"),

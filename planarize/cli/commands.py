@@ -73,19 +73,41 @@ def run_scene(scene: PlanarizeScene, out: Path, *, movie: bool = False, progress
               + (" (add --movie to make one)" if path.suffix == ".mp4" else ""))
     files = files.written
     summary = summarize(scene, run)
-    print_table(f"{scene.name}: {summary['grid']}, k_exp {summary['k_exp']:g}, step {summary['step_nm']:g} nm, "
-                f"{summary['engine']} engine", [
+    print_table(f"{scene.name}: {summary['grid']}, k_exp {summary['k_exp']:g}, {_method(summary)}", [
         ("oxide thickness", f"{summary['thickness_nm']:.4g} nm (mean {summary['distance_mean_nm']:.4g} "
                             f"+- {summary['distance_std_nm']:.2g} nm)"),
-        ("metal RMS", f"{summary['metal_rms_initial_nm']:.4g} -> {summary['metal_rms_nm']:.4g} nm"),
-        ("oxide RMS", f"{summary['oxide_rms_initial_nm']:.4g} -> {summary['oxide_rms_nm']:.4g} nm"),
-        ("metal z-range", f"{summary['metal_zrange_initial_nm']:.4g} -> {summary['metal_zrange_nm']:.4g} nm"),
-        ("oxide z-range", f"{summary['oxide_zrange_initial_nm']:.4g} -> {summary['oxide_zrange_nm']:.4g} nm"),
+        *[(f"{surface} {label}", _change(summary, f"{surface}_{key}")) for surface in ("metal", "oxide")
+          for key, label in (("rms", "RMS"), ("zrange", "z-range"))],
+        ("discretization error", _accuracy(summary)),
         ("volume balance error", f"{summary['volume_error']:.2g}"),
         ("wall time", f"{summary['wall_s']:.2f} s ({summary['point_updates_per_s']:,.0f} point updates/s)"),
         ("files", ", ".join(str(f) for f in files)),
     ])
     return summary
+
+
+def _method(summary: dict) -> str:
+    if summary["engine"] == "continuum":
+        return f"{summary['rule']} rule, continuum engine at {summary['resolution']}"
+    return f"step {summary['step_nm']:g} nm, {summary['engine']} engine"
+
+
+def _change(summary: dict, key: str) -> str:
+    """``start -> end nm``, with the end's estimated error where the run states one."""
+    error = summary.get(f"{key}_error_nm")
+    tail = "" if error is None or not math.isfinite(error) else f" +- {error:.2g}"
+    return f"{summary[f'{key}_initial_nm']:.4g} -> {summary[f'{key}_nm']:.4g}{tail} nm"
+
+
+def _accuracy(summary: dict) -> str:
+    error = summary.get("estimated_error")
+    if summary["engine"] != "continuum":
+        return "not estimated (the thesis's algorithm: compare with engine continuum, or refine the grid)"
+    if error is None or not math.isfinite(error):
+        return "not estimated (the run stopped before its error estimate)"
+    met = "meets" if error <= summary["rtol"] else "does NOT meet"
+    return (f"at most {100 * error:.2g} % of RMS and z-range (estimated from a run at half the resolution; "
+            f"{met} rtol {100 * summary['rtol']:.2g} %)")
 
 
 def _panels(run: Anodization, targets) -> Anodization:
@@ -104,9 +126,17 @@ def summarize(scene: PlanarizeScene, run: Anodization) -> dict:
     dx, dy = run.initial.spacing
     wall = run.wall_s
     updates = int(h["point_updates"][-1])
+    p = run.parameters
+    continuum = {}
+    if p["engine"] == "continuum":
+        factor = p["refine"]
+        continuum = {"rule": p["rule"], "rtol": p["rtol"], "estimated_error": p["estimated_error"],
+                     "resolution": "its own grid" if factor == 1 else f"{factor:g}x its grid",
+                     **{f"{s}_{m}_error_nm": float(h[f"{s}_{m}_error_nm"][-1]) for s in ("metal", "oxide")
+                        for m in ("rms", "zrange")}}
     return {
         "name": scene.name, "grid": f"{nx} x {ny} points at {dx:g} x {dy:g} nm",
-        "engine": run.parameters["engine"], "k_exp": run.parameters["k_exp"], "step_nm": run.parameters["step"],
+        "engine": p["engine"], "k_exp": p["k_exp"], "step_nm": p.get("step", math.nan), **continuum,
         "thickness_nm": run.thickness, "distance_mean_nm": float(h["distance_mean_nm"][-1]),
         "distance_std_nm": float(h["distance_std_nm"][-1]),
         **{f"{s}_{m}_initial_nm": float(h[f"{s}_{m}_nm"][0]) for s in ("metal", "oxide") for m in ("rms", "zrange")},

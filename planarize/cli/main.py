@@ -19,6 +19,7 @@ from pathlib import Path
 from labrig.cli import UsageError, add_command, command_line, float_in, fraction
 
 from ..engines import ENGINES
+from ..model import RULES
 from ..io.scenefile import SCENES
 
 _positive = float_in(0.0, math.inf, low_open=True)
@@ -29,7 +30,16 @@ def _add_outputs(p, out_default: str) -> None:
     p.add_argument("--out", type=Path, default=Path(out_default), metavar="DIR",
                    help=f"output directory, created if missing (default ./{out_default})")
     p.add_argument("--engine", choices=list(ENGINES), default=None,
-                   help="override the scene's engine: fast (batched) or reference (the thesis algorithm, slow)")
+                   help="override the scene's engine: continuum (the thesis rule's converged limit, with its "
+                        "error; the default), fast (the thesis algorithm, batched) or reference (the thesis "
+                        "algorithm, slow)")
+    p.add_argument("--rtol", type=float_in(1e-4, 1.0, high_open=False), default=None, metavar="R",
+                   help="continuum engine: relative discretization error of RMS and z-range to aim at "
+                        "(default 0.02)")
+    p.add_argument("--rule", choices=list(RULES), default=None,
+                   help="where the oxide grows: thesis (each bit of metal turns into oxide at its nearest oxide "
+                        "point) or conformal (the metal recedes at one speed, the oxide is its conformal coat); "
+                        "conformal needs the continuum engine")
     p.add_argument("--quick", type=fraction, default=None, metavar="F",
                    help="a first look: steps 1/F times larger, refinement F times smaller")
     p.add_argument("--movie", action="store_true",
@@ -92,9 +102,13 @@ build_parser, main = command_line("planarize", "Anodization planarization of rou
 
 def _prepare(scene, args):
     """The scene with the command-line overrides applied."""
-    if args.engine is not None:  # another engine: the fast engine's settings do not apply to it
+    if args.engine is not None:  # another engine: the other engines' settings do not apply to it
         fast_only = {} if args.engine == "fast" else {"tolerance": None, "interacting": "wait"}
-        scene = scene.replace(run={"engine": args.engine, **fast_only})
+        continuum_only = {} if args.engine == "continuum" else {"rtol": None}
+        scene = scene.replace(run={"engine": args.engine, **fast_only, **continuum_only})
+    for key in ("rtol", "rule"):
+        if getattr(args, key) is not None:
+            scene = scene.replace(run={key: getattr(args, key)})
     if args.quick is not None:
         scene = scene.quick(args.quick)
     return scene

@@ -25,11 +25,14 @@ speed/accuracy knob.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from labrig.validate import InputError
 
 from ..grid import Grid
+from ..metrics import roughness
 from ..model import Model
 from ..surface import Surface, volume_weights
 from .features import feature_tables
@@ -71,6 +74,9 @@ class Engine:
         self.model = Model() if model is None else model
         if not isinstance(self.model, Model):
             raise InputError(f"model must be a planarize.Model, got {type(self.model).__name__}")
+        if self.model.rule != "thesis":
+            raise InputError(f"the {self.name} engine computes the thesis's rule only, not rule "
+                             f"{self.model.rule!r}: use engine=\"continuum\"")
         oxide = metal if oxide is None else check_oxide(metal, oxide)
         self.k_exp, self.step = self.model.k_exp, self.model.step
         self.distance, self.volume_rule = self.model.distance, self.model.volume
@@ -105,6 +111,10 @@ class Engine:
     def distances(self) -> np.ndarray:
         """Every metal point's distance to the oxide, nm, shape (nx, ny)."""
         return self.D.reshape(self.grid.nx, self.grid.ny).copy()
+
+    def roughness(self) -> dict:
+        """RMS and z-range of both surfaces over their grid points, nm (Eqs 3.7, 3.8)."""
+        return roughness(self.zm, self.zo)
 
     def metal_lost(self) -> float:
         """Metal volume consumed since the start, nm^3."""
@@ -150,6 +160,10 @@ class Engine:
         largest = max(step * float(metal_dz.max(initial=0.0)), float(oxide_dz.max(initial=0.0)))
         return oxide_moved, metal_moved, largest
 
-    def advance(self) -> None:
-        """Oxidize one batch (the points at the smallest distance) and bring distances up to date."""
+    def advance(self, until: float = math.inf) -> None:
+        """Oxidize one batch (the points at the smallest distance) and bring distances up to date.
+
+        ``until`` (the next thickness a run records) does not change a sweep: the thickness reached is
+        the smallest distance after it.
+        """
         raise NotImplementedError

@@ -28,8 +28,6 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
-import os
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -42,6 +40,7 @@ from .features import oxide_reach
 from .kernels import closest_sets, search_radii, star_reach, within
 from .pyramid import BallCache, HeightPyramid
 from .sets import OxideSets
+from .threads import available_threads, run_in_threads
 
 #: What the fast engine does with interacting candidates of a batch: one after the other, or together.
 INTERACTING = ("wait", "together")
@@ -132,9 +131,7 @@ class FastEngine(Engine):
         self.tolerance = max(tolerance, self.tie)
         self.interacting = self.settings.interacting
         threads = self.settings.threads
-        if threads is None:
-            threads = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
-        self.threads = int(threads)
+        self.threads = available_threads() if threads is None else int(threads)
         g = self.grid
         self.sets = OxideSets(g.n)
         self._pyramid = HeightPyramid(g, self.zo)
@@ -226,12 +223,11 @@ class FastEngine(Engine):
 
     def _map(self, function, parts: list) -> list:
         """``function`` over ``parts``, in threads when there are several (the compiled code releases the GIL)."""
-        rest = [_pool(len(parts) - 1).submit(function, part) for part in parts[1:]]
-        return [function(parts[0])] + [future.result() for future in rest]  # this thread takes the first part
+        return run_in_threads(function, parts)
 
     # -- one sweep --------------------------------------------------------------------------
 
-    def advance(self) -> None:
+    def advance(self, until: float = math.inf) -> None:
         in_batch, rows, set_size, sharers = self.sets.batch(self.D, self.tolerance, self.tie,
                                                             self.interacting == "wait", self.neighbours)
         raised, lowered, rise = self.oxidize(self.sets.metal[rows], self.sets.oxide[rows], set_size, sharers,
@@ -283,16 +279,6 @@ class FastEngine(Engine):
         order = np.argsort(points, kind="stable")
         sets.note_nearest(self.tables, self.zm, self.zo, points[order], np.concatenate([oxide[new], sets.nearest[kept]])[order])
         self.D[found] = np.minimum(self.D[found], np.where(closer | tied, distance, np.inf))
-
-
-@functools.lru_cache(maxsize=None)
-def _pool(threads: int) -> ThreadPoolExecutor:
-    """One pool per thread count, kept for the life of the process (a pool per sweep costs more than a sweep)."""
-    return ThreadPoolExecutor(threads, thread_name_prefix="planarize")
-
-
-if hasattr(os, "register_at_fork"):  # a forked child (e.g. a sweep worker) has none of the pools' threads
-    os.register_at_fork(after_in_child=_pool.cache_clear)
 
 
 def _chunks(lengths: np.ndarray, limit: int):

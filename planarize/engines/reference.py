@@ -109,7 +109,7 @@ class ReferenceEngine(Engine):
 
     # -- one iteration ---------------------------------------------------------------------
 
-    def advance(self) -> None:
+    def advance(self, until: float = math.inf) -> None:
         batch = np.flatnonzero(self.D <= self.D.min() + self.tie)
         owner = np.array([m for m in batch for _ in self.ox[m]], dtype=np.intp)
         oxide = np.array([o for m in batch for o in sorted(self.ox[m])], dtype=np.intp)
@@ -177,7 +177,7 @@ class MatlabEngine(ReferenceEngine):
         if ms:
             self._update(np.concatenate(ms), np.concatenate(vs), "take closer")
 
-    def advance(self) -> None:
+    def advance(self, until: float = math.inf) -> None:
         m = int(np.argmin(self.D))
         oxide = np.array(sorted(self.ox[m]), dtype=np.intp)
         owner = np.full(len(oxide), m, dtype=np.intp)

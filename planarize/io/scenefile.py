@@ -31,8 +31,8 @@ from labrig.validate import MAX_SEED, InputError, number, real, seed, text, type
 
 from .. import surfaces
 from ..anodize import MAX_RECORD, MAX_THICKNESS, Anodization, anodize, check_steps, thickness_targets
-from ..engines import ENGINES, Fast, engine_settings
-from ..model import K_EXP_RANGE, MAX_STEP, Model
+from ..engines import ENGINES, Continuum, Fast, engine_settings
+from ..model import K_EXP_RANGE, MAX_STEP, RULES, Model
 from ..surface import Surface
 from .heights import FORMATS, load_heights
 from .units import LENGTH_UNITS
@@ -84,10 +84,13 @@ SURFACES = {
 RUN = {
     "thickness": ("float", f"nm, oxide thickness to grow, in [0, {number(MAX_THICKNESS)}]"),
     "step": ("float", f"nm, metal height consumed per oxidation, in (0, thickness] and at most {number(MAX_STEP)} "
-                      "(thesis: 0.01 hill, 0.5 Ta)"),
+                      "(thesis: 0.01 hill, 0.5 Ta; the thesis's engines only)"),
     "k_exp": ("float", f"oxide volume per metal volume consumed, in [{number(K_EXP_RANGE[0])}, "
                        f"{number(K_EXP_RANGE[1])}] (Ta 2.3, Al ~1.3)"),
-    "engine": ("str", " | ".join(f'"{e}"' for e in ENGINES) + ' ("reference": the thesis algorithm, slow)'),
+    "engine": ("str", " | ".join(f'"{e}"' for e in ENGINES) + ' ("continuum": the thesis rule\'s converged limit, '
+                      'with its error; "reference": the thesis algorithm, slow)'),
+    "rule": ("str", " | ".join(f'"{r}"' for r in RULES) + ' (where the oxide grows; "conformal": continuum engine only)'),
+    "rtol": ("float?", "continuum engine: relative discretization error aimed at, in [0.0001, 1]; unset: 0.02"),
     "distance": ("str", '"thesis" (points and segments) | "exact" (the triangulated surfaces)'),
     "volume": ("str", '"exact" | "thesis" (equal point weights)'),
     "tolerance": ("float?", "nm, fast engine batch tolerance, >= 0; unset: step / 10"),
@@ -173,13 +176,16 @@ def _name_key(message: str, keys) -> str:
 @dataclass(frozen=True)
 class RunSettings:
     """What `planarize.anodize` is asked to do, as a scene file's ``[run]`` table: the thickness, the
-    `planarize.Model` (``step``, ``k_exp``, ``distance``, ``volume``), the engine and its settings
-    (``tolerance`` and ``interacting`` are the fast engine's), the records and snapshots."""
+    `planarize.Model` (``step``, ``k_exp``, ``distance``, ``volume``, ``rule``), the engine and its settings
+    (``rtol`` is the continuum engine's, ``tolerance`` and ``interacting`` the fast engine's), the
+    records and snapshots."""
 
     thickness: float = 1.0
     step: float = 0.01
     k_exp: float = 2.3
-    engine: str = "fast"
+    engine: str = "continuum"
+    rule: str = "thesis"
+    rtol: float | None = None
     distance: str = "thesis"
     volume: str = "exact"
     tolerance: float | None = None
@@ -195,6 +201,11 @@ class RunSettings:
         if self.engine != "fast" and (self.tolerance is not None or self.interacting != "wait"):
             raise InputError(f"tolerance and interacting are settings of the fast engine, not of engine "
                              f"{self.engine!r}: leave them out")
+        if self.engine != "continuum" and self.rtol is not None:
+            raise InputError(f"rtol is a setting of the continuum engine, not of engine {self.engine!r}: leave it out")
+        if self.engine != "continuum" and self.rule != "thesis":
+            raise InputError(f"rule {self.rule!r} is computed by the continuum engine only, not by engine "
+                             f"{self.engine!r}")
         self.engine_settings()
         check_steps(self.thickness, self.step)
         thickness_targets(self.record, self.thickness, "record")
@@ -203,13 +214,15 @@ class RunSettings:
 
     def model(self) -> Model:
         """The physics of the run."""
-        return Model(k_exp=self.k_exp, step=self.step, distance=self.distance, volume=self.volume)
+        return Model(k_exp=self.k_exp, step=self.step, distance=self.distance, volume=self.volume, rule=self.rule)
 
     def engine_settings(self):
         """The engine and its settings (`planarize.engines.Fast`, `Reference` or `Matlab`)."""
         settings = engine_settings(self.engine)
         if isinstance(settings, Fast):
             settings = Fast(tolerance=self.tolerance, interacting=self.interacting)
+        if isinstance(settings, Continuum) and self.rtol is not None:
+            settings = Continuum(rtol=self.rtol)
         return settings
 
     def options(self) -> dict:
@@ -259,14 +272,19 @@ class PlanarizeScene:
 
     def quick(self, fraction: float) -> "PlanarizeScene":
         """A cheaper version for a first look: ``step / fraction``, refinement ``refine * fraction``
-        (rounded, at least 1); thickness, records and snapshots unchanged.
+        (rounded, at least 1), and on the continuum engine a tolerance ``rtol / fraction`` (at most 1);
+        thickness, records and snapshots unchanged.
         """
         fraction = real("quick fraction", fraction, 0.0, 1.0, low_open=True)
         params = dict(self.surface.params)
         if "refine" in params:
             params["refine"] = max(1, round(params["refine"] * fraction))
+        run = {"step": float(f"{self.run.step / fraction:.12g}")}
+        if self.run.engine == "continuum":
+            rtol = Continuum().rtol if self.run.rtol is None else self.run.rtol
+            run["rtol"] = min(1.0, float(f"{rtol / fraction:.12g}"))
         return self.replace(name=f"{self.name} quick {fraction:g}", surface=SurfaceSpec(self.surface.kind, params),
-                            run={"step": float(f"{self.run.step / fraction:.12g}")})
+                            run=run)
 
 
 # -- TOML --------------------------------------------------------------------------------------
