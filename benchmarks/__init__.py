@@ -23,6 +23,7 @@ BENCHMARKS = [
     "planarize_reference",
     "planarize_fast",
     "planarize_accuracy",
+    "planarize_continuum",
     "sweeps",
     "cold_start",
 ]

@@ -97,7 +97,8 @@ class Continuum:
 def resample(surface: Surface, factor: float) -> Surface:
     """``surface`` on a grid ``factor`` times finer (``factor`` >= 1, linear: the same piecewise-linear
     surface) or coarser (``factor`` < 1: every ``1 / factor``-th point where the grid allows it, else
-    its piecewise-linear surface sampled on the nearest coarser grid spanning the same extent)."""
+    its piecewise-linear surface sampled on the grid of ``1 / factor`` times fewer cells, rounded up,
+    spanning the same extent)."""
     if factor >= 1:
         return surface.refine(int(round(factor)), "linear")
     step = int(round(1 / factor))
@@ -112,10 +113,10 @@ def resample(surface: Surface, factor: float) -> Surface:
     axes = []
     for n, d in ((nx, surface.dx), (ny, surface.dy)):
         if surface.periodic:
-            m = max(2, int(round(n / step)))
+            m = max(2, -(-n // step))
             axes.append((np.arange(m) * (n / m), d * n / m))
         else:
-            m = max(2, int(round((n - 1) / step)) + 1)
+            m = max(2, -(-(n - 1) // step) + 1)
             axes.append((np.linspace(0.0, n - 1, m), d * (n - 1) / (m - 1)))
     out = z
     for axis, (positions, _) in enumerate(axes):

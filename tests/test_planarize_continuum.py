@@ -1,0 +1,275 @@
+"""The continuum engine: its kernels against plain numpy, its physics on exact cases, its agreement with
+the thesis's algorithm as that one's grid refines, and its stated error against the true one."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from labrig.validate import InputError
+from planarize import Model, Surface, anodize, surfaces
+from planarize.engines import Continuum
+from planarize.engines.continuum import ContinuumEngine, resample
+from planarize.engines.flow import GHOST, fill_ghosts, metal_rate
+from planarize.engines.offset import coat, extremes, surface_moments
+from planarize.resolution import ORDER
+
+from helpers import refused
+
+RNG = np.random.default_rng(5)
+
+
+# -- kernels against numpy ----------------------------------------------------------------------
+
+def moments_by_triangles(z, periodic):
+    """Mean and RMS of the four-triangles-per-cell surface, by summing each triangle's exact integrals."""
+    if periodic:
+        z = np.pad(z, ((0, 1), (0, 1)), mode="wrap")
+    a, b, c, d = z[:-1, :-1], z[1:, :-1], z[1:, 1:], z[:-1, 1:]
+    m = (a + b + c + d) / 4
+    first = second = 0.0
+    for p, q, r in ((m, a, b), (m, b, c), (m, c, d), (m, d, a)):
+        first += ((p + q + r) / 3).sum()
+        second += ((p * p + q * q + r * r + p * q + q * r + r * p) / 6).sum()
+    cells = 4 * a.size
+    mean = first / cells
+    return mean, np.sqrt(second / cells - mean ** 2)
+
+
+@pytest.mark.parametrize("periodic", [False, True])
+def test_surface_moments_are_the_integrals_over_the_triangles(periodic):
+    z = 3.0 + RNG.normal(size=(7, 5))
+    mean, rms = surface_moments(z, periodic)
+    expected = moments_by_triangles(z, periodic)
+    assert mean == pytest.approx(expected[0], rel=1e-12) and rms == pytest.approx(expected[1], rel=1e-10)
+    assert surface_moments(np.full((4, 4), 2.5), periodic) == pytest.approx((2.5, 0.0))
+
+
+def test_extremes_find_the_top_of_a_sampled_parabola():
+    x = np.arange(9) * 0.5
+    z = 1.0 - (x[:, None] - 2.2) ** 2 - 0.5 * (x[None, :] - 1.9) ** 2  # top 1.0 between grid points
+    high, low = extremes(z, False)
+    assert high == pytest.approx(1.0, abs=1e-12) and low == z.min()  # the low corner is no vertex
+
+
+def brute_dilation(z, t, dx, dy):
+    """max over grid points x of z(x) + sqrt(t^2 - |x - y|^2), an open grid mirrored about its edges."""
+    nx, ny = z.shape
+    r = int(np.ceil(t / min(dx, dy))) + 1
+    mirrored = np.pad(z, r, mode="reflect")
+    best = np.full(z.shape, -np.inf)
+    for a in range(-r, r + 1):
+        for b in range(-r, r + 1):
+            d2 = (a * dx) ** 2 + (b * dy) ** 2
+            if d2 <= t * t:
+                best = np.maximum(best, mirrored[r + a:r + a + nx, r + b:r + b + ny] + np.sqrt(t * t - d2))
+    return best
+
+
+def dilate(z, t, dx, dy, periodic=False, window=None):
+    nx, ny = z.shape
+    ii, jj = np.indices(z.shape)
+    out = np.empty_like(z)
+    fi, fj = np.empty_like(ii), np.empty_like(jj)
+    window = int(np.ceil(t / min(dx, dy))) + 1 if window is None else window
+    coat(z, t, dx, dy, periodic, window, ii.astype(np.int64), jj.astype(np.int64), np.full(z.shape, -np.inf), out,
+         fi, fj, 0, nx)
+    return out
+
+
+def analytic_dilation(f, x, t):
+    """The dilation of the surface ``f(x, y)`` by a ball of radius ``t`` at the grid ``x`` x ``x``, by brute
+    force on a grid of t / 24 (which the coat of the coarse samples must approach)."""
+    h = t / 24
+    r = int(np.ceil(t / h))
+    offsets = np.arange(-r, r + 1) * h
+    d2 = offsets[:, None] ** 2 + offsets[None, :] ** 2
+    cap = np.where(d2 <= t * t, np.sqrt(np.maximum(t * t - d2, 0)), -np.inf)
+    return np.array([[np.max(f(a + offsets[:, None], b + offsets[None, :]) + cap) for b in x] for a in x])
+
+
+def test_coat_is_the_dilation_by_a_ball_to_sub_grid_accuracy():
+    def f(x, y):
+        return 0.3 * np.sin(x) * np.cos(0.7 * y)
+
+    x = np.arange(21) * 0.25
+    z = f(x[:, None], x[None, :])
+    for t in (0.1, 0.6, 1.3):
+        truth = analytic_dilation(f, x, t)
+        inner = slice(6, -6)  # (the coat mirrors the grid about its edges, the analytic surface goes on)
+        grid_error = np.abs(brute_dilation(z, t, 0.25, 0.25) - truth)[inner, inner].max()
+        coat_error = np.abs(dilate(z, t, 0.25, 0.25) - truth)[inner, inner].max()
+        assert coat_error < 2e-3 and coat_error < grid_error / 2, (t, coat_error, grid_error)
+    plane = 4.0 + 0.3 * x[:, None] - 0.2 * x[None, :]
+    found = dilate(plane, 0.8, 0.25, 0.25)
+    inner = found[5:-5, 5:-5]  # away from the mirrored edges the coat of a plane is the plane moved out by t
+    np.testing.assert_allclose(inner, plane[5:-5, 5:-5] + 0.8 * np.sqrt(1 + 0.3 ** 2 + 0.2 ** 2), atol=1e-12)
+
+
+def numpy_rate(z, dx, dy, t, k_exp):
+    """dM/dt of the thesis's rule (`planarize.engines.flow`) written with numpy, an open grid mirrored."""
+    p = np.pad(z, 2, mode="reflect")
+    c = p[2:-2, 2:-2]
+    xm, xp, ym, yp = p[1:-3, 2:-2], p[3:-1, 2:-2], p[2:-2, 1:-3], p[2:-2, 3:-1]
+    zx, zy = (xp - xm) / (2 * dx), (yp - ym) / (2 * dy)
+    zxx, zyy = (xp - 2 * c + xm) / dx ** 2, (yp - 2 * c + ym) / dy ** 2
+    zxy = (p[3:-1, 3:-1] - p[3:-1, 1:-3] - p[1:-3, 3:-1] + p[1:-3, 1:-3]) / (4 * dx * dy)
+    g = 1 + zx ** 2 + zy ** 2
+    mean = -((1 + zy ** 2) * zxx - 2 * zx * zy * zxy + (1 + zx ** 2) * zyy) / (2 * g ** 1.5)
+    gauss = (zxx * zyy - zxy ** 2) / g ** 2
+    root = np.sqrt(np.maximum(mean ** 2 - gauss, 0))
+    k1, k2 = mean + root, mean - root
+    jac = np.where(1 + t * k2 <= 0, 0.0, (1 + t * k1) * (1 + t * k2))
+    speed = jac / (jac + k_exp - 1)
+
+    def slope2(m2, m1, c, p1, p2, h):
+        def minmod(a, b):
+            return np.where(np.abs(a) < np.abs(b), a, b)
+        dm = (c - m1) / h + 0.5 * minmod(c - 2 * m1 + m2, p1 - 2 * c + m1) / h
+        dp = (p1 - c) / h - 0.5 * minmod(p1 - 2 * c + m1, p2 - 2 * p1 + c) / h
+        return np.maximum(dm, 0) ** 2 + np.minimum(dp, 0) ** 2
+
+    sx = slope2(p[:-4, 2:-2], xm, c, xp, p[4:, 2:-2], dx)
+    sy = slope2(p[2:-2, :-4], ym, c, yp, p[2:-2, 4:], dy)
+    return -speed * np.sqrt(1 + sx + sy)
+
+
+def test_metal_rate_is_the_flow_written_with_numpy():
+    z = 2.0 + 0.2 * RNG.normal(size=(9, 7))
+    padded = np.zeros((9 + 2 * GHOST, 7 + 2 * GHOST))
+    padded[GHOST:-GHOST, GHOST:-GHOST] = z
+    fill_ghosts(padded, False)
+    rate, stiff = np.empty(z.shape), np.zeros(9)
+    metal_rate(padded, 0.3, 0.4, 0.7, 2.3, -1.0, rate, stiff, 0, 9)
+    np.testing.assert_allclose(rate, numpy_rate(z, 0.3, 0.4, 0.7, 2.3), rtol=1e-12)
+    metal_rate(padded, 0.3, 0.4, 0.7, 2.3, 0.5, rate, stiff, 0, 9)  # the conformal rule: one normal speed
+    assert np.all(rate <= -0.5)
+
+
+# -- exact cases ------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("boundary", ["open", "periodic"])
+def test_a_flat_film_grows_exactly(boundary):
+    film = Surface(np.full((9, 9), 4.0), 0.5, boundary)
+    run = anodize(film, 2.0, Model(k_exp=2.3), record=4)
+    np.testing.assert_allclose(run.metal.z, 4.0 - 2.0 / 2.3, rtol=1e-13)
+    np.testing.assert_allclose(run.oxide.z, 4.0 + 2.0 * 1.3 / 2.3, rtol=1e-13)
+    assert np.all(run.history["metal_rms_nm"] < 1e-12) and abs(run.history["volume_error"][-1]) < 1e-12
+    assert run.parameters["estimated_error"] == 0 and run.parameters["refine"] == 1
+
+
+def test_a_tilted_plane_keeps_its_shape_away_from_the_edges():
+    plane = surfaces.tilted_plane((0.2, -0.1), points=41, spacing=0.25)
+    run = anodize(plane, 0.5, record=2, engine=Continuum(refine=1))
+    drop = plane.z - run.metal.z
+    inner = drop[12:-12, 12:-12]  # the mirrored edges are creases; their effect spreads ~ the thickness
+    np.testing.assert_allclose(inner, 0.5 / 2.3 * np.sqrt(1 + 0.2 ** 2 + 0.1 ** 2), rtol=1e-10)
+
+
+def test_runs_do_not_depend_on_what_they_record_or_on_threads():
+    s = surfaces.random_roughness(8.0, thickness=4.0, scales=((2.0, 0.5),), refine=2, boundary="periodic", seed=3)
+    settings = Continuum(refine=2)
+    a = anodize(s, 0.6, engine=settings, record=3)
+    b = anodize(s, 0.6, engine=settings, record=12, snapshots=np.linspace(0, 0.6, 11).tolist())
+    c = anodize(s, 0.6, engine=Continuum(refine=2, threads=1), record=3)
+    assert a.metal == b.metal == c.metal and a.oxide == b.oxide == c.oxide
+    np.testing.assert_array_equal(a.history["oxide_rms_nm"], b.history["oxide_rms_nm"][::4])
+
+
+def test_resampling_keeps_the_piecewise_linear_surface():
+    hill = surfaces.hill()  # 17 x 17: subsampled by 2 it is the hill refined 2x
+    assert resample(hill, 0.5) == surfaces.hill(refine=2)
+    odd = Surface(RNG.normal(size=(6, 6)), 1.0, "open")  # 5 cells: resampled onto 3 cells of 5/3 nm
+    coarse = resample(odd, 0.5)
+    assert coarse.shape == (4, 4) and coarse.spacing == pytest.approx((5 / 3, 5 / 3))
+    assert coarse.z[0, 0] == odd.z[0, 0] and coarse.z[-1, -1] == odd.z[-1, -1]
+    assert resample(hill, 2) == hill.refine(2)
+
+
+# -- the thesis's algorithm converges to it ------------------------------------------------------
+
+def thesis_gap(refine: int, shape="hill", boundary="open") -> float:
+    """Largest relative difference of metal and oxide RMS between the fast engine at ``refine`` and the
+    continuum engine (rtol 0.5 %), at every 0.2 nm to 1 nm."""
+    cont = anodize(surfaces.bump(4.5 if shape == "hill" else 3.5, boundary=boundary), 1.0, record=5,
+                   engine=Continuum(rtol=0.005))
+    fine = anodize(surfaces.bump(4.5 if shape == "hill" else 3.5, refine=refine, boundary=boundary), 1.0,
+                   Model(step=0.01 if refine < 16 else 0.005), "fast", record=5)
+    gap = 0.0
+    for column in ("metal_rms_nm", "oxide_rms_nm"):
+        gap = max(gap, float(np.max(np.abs(fine.history[column][1:] / cont.history[column][1:] - 1))))
+    return gap
+
+
+def test_the_thesis_algorithm_approaches_it_as_its_grid_refines():
+    gaps = [thesis_gap(r) for r in (4, 8)]
+    assert gaps[1] < gaps[0] / 2 and gaps[1] < 0.08, gaps
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("shape", ["hill", "depression"])
+@pytest.mark.parametrize("boundary", ["open", "periodic"])
+def test_the_thesis_algorithm_agrees_with_it_on_fine_grids(shape, boundary):
+    gaps = [thesis_gap(r, shape, boundary) for r in (8, 16)]
+    assert gaps[1] < gaps[0] and gaps[1] < 0.04, gaps  # 16x: 65 x 65 points, step 0.005 nm
+
+
+# -- the error it states --------------------------------------------------------------------
+
+def largest_relative(run, truth, column):
+    values = np.asarray(truth[column])
+    scale = np.maximum(np.abs(values), 0.01 * abs(values[0]))
+    true = np.max(np.abs(run.history[column] - values) / scale)
+    stated = np.max(run.history[column.replace("_nm", "_error_nm")] / scale)
+    return true, stated
+
+
+def test_the_stated_error_is_within_a_factor_2_of_the_true_error_on_the_hill():
+    hill = surfaces.hill()
+    run = anodize(hill, 1.0, record=10)  # default: rtol 2 %
+    truth = anodize(hill, 1.0, record=10, engine=Continuum(refine=8)).history  # ~0.15 % from converged
+    assert run.parameters["rtol_met"] and run.parameters["refine"] == 2
+    for column in ("metal_rms_nm", "oxide_rms_nm", "metal_zrange_nm", "oxide_zrange_nm"):
+        true, stated = largest_relative(run, truth, column)
+        assert true < 0.02 and 0.5 * true < stated < 2 * true, (column, true, stated)
+
+
+def test_rtol_chooses_the_resolution():
+    hill = surfaces.hill()
+    loose = anodize(hill, 0.5, record=5, engine=Continuum(rtol=0.5))
+    tight = anodize(hill, 0.5, record=5, engine=Continuum(rtol=0.01))
+    assert loose.parameters["refine"] == 1 and tight.parameters["refine"] >= 4
+    assert tight.parameters["estimated_error"] <= 0.01 < loose.parameters["levels"][1]["estimated_error"]
+    capped = anodize(hill, 0.5, record=5, engine=Continuum(rtol=1e-4, max_refine=2))
+    assert capped.parameters["refine"] == 2 and not capped.parameters["rtol_met"]
+    factor = 2 ** ORDER - 1
+    fixed = anodize(hill, 0.5, record=5, engine=Continuum(refine=2))
+    coarse = anodize(hill, 0.5, record=5, engine=Continuum(refine=1))
+    np.testing.assert_allclose(fixed.history["metal_rms_error_nm"],
+                               np.abs(fixed.history["metal_rms_nm"] - coarse.history["metal_rms_nm"]) / factor)
+
+
+# -- the conformal rule -----------------------------------------------------------------------
+
+def test_the_conformal_rule_equals_the_thesis_rule_on_a_flat_film_and_planarizes_less():
+    film = Surface(np.full((5, 5), 4.0), 0.5, "periodic")
+    flat = [anodize(film, 1.0, Model(rule=r), record=2).metal.z for r in ("thesis", "conformal")]
+    np.testing.assert_allclose(flat[0], flat[1], rtol=1e-14)
+    hill = surfaces.hill(boundary="periodic")
+    thesis = anodize(hill, 1.0, Model(rule="thesis"), record=2).history
+    conformal = anodize(hill, 1.0, Model(rule="conformal"), record=2).history
+    assert conformal["metal_rms_nm"][-1] > 1.3 * thesis["metal_rms_nm"][-1]
+
+
+# -- inputs ------------------------------------------------------------------------------------
+
+def test_bad_settings_are_refused_in_one_line():
+    refused(lambda: Continuum(rtol=0), "rtol must be in [0.0001, 1]")
+    refused(lambda: Continuum(refine=3), "refine must be a power of 2 in [1, 16], got 3")
+    refused(lambda: Continuum(max_refine=32), "max_refine must be an integer in [1, 16]")
+    refused(lambda: Continuum(stability=1.5), "stability must be in (0, 1]")
+    hill = surfaces.hill()
+    refused(lambda: anodize(hill, 1.0, oxide=hill.shifted(0.1)), "the continuum engine starts from bare metal")
+    refused(lambda: anodize(hill, 1.0, Model(rule="conformal"), "fast"),
+            "the fast engine computes the thesis's rule only")
+    refused(lambda: ContinuumEngine(hill.z), "metal must be a planarize.Surface")
