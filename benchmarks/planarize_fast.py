@@ -64,7 +64,7 @@ def tie_broken_errors(surface: Surface, copies: int = 5) -> list[float]:
         z = surface.z + np.random.default_rng(seed).normal(scale=1e-9, size=surface.z.shape)
         copy = Surface(z, surface.spacing, surface.boundary)
         ref = anodize(copy, 1.0, record=200, model=Model(step=0.01), engine=Fast(tolerance=0.0))
-        run = anodize(copy, 1.0, record=200, model=Model(step=0.01))
+        run = anodize(copy, 1.0, record=200, model=Model(step=0.01), engine="fast")
         errors.append(history_difference(run, ref, np.arange(1, 11) * 0.1))
     return errors
 
@@ -72,7 +72,7 @@ def tie_broken_errors(surface: Surface, copies: int = 5) -> list[float]:
 def hill_case(budget: float, copies: int = 5) -> dict:
     surface = surfaces.hill()
     ref = anodize(surface, 1.0, record=200, model=Model(step=0.01), engine=Fast(tolerance=0.0))
-    run = anodize(surface, 1.0, record=200, model=Model(step=0.01))
+    run = anodize(surface, 1.0, record=200, model=Model(step=0.01), engine="fast")
     ref_wall, exact = reference_time(surface, 1.0, 0.01, int(ref.history["point_updates"][-1]), budget)
     row = _row("hill 17x17 to 1 nm", run, history_difference(run, ref, np.arange(1, 11) * 0.1), 0.5,
                reference_s=ref_wall, reference_measured=exact)
@@ -85,7 +85,7 @@ def hill_case(budget: float, copies: int = 5) -> dict:
 def random65_case(budget: float) -> dict:
     surface = Surface(4 + np.random.default_rng(5).uniform(-0.25, 0.25, (17, 17)), 1.0).refine(4)
     ref = anodize(surface, 1.0, record=200, model=Model(step=0.01), engine=Fast(tolerance=0.0))
-    run = anodize(surface, 1.0, record=200, model=Model(step=0.01))
+    run = anodize(surface, 1.0, record=200, model=Model(step=0.01), engine="fast")
     ref_wall, exact = reference_time(surface, 1.0, 0.01, int(ref.history["point_updates"][-1]), budget)
     return _row("random 65x65 to 1 nm", run, history_difference(run, ref, np.arange(1, 11) * 0.1), None,
                 reference_s=ref_wall, reference_measured=exact)
@@ -95,10 +95,10 @@ def ta_case(quick: bool) -> dict:
     patch = surfaces.random_roughness(size=100, seed=1)
     depth = 20.0 if quick else 40.0
     patch_ref = anodize(patch, depth, record=100, model=Model(step=0.5), engine=Fast(tolerance=0.0))
-    patch_run = anodize(patch, depth, record=100, model=Model(step=0.5))
+    patch_run = anodize(patch, depth, record=100, model=Model(step=0.5), engine="fast")
     error = history_difference(patch_run, patch_ref, np.linspace(depth / 8, depth, 8))
     thickness = 10.0 if quick else 200.0
-    run = anodize(surfaces.random_roughness(seed=1), thickness, record=40, model=Model(step=0.5))
+    run = anodize(surfaces.random_roughness(seed=1), thickness, record=40, model=Model(step=0.5), engine="fast")
     return _row(f"Ta 101x101 to {thickness:g} nm", run, error, 30.0 if not quick else None)
 
 
@@ -239,7 +239,7 @@ def scaling(sizes, thickness: float = 3.0) -> list[tuple[int, float]]:
             if not first and engine.thickness >= 1.0:
                 first.append((time.perf_counter(), engine.thickness))
 
-        run = anodize(random_surface(n), thickness, Model(step=0.5), record=1, observer=observe)
+        run = anodize(random_surface(n), thickness, Model(step=0.5), record=1, observer=observe, engine="fast")
         end = time.perf_counter()
         out.append((n, (end - first[0][0]) / (run.thickness - first[0][1])))
     return out

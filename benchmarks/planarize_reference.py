@@ -64,7 +64,7 @@ def measure(side: int, budget: float) -> dict:
     metal = planarize.surfaces.hill(points=SIZES[side], refine=4)
     ref = reference(metal, budget)
     model = Model(step=STEP, k_exp=K_EXP)
-    fast = planarize.anodize(metal, THICKNESS, model, record=RECORD)
+    fast = planarize.anodize(metal, THICKNESS, model, "fast", record=RECORD)
     exact_ties = planarize.anodize(metal, THICKNESS, model, planarize.Fast(tolerance=0.0), record=RECORD)
     final = ref["final"]
     rate = final["point_updates"] / final["wall_s"]

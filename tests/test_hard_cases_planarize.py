@@ -1,7 +1,8 @@
 """Hard cases for the planarization engines: cliffs, spikes, tilted planes, very low and high k_exp.
 
-Every case must finish with finite heights, the oxide nowhere below the metal, non-negative
-distances and the volume balance exact to round-off.
+Every case must finish with finite heights, the oxide nowhere below the metal and non-negative
+distances; the thesis's engines keep the volume balance exact to round-off, the continuum engine
+states its error, volume balance included, and says when it does not meet its tolerance.
 """
 
 import numpy as np
@@ -15,7 +16,13 @@ def assert_sane(run):
         assert np.all(np.isfinite(shot.metal.z)) and np.all(np.isfinite(shot.oxide.z))
         assert np.all(shot.oxide.z >= shot.metal.z)
         assert np.all(np.isfinite(shot.distances)) and np.all(shot.distances >= 0)
-    assert np.all(np.abs(run.history["volume_error"]) < 1e-12)
+    if run.parameters["engine"] == "continuum":
+        p = run.parameters
+        largest = np.abs(run.history["volume_error"]).max()
+        assert np.isfinite(p["estimated_error"]) and p["volume_error"] == largest
+        assert p["rtol_met"] == (max(p["estimated_error"], largest) <= p["rtol"])
+    else:
+        assert np.all(np.abs(run.history["volume_error"]) < 1e-12)
     assert run.thickness >= run.parameters["thickness"]
 
 
@@ -32,10 +39,12 @@ def hard_surface(kind: str) -> Surface:
     return Surface(z, 0.25)
 
 
+@pytest.mark.parametrize("engine", ["continuum", "fast"])
 @pytest.mark.parametrize("k_exp", [1.05, 5.0])
 @pytest.mark.parametrize("kind", ["cliff", "spike", "pit", "checkerboard"])
-def test_rough_surfaces_at_extreme_expansion(kind, k_exp):
-    run = anodize(hard_surface(kind), 0.5, record=4, snapshots=[0.0, 0.25, 0.5], model=Model(step=0.02, k_exp=k_exp))
+def test_rough_surfaces_at_extreme_expansion(kind, k_exp, engine):
+    run = anodize(hard_surface(kind), 0.5, record=4, snapshots=[0.0, 0.25, 0.5], model=Model(step=0.02, k_exp=k_exp),
+                  engine=engine)
     assert_sane(run)
 
 
@@ -49,15 +58,16 @@ def test_spike_in_periodic_exact_distances(engine):
     assert 7.0 - run.metal.z[0, 0] > 5 * (4.0 - np.median(run.metal.z))
 
 
+@pytest.mark.parametrize("engine", ["continuum", "fast"])
 @pytest.mark.parametrize("slope", [(0.2, 0.0), (0.5, -0.3), (3.0, 0.0)])
-def test_tilted_planes_stay_planes(slope):
+def test_tilted_planes_stay_planes(slope, engine):
     """A tilted plane has nothing to planarize: away from the edges both surfaces stay planes of the same slope.
 
     (Within about the oxide thickness of an open edge the surfaces bend: the oxide there lacks the
     neighbours beyond the edge, the thesis's finite-sample effect.)
     """
     plane = surfaces.tilted_plane(slope, points=21)
-    run = anodize(plane, 0.5, record=3, model=Model(step=0.01))
+    run = anodize(plane, 0.5, record=3, model=Model(step=0.01), engine=engine)
     assert_sane(run)
     x, y = np.meshgrid(plane.x, plane.y, indexing="ij")
     margin = 1.5
@@ -71,7 +81,11 @@ def test_tilted_planes_stay_planes(slope):
         np.testing.assert_allclose(coef[:2], slope, atol=0.01 * tilt)
 
 
-def test_very_steep_random_surface_exact():
+@pytest.mark.parametrize("engine", ["continuum", "fast"])
+def test_very_steep_random_surface(engine):
     rng = np.random.default_rng(11)
-    run = anodize(Surface(rng.uniform(0, 3, (9, 9)), 0.25), 0.5, record=3, model=Model(step=0.05, k_exp=2.3, distance="exact"))
+    run = anodize(Surface(rng.uniform(0, 3, (9, 9)), 0.25), 0.5, record=3,
+                  model=Model(step=0.05, k_exp=2.3, distance="exact"), engine=engine)
     assert_sane(run)
+    if engine == "continuum":  # slopes of 12: the flow's volume balance is far from exact, and it says so
+        assert not run.parameters["rtol_met"] and run.parameters["volume_error"] > 0.05
