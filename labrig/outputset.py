@@ -29,9 +29,10 @@ class OutputSet(AllOrNothing):
     streams, then switches: the staging directory takes the folder's place in one atomic step
     (`labrig.staging.switch_into`), so that a process killed at any moment leaves the folder the whole
     earlier set or the whole new one, byte for byte. The earlier set's files that this one does not
-    write are carried over into it, except those it `drop` s (removed) or `keep_as` another name.
-    `update` names a shared file of ``directory`` (a summary table of its sets) to rewrite just after
-    the switch, under the directory's lock; Ctrl-C waits for the switch and the updates to end. If
+    write are carried over into it, except those it drops (`drop`: removed) or keeps under another name
+    (`keep_as`). `update` names a shared file of ``directory`` (a summary table of its sets): its new
+    version is written beside it before the switch and renamed into place right after it, under the
+    directory's lock (a kill between the two leaves that file one set behind); Ctrl-C waits for both. If
     the ``with`` block raises, the staging directory is deleted and every stream aborted: the earlier
     set stays as it was. Opening a set also clears temporary files that killed processes left in the
     directory (`remove_stale_temporaries`) and their staging directories.
@@ -70,7 +71,7 @@ class OutputSet(AllOrNothing):
         self.removed: list[Path] = []
         #: Earlier files kept under another name by the switch (`keep_as`): ``(old path, new path)``.
         self.kept: list[tuple[Path, Path]] = []
-        #: Shared files of ``directory`` rewritten after the switch (`update`).
+        #: Shared files of ``directory`` rewritten with the switch (`update`).
         self.updated: list[Path] = []
 
     @property
@@ -120,10 +121,10 @@ class OutputSet(AllOrNothing):
         return stream
 
     def update(self, name: str, write: Callable[[Path, Path], object]) -> None:
-        """Rewrite the shared file ``directory/name`` just after the switch: ``write(current, staged)`` reads
-        ``current`` (which may not exist) and writes the new version to ``staged``, which then replaces it
-        atomically. It runs under the directory's lock, so concurrent sets updating one file (a summary table)
-        never lose each other's rows."""
+        """Rewrite the shared file ``directory/name`` with the switch: ``write(current, staged)`` reads ``current``
+        (which may not exist) and writes the new version to ``staged``, which replaces it right after the switch.
+        It runs under the directory's lock, so concurrent sets updating one file (a summary table) never lose
+        each other's rows."""
         self._claim(name, shared=True)
         self._updates.append((name, write))
 

@@ -269,7 +269,7 @@ def report(rows: Sequence[dict], out: Path, folders: Sequence[OutputSet]) -> Non
             ("files", f"{files.path}{os.sep}: " + ", ".join(path.name for path in files.written)),
         ])
     runs = f"{len(rows)} run folders and their rows" if len(rows) != 1 else "1 run folder and its row"
-    print(f"wrote {runs} of {out / 'summary.csv'}")
+    print(f"wrote {runs} in {out / 'summary.csv'}")
 
 
 def run_experiments(experiments: Sequence, out: Path, *, movie: bool, gsd: bool, progress: bool = True,
