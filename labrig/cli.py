@@ -2,7 +2,8 @@
 
 Bad input never prints a usage dump or a traceback: `run_main` turns it (an argparse error, a
 `labrig.validate.InputError`, a missing or unreadable file) into one line ``PROG: error: ...`` on
-stderr and exit status 2 (130 when interrupted). Any other exception is a bug and keeps its
+stderr and exit status 2 (130 when interrupted: ``PROG: interrupted``, with what had been written whole by then
+when a `labrig.launch.LateInterrupt` says so). Any other exception is a bug and keeps its
 traceback.
 """
 
@@ -12,6 +13,7 @@ import argparse
 import sys
 from typing import Callable, Sequence
 
+from .launch import INTERRUPTED, interrupted_line
 from .validate import InputError, count, printable, real
 
 
@@ -73,14 +75,14 @@ def run_main(parser: argparse.ArgumentParser, argv: Sequence[str] | None) -> int
     except (UsageError, InputError, OSError) as exc:
         print(f"{parser.prog}: error: {printable(exc)}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
-        print(f"{parser.prog}: interrupted", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as exc:
+        print(interrupted_line(parser.prog, exc), file=sys.stderr)
+        return INTERRUPTED
     except Exception as exc:  # e.g. numba's SystemError "... returned a result with an exception set" on Ctrl-C
         if not interrupted(exc):
             raise
-        print(f"{parser.prog}: interrupted", file=sys.stderr)
-        return 130
+        print(interrupted_line(parser.prog), file=sys.stderr)
+        return INTERRUPTED
 
 
 def interrupted(exc: BaseException) -> bool:

@@ -1,57 +1,60 @@
-"""Staging directories of output sets: who writes which set, and a switch that survives a kill.
+"""Staging directories of output sets: who writes which set, and a switch that is one rename.
 
-An `labrig.files.OutputSet` named ``NAME`` writes its files into a hidden staging directory inside
-its output directory, ``.staging-NAME-<pid>-<8 hex digits>/`` (the same filesystem, so a rename out
-of it is atomic). Its process holds an exclusive ``flock`` on that directory as long as the set is
-open: the lock says that the set is being written, and the operating system drops it when the
-process ends, however it ends, so a lock is never stale. A second writer of ``NAME`` in the same
-directory finds it held and is refused (`SetBusyError`).
+An `labrig.files.OutputSet` named ``NAME`` in an output directory ``OUT`` is the folder ``OUT/NAME``.
+Its files are written into a hidden staging directory beside it, ``OUT/.staging-NAME-<pid>-<8 hex
+digits>/`` (the same filesystem). Its process holds an exclusive ``flock`` on that directory while the
+set is open: the lock says that the set is being written, and the operating system drops it when the
+process ends, however it ends, so a lock is never stale. A second writer of ``NAME`` in ``OUT`` finds
+it held and is refused (`SetBusyError`).
 
-The switch (`Staging.switch`) first writes a journal, ``journal.json``, into the staging
-directory (atomically): every rename out of it and every removal that makes the new set. Then it
-renames, then removes the journal and the staging directory. A process killed before its journal
-exists leaves the earlier set as it was; killed after, its journal is rolled forward by the next
-`recover`. The directory therefore holds the whole earlier set or the whole new one, never a mix
-(against kills; nothing is fsynced, so a power cut may still lose the last switch).
+The switch (`switch_into`) puts the staging directory at ``OUT/NAME`` in one step: a rename when there
+is no earlier set, else an atomic exchange of the two directories (``renameat2(RENAME_EXCHANGE)`` on
+Linux, ``renamex_np(RENAME_SWAP)`` on macOS), after which the staging path holds the earlier set, to be
+deleted. A process killed at any moment therefore leaves ``OUT/NAME`` the whole earlier set or the
+whole new one, byte for byte; what it may leave besides is a hidden ``.staging-...`` directory, which
+the next `recover` deletes. (Nothing is fsynced, so a power cut may still lose the last switch.) On
+a filesystem without the exchange the switch takes two renames, ``OUT/NAME`` to
+``.staging-...-<tag>.old`` and the staging directory to ``OUT/NAME``; a kill between them leaves no
+``OUT/NAME`` until the next `recover` rolls the switch forward.
 
 `recover` runs whenever a set is opened or committed, and whenever a reader opens a file of a set
-(`recover_beside`): a staging directory whose lock is free (its process has ended) is rolled forward
-(journal present) or deleted (no journal: its run never reached the switch). A staging directory of
-a live process is left alone. Opening, committing and recovering take the output directory's own
-lock (``flock`` on the directory itself, no lock file), so they happen one at a time per directory;
-each takes milliseconds.
+(`recover_beside`): a staging directory whose lock is free (its process has ended) is deleted, and an
+interrupted two-rename switch is rolled forward. A staging directory of a live process is left alone.
+Opening, committing and recovering take the output directory's own lock (``flock`` on the directory
+itself, no lock file), so they happen one at a time per directory; each takes milliseconds.
 """
 
 from __future__ import annotations
 
 import contextlib
+import ctypes
 import errno
-import json
 import os
 import re
 import secrets
 import shutil
-import sys
+import signal
+import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Sequence
 
 try:
     import fcntl
 except ImportError:  # pragma: no cover - not POSIX: no locks; a staging directory is live while its pid runs
     fcntl = None
 
+from .launch import LateInterrupt
 from .validate import InputError
 
-#: Name of a staging directory: ``.staging-NAME-<pid>-<8 hex digits>``.
+#: Name of a staging directory: ``.staging-NAME-<pid>-<8 hex digits>``; ``.old`` after it: the earlier set of a
+#: two-rename switch.
 PREFIX = ".staging-"
-STAGING_PATTERN = re.compile(r"^\.staging-(?P<name>.+)-(?P<pid>[0-9]+)-(?P<tag>[0-9a-f]{8})$")
-#: The journal of a switch, in its staging directory, and its name while it is written (no set may stage them).
-JOURNAL = "journal.json"
-PARTIAL_JOURNAL = f".{JOURNAL}.partial"
-JOURNAL_FORMAT = "labrig-output-switch"
-JOURNAL_VERSION = 1
+RETIRED = ".old"
+STAGING_PATTERN = re.compile(r"^\.staging-(?P<name>.+)-(?P<pid>[0-9]+)-(?P<tag>[0-9a-f]{8})(?P<retired>\.old)?$")
+#: Longest name of a set, bytes: its staging directory's name must stay under the 255 bytes of a file name, with
+#: room for the suffixes of the set's files.
+MAX_SET_NAME = 200
 #: Longest wait for the lock of an output directory, s (it is held for milliseconds at a time).
 LOCK_WAIT_S = 120.0
 #: Poll interval while waiting for it, s.
@@ -59,6 +62,8 @@ LOCK_POLL_S = 0.02
 #: errno values of filesystems without ``flock`` on directories (EBADF: NFS, whose emulated locks need a file
 #: open for writing).
 _NO_LOCKS = {errno.ENOLCK, errno.EOPNOTSUPP, errno.ENOSYS, errno.EINVAL, errno.EBADF}
+#: errno values of a filesystem or kernel without an atomic exchange of two directories.
+_NO_EXCHANGE = {errno.EINVAL, errno.ENOSYS, errno.EOPNOTSUPP, errno.ENOTSUP, errno.EXDEV}
 
 
 class SetBusyError(InputError):
@@ -110,6 +115,27 @@ def directory_lock(directory: str | os.PathLike, wait: float = LOCK_WAIT_S):
         os.close(fd)  # releases the lock
 
 
+@contextlib.contextmanager
+def interrupts_deferred(done: str = ""):
+    """Hold a Ctrl-C (SIGINT) that arrives in the ``with`` block until its end, then raise
+    `labrig.launch.LateInterrupt` with the message ``done`` (what the block wrote whole).
+
+    What a switch runs under, so that Ctrl-C never cuts it in two. Only the main thread can hold
+    signals; elsewhere the block runs as it is.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    caught = []
+    previous = signal.signal(signal.SIGINT, lambda signum, frame: caught.append(signum))
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    if caught:
+        raise LateInterrupt(done)
+
+
 def _pid_alive(pid: int) -> bool:
     try:
         os.kill(pid, 0)
@@ -122,11 +148,13 @@ def _pid_alive(pid: int) -> bool:
 
 @dataclass(frozen=True)
 class StagingEntry:
-    """A staging directory found in an output directory: its path, set name and owner's pid."""
+    """A staging directory found in an output directory: its path, set name, owner's pid, and whether it holds
+    the earlier set of an interrupted two-rename switch."""
 
     path: Path
     name: str
     pid: int
+    retired: bool = False
 
 
 def staging_entries(directory: str | os.PathLike) -> list[StagingEntry]:
@@ -136,74 +164,96 @@ def staging_entries(directory: str | os.PathLike) -> list[StagingEntry]:
         for entry in entries:
             match = STAGING_PATTERN.match(entry.name) if entry.name.startswith(PREFIX) else None
             if match and entry.is_dir(follow_symlinks=False):
-                found.append(StagingEntry(Path(entry.path), match["name"], int(match["pid"])))
+                found.append(StagingEntry(Path(entry.path), match["name"], int(match["pid"]), bool(match["retired"])))
     return sorted(found, key=lambda e: e.path.name)
 
 
 def plain_file_name(name) -> bool:
-    """Whether ``name`` is a file name without a directory part (what a journal and an output set hold)."""
+    """Whether ``name`` is a file name without a directory part (what an output set holds)."""
     return isinstance(name, str) and name not in ("", ".", "..") and "/" not in name and "\\" not in name \
         and "\0" not in name
 
 
-def read_journal(path: Path) -> list[tuple[str, str]]:
-    """The steps of a journal: ``("rename", NAME)`` (staging/NAME onto directory/NAME) and ``("remove", NAME)``.
-
-    Raises `InputError` if it is not a journal of this format whose names are plain file names.
-    """
+def _exchange_function():
+    """``exchange(a, b) -> errno`` swapping two paths atomically, or None where the C library has none."""
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, ValueError) as exc:
-        raise InputError(f"{path} is not a readable journal ({exc})") from None
-    if not (isinstance(data, dict) and data.get("format") == JOURNAL_FORMAT
-            and data.get("version") == JOURNAL_VERSION and isinstance(data.get("steps"), list)):
-        raise InputError(f"{path} is not a {JOURNAL_FORMAT} journal of version {JOURNAL_VERSION}")
-    steps = []
-    for step in data["steps"]:
-        if not (isinstance(step, list) and len(step) == 2 and step[0] in ("rename", "remove")
-                and plain_file_name(step[1])):
-            raise InputError(f"{path}: a step must be [\"rename\" or \"remove\", a file name], got {step!r}")
-        steps.append((step[0], step[1]))
-    return steps
+        libc = ctypes.CDLL(None, use_errno=True)
+    except OSError:  # pragma: no cover
+        return None
+    if hasattr(libc, "renameat2"):  # Linux (glibc >= 2.28, musl)
+        call = libc.renameat2
+        call.argtypes = [ctypes.c_int, ctypes.c_char_p, ctypes.c_int, ctypes.c_char_p, ctypes.c_uint]
+        return lambda a, b: call(-100, a, -100, b, 2) and ctypes.get_errno()  # AT_FDCWD, RENAME_EXCHANGE
+    if hasattr(libc, "renamex_np"):  # pragma: no cover - macOS
+        call = libc.renamex_np
+        call.argtypes = [ctypes.c_char_p, ctypes.c_char_p, ctypes.c_uint]
+        return lambda a, b: call(a, b, 2) and ctypes.get_errno()  # RENAME_SWAP
+    return None  # pragma: no cover
 
 
-def apply_steps(directory: Path, staging: Path, steps: Sequence[tuple[str, str]]) -> None:
-    """Carry out a journal's steps; each is skipped if already done, so a journal can be replayed."""
-    for kind, name in steps:
-        if kind == "rename":
-            source = staging / name
-            if os.path.lexists(source):  # else renamed before the kill
-                os.replace(source, directory / name)
-        else:
-            with contextlib.suppress(FileNotFoundError):
-                os.unlink(directory / name)
+_EXCHANGE = _exchange_function()
+
+
+class ExchangeUnsupported(OSError):
+    """The filesystem (or the system) cannot exchange two directories atomically."""
+
+
+def exchange(a: str | os.PathLike, b: str | os.PathLike) -> None:
+    """Swap the directories ``a`` and ``b`` in one atomic step; `ExchangeUnsupported` where that is impossible."""
+    if _EXCHANGE is None:  # pragma: no cover
+        raise ExchangeUnsupported(errno.ENOSYS, "no atomic exchange of directories here")
+    code = _EXCHANGE(os.fsencode(a), os.fsencode(b))
+    if code:
+        if code in _NO_EXCHANGE:
+            raise ExchangeUnsupported(code, os.strerror(code))
+        raise OSError(code, os.strerror(code), str(a), None, str(b))
+
+
+def switch_into(staging: Path, target: Path) -> Path | None:
+    """Put the directory ``staging`` at ``target`` in one step; returns where the earlier ``target`` now is (a
+    hidden directory to delete), or None when there was none. Called with `directory_lock` held."""
+    if not os.path.lexists(target):
+        os.rename(staging, target)
+        return None
+    try:
+        exchange(staging, target)
+        return staging
+    except ExchangeUnsupported:
+        retired = staging.with_name(staging.name + RETIRED)
+        os.rename(target, retired)
+        try:
+            os.rename(staging, target)
+        except BaseException:
+            os.rename(retired, target)
+            raise
+        return retired
 
 
 def _finish(directory: Path, entry: StagingEntry) -> None:
-    """Roll forward (journal present) or delete (no journal) the staging directory of an ended process."""
-    journal = entry.path / JOURNAL
-    if journal.exists():
-        try:
-            steps = read_journal(journal)
-        except InputError as exc:  # cannot happen to a journal written by `switch`: leave it to a person
-            print(f"warning: {exc}; left {entry.path} as it is", file=sys.stderr)
-            return
-        apply_steps(directory, entry.path, steps)
-        journal.unlink()
+    """Delete the staging directory of an ended process; first roll forward the two-rename switch it was making
+    (a ``.old`` entry: the earlier set, moved aside, with no set in its place)."""
+    if entry.retired:
+        staging, target = entry.path.with_name(entry.path.name[:-len(RETIRED)]), directory / entry.name
+        if not os.path.lexists(target):
+            os.rename(staging if staging.is_dir() else entry.path, target)
     shutil.rmtree(entry.path, ignore_errors=True)
 
 
 def recover(directory: str | os.PathLike) -> list[StagingEntry]:
     """Finish the staging directories of ended processes in ``directory``; returns the live ones.
 
-    The caller holds `directory_lock`.
+    The caller holds `directory_lock` (so no switch is under way: each runs under that lock).
     """
     directory = Path(directory)
     live = []
-    for entry in staging_entries(directory):
+    entries = staging_entries(directory)
+    for entry in [e for e in entries if e.retired] + [e for e in entries if not e.retired]:
+        if entry.retired:
+            _finish(directory, entry)
+            continue
         try:
             fd = _open_directory(entry.path)
-        except FileNotFoundError:
+        except FileNotFoundError:  # rolled forward just now
             continue
         try:
             taken = _try_lock(fd)
@@ -218,20 +268,22 @@ def recover(directory: str | os.PathLike) -> list[StagingEntry]:
 
 
 def recover_beside(path: str | os.PathLike) -> None:
-    """Finish the output sets that ended processes left in the directory of the file ``path``.
+    """Finish what ended processes left beside the file ``path``: in the output directory of its set (the
+    folder above it) and in its own folder.
 
     What a reader calls before it opens a file of a set. Never raises for the directory's sake
     (read-only, not ours, locked too long): the reader then reads what is there.
     """
-    directory = Path(path).parent
-    try:
-        with os.scandir(directory) as entries:
-            if not any(entry.name.startswith(PREFIX) for entry in entries):
-                return
-        with directory_lock(directory):
-            recover(directory)
-    except OSError:
-        return
+    path = Path(path)
+    for directory in dict.fromkeys((path.parent.parent, path.parent)):
+        try:
+            with os.scandir(directory) as entries:
+                if not any(entry.name.startswith(PREFIX) for entry in entries):
+                    continue
+            with directory_lock(directory):
+                recover(directory)
+        except OSError:
+            continue
 
 
 class Staging:
@@ -244,51 +296,42 @@ class Staging:
         os.mkdir(self.path)
         self._fd: int | None = _open_directory(self.path)
         _try_lock(self._fd)  # a new directory: never held
-        self.journaled = False
 
     def release(self) -> None:
-        """Drop the lock (the directory stays, for `recover` to finish)."""
+        """Drop the lock (the directory stays, for `recover` to delete)."""
         if self._fd is not None:
             os.close(self._fd)
             self._fd = None
 
     def discard(self) -> None:
-        """Delete the staging directory and everything in it, unless its journal is written (then a
-        later `recover` rolls it forward); then drop the lock."""
+        """Delete the staging directory (after a switch: the earlier set) and drop the lock."""
         try:
-            if not self.journaled:
-                shutil.rmtree(self.path, ignore_errors=True)
+            shutil.rmtree(self.path, ignore_errors=True)
         finally:
             self.release()
 
-    def switch(self, steps: Sequence[tuple[str, str]]) -> None:
-        """Write the journal of ``steps``, carry them out, remove the journal and the staging directory.
-
-        Called with `directory_lock` held. Once the journal is written the switch is decided: Ctrl-C then
-        finishes it before it stops the program; if a step fails, the staging directory stays for the
-        next `recover` to roll forward.
-        """
-        journal = self.path / JOURNAL
-        partial = self.path / PARTIAL_JOURNAL
-        partial.write_text(json.dumps({"format": JOURNAL_FORMAT, "version": JOURNAL_VERSION, "set": self.name,
-                                       "pid": os.getpid(), "steps": [list(step) for step in steps]}, indent=1),
-                           encoding="utf-8")
-        os.replace(partial, journal)
-        self.journaled = True
+    def switch(self, then=None) -> None:
+        """Put the staged set in place (`switch_into`), call ``then()`` (what must follow at once: the shared
+        files of the set's directory), delete the earlier set, drop the lock. Called with `directory_lock` held."""
+        earlier = switch_into(self.path, self.directory / self.name)
         try:
-            apply_steps(self.directory, self.path, steps)
-        except KeyboardInterrupt:  # Ctrl-C mid-switch: finish it (milliseconds), then stop
-            apply_steps(self.directory, self.path, steps)
-            self._remove(journal)
-            raise
-        self._remove(journal)
+            if then is not None:
+                then()
+        finally:
+            if earlier is not None:
+                shutil.rmtree(earlier, ignore_errors=True)
+            self.release()
 
-    def _remove(self, journal: Path) -> None:
-        """Remove the journal and the staging directory of a finished switch, and drop the lock."""
-        journal.unlink()
-        self.journaled = False
-        shutil.rmtree(self.path, ignore_errors=True)
-        self.release()
+
+def check_set_name(name: str) -> str:
+    """``name`` if it can name an output set: a plain file name of at most `MAX_SET_NAME` bytes, not hidden."""
+    if not plain_file_name(name) or name.startswith("."):
+        raise InputError(f"name must be a file name without '/' that does not start with '.', got {name!r}")
+    size = len(os.fsencode(name))
+    if size > MAX_SET_NAME:
+        raise InputError(f"name must be at most {MAX_SET_NAME} characters (it names the run's folder and files), "
+                         f"got {size}: {name[:40]!r}...")
+    return name
 
 
 def open_staging(directory: str | os.PathLike, name: str) -> Staging:

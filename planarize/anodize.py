@@ -244,34 +244,37 @@ def record_run(sim, thickness: float, rows_at: np.ndarray, shots_at: np.ndarray,
 
     if observer is not None:
         observer(sim)
-    shown = time.perf_counter()
-    complete = True
-    while sim.thickness < thickness:
-        catch_up(final=False)
-        if max_seconds is not None and time.perf_counter() - start > max_seconds:
-            complete = False
-            break
-        if sim.iterations >= max_sweeps:
-            raise RuntimeError(f"the {sim.name} engine made no progress: {sim.iterations:,} sweeps reached "
-                               f"{sim.thickness:.6g} of {thickness:g} nm")
-        sim.advance(float(targets[np.searchsorted(targets, sim.thickness, side="right")]))
-        if not np.isfinite(sim.thickness):
-            raise InputError(f"the distances became non-finite at {sim.iterations} sweeps: the surface or the "
-                             f"model (k_exp {sim.k_exp:g}) is outside the model's range")
-        if observer is not None:
-            observer(sim)
-        if bar is not None and time.perf_counter() - shown > 0.2:
+    try:
+        shown = time.perf_counter()
+        complete = True
+        while sim.thickness < thickness:
+            catch_up(final=False)
+            if max_seconds is not None and time.perf_counter() - start > max_seconds:
+                complete = False
+                break
+            if sim.iterations >= max_sweeps:
+                raise RuntimeError(f"the {sim.name} engine made no progress: {sim.iterations:,} sweeps reached "
+                                   f"{sim.thickness:.6g} of {thickness:g} nm")
+            sim.advance(float(targets[np.searchsorted(targets, sim.thickness, side="right")]))
+            if not np.isfinite(sim.thickness):
+                raise InputError(f"the distances became non-finite at {sim.iterations} sweeps: the surface or the "
+                                 f"model (k_exp {sim.k_exp:g}) is outside the model's range")
+            if observer is not None:
+                observer(sim)
+            if bar is not None and time.perf_counter() - shown > 0.2:
+                bar.update(min(sim.thickness, thickness) - bar.n)
+                shown = time.perf_counter()
+        if complete:
+            catch_up(final=True)
+        else:  # a last row and snapshot where the budget ran out
+            reached = sim.thickness
+            history.append(history_row(sim, reached, time.perf_counter() - start))
+            shots.append(Snapshot(reached, reached, sim.metal(), sim.oxide(), sim.distances()))
+        if bar is not None:
             bar.update(min(sim.thickness, thickness) - bar.n)
-            shown = time.perf_counter()
-    if complete:
-        catch_up(final=True)
-    else:  # a last row and snapshot where the budget ran out
-        reached = sim.thickness
-        history.append(history_row(sim, reached, time.perf_counter() - start))
-        shots.append(Snapshot(reached, reached, sim.metal(), sim.oxide(), sim.distances()))
-    if bar is not None:
-        bar.update(min(sim.thickness, thickness) - bar.n)
-        bar.close()
+    finally:  # also on Ctrl-C: the bar ends its line, so that what follows starts on a new one
+        if bar is not None:
+            bar.close()
     table = {key: np.array([row[key] for row in history]) for key in history[0]}
     return table, shots, complete
 

@@ -21,7 +21,7 @@ from matplotlib.figure import Figure
 
 from labrig.figures import save_figure  # noqa: F401 (planarize.render.save_figure: its public name)
 from labrig.movies import FigureMovie
-from labrig.validate import InputError, count
+from labrig.validate import InputError, count, printable
 
 from .anodize import Anodization
 from .surface import Surface
@@ -207,6 +207,8 @@ def surface_faces(surface: Surface, max_lines: int = 60):
     return x, y, z, faces
 
 
+#: What the z axis and the colour bar of a 3-D surface show.
+HEIGHT_LABEL = "z \u2212 mean (nm)"
 #: Grids with at most this many lines per direction are drawn with their mesh lines (the facets show).
 MESH_LINES = 24
 #: The light of the 3-D surfaces: from the back left, 45 degrees up (a flat face keeps 90 % of its colour).
@@ -215,11 +217,12 @@ LIGHT = LightSource(azdeg=315, altdeg=45)
 
 def draw_surface(surface: Surface, ax=None, *, half_range: float | None = None, cmap: str = "viridis",
                  title: str | None = None, max_lines: int = 60, shade: bool = True):
-    """A 3-D render of ``surface`` in a z window centred on its mean (thesis Fig 3-11 style).
+    """A 3-D render of ``surface``'s heights about its own mean, ``z - mean`` (thesis Fig 3-11 style).
 
-    Each face is coloured by the mean height of its corners and, with ``shade``, lit from one
-    side so that facets of the same height stay apart; small grids (up to `MESH_LINES` lines)
-    also show their mesh lines.
+    The z axis and the colours show the same quantity, ``z - mean`` in nm, over the same window
+    ``[-half_range, half_range]``; the title gives the mean height. Each face is coloured by the mean
+    height of its corners and, with ``shade``, lit from one side so that facets of the same height
+    stay apart; small grids (up to `MESH_LINES` lines) also show their mesh lines.
 
     Parameters
     ----------
@@ -233,6 +236,7 @@ def draw_surface(surface: Surface, ax=None, *, half_range: float | None = None, 
     cmap : str
         Colour map of ``z - mean``.
     title : str, optional
+        First line of the title (the second gives the mean height).
     max_lines : int
         Most grid lines drawn per direction (larger grids are subsampled for speed).
     shade : bool
@@ -248,15 +252,14 @@ def draw_surface(surface: Surface, ax=None, *, half_range: float | None = None, 
     colours[:-1, :-1] = matplotlib.colormaps[cmap](Normalize(-half, half)(faces - mean))
     mesh = max(z.shape) <= MESH_LINES
     # transposed to matplotlib's layout (y along the rows): the faces' normals then point up (else lit from below)
-    ax.plot_surface(x.T, y.T, z.T, facecolors=colours.transpose(1, 0, 2), rstride=1, cstride=1,
+    ax.plot_surface(x.T, y.T, (z - mean).T, facecolors=colours.transpose(1, 0, 2), rstride=1, cstride=1,
                     linewidth=0.4 if mesh else 0, edgecolor=(0, 0, 0, 0.3) if mesh else None, antialiased=mesh,
                     shade=shade, lightsource=LIGHT)
-    ax.set_zlim(mean - half, mean + half)
+    ax.set_zlim(-half, half)
     ax.set_xlabel("x (nm)")
     ax.set_ylabel("y (nm)")
-    ax.set_zlabel("z (nm)")
-    if title is not None:
-        ax.set_title(title)
+    ax.set_zlabel(HEIGHT_LABEL)
+    ax.set_title((f"{title}\n" if title else "") + f"mean height {mean:.4g} nm", fontsize="medium")
     return ax
 
 
@@ -289,10 +292,11 @@ def snapshots_figure(run: Anodization, which: str = "oxide", *, cmap: str = "vir
     columns = min(len(kinds) * max(1, columns // len(kinds)), len(panels))
     rows = math.ceil(len(panels) / columns)
     spare = rows * columns > len(panels)  # the colour bar goes into the first empty cell, else beside the grid
-    fig = Figure(figsize=(4 * columns + (0.0 if spare else 1.0), 3.4 * rows))
+    width, height = 4.2 * columns + (0.0 if spare else 1.2), 3.6 * rows + 0.7
+    fig = Figure(figsize=(width, height))
     FigureCanvasAgg(fig)
     grid = fig.add_gridspec(rows, columns + (0 if spare else 1),
-                            width_ratios=[1.0] * columns + ([] if spare else [0.06]))
+                            width_ratios=[1.0] * columns + ([] if spare else [0.08]))
     for k, (surface, title) in enumerate(panels):
         draw_surface(surface, fig.add_subplot(grid[k // columns, k % columns], projection="3d"),
                      half_range=half, cmap=cmap, title=title)
@@ -301,10 +305,14 @@ def snapshots_figure(run: Anodization, which: str = "oxide", *, cmap: str = "vir
         cell.set_axis_off()
         cax = cell.inset_axes((0.45, 0.1, 0.07, 0.8))
     else:
-        cax = fig.add_subplot(grid[:, -1])
+        cell = fig.add_subplot(grid[:, -1])
+        cell.set_axis_off()
+        cax = cell.inset_axes((0.0, 0.15, 1.0, 0.7))
     bar = fig.colorbar(ScalarMappable(Normalize(-half, half), cmap), cax=cax)
-    bar.set_label("height above the surface's own mean (nm)")
-    fig.subplots_adjust(left=0.02, right=0.95, top=0.94, bottom=0.06, wspace=0.15, hspace=0.25)
+    bar.set_label(f"{HEIGHT_LABEL}, as the z axes")
+    # room, in inches, for the two-line panel titles above and the colour bar's label at the right
+    fig.subplots_adjust(left=0.02, right=1.0 - 0.75 / width, top=1.0 - 0.65 / height, bottom=0.1 / height,
+                        wspace=0.2, hspace=0.35)
     return fig
 
 
@@ -315,8 +323,8 @@ def slice_figure(run: Anodization, title: str | None = None) -> Figure:
     fig = Figure(figsize=(6.5, 4.8))
     FigureCanvasAgg(fig)
     ax = draw_slice(run, fig.add_subplot())
-    if title:
-        ax.set_title(f"{title}: {ax.get_title()}")
+    if title:  # a scene's name, its control characters escaped (no font has a glyph for them)
+        ax.set_title(f"{printable(title)}: {ax.get_title()}")
     fig.tight_layout()
     return fig
 
@@ -327,7 +335,7 @@ def history_figure(run: Anodization, title: str | None = None, *, log: bool = Fa
     FigureCanvasAgg(fig)
     draw_history(run, fig.subplots(1, 2), log=log)
     if title:
-        fig.suptitle(title)
+        fig.suptitle(printable(title))
     fig.tight_layout()
     return fig
 
@@ -363,8 +371,11 @@ class SurfaceMovie(FigureMovie):
         if self.closed:
             raise InputError(f"SurfaceMovie for {self.path} is closed")
         self.figure.clear()
-        draw_surface(surface, self.figure.add_subplot(projection="3d"), half_range=self.half_range,
-                     cmap=self.cmap, title=title)
+        ax = self.figure.add_subplot(projection="3d")
+        draw_surface(surface, ax, half_range=self.half_range, cmap=self.cmap, title=title)
+        bar = self.figure.colorbar(ScalarMappable(Normalize(-self.half_range, self.half_range), self.cmap), ax=ax,
+                                   shrink=0.6, pad=0.12)
+        bar.set_label(HEIGHT_LABEL)
         self.add_frame()
 
 
@@ -376,9 +387,9 @@ HOLD_S = 1.0
 
 def thickness_label(which: str, thickness: float) -> str:
     """Title of a surface at an oxide ``thickness`` (nm): ``"oxide after 1.001 nm of oxide"``, or
-    ``"oxide, initial surface"`` before any oxide."""
+    ``"initial surface (no oxide yet)"`` before any oxide (metal and oxide are then one surface)."""
     if thickness == 0:
-        return f"{which}, initial surface"
+        return "initial surface (no oxide yet)"
     return f"{which} after {thickness:.{THICKNESS_DIGITS}g} nm of oxide"
 
 

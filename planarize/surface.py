@@ -29,6 +29,8 @@ REFINE_METHODS = ("linear", "cubic")
 
 #: Most grid points of a surface (4097 x 4097; a fast engine run needs ~1 kB per point).
 MAX_POINTS = 4097 * 4097
+#: Largest refinement factor of `Surface.refine` (a grid of two points per side refined to the largest grid).
+MAX_REFINE = 4096
 #: Largest height magnitude, nm (1 m).
 MAX_HEIGHT = 1e9
 #: Grid spacing range, nm (a hundredth of an angstrom to a metre).
@@ -168,7 +170,7 @@ class Surface:
             on an open grid, periodic on a periodic one), smooth to the second
             derivative (thesis weakness 3).
         """
-        factor = count("factor", factor, 1, 4096)
+        factor = count("factor (grid steps each split into this many)", factor, 1, MAX_REFINE)
         nx, ny = self.shape
         fine = (nx * factor, ny * factor) if self.periodic else ((nx - 1) * factor + 1, (ny - 1) * factor + 1)
         if fine[0] * fine[1] > MAX_POINTS:

@@ -26,7 +26,7 @@ from .restitution import Restitution
 from .forces import Force, ThermalKicks, VanDerWaals, force_from_dict
 from .placement import MAX_TRIES
 from .protocols import GAP, MASS_MODELS, MAX_INTERVAL, deposit, deposit_around_centre, ring_radius
-from .scene import MAX_DOTS, MAX_LENGTH, MAX_MASS, Scene
+from .scene import MAX_DOTS, MAX_LENGTH, MAX_MASS, MIN_DIAMETER, Scene
 from .simulation import MAX_STEPS, EngineSettings, Simulation
 
 #: Deposition protocols: dots at random in the board (or grating channel), or on a ring around a centre.
@@ -110,7 +110,7 @@ class Deposition:
         "protocol": Param("str", choices=PROTOCOLS, doc='where the dots arrive ("random": uniformly in the board or '
                                                         'grating channel, "centre": on a ring around the centre)'),
         "n_dots": Param("int", 0, MAX_DOTS, doc="dots deposited"),
-        "mean_diameter": Param("float", 0.0, MAX_LENGTH, low_open=True, unit="px", doc="mean dot diameter"),
+        "mean_diameter": Param("float", MIN_DIAMETER, MAX_LENGTH, unit="px", doc="mean dot diameter"),
         "sigma": Param("float", 0.0, 1.0, high_open=True,
                        doc="standard deviation of the diameter as a fraction of the mean"),
         "mass_model": Param("str", choices=MASS_MODELS, doc='dot masses ("equal", ~ d^2 "area", ~ d^3 "volume", or '

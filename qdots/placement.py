@@ -24,7 +24,7 @@ import numpy as np
 from labrig.validate import InputError, choice, count, generator, real, reals
 
 from .geometry import DiscTree, clashing_pairs
-from .scene import MAX_DOTS, MAX_LENGTH
+from .scene import MAX_DOTS, MAX_LENGTH, MIN_DIAMETER
 
 #: Candidates drawn per batch. Part of the random stream: changing it changes the placements.
 BATCH = 256
@@ -39,7 +39,7 @@ def _check_args(n, box, mean_diameter, sigma, max_tries, margin) -> tuple[float,
     w, h = reals("box", box, 2, 0.0, MAX_LENGTH, unit="px")
     if not (w > 0 and h > 0):
         raise InputError(f"box must be two sizes > 0 px, got {box!r}")
-    real("mean_diameter", mean_diameter, 0.0, MAX_LENGTH, low_open=True, unit="px")
+    real("mean_diameter", mean_diameter, MIN_DIAMETER, MAX_LENGTH, unit="px")
     real("sigma", sigma, 0.0, 1.0, high_open=True)
     count("max_tries", max_tries, 1, MAX_TRIES)
     real("margin", margin, 0.0, MAX_LENGTH, unit="px")

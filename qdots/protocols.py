@@ -24,7 +24,7 @@ from labrig.validate import InputError, count, generator, real
 
 from .geometry import DiscTree, clear_of_walls
 from .placement import MAX_TRIES, draw_candidates
-from .scene import MAX_DOTS, MAX_LENGTH, MAX_MASS
+from .scene import MAX_DOTS, MAX_LENGTH, MAX_MASS, MIN_DIAMETER
 
 #: Mass models (see `dot_masses`).
 MASS_MODELS = ("equal", "area", "volume", "bimodal")
@@ -55,7 +55,7 @@ def draw_diameters(n: int, mean_diameter: float, sigma: float, rng: np.random.Ge
     random number is used (the Java skips ``nextGaussian`` too).
     """
     n, sigma = count("n", n, 0, MAX_DOTS), real("sigma", sigma, 0.0, 1.0, high_open=True)
-    mean_diameter = real("mean_diameter", mean_diameter, 0.0, MAX_LENGTH, low_open=True, unit="px")
+    mean_diameter = real("mean_diameter", mean_diameter, MIN_DIAMETER, MAX_LENGTH, unit="px")
     if sigma == 0.0:
         return np.full(n, mean_diameter)
     d = mean_diameter * (1.0 + sigma * rng.standard_normal(n))
@@ -228,7 +228,7 @@ def deposit(sim, n_dots: int, mean_diameter: float = 15.0, sigma: float = 0.0, r
         ``max_tries`` candidates in a row fail: the board is too full (the
         message gives the dots placed, the region and its area fraction).
     """
-    mean_diameter = real("mean_diameter", mean_diameter, 0.0, MAX_LENGTH, low_open=True, unit="px")
+    mean_diameter = real("mean_diameter", mean_diameter, MIN_DIAMETER, MAX_LENGTH, unit="px")
     sigma = real("sigma", sigma, 0.0, 1.0, high_open=True)
     x0, y0, x1, y1 = _check_region(region, sim.scene.box)
     if mean_diameter + 2 * GAP > min(x1 - x0, y1 - y0):
@@ -274,7 +274,7 @@ def deposit_around_centre(sim, n_dots: int, centre, mean_diameter: float = 15.0,
         On a bad argument, when the last ring leaves the box, or when the
         board is too full (as `deposit`).
     """
-    mean_diameter = real("mean_diameter", mean_diameter, 0.0, MAX_LENGTH, low_open=True, unit="px")
+    mean_diameter = real("mean_diameter", mean_diameter, MIN_DIAMETER, MAX_LENGTH, unit="px")
     sigma, n = real("sigma", sigma, 0.0, 1.0, high_open=True), count("n_dots", n_dots, 0, MAX_DOTS)
     try:
         cx, cy = (float(v) for v in centre)

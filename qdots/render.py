@@ -1,4 +1,4 @@
-"""Pictures and movies of a board: size colouring (thesis Fig 2-2), heavy dots, a key, PNG, MP4.
+"""Pictures and movies of a board: dots coloured by size (viridis, with a colour bar), heavy dots, PNG, MP4.
 
 Figures are built on matplotlib's object API (no pyplot state) except when
 `draw_state` is asked to make its own axes, so that it shows in notebooks.
@@ -14,58 +14,65 @@ import time
 from pathlib import Path
 
 import numpy as np
+import matplotlib
 from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.cm import ScalarMappable
 from matplotlib.collections import EllipseCollection, LineCollection
+from matplotlib.colors import Normalize
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Rectangle
-from matplotlib.transforms import ScaledTranslation
 
 from labrig.figures import save_figure
 from labrig.movies import FigureMovie
 from labrig.validate import InputError
 
-def size_colours(radii, mean: float | None = None, sigma: float | None = None) -> np.ndarray:
-    """RGB colour of each dot by size: large red, mean green, small blue.
+#: Colour map of the dots' sizes: perceptually uniform, and readable with the common colour-vision deficiencies.
+SIZE_CMAP = "viridis"
+#: Half-width of the colour scale about the diameter when every dot is one size (a fraction of the diameter).
+EQUAL_SPAN = 0.05
 
-    The thesis's colouring (Appendix A, ``addRandomBallAtTop``): with ``d``
-    the diameter, ``m`` the mean diameter and ``s = sigma * m``::
 
-        red   = min(1, exp((d - m - s) / s))
-        green = exp(-|d - m| / s)
-        blue  = min(1, exp(-(d - m + s) / s))
+def size_range(radii) -> tuple[float, float]:
+    """The diameters, px, at the first and the last colour of `SIZE_CMAP`: the smallest dot's and the largest's
+    (+- `EQUAL_SPAN` of the diameter when all are one size, which then take the middle colour)."""
+    d = 2.0 * np.asarray(radii, dtype=float).reshape(-1)
+    d = d[np.isfinite(d)]
+    if not d.size:
+        return 1.0 - EQUAL_SPAN, 1.0 + EQUAL_SPAN
+    low, high = float(d.min()), float(d.max())
+    if not high - low > 1e-9 * abs(high):
+        mean = float(d.mean())
+        low, high = mean * (1.0 - EQUAL_SPAN), mean * (1.0 + EQUAL_SPAN)
+    return low, high
+
+
+def _checked_range(diameters) -> tuple[float, float]:
+    low, high = (float(v) for v in diameters)
+    if not (math.isfinite(low) and math.isfinite(high) and 0 <= low < high):
+        raise InputError(f"diameters must be (low, high) with 0 <= low < high px, got {tuple(diameters)!r}")
+    return low, high
+
+
+def size_colours(radii, diameters: tuple[float, float] | None = None) -> np.ndarray:
+    """RGB colour of each dot by its diameter: `SIZE_CMAP` (viridis: small dark blue-violet, large yellow).
 
     Parameters
     ----------
     radii : array_like, shape (N,)
         Dot radii, px.
-    mean : float, optional
-        Mean diameter ``m``, px (> 0). Default: the mean of ``2 * radii``.
-    sigma : float, optional
-        Standard deviation of the diameters as a fraction of ``mean`` (>= 0).
-        Default: the standard deviation of ``2 * radii`` divided by ``mean``.
+    diameters : (float, float), optional
+        The diameters, px, at the first and the last colour (smaller and larger dots take those).
+        Default: `size_range` of ``radii``.
 
     Returns
     -------
     ndarray, shape (N, 3)
-        RGB in [0, 1]. With equal sizes (``s == 0``) every dot is pure green.
+        RGB in [0, 1]. With equal sizes every dot takes the middle colour.
     """
+    low, high = size_range(radii) if diameters is None else _checked_range(diameters)
     d = 2.0 * np.asarray(radii, dtype=float).reshape(-1)
-    if mean is None:
-        mean = float(d.mean()) if d.size else 1.0
-    if not (math.isfinite(mean) and mean > 0):
-        raise InputError(f"mean must be a diameter > 0 px, got {mean!r}")
-    s = (float(d.std()) if d.size else 0.0) if sigma is None else float(sigma) * mean
-    if not (math.isfinite(s) and s >= 0):
-        raise InputError(f"sigma must be >= 0, got {sigma!r}")
-    colours = np.zeros((d.size, 3))
-    if s <= 1e-12 * mean:  # equal sizes (up to round-off in the std)
-        colours[:, 1] = 1.0
-        return colours
-    colours[:, 0] = np.minimum(1.0, np.exp((d - mean - s) / s))
-    colours[:, 1] = np.exp(-np.abs(d - mean) / s)
-    colours[:, 2] = np.minimum(1.0, np.exp(-(d - mean + s) / s))
-    return colours
+    return matplotlib.colormaps[SIZE_CMAP](Normalize(low, high, clip=True)(d))[:, :3]
 
 
 #: Relative margin of `heavy_dots`: the boards' mean diameter stands in for the scene's nominal one,
@@ -121,57 +128,36 @@ def _edges(state, n: int):
     return colours, widths
 
 
-def key_entries(state, unit: str = "px") -> tuple[list, list[str], str]:
-    """The key of a board's size colours (and heavy dots): legend handles, labels and a title.
-
-    The colours follow `size_colours` with its defaults: ``m`` the mean diameter and ``s`` the
-    standard deviation of the diameters, px. A dot is fully red at ``d >= m + s``, fully blue at
-    ``d <= m - s`` and pure green at ``d = m``; sizes in between mix. Heavy dots (`heavy_dots`)
-    have a thick dark edge.
+def key_label(state, unit: str = "px") -> str:
+    """What the size colour bar says: the diameter, the board's mean and SD, and the heavy dots when there are.
 
     ``unit`` names the length unit of the board's coordinates (px, or nm for a board drawn to scale).
-
-    Returns
-    -------
-    handles : list of matplotlib.lines.Line2D
-    labels : list of str
-    title : str
     """
     d = 2.0 * np.asarray(state.radii, dtype=float).reshape(-1)
-    m = float(d.mean()) if d.size else 0.0
-    s = float(d.std()) if d.size else 0.0
-
-    def dot(colour, edge=DOT_EDGE):
-        return Line2D([], [], linestyle="none", marker="o", markersize=9, markerfacecolor=colour,
-                      markeredgecolor=edge[0], markeredgewidth=max(edge[1], 0.6))
-
-    if d.size and s > 1e-12 * m:
-        handles = [dot((1.0, 0.0, 0.0)), dot((0.0, 1.0, 0.0)), dot((0.0, 0.0, 1.0))]
-        labels = [f"red: large, d \u2265 m + s = {m + s:.3g} {unit}", f"green: mean size, d = m = {m:.3g} {unit}",
-                  f"blue: small, d \u2264 m \u2212 s = {m - s:.3g} {unit}"]
-        title = f"colour by diameter d (mean m, std s = {s:.2g} {unit}; mixed in between)"
-    else:
-        handles, labels = [dot((0.0, 1.0, 0.0))], [f"green: all one size, d = {m:.3g} {unit}"]
-        title = "colour by diameter d"
+    label = f"dot diameter d ({unit})"
+    if d.size:
+        label += f": mean {d.mean():.3g}, SD {d.std():.2g}" + (" (all one size)" if d.std() <= 1e-9 * d.mean() else "")
     heavy = heavy_dots(getattr(state, "masses", None), state.radii)
     if heavy.any():
-        handles.append(dot((0.0, 1.0, 0.0), HEAVY_EDGE))
-        labels.append(f"dark edge: heavy, heavier than its size makes it ({int(heavy.sum())} of {heavy.size})")
-    return handles, labels, title
+        label += f"\nthick dark edge: heavy, heavier than its size makes it ({int(heavy.sum())} of {heavy.size} dots)"
+    return label
 
 
-def add_key(ax, state, unit: str = "px", **legend):
-    """Put the key of `key_entries` on ``ax`` (under its x label by default); returns the Legend.
+def add_key(ax, state, unit: str = "px", *, diameters: tuple[float, float] | None = None, cax=None):
+    """The key of the size colours: a horizontal colour bar labelled with `key_label`; returns the Colorbar.
 
-    ``unit`` names the length unit of the board's coordinates; ``legend`` overrides
-    `matplotlib.axes.Axes.legend` arguments (``loc``, ``bbox_to_anchor``, ...).
+    Drawn in ``cax`` if given, else under ``ax`` (space taken from it). ``diameters`` as in `size_colours`.
     """
-    handles, labels, title = key_entries(state, unit)
-    below = ax.transAxes + ScaledTranslation(0.0, -0.5, ax.figure.dpi_scale_trans)  # 0.5 in: under the x label
-    options = {"loc": "upper center", "bbox_to_anchor": (0.5, 0.0), "bbox_transform": below, "ncol": 1,
-               "fontsize": "small", "title_fontsize": "small", "frameon": False, "handletextpad": 0.3,
-               "labelspacing": 0.3}
-    return ax.legend(handles, labels, title=title, **{**options, **legend})
+    low, high = size_range(state.radii) if diameters is None else _checked_range(diameters)
+    mappable = ScalarMappable(Normalize(low, high), SIZE_CMAP)
+    fig = ax.figure
+    if cax is None:
+        bar = fig.colorbar(mappable, ax=ax, location="bottom", shrink=0.7, fraction=0.04, pad=0.1)
+    else:
+        bar = fig.colorbar(mappable, cax=cax, orientation="horizontal")
+    bar.set_label(key_label(state, unit), fontsize="small")
+    bar.ax.tick_params(labelsize="small")
+    return bar
 
 
 class BoardArtists:
@@ -181,14 +167,17 @@ class BoardArtists:
         self.ax = ax
         self.dots = self.walls = self.outline = None
 
-    def draw(self, state, colours=None, show_time: bool = True) -> None:
+    def draw(self, state, colours=None, show_time: bool = True, title: str = "",
+             colour_range: tuple[float, float] | None = None) -> None:
+        """Draw ``state`` (the first call) or move the artists to it; the axes' title is ``title`` and, with
+        ``show_time``, the board's time. ``colours`` default to `size_colours` over ``colour_range`` (px)."""
         ax = self.ax
         w, h = (float(v) for v in state.box)
         positions = np.asarray(state.positions, dtype=float).reshape(-1, 2)
         diameters = 2.0 * np.asarray(state.radii, dtype=float)
         walls = np.asarray(getattr(state, "walls", np.zeros((0, 4))), dtype=float).reshape(-1, 2, 2)
         if colours is None:
-            colours = size_colours(state.radii)
+            colours = size_colours(state.radii, colour_range)
         edges, widths = _edges(state, len(diameters))
         if self.dots is None:
             self.outline = Rectangle((0, 0), w, h, fill=False, edgecolor="0.6", linewidth=0.8,
@@ -217,10 +206,11 @@ class BoardArtists:
         pad = 0.01 * max(w, h)
         ax.set_xlim(-pad, w + pad)
         ax.set_ylim(-pad, h + pad)
-        ax.set_title(f"t = {float(getattr(state, 'time', 0.0)):.1f} s" if show_time else "")
+        when = f"t = {float(getattr(state, 'time', 0.0)):.1f} s" if show_time else ""
+        ax.set_title(", ".join(part for part in (title, when) if part), fontsize="medium")
 
 
-def draw_state(state, ax=None, colours=None, show_time: bool = True, key: bool = False):
+def draw_state(state, ax=None, colours=None, show_time: bool = True, key: bool = False, title: str = ""):
     """Draw a board: outline, walls (black), dots coloured by size, heavy dots with a dark edge; axes in px.
 
     Parameters
@@ -236,8 +226,10 @@ def draw_state(state, ax=None, colours=None, show_time: bool = True, key: bool =
     show_time : bool
         Put ``t = 12.3 s`` in the title.
     key : bool
-        Add the key of the size colours and heavy dots below the axes (`add_key`); only
+        Add the colour bar of the size colours (and the heavy dots) below the axes (`add_key`); only
         meaningful with the default size colours.
+    title : str
+        What the axes' title says before the time (the run's name and parameters, say).
 
     Returns
     -------
@@ -248,7 +240,7 @@ def draw_state(state, ax=None, colours=None, show_time: bool = True, key: bool =
         import matplotlib.pyplot as plt
 
         _, ax = plt.subplots(figsize=(6, 6))
-    BoardArtists(ax).draw(state, colours, show_time)
+    BoardArtists(ax).draw(state, colours, show_time, title)
     ax.set_xlabel("x (px)")
     ax.set_ylabel("y (px)")
     if key:
@@ -286,12 +278,13 @@ def occupied_region(state) -> tuple[float, float, float, float]:
     return float(x0), float(y0), float(x1), float(y1)
 
 
-def save_png(state, path, dpi: int = 100) -> Path:
+def save_png(state, path, dpi: int = 100, title: str = "", colour_range: tuple[float, float] | None = None) -> Path:
     """Write a picture of the board to ``path`` (PNG at ``dpi``, at most `labrig.figures.MAX_DPI`), atomically.
 
-    Axes in px, with the key of the size colours and of the heavy dots below the board. A board whose
-    dots and inner walls fill less than `ZOOM_BELOW` of it (a grating channel, a small deposit) is shown
-    zoomed to them (`occupied_region`; the title says so): on 6 x 6 in, or 10 in wide for a flat region.
+    Axes in px, titled ``title`` (the run's name and parameters, say) and the board's time, with the colour
+    bar of the sizes (and the heavy dots) below the board, over ``colour_range`` (px; default `size_range`).
+    A board whose dots and inner walls fill less than `ZOOM_BELOW` of it (a grating channel, a small deposit)
+    is shown zoomed to them (`occupied_region`; the title says so): 6 in wide, or 10 in for a flat region.
 
     Returns
     -------
@@ -304,20 +297,25 @@ def save_png(state, path, dpi: int = 100) -> Path:
     if not zoom:
         x0, y0, x1, y1 = 0.0, 0.0, w, h
     aspect = (y1 - y0) / max(x1 - x0, 1e-12)
+    # inches: the key (colour bar and its label) and the x axis under the board, the title above it
+    below, above = 1.45, 0.75 if title else 0.45
     if aspect >= 0.6:
-        fig = Figure(figsize=(6, 6))
-        FigureCanvasAgg(fig)
-        ax = fig.add_axes((0.14, 0.27, 0.76, 0.66))
+        width, board_in = 6.0, 4.5
     else:  # a flat region: 10 in wide, as tall as it needs
-        board_in = 10.0 * 0.76 * aspect
-        fig = Figure(figsize=(10.0, board_in + 2.3))
-        FigureCanvasAgg(fig)
-        ax = fig.add_axes((0.14, 1.75 / (board_in + 2.3), 0.76, board_in / (board_in + 2.3)))
-    draw_state(state, ax, key=True)
+        width, board_in = 10.0, 10.0 * 0.76 * aspect
+    height = below + board_in + above
+    fig = Figure(figsize=(width, height))
+    FigureCanvasAgg(fig)
+    ax = fig.add_axes((0.14, below / height, 0.76, board_in / height))
+    cax = fig.add_axes((0.14 + 0.76 * 0.15, 0.62 / height, 0.76 * 0.7, 0.14 / height))
+    BoardArtists(ax).draw(state, title=title, colour_range=colour_range)
+    ax.set_xlabel("x (px)")
+    ax.set_ylabel("y (px)")
+    add_key(ax, state, diameters=colour_range, cax=cax)
     if zoom:
         ax.set_xlim(x0, x1)
         ax.set_ylim(y0, y1)
-        ax.set_title(f"{ax.get_title()}  (zoomed to the dots and walls: x {x0:.0f}-{x1:.0f}, y {y0:.0f}-{y1:.0f} "
+        ax.set_title(f"{ax.get_title()}\n(zoomed to the dots and walls: x {x0:.0f}-{x1:.0f}, y {y0:.0f}-{y1:.0f} "
                      f"of a {w:.0f} x {h:.0f} px board)", fontsize="small")
     return save_figure(fig, path, dpi, format="png")
 
@@ -337,6 +335,11 @@ class MovieWriter(FigureMovie):
         Frames per second of the movie (> 0).
     size_px : int
         Width and height of a frame, pixels (even, >= 16).
+    title : str
+        What each frame's title says before the time (the run's name and parameters, say).
+    diameters : (float, float), optional
+        The diameters, px, at the first and the last colour of every frame (a deposition's range, so that a
+        dot keeps its colour as others arrive). Default: each frame's own (`size_range`).
 
     Attributes
     ----------
@@ -356,47 +359,47 @@ class MovieWriter(FigureMovie):
     #: would give it more is refused before it starts (`qdots.writers`).
     max_records = 100_000
 
-    def __init__(self, path, every: int = 50, fps: float = 25, size_px: int = 600):
+    def __init__(self, path, every: int = 50, fps: float = 25, size_px: int = 600, title: str = "",
+                 diameters: tuple[float, float] | None = None):
         if not (isinstance(every, numbers.Integral) and every >= 1):
             raise InputError(f"every must be an integer >= 1 step, got {every!r}")
         self.every = int(every)
         self.wall_seconds = 0.0
+        self.title = str(title)
+        self.diameters = None if diameters is None else _checked_range(diameters)
         super().__init__(path, fps, size_px)
-        ax = self.figure.add_axes((0.02, 0.1, 0.96, 0.84))
+        ax = self.figure.add_axes((0.02, 0.15, 0.96, 0.72 if self.title else 0.78))
         ax.set_axis_off()
         self._board = BoardArtists(ax)
         self._bar = self._bar_label = self._key = None
 
     def _legend(self, state) -> None:
-        """Under the board: a scale bar of a round length in px (and in mean diameters) and the size key."""
+        """Under the board: a scale bar of a round length in px (and in mean diameters), and the colour bar of
+        the sizes (over `diameters`, else over this frame's dots)."""
         fig, ax = self.figure, self._board.ax
         w = float(state.box[0])
         length = nice_length(0.25 * w)
         x0, x1 = (ax.transData + fig.transFigure.inverted()).transform([(0.0, 0.0), (length, 0.0)])[:, 0]
         d = 2.0 * np.asarray(state.radii, dtype=float)
-        m, sd = (float(d.mean()), float(d.std())) if d.size else (0.0, 0.0)
+        m = float(d.mean()) if d.size else 0.0
         size = f" = {length / m:.3g} mean diameters" if m > 0 else ""
-        if sd > 1e-12 * m:
-            key = f"red: d \u2265 {m + sd:.3g} px, green: {m:.3g} px, blue: \u2264 {m - sd:.3g} px"
-        else:
-            key = f"green: all {m:.3g} px" if m > 0 else ""
-        if heavy_dots(getattr(state, "masses", None), state.radii).any():
-            key += "; dark edge: heavy"
         if self._bar is None:
             self._bar = Line2D([x0, x1], [0.05, 0.05], transform=fig.transFigure, color="black", linewidth=3)
             fig.add_artist(self._bar)
             self._bar_label = fig.text(x0, 0.065, "", fontsize="small", va="bottom")
-            self._key = fig.text(0.98, 0.03, "", fontsize="small", ha="right", va="bottom")
+            self._key = add_key(ax, state, diameters=self.diameters, cax=fig.add_axes((0.5, 0.065, 0.46, 0.022)))
+        elif self.diameters is None:
+            self._key.mappable.set_norm(Normalize(*size_range(state.radii)))
+        self._key.set_label(key_label(state).replace("\nthick", "; thick"), fontsize="x-small")
         self._bar.set_xdata([x0, x1])
         self._bar_label.set_text(f"{length:g} px{size}")
-        self._key.set_text(key)
 
     def write(self, state) -> None:
         """Render ``state`` (with a scale bar and the size key under it) and append it as one frame."""
         if self.closed:
             raise InputError(f"MovieWriter for {self.path} is closed")
         start = time.perf_counter()
-        self._board.draw(state)
+        self._board.draw(state, title=self.title, colour_range=self.diameters)
         self._legend(state)
         self.add_frame()
         self.wall_seconds += time.perf_counter() - start

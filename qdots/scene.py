@@ -24,6 +24,9 @@ MAX_DOTS = 1_000_000
 MAX_SEGMENTS = 100_000
 #: Largest board side and largest coordinate, px.
 MAX_LENGTH = 1e6
+#: Smallest mean dot diameter a deposition takes, px: ten thousandths of the thesis's 15 px (below it a dot moves
+#: many radii per step under any force, and sizes near 1e-300 px overflow the motion's checks).
+MIN_DIAMETER = 0.01
 #: Largest mass, in mean dot masses (and smallest: its inverse).
 MAX_MASS = 1e6
 #: Largest speed given as input, px/s (a mean dot crosses the thesis's board in 0.6 ms).

@@ -46,3 +46,19 @@ def assert_playable(path: Path, frames: int, fps: float, size_px: int) -> None:
     assert found["frames"] == frames and abs(found["fps"] - fps) < 1e-6, found
     boxes = found["boxes"]
     assert "moov" in boxes and "mdat" in boxes and boxes.index("moov") < boxes.index("mdat"), boxes  # +faststart
+
+
+def read_frames(path: Path) -> list:
+    """Every frame of the movie, decoded by ffmpeg: RGB arrays of shape (height, width, 3).
+
+    Read with one ``subprocess.run`` (its pipes closed when it returns): imageio's ffmpeg reader leaves the
+    pipes of its ffmpeg process open (a ResourceWarning, an error in this suite).
+    """
+    import numpy as np
+
+    found = probe(path)
+    raw = subprocess.run([imageio_ffmpeg.get_ffmpeg_exe(), "-v", "error", "-i", str(path), "-f", "rawvideo",
+                          "-pix_fmt", "rgb24", "-"], capture_output=True, timeout=120, check=True).stdout
+    shape = (found["height"], found["width"], 3)
+    frames = np.frombuffer(raw, dtype=np.uint8).reshape((-1, *shape))
+    return list(frames)

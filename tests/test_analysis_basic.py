@@ -226,7 +226,7 @@ def test_random_sequential_zero_dots():
         (dict(box=(0, 100)), "box must be two sizes > 0"),
         (dict(box=(100,)), "box must be"),
         (dict(box="big"), "box must be"),
-        (dict(mean_diameter=0.0), r"mean_diameter must be in \(0, "),
+        (dict(mean_diameter=0.0), r"mean_diameter must be in \[0.01, 1e6\] px"),
         (dict(mean_diameter=200.0), "does not fit in the box"),
         (dict(sigma=1.0), r"sigma must be in \[0, 1\)"),
         (dict(sigma=-0.1), r"sigma must be in \[0, 1\)"),

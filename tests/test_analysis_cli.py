@@ -66,6 +66,18 @@ def test_analyze_table_and_plot(state_file, tmp_path, capsys):
     assert state_file.with_name("flake_analysis.png").exists()
 
 
+def test_the_table_says_in_words_what_a_neighbour_and_a_cluster_are(state_file, capsys):
+    assert main(["analyze", str(state_file), "--draws", "1"]) == 0
+    text = capsys.readouterr().out
+    assert "neighbour rule" not in text and "'text'" not in text  # no code names
+    assert text.splitlines()[0] == f"{state_file} at t = 0.00 s:"
+    assert re.search(r"\n  neighbours +two dots whose surfaces are less than one mean radius apart \(the thesis's "
+                     r"text; --rule code: its program\)\n", text)
+    assert re.search(r"clusters of neighbouring dots +2; the largest holds 95.0 % of the dots\n", text)
+    assert main(["analyze", str(state_file), "--draws", "1", "--rule", "code"]) == 0
+    assert "dot j of dot i when their centres are at most r_i + 2 r_j apart" in capsys.readouterr().out
+
+
 @pytest.mark.parametrize("argv, message", [
     (["--traps", "1.5"], "--traps"),
     (["--rule", "java"], "--rule"),

@@ -178,10 +178,13 @@ def rewrite_metadata(source, target, change):
     (lambda m: {k: v for k, v in m.items() if k != "time"}, True), (lambda m: {**m, "time": None}, True),
     (lambda m: {**m, "time": float("nan")}, True), (lambda m: {**m, "closed": "no"}, True),
     (lambda m: {**m, "engine": {**m["engine"], "iterations": 2**62}}, True),
+    (lambda m: {**m, "engine": {}}, True),
+    (lambda m: {**m, "engine": {k: v for k, v in m["engine"].items() if k != "dt"}}, True),
     (lambda m: {**m, "collisions": {"dot_dot": 1, "sideways": 2, "dot_wall": 0, "sticking": 0}}, False),
     (lambda m: {**m, "rng": {"bit_generator": "PCG64", "state": "x"}}, False),
     (lambda m: {**m, "forces": [{"type": "Warp"}]}, False),
 ], ids=["list", "null", "number", "string", "no-time", "null-time", "nan-time", "closed-string", "huge-iterations",
+        "empty-engine", "engine-without-dt",
         "collision-name", "bad-rng", "unknown-force"])
 def test_damaged_state_metadata_is_a_one_line_error(tmp_path, capsys, good_state, change, board_damaged):
     """Resuming needs every field; a picture or an analysis needs the board only (and says when it is damaged)."""
@@ -275,3 +278,12 @@ def test_the_python_api_takes_todays_force_names_only():
     with pytest.raises(ValueError, match="unknown force type 'CenterGravity'"):
         qdots.forces.force_from_dict({"type": "CenterGravity", "center": [1.0, 2.0], "magnitude": 1.0})
     assert not hasattr(qdots, "CenterGravity") and not hasattr(qdots.forces, "CenterGravity")
+
+
+def test_a_state_whose_engine_table_is_empty_is_refused_naming_the_settings(tmp_path, capsys, good_state):
+    bad = tmp_path / "bad.npz"
+    rewrite_metadata(good_state, bad, lambda m: {**m, "engine": {}})
+    assert qdots_main(["resume", str(bad), "--seconds", "0.01"]) == 2
+    err = one_line_error(capsys)
+    assert "engine has no 'dt', 'substeps'" in err and "the engine settings of the run that saved it" in err
+    assert not (tmp_path / "bad-t0.01s").exists() and sorted(p.name for p in tmp_path.iterdir()) == ["bad.npz"]

@@ -4,8 +4,9 @@ paths that both command lines share)."""
 
 import csv
 import os
+import re
+from pathlib import Path
 
-import imageio.v2 as imageio
 import imageio.v3 as iio
 import numpy as np
 import pytest
@@ -15,6 +16,7 @@ from planarize.cli import main as planarize_main
 from qdots.cli import main
 
 from helpers import gravity_scene_file, one_line_error, refused_run, run_ok, to_toml
+from movie_probe import probe
 
 
 def rows(path):
@@ -30,49 +32,50 @@ def preset_run(tmp_path_factory):
 
 
 def test_preset_writes_every_file(preset_run):
-    names = sorted(p.name for p in preset_run.iterdir())
-    stems = sorted({n.rsplit(".", 1)[0] for n in names if n != "summary.csv"})
-    assert len(stems) == 2  # sigma 0 and 0.15
+    stems = sorted(p.name for p in preset_run.iterdir() if p.name != "summary.csv")
+    assert stems == ["fig2-2a_sigma0_quick_x0.05", "fig2-2b_sigma0.15_quick_x0.05"]  # a folder per run
     for stem in stems:
-        for suffix in (".npz", ".png", ".toml", ".mp4"):
-            assert stem + suffix in names
+        assert sorted(p.name for p in (preset_run / stem).iterdir()) == [stem + suffix for suffix in
+                                                                         (".mp4", ".npz", ".png", ".toml")]
     table = rows(preset_run / "summary.csv")
     assert [r["sigma"] for r in table] == ["0.0", "0.15"]
+    assert [r["state_file"] for r in table] == [f"{stem}/{stem}.npz" for stem in stems]
     assert all(0 <= float(r["max_overlap_pct_radius"]) < 5 for r in table)  # percent of a radius
     # the movie has one frame per 0.5 s of simulated time, from t = 0 to the end
-    state = qdots.read_state(preset_run / f"{stems[0]}.npz")
-    reader = imageio.get_reader(preset_run / f"{stems[0]}.mp4")
-    count = sum(1 for _ in reader)
-    reader.close()
+    state = qdots.read_state(preset_run / stems[0] / f"{stems[0]}.npz")
+    count = probe(preset_run / stems[0] / f"{stems[0]}.mp4")["frames"]
     assert count == int(np.floor(state.time / 0.5 + 1e-9)) + 1
 
 
 def test_scene_file_runs_and_reproduces(preset_run, tmp_path):
-    scene = next(preset_run.glob("*sigma0_*.toml"))
+    scene = next(preset_run.glob("*sigma0_*/*.toml"))
     assert main(["run", str(scene), "--out", str(tmp_path)]) == 0
     again = tmp_path / "again"
     assert main(["run", str(scene), "--out", str(again)]) == 0
-    a = qdots.read_state(next(tmp_path.glob("*.npz")))
-    b = qdots.read_state(next(again.glob("*.npz")))
+    a = qdots.read_state(next(tmp_path.glob("*/*.npz")))
+    b = qdots.read_state(next(again.glob("*/*.npz")))
     assert np.array_equal(a.positions, b.positions)
     other = tmp_path / "other"
     assert main(["run", str(scene), "--out", str(other), "--seed", "9"]) == 0
-    assert not np.array_equal(a.positions, qdots.read_state(next(other.glob("*.npz"))).positions)
+    assert not np.array_equal(a.positions, qdots.read_state(next(other.glob("*/*.npz"))).positions)
 
 
 def test_resume_keeps_the_table_and_continues(preset_run, tmp_path):
-    state = next(preset_run.glob("*sigma0_*.npz"))
+    state = next(preset_run.glob("*sigma0_*/*.npz"))
     before = qdots.read_state(state)
     assert main(["resume", str(state), "--seconds", "0.5", "--out", str(tmp_path)]) == 0
-    after = qdots.read_state(tmp_path / state.name)
-    assert after.time == pytest.approx(before.time + 0.5)
-    assert main(["resume", str(tmp_path / state.name), "--seconds", "0.3"]) == 0
-    assert qdots.read_state(tmp_path / state.name).time == pytest.approx(before.time + 0.8)
-    assert len(rows(tmp_path / "summary.csv")) == 1
+    (folder,) = [p for p in tmp_path.iterdir() if p.is_dir()]
+    moved = folder / f"{folder.name}.npz"
+    assert folder.name == f"{state.stem}-t{before.time + 0.5:g}s"
+    assert qdots.read_state(moved).time == pytest.approx(before.time + 0.5)
+    assert main(["resume", str(moved), "--seconds", "0.3", "--in-place"]) == 0
+    assert qdots.read_state(moved).time == pytest.approx(before.time + 0.8)
+    (row,) = rows(tmp_path / "summary.csv")
+    assert row["sigma"] == "0.0" and row["name"] == folder.name  # the parameters of the run it continues
 
 
 def test_render(preset_run, tmp_path):
-    state = next(preset_run.glob("*.npz"))
+    state = next(preset_run.glob("*/*.npz"))
     png = tmp_path / "board.png"
     assert main(["render", str(state), "--out", str(png)]) == 0
     assert iio.imread(png).shape[2] in (3, 4)
@@ -116,16 +119,17 @@ def test_a_board_overlapping_a_wall_after_a_run_saves_loads_renders_and_resumes_
     scene = gravity_scene_file(tmp_path)
     out = tmp_path / "out"
     run_ok(main, ["run", str(scene), "--out", str(out)], capsys)
-    state = qdots.read_state(out / "grav.npz")  # a dot sits 0.01 px into the inelastic floor: still loads
+    saved = out / "grav" / "grav.npz"
+    state = qdots.read_state(saved)  # a dot sits 0.01 px into the inelastic floor: still loads
     assert state.n_dots == 12
-    run_ok(main, ["render", str(out / "grav.npz")], capsys)
-    before = (out / "grav.npz").read_bytes()
-    run_ok(main, ["resume", str(out / "grav.npz"), "--seconds", "3"], capsys)  # in place
-    assert (out / "grav.npz").read_bytes() != before
-    assert qdots.load(out / "grav.npz").time == pytest.approx(6.0)
+    run_ok(main, ["render", str(saved)], capsys)
+    before = saved.read_bytes()
+    run_ok(main, ["resume", str(saved), "--seconds", "3", "--in-place"], capsys)
+    assert saved.read_bytes() != before
+    assert qdots.load(saved).time == pytest.approx(6.0)
     # run again into the same directory: the good result is replaced by another good one
     run_ok(main, ["run", str(scene), "--out", str(out)], capsys)
-    assert qdots.read_state(out / "grav.npz").time == pytest.approx(3.0)
+    assert qdots.read_state(saved).time == pytest.approx(3.0)
 
 
 def test_large_overlap_at_a_coarse_time_step_is_measured_and_warned_not_refused(tmp_path, capsys):
@@ -136,17 +140,19 @@ def test_large_overlap_at_a_coarse_time_step_is_measured_and_warned_not_refused(
                              "deposition": {"n_dots": 60, "interval": 0.0, "settle": 1.0},
                              "engine": {"dt": 0.02, "overlap_tolerance": False},
                              "forces": [{"type": "CentreGravity", "centre": [100.0, 100.0]}]}))
-    assert main(["run", str(path), "--out", str(tmp_path / "out")]) == 0
+    with pytest.warns(RuntimeWarning, match=r"radii per sub-step \(> 0\.5\)"):  # the engine says so as it runs
+        assert main(["run", str(path), "--out", str(tmp_path / "out")]) == 0
     captured = capsys.readouterr()
-    state = qdots.read_state(tmp_path / "out" / "coarse.npz")
-    assert qdots.load(tmp_path / "out" / "coarse.npz").settings.overlap_tolerance is None  # as the file said
+    saved = tmp_path / "out" / "coarse" / "coarse.npz"
+    state = qdots.read_state(saved)
+    assert qdots.load(saved).settings.overlap_tolerance is None  # as the file said
     overlap = qdots.analysis.overlaps(state)[0]
     assert overlap > qdots.simulation.OVERLAP_WARNING  # measured and kept ...
     header, row = (tmp_path / "out" / "summary.csv").read_text().splitlines()[:2]
     assert float(row.split(",")[header.split(",").index("max_overlap_pct_radius")]) == pytest.approx(100 * overlap,
                                                                                                      rel=1e-6)
     assert "warning: coarse: dots overlap" in captured.err  # ... and said
-    run_ok(main, ["render", str(tmp_path / "out" / "coarse.npz")], capsys)
+    run_ok(main, ["render", str(saved)], capsys)
 
 
 def test_dots_that_leave_an_open_board_are_counted_and_the_board_loads(tmp_path, capsys):
@@ -156,11 +162,11 @@ def test_dots_that_leave_an_open_board_are_counted_and_the_board_loads(tmp_path,
                              "forces": [{"type": "Gravity", "acceleration": [0.0, -200.0]}]}))
     assert main(["run", str(path), "--out", str(tmp_path / "out")]) == 0
     err = capsys.readouterr().err
-    state = qdots.read_state(tmp_path / "out" / "open.npz")
+    state = qdots.read_state(tmp_path / "out" / "open" / "open.npz")
     escaped = qdots.analysis.escaped(state)
     assert escaped > 0 and f"{escaped} of 10 dots have left the open board" in err
     assert f",{escaped}," in (tmp_path / "out" / "summary.csv").read_text()
-    sim = qdots.load(tmp_path / "out" / "open.npz")
+    sim = qdots.load(tmp_path / "out" / "open" / "open.npz")
     sim.run(0.1)  # and goes on
 
 
@@ -185,3 +191,27 @@ def test_paths_that_are_not_files_are_said_to_be(tmp_path, capsys):
     assert planarize_main(["scene", "hill", "--save", str(tmp_path / "missing" / "hill.toml")]) == 2
     err = one_line_error(capsys, "planarize")
     assert "does not exist" in err and ".tmp" not in err
+
+
+# -- where the commands write by default -----------------------------------------------------------
+
+def test_measure_writes_into_its_own_folder_by_default_not_beside_the_image(tmp_path, capsys, monkeypatch):
+    from PIL import Image
+
+    data = tmp_path / "data"
+    data.mkdir()
+    board = qdots.placement.random_sequential(40, (160, 160), 14.0, 0.1, rng=3)[0]
+    yy, xx = np.mgrid[:160, :160]
+    picture = np.full((160, 160), 200, dtype=np.uint8)
+    for x, y in board:
+        picture[(xx - x) ** 2 + (yy - y) ** 2 <= 36] = 40
+    Image.fromarray(picture).save(data / "film.png")
+    monkeypatch.chdir(tmp_path)
+    printed = run_ok(main, ["measure", str(data / "film.png"), "--nm-per-px", "1", "--no-lqe"], capsys).out
+    assert sorted(p.name for p in data.iterdir()) == ["film.png"]  # the data folder as it was
+    # its table in words: how many clusters of 5 or more dots, and the largest one's share
+    assert re.search(r"\n  aggregates +\d+ clusters of 5 or more dots; the largest cluster holds \d+\.\d % of the "
+                     r"dots\n", printed)
+    assert f"wrote {Path('qdots-measure') / 'film'}{os.sep}: film.npz" in printed
+    assert sorted(p.name for p in (tmp_path / "qdots-measure" / "film").iterdir()) == [
+        "film.npz", "film_detections.png", "film_summary.csv"]

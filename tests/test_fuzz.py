@@ -119,7 +119,7 @@ def fuzz_tests(check, *examples, **strategies):
 
 
 def snapshot(directory) -> dict:
-    return {p.name: p.read_bytes() for p in directory.iterdir() if p.is_file()}
+    return {str(p.relative_to(directory)): p.read_bytes() for p in directory.rglob("*") if p.is_file()}
 
 
 @pytest.fixture(scope="module")
@@ -159,7 +159,8 @@ def check_experiment_file(tmp_path, capsys, earlier, mutations) -> None:
         return
     assert status == 0
     capsys.readouterr()
-    state = qdots.read_state(earlier / f"{qdots.cli.commands.slug(exp.name)}.npz")
+    stem = qdots.cli.commands.slug(exp.name)
+    state = qdots.read_state(earlier / stem / f"{stem}.npz")
     assert np.isfinite(state.positions).all() and np.isfinite(state.velocities).all()
 
 
@@ -318,7 +319,7 @@ def test_an_example_that_does_not_end_fails_in_bounded_time():
 def test_the_checks_fail_on_a_traceback_or_a_long_message(tmp_path, capsys, earlier, monkeypatch):
     """The fuzzers' verdicts are not vacuous: a valid file is run, and a crash or a multi-line refusal fails them."""
     check_experiment_file(tmp_path, capsys, earlier, [])
-    assert (earlier / "fuzz.npz").exists()
+    assert (earlier / "fuzz" / "fuzz.npz").exists()
     import sys
 
     def refuse_in_two_lines(argv):

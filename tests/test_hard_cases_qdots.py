@@ -17,13 +17,16 @@ import pytest
 from qdots.hard_cases import CASES, check
 
 
-def case_params():
+def case_params() -> list:
+    """One parameter per case (a list: pytest refuses a generator), slow and known-failure cases marked."""
+    params = []
     for case in CASES:
         marks = [pytest.mark.slow] if case.slow else []
         if case.known_failure:
             marks.append(pytest.mark.xfail(strict=True, reason=case.known_failure))
-        yield pytest.param(case, id=case.name.split(",")[0].replace(" ", "-") + "-" + str(CASES.index(case)),
-                           marks=marks)
+        params.append(pytest.param(case, id=case.name.split(",")[0].replace(" ", "-") + "-" + str(CASES.index(case)),
+                                   marks=marks))
+    return params
 
 
 @pytest.mark.parametrize("case", case_params())

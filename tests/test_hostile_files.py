@@ -426,6 +426,31 @@ def test_a_name_with_control_characters_is_kept_and_printed_escaped(tmp_path, ca
     path = tmp_path / "esc.toml"
     path.write_text(SMALL_EXPERIMENT.replace('name = "small"', 'name = "fu\\u001b[31mzz\\u0007x\\r"'))
     assert load_experiment(path).name == "fu\x1b[31mzz\x07x\r"  # names are data
-    assert qdots_main(["run", str(path), "--out", str(tmp_path / "out")]) == 0
+    assert qdots_main(["run", str(path), "--out", str(tmp_path / "out")]) == 0  # no glyph warning (an error here)
     out = capsys.readouterr().out
     assert "fu\\x1b[31mzz\\x07x\\r" in out and "\x1b" not in out and "\x07" not in out and "\r" not in out
+    table = (tmp_path / "out" / "summary.csv").read_text()  # written escaped, read back as written
+    assert "fu\\x1b[31mzz\\x07x\\r" in table and not any(c in table for c in "\x1b\x07\r")
+    assert len(table.splitlines()) == 2
+
+
+def test_control_characters_are_escaped_in_sweep_tables_and_planarize_stderr(tmp_path, capsys):
+    pytest.importorskip("pyarrow")
+    import pyarrow.parquet as pq
+
+    name = "a\x1b[2Jb\nc"
+    result = run_sweep(Sweep(base={"name": name, "x": 1}, axes={"x": [1, 2]}), lambda p: {"y": p["x"], "tag": name},
+                       tmp_path / "sweep", workers=1, progress=False)
+    text = result.table.read_text()
+    assert "a\\x1b[2Jb\\nc" in text and "\x1b" not in text and len(text.splitlines()) == 3
+    for column in pq.read_table(result.parquet).to_pydict().values():
+        assert not any(isinstance(v, str) and "\x1b" in v for v in column)
+    assert pq.read_table(result.parquet).to_pydict()["tag"] == ["a\\x1b[2Jb\\nc"] * 2
+    scene = tmp_path / "hill.toml"
+    assert planarize_main(["scene", "hill", "--quick", "0.25", "--save", str(scene)]) == 0
+    text = scene.read_text()
+    scene.write_text(text.replace('name = "hill quick 0.25"', 'name = "h\\u001b[31mill"'))
+    assert scene.read_text() != text
+    assert planarize_main(["run", str(scene), "--out", str(tmp_path / "out")]) == 0  # no glyph warning
+    captured = capsys.readouterr()
+    assert "\x1b" not in captured.out + captured.err and "h\\x1b[31mill" in captured.out

@@ -60,3 +60,19 @@ def test_importing_the_packages_installs_no_import_hooks():
                           capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr[-2000:]
     assert done.stdout.strip().endswith("ok")
+
+
+def test_a_warning_fails_the_test_suite(tmp_path):
+    """The pytest configuration makes every warning an error (pyproject.toml), so the suite stays warning-free."""
+    import tomllib
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parent.parent
+    config = tomllib.loads((root / "pyproject.toml").read_text())["tool"]["pytest"]["ini_options"]
+    assert config["filterwarnings"][0] == "error"
+    (tmp_path / "test_warns.py").write_text("import warnings\n\n\ndef test_it():\n"
+                                            "    warnings.warn('leaked', RuntimeWarning)\n")
+    done = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "-c",
+                           str(root / "pyproject.toml"), "--rootdir", str(tmp_path), str(tmp_path / "test_warns.py")],
+                          capture_output=True, text=True, timeout=300, cwd=tmp_path)
+    assert done.returncode == 1 and "RuntimeWarning: leaked" in done.stdout, done.stdout[-2000:]

@@ -207,6 +207,7 @@ def test_measure_writes_a_state_analyze_and_render_read(tmp_path, capsys):
     printed = capsys.readouterr() if main(["measure", str(tmp_path / "film.png"), "--out", str(out),
                                            "--nm-per-px", "0.5"]) == 0 else pytest.fail("measure failed")
     assert "interior fraction" in printed.out and "0.5 nm/px (given)" in printed.out
+    out = out / "film"  # the measurement's folder
     assert sorted(p.name for p in out.iterdir()) == ["film.npz", "film_detections.png", "film_summary.csv"]
     state = checkpoint.read_state(out / "film.npz")
     metadata = checkpoint.read_metadata(out / "film.npz")["micrograph"]
@@ -228,6 +229,7 @@ def test_compare_runs_the_matching_experiment(tmp_path, capsys):
                  "--seeds", "2", "--engine", "event"]) == 0
     printed = capsys.readouterr().out
     assert "image" in printed and "simulation" in printed and "+-" in printed
+    out = out / "film_compare"  # the comparison's folder
     names = sorted(p.name for p in out.iterdir())
     assert names == ["film.npz", "film_compare.csv", "film_compare.png", "film_compare.toml", "film_detections.png",
                      "film_sim-154.npz", "film_sim-155.npz", "film_summary.csv"]

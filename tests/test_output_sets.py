@@ -1,13 +1,15 @@
 """What the command lines write, under kills, Ctrl-C and concurrent runs.
 
-An output set switches all at once (a kill between two of its renames is rolled forward by the next
-open or reader), a second writer of a set is refused, concurrent runs never lose each other's summary
-rows, a resumed run leaves a coherent set, and Ctrl-C is one line at any moment. A run that fails late leaves
-the earlier files whole, the input file is never written over, and stale temporaries are cleared.
+An output set is a folder switched into place in one step: a kill at any step of a switch leaves the earlier
+set or the new one, byte for byte (every step tried, for qdots and planarize); a second writer of a set is
+refused, concurrent runs never lose each other's summary rows, a resume never changes its input, and Ctrl-C
+is one line at any moment. A run that fails late leaves the earlier set whole, the input file is never
+written over, and stale temporaries and staging directories are cleared.
 """
 
 import csv
 import importlib.metadata
+import json
 import os
 import signal
 import subprocess
@@ -19,9 +21,10 @@ from pathlib import Path
 import pytest
 
 import qdots
+import labrig.staging as staging
 from labrig.cli import Parser, run_main
 from labrig.files import OutputSet, SetBusyError, recover_beside
-from labrig.staging import JOURNAL, PREFIX
+from labrig.staging import PREFIX
 from planarize.cli import main as planarize_main
 from planarize.io.results import load_run
 from qdots.cli import main as qdots_main
@@ -32,7 +35,7 @@ from helpers import gravity_scene_file, one_line_error, run_ok
 #: Longest any subprocess of these tests may take, s.
 TIMEOUT = 300
 
-#: The files of a set like `qdots run --movie --gsd`'s (npz, png, mp4, gsd, toml, summary, ...): nine renames.
+#: The files of a set like `qdots run --movie --gsd`'s (npz, png, mp4, gsd, toml, ...).
 NAMES = [f"r.{k}" for k in range(9)]
 
 
@@ -82,7 +85,9 @@ def stagings(directory: Path) -> list[str]:
 
 
 def contents(directory: Path) -> dict:
-    return {p.name: p.read_bytes() for p in directory.iterdir() if p.is_file()}
+    """Every file under ``directory``, by path relative to it (hidden staging directories left out)."""
+    return {str(p.relative_to(directory)): p.read_bytes() for p in sorted(directory.rglob("*"))
+            if p.is_file() and not any(part.startswith(PREFIX) for part in p.relative_to(directory).parts)}
 
 
 def write_set(directory: Path, text: str) -> OutputSet:
@@ -93,22 +98,7 @@ def write_set(directory: Path, text: str) -> OutputSet:
 
 
 def versions(directory: Path) -> list[str]:
-    return [(directory / name).read_text().split()[0] for name in NAMES]
-
-
-class FailingRename:
-    """``os.replace`` that raises at its ``n``-th rename into ``directory``: a kill between two renames of a
-    switch, as the process that was killed sees it."""
-
-    def __init__(self, directory: Path, n: int):
-        self.directory, self.n, self.count, self.replace = Path(directory), n, 0, os.replace
-
-    def __call__(self, source, target):
-        if Path(target).parent == self.directory:
-            self.count += 1
-            if self.count == self.n:
-                raise OSError("killed between two renames")
-        return self.replace(source, target)
+    return [(directory / "r" / name).read_text().split()[0] for name in NAMES]
 
 
 def one_line(err: str, prog: str = "qdots") -> str:
@@ -117,100 +107,172 @@ def one_line(err: str, prog: str = "qdots") -> str:
     return lines[-1]
 
 
-# -- a set switches at once --------------------------------------------------------------------------
+# -- a set switches in one step ------------------------------------------------------------------------
 
-@pytest.mark.parametrize("n", range(2, len(NAMES) + 1))
-@pytest.mark.parametrize("recovered_by", ["reader", "next set"])
-def test_a_switch_cut_between_two_renames_is_rolled_forward(tmp_path, monkeypatch, n, recovered_by):
+def killed_at_every_step(out: Path, name: str, prog: str, *argv) -> list[dict]:
+    """`kill_points.py`: the command killed at each step of its switch in turn, and what each kill left."""
+    result = subprocess.run([sys.executable, str(Path(__file__).with_name("kill_points.py")), str(out), name, prog,
+                             *map(str, argv)], capture_output=True, text=True, timeout=TIMEOUT)
+    assert result.returncode == 0, result.stderr
+    return json.loads(result.stdout)
+
+
+def check_every_step(results: list[dict], table: bool) -> None:
+    *kills, last = results
+    assert last["status"] == 0 and not last["killed"] and last["set"] == "new"  # ran past the last step
+    assert len(kills) >= 5 and all(r["killed"] for r in kills)
+    assert all(r["set"] in ("old", "new") for r in results), results  # never a mix of the two, at any step
+    assert kills[0]["set"] == "old" and kills[-1]["set"] == "new"
+    if table:
+        assert all(r["table"] in ("old", "new") for r in results) and last["table"] == "new"
+
+
+def test_a_qdots_run_killed_at_any_step_of_its_switch_leaves_the_old_set_or_the_new_one(tmp_path, capsys):
+    scene, out = gravity_scene_file(tmp_path), tmp_path / "out"
+    run_ok(qdots_main, ["run", str(scene), "--out", str(out), "--movie", "--gsd", "--seed", "1"], capsys)
+    results = killed_at_every_step(out, "grav", "qdots", "run", scene, "--out", out, "--movie", "--gsd", "--seed", 2)
+    check_every_step(results, table=True)
+    assert all(r["visible"] == ["grav", "summary.csv"] for r in results)
+
+
+def test_a_planarize_run_killed_at_any_step_of_its_switch_leaves_the_old_set_or_the_new_one(tmp_path, capsys):
+    out = tmp_path / "out"
+    run_ok(planarize_main, ["scene", "hill", "--quick", "0.25", "--out", str(out), "--movie"], capsys)
+    results = killed_at_every_step(out, "hill_quick_0.25", "planarize", "scene", "hill", "--quick", "0.25",
+                                   "--engine", "reference", "--out", out)
+    check_every_step(results, table=False)
+    assert all(r["visible"] == ["hill_quick_0.25"] for r in results)
+
+
+def test_the_switch_is_one_exchange_and_a_kill_before_or_after_it_is_cleared_by_the_next_open(tmp_path):
     write_set(tmp_path, "old")
-    monkeypatch.setattr(os, "replace", FailingRename(tmp_path, n))
-    with pytest.raises(OSError, match="killed between two renames"):
-        write_set(tmp_path, "new")
-    monkeypatch.undo()
-    assert versions(tmp_path) == ["new"] * (n - 1) + ["old"] * (len(NAMES) - n + 1)  # what the kill left
-    (staging,) = stagings(tmp_path)
-    assert (tmp_path / staging / JOURNAL).exists()
-    if recovered_by == "reader":
-        recover_beside(tmp_path / "r.0")
-    else:
-        OutputSet(tmp_path, "another").abort()
-    assert versions(tmp_path) == ["new"] * len(NAMES) and stagings(tmp_path) == []
+    killed = python("""
+        import os, sys
+        import labrig.staging as staging
+        from labrig.files import OutputSet
+        exchange = staging.exchange
 
-
-def test_ctrl_c_between_two_renames_finishes_the_switch_before_it_stops(tmp_path, monkeypatch):
-    write_set(tmp_path, "old")
-    replace = os.replace
-
-    def interrupted_once(source, target):
-        if Path(target).parent == tmp_path and Path(target).name == "r.4":
-            monkeypatch.setattr(os, "replace", replace)
-            raise KeyboardInterrupt
-        return replace(source, target)
-
-    monkeypatch.setattr(os, "replace", interrupted_once)
-    with pytest.raises(KeyboardInterrupt):
-        write_set(tmp_path, "new")
-    assert versions(tmp_path) == ["new"] * len(NAMES) and stagings(tmp_path) == []
-
-
-KILLED_SWITCH = """
-import os, sys
-from pathlib import Path
-from labrig.files import OutputSet
-
-out, n = Path(sys.argv[1]), int(sys.argv[2])
-replace, count = os.replace, [0]
-
-def killing_replace(source, target):
-    if Path(target).parent == out:
-        count[0] += 1
-        if count[0] == n:
+        def killed_after(a, b):
+            exchange(a, b)
             os.kill(os.getpid(), signal.SIGKILL)
-    return replace(source, target)
 
-os.replace = killing_replace
-with OutputSet(out, "r") as files:
-    for k in range(9):
-        files.stage(f"r.{k}").write_text(f"new r.{k}")
-    if n == 0:  # killed before the switch
-        os.kill(os.getpid(), signal.SIGKILL)
-"""
+        staging.exchange = killed_after
+        with OutputSet(sys.argv[1], "r") as files:
+            for k in range(9):
+                files.stage(f"r.{k}").write_text(f"new r.{k}")
+        """, tmp_path)
+    assert killed.returncode == -signal.SIGKILL
+    assert versions(tmp_path) == ["new"] * len(NAMES)
+    (left,) = stagings(tmp_path)  # the earlier set, hidden, its process gone
+    assert sorted(os.listdir(tmp_path / left)) == NAMES
+    recover_beside(tmp_path / "r" / "r.0")  # a reader clears it
+    assert stagings(tmp_path) == [] and versions(tmp_path) == ["new"] * len(NAMES)
 
 
-@pytest.mark.parametrize("n", [3, 9])
-def test_sigkill_between_the_renames_then_the_next_reader_finishes_the_switch(tmp_path, n):
+def test_without_an_exchange_a_switch_cut_between_its_two_renames_is_rolled_forward(tmp_path, monkeypatch):
     write_set(tmp_path, "old")
-    assert python(KILLED_SWITCH, tmp_path, n).returncode == -signal.SIGKILL
-    assert versions(tmp_path) == ["new"] * (n - 1) + ["old"] * (len(NAMES) - n + 1)
-    recover_beside(tmp_path / "r.0")
+    killed = python("""
+        import errno, os, sys
+        import labrig.staging as staging
+        from labrig.files import OutputSet
+
+        def unsupported(a, b):
+            raise staging.ExchangeUnsupported(errno.EINVAL, "no exchange on this filesystem")
+
+        rename = os.rename
+        def killed_after_the_first(source, target):
+            rename(source, target)
+            if str(target).endswith(".old"):
+                os.kill(os.getpid(), signal.SIGKILL)
+
+        staging.exchange, os.rename = unsupported, killed_after_the_first
+        with OutputSet(sys.argv[1], "r") as files:
+            for k in range(9):
+                files.stage(f"r.{k}").write_text(f"new r.{k}")
+        """, tmp_path)
+    assert killed.returncode == -signal.SIGKILL
+    assert not (tmp_path / "r").exists() and len(stagings(tmp_path)) == 2  # the new set and the old, aside
+    OutputSet(tmp_path, "another").abort()  # the next open rolls the switch forward
+    assert versions(tmp_path) == ["new"] * len(NAMES) and stagings(tmp_path) == []
+    # and in this process: without the exchange, the two renames switch the set
+    monkeypatch.setattr(staging, "exchange", lambda a, b: (_ for _ in ()).throw(staging.ExchangeUnsupported(22, "no")))
+    write_set(tmp_path, "newer")
+    assert versions(tmp_path) == ["newer"] * len(NAMES) and stagings(tmp_path) == []
+
+
+def test_ctrl_c_during_a_switch_waits_for_it_and_says_the_files_were_written(tmp_path, monkeypatch):
+    write_set(tmp_path, "old")
+    exchange = staging.exchange
+
+    def interrupted(a, b):
+        os.kill(os.getpid(), signal.SIGINT)  # Ctrl-C as the switch runs
+        exchange(a, b)
+
+    monkeypatch.setattr(staging, "exchange", interrupted)
+    with pytest.raises(KeyboardInterrupt, match="the files of r were written"):
+        write_set(tmp_path, "new")
     assert versions(tmp_path) == ["new"] * len(NAMES) and stagings(tmp_path) == []
 
 
 def test_sigkill_before_the_switch_leaves_the_earlier_set_and_the_next_open_clears_it(tmp_path):
     write_set(tmp_path, "old")
-    assert python(KILLED_SWITCH, tmp_path, 0).returncode == -signal.SIGKILL
-    assert versions(tmp_path) == ["old"] * len(NAMES)
-    (staging,) = stagings(tmp_path)
-    assert not (tmp_path / staging / JOURNAL).exists()
+    killed = python("""
+        import os, sys
+        from labrig.files import OutputSet
+        with OutputSet(sys.argv[1], "r") as files:
+            for k in range(9):
+                files.stage(f"r.{k}").write_text(f"new r.{k}")
+            os.kill(os.getpid(), signal.SIGKILL)
+        """, tmp_path)
+    assert killed.returncode == -signal.SIGKILL
+    assert versions(tmp_path) == ["old"] * len(NAMES) and len(stagings(tmp_path)) == 1
     write_set(tmp_path, "newer")
     assert versions(tmp_path) == ["newer"] * len(NAMES) and stagings(tmp_path) == []
 
 
-def test_qdots_run_cut_mid_switch_is_finished_by_reading_its_state(tmp_path, capsys, monkeypatch):
+def test_earlier_files_a_set_does_not_write_are_carried_over_unless_dropped(tmp_path):
+    write_set(tmp_path, "old")
+    (tmp_path / "r" / "notes.txt").write_text("a person's notes")
+    with OutputSet(tmp_path, "r") as files:
+        files.stage("r.0").write_text("new r.0")
+        files.drop("r.1")
+        files.keep_as("r.2", "r.2.kept")
+    assert sorted(os.listdir(tmp_path / "r")) == sorted(["notes.txt", "r.0", "r.2.kept"] + NAMES[3:])
+    assert (tmp_path / "r" / "r.2.kept").read_text() == "old r.2" and files.removed == [tmp_path / "r" / "r.1"]
+    (tmp_path / "r" / "sub").mkdir()  # a folder cannot be carried over: refused before anything is written
+    with pytest.raises(ValueError, match="holds the folder 'sub'"):
+        OutputSet(tmp_path, "r")
+    (tmp_path / "f").write_text("a file where the set's folder goes")
+    with pytest.raises(ValueError, match="is a file"):
+        OutputSet(tmp_path, "f")
+
+
+def test_a_name_too_long_for_a_file_name_is_a_one_line_error_without_internal_paths(tmp_path, capsys):
+    scene = tmp_path / "long.toml"
+    scene.write_text(gravity_scene_file(tmp_path).read_text().replace('name = "grav"', f'name = "{"x" * 300}"'))
+    assert qdots_main(["run", str(scene), "--out", str(tmp_path / "out")]) == 2
+    err = one_line_error(capsys)
+    assert "name must be at most 200 characters" in err and "got 300" in err and PREFIX not in err
+    assert not (tmp_path / "out").exists()
+    hill = tmp_path / "hill.toml"
+    run_ok(planarize_main, ["scene", "hill", "--save", str(hill)], capsys)
+    hill.write_text(hill.read_text().replace('name = "hill"', f'name = "{"y" * 300}"'))
+    assert planarize_main(["run", str(hill), "--out", str(tmp_path / "out")]) == 2
+    err = one_line_error(capsys, "planarize")
+    assert "name must be at most 200 characters" in err and PREFIX not in err
+
+
+def test_qdots_run_replaces_its_folder_and_a_reader_never_sees_a_mix(tmp_path, capsys):
     scene, out = gravity_scene_file(tmp_path), tmp_path / "out"
     assert qdots_main(["run", str(scene), "--out", str(out), "--movie", "--gsd", "--seed", "1"]) == 0
-    first = contents(out)
-    monkeypatch.setattr(os, "replace", FailingRename(out, 5))
-    assert qdots_main(["run", str(scene), "--out", str(out), "--movie", "--gsd", "--seed", "2"]) == 2
-    monkeypatch.undo()
+    first = contents(out / "grav")
+    assert sorted(first) == ["grav.gsd", "grav.mp4", "grav.npz", "grav.png", "grav.toml"]
+    assert qdots_main(["run", str(scene), "--out", str(out), "--movie", "--gsd", "--seed", "2"]) == 0
     capsys.readouterr()
-    mixed = contents(out)
-    assert any(mixed[name] == first[name] for name in first) and any(mixed[name] != first[name] for name in first)
-    qdots.read_state(out / "grav.npz")  # a reader finishes the switch first
-    now = contents(out)
+    now = contents(out / "grav")
     assert sorted(now) == sorted(first) and all(now[name] != first[name] for name in first)
     (row,) = rows(out / "summary.csv")
-    assert row["seed"] == "2" and stagings(out) == []
+    assert row["seed"] == "2" and row["state_file"] == "grav/grav.npz" and stagings(out) == []
 
 
 def test_a_killed_planarize_run_leaves_the_earlier_result_alone_and_no_temporary_beside_it(tmp_path, capsys):
@@ -233,7 +295,7 @@ def test_a_killed_planarize_run_leaves_the_earlier_result_alone_and_no_temporary
         """, "scene", "hill", "--quick", "0.25", "--out", out)
     assert killed.returncode == -signal.SIGKILL
     assert contents(out) == before and len(stagings(out)) == 1  # its partial files are in its staging directory
-    run = load_run(out / "hill_quick_0.25.npz")  # the reader clears it
+    run = load_run(out / "hill_quick_0.25" / "hill_quick_0.25.npz")  # the reader clears it
     assert run.complete and contents(out) == before and stagings(out) == []
 
 
@@ -243,7 +305,7 @@ def test_a_run_that_fails_late_leaves_the_earlier_files_whole(tmp_path, capsys, 
     scene = gravity_scene_file(tmp_path)
     out = tmp_path / "out"
     run_ok(qdots_main, ["run", str(scene), "--out", str(out)], capsys)
-    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    before = contents(out)
 
     def fail(*args, **kwargs):
         raise OSError("disk full")
@@ -251,7 +313,7 @@ def test_a_run_that_fails_late_leaves_the_earlier_files_whole(tmp_path, capsys, 
     monkeypatch.setattr(qdots.render, "save_png", fail)
     assert qdots_main(["run", str(scene), "--out", str(out), "--seed", "9"]) == 2
     one_line_error(capsys)
-    assert {p.name: p.read_bytes() for p in out.iterdir()} == before  # nothing replaced, no temporary left
+    assert contents(out) == before and sorted(os.listdir(out)) == ["grav", "summary.csv"]  # nothing replaced or left
 
 
 def test_the_input_scene_file_is_never_written_over(tmp_path, capsys):
@@ -259,13 +321,16 @@ def test_the_input_scene_file_is_never_written_over(tmp_path, capsys):
     written = scene.read_text()
     run_ok(qdots_main, ["run", str(scene), "--seed", "7", "--out", str(tmp_path)], capsys)
     assert scene.read_text() == written
-    assert "seed = 7" in (tmp_path / "grav.ran.toml").read_text()
-    hill = tmp_path / "hill_quick_0.25.toml"  # the name of the scene inside
-    run_ok(planarize_main, ["scene", "hill", "--quick", "0.25", "--save", str(hill)], capsys)
+    run_ok(qdots_main, ["run", str(tmp_path / "grav" / "grav.toml"), "--seed", "8", "--out", str(tmp_path)], capsys)
+    assert "seed = 7" in (tmp_path / "grav" / "grav.toml").read_text()  # the input, carried into the new set
+    assert "seed = 8" in (tmp_path / "grav" / "grav.ran.toml").read_text()
+    out = tmp_path / "out"
+    hill = out / "hill_quick_0.25" / "hill_quick_0.25.toml"  # a run's own copy of its scene
+    run_ok(planarize_main, ["scene", "hill", "--quick", "0.25", "--out", str(out)], capsys)
     text = hill.read_text()
-    run_ok(planarize_main, ["run", str(hill), "--engine", "reference", "--out", str(tmp_path)], capsys)
+    run_ok(planarize_main, ["run", str(hill), "--engine", "reference", "--out", str(out)], capsys)
     assert hill.read_text() == text
-    assert 'engine = "reference"' in (tmp_path / "hill_quick_0.25.ran.toml").read_text()
+    assert 'engine = "reference"' in (hill.parent / "hill_quick_0.25.ran.toml").read_text()
 
 
 def test_stale_temporary_files_are_cleared_by_the_next_run(tmp_path, capsys):
@@ -286,7 +351,7 @@ def test_stale_temporary_files_are_cleared_by_the_next_run(tmp_path, capsys):
 def test_a_live_set_is_left_alone_and_a_second_writer_is_refused(tmp_path):
     with OutputSet(tmp_path, "r") as files:
         files.stage("r.0").write_text("new")
-        recover_beside(tmp_path / "r.0")  # a reader while the set is written
+        recover_beside(tmp_path / "r" / "r.0")  # a reader while the set is written
         assert files.staging.is_dir()
         message = f"r in {tmp_path} is being written by another run (pid {os.getpid()}): wait for it or choose"
         with pytest.raises(SetBusyError, match=message.replace("(", r"\(").replace(")", r"\)")):
@@ -294,7 +359,7 @@ def test_a_live_set_is_left_alone_and_a_second_writer_is_refused(tmp_path):
         OutputSet(tmp_path, "r2").abort()  # another set of the same directory is free
         other = python("import sys\nfrom labrig.files import OutputSet\nOutputSet(sys.argv[1], 'r')", tmp_path)
         assert "SetBusyError" in other.stderr and f"(pid {os.getpid()})" in other.stderr
-    assert (tmp_path / "r.0").read_text() == "new" and stagings(tmp_path) == []
+    assert (tmp_path / "r" / "r.0").read_text() == "new" and stagings(tmp_path) == []
 
 
 def test_a_run_or_resume_of_a_set_being_written_is_refused_before_it_starts(tmp_path, capsys):
@@ -303,7 +368,8 @@ def test_a_run_or_resume_of_a_set_being_written_is_refused_before_it_starts(tmp_
     capsys.readouterr()
     before = contents(out)
     with OutputSet(out, "grav"):
-        for argv in (["run", scene, "--out", out], ["resume", out / "grav.npz", "--seconds", "1"]):
+        for argv in (["run", scene, "--out", out],
+                     ["resume", out / "grav" / "grav.npz", "--seconds", "1", "--in-place"]):
             result = command("qdots", *argv)
             assert result.returncode == 2
             assert one_line(result.stderr) == (f"qdots: error: grav in {out} is being written by another run "
@@ -311,20 +377,21 @@ def test_a_run_or_resume_of_a_set_being_written_is_refused_before_it_starts(tmp_
         assert contents(out) == before
 
 
-def test_concurrent_resumes_of_one_checkpoint_never_drop_a_continuation(tmp_path, capsys):
+def test_concurrent_in_place_resumes_of_one_checkpoint_never_drop_a_continuation(tmp_path, capsys):
     scene, out = gravity_scene_file(tmp_path), tmp_path / "out"
     assert qdots_main(["run", str(scene), "--out", str(out)]) == 0
     capsys.readouterr()
-    start = qdots.read_state(out / "grav.npz").time
+    state = out / "grav" / "grav.npz"
+    start = qdots.read_state(state).time
     code = LAUNCH.format(prog="qdots")
-    argv = ["resume", str(out / "grav.npz"), "--seconds", "1"]
+    argv = ["resume", str(state), "--seconds", "1", "--in-place"]
     runs = [started(code, *argv) for _ in range(2)]
     results = [waited(run) for run in runs]
     finished = [status for status, _ in results if status == 0]
     for status, err in results:
         assert status == 0 or (status == 2 and "is being written by another run" in one_line(err)), err
     # each continuation that said it finished is in the checkpoint (one refused, or both one after the other)
-    assert finished and qdots.read_state(out / "grav.npz").time == pytest.approx(start + len(finished))
+    assert finished and qdots.read_state(state).time == pytest.approx(start + len(finished))
 
 
 # -- concurrent runs share a summary -------------------------------------------------------------------
@@ -337,7 +404,7 @@ from qdots.cli.commands import merge_summary
 
 out, who, n = Path(sys.argv[1]), sys.argv[2], int(sys.argv[3])
 for k in range(n):
-    row = {"name": f"{who}{k}", "state_file": f"{who}{k}.npz"}
+    row = {"name": f"{who}{k}", "state_file": f"{who}{k}/{who}{k}.npz"}
     with OutputSet(out, f"{who}{k}") as files:
         files.stage(f"{who}{k}.npz").write_text("board")
         files.update("summary.csv", lambda current, staged: merge_summary(current, [row], staged))
@@ -365,33 +432,64 @@ def test_two_qdots_runs_of_different_names_into_one_directory_keep_both_rows(tmp
     assert sorted(row["name"] for row in rows(out / "summary.csv")) == ["first", "second"]
 
 
-# -- a resumed run writes a coherent set ----------------------------------------------------------------
+# -- a resume never changes its input ---------------------------------------------------------------------
+
+def test_resume_writes_a_new_set_beside_its_input_and_says_its_name(tmp_path, capsys):
+    assert qdots_main(["resume", "--help"]) == 0
+    help_text = " ".join(capsys.readouterr().out.split())
+    assert "A resume never changes its input" in help_text and "--in-place replaces the run's own folder" in help_text
+    scene, out = gravity_scene_file(tmp_path), tmp_path / "out"
+    assert qdots_main(["run", str(scene), "--out", str(out), "--movie"]) == 0
+    capsys.readouterr()
+    earlier = contents(out / "grav")
+    assert qdots_main(["resume", str(out / "grav" / "grav.npz"), "--seconds", "1"]) == 0
+    printed = capsys.readouterr().out
+    assert f"wrote the continuation as the new run grav-t4s in {out / 'grav-t4s'}" in printed
+    assert f"{out / 'grav' / 'grav.npz'} is unchanged" in printed
+    assert contents(out / "grav") == earlier  # the input, byte for byte
+    assert sorted(contents(out / "grav-t4s")) == ["grav-t4s.npz", "grav-t4s.png"]
+    assert qdots.read_state(out / "grav-t4s" / "grav-t4s.npz").time == pytest.approx(4.0)
+    table = {row["name"]: row for row in rows(out / "summary.csv")}
+    assert table["grav-t4s"]["seed"] == "154" and table["grav-t4s"]["resumed_from"] == str(out / "grav" / "grav.npz")
+    assert float(table["grav"]["time_s"]) == pytest.approx(3.0)  # the input's row, as it was
+    # a continuation of the continuation, into another directory
+    assert qdots_main(["resume", str(out / "grav-t4s" / "grav-t4s.npz"), "--seconds", "1", "--out",
+                       str(tmp_path / "more")]) == 0
+    assert qdots.read_state(tmp_path / "more" / "grav-t5s" / "grav-t5s.npz").time == pytest.approx(5.0)
+    # --in-place needs the run's own folder
+    loose = tmp_path / "loose.npz"
+    loose.write_bytes((out / "grav" / "grav.npz").read_bytes())
+    assert qdots_main(["resume", str(loose), "--seconds", "1", "--in-place"]) == 2
+    assert "not in a folder of its name" in one_line_error(capsys)
+    assert qdots_main(["resume", str(loose), "--seconds", "1"]) == 0  # beside it: loose-t4s/
+    assert (tmp_path / "loose-t4s" / "loose-t4s.npz").exists() and loose.exists()
+
 
 def test_resume_in_place_keeps_the_earlier_movie_under_a_name_that_says_what_it_shows(tmp_path, capsys):
     scene, out = gravity_scene_file(tmp_path), tmp_path / "out"
     assert qdots_main(["run", str(scene), "--out", str(out), "--movie", "--gsd"]) == 0
     capsys.readouterr()
-    earlier = contents(out)
-    assert qdots_main(["resume", str(out / "grav.npz"), "--seconds", "1"]) == 0
+    earlier = contents(out / "grav")
+    state = out / "grav" / "grav.npz"
+    assert qdots_main(["resume", str(state), "--seconds", "1", "--in-place"]) == 0
     printed = capsys.readouterr().out
     assert "kept the earlier grav.mp4 as grav.until-3s.mp4 (it shows the run up to 3 s)" in printed
     assert "kept the earlier grav.gsd as grav.until-3s.gsd" in printed
-    now = contents(out)
-    assert sorted(now) == ["grav.npz", "grav.png", "grav.toml", "grav.until-3s.gsd", "grav.until-3s.mp4",
-                           "summary.csv"]
+    now = contents(out / "grav")
+    assert sorted(now) == ["grav.npz", "grav.png", "grav.toml", "grav.until-3s.gsd", "grav.until-3s.mp4"]
     assert now["grav.until-3s.mp4"] == earlier["grav.mp4"] and now["grav.until-3s.gsd"] == earlier["grav.gsd"]
-    assert now["grav.png"] != earlier["grav.png"] and qdots.read_state(out / "grav.npz").time == pytest.approx(4.0)
+    assert now["grav.png"] != earlier["grav.png"] and qdots.read_state(state).time == pytest.approx(4.0)
     (row,) = rows(out / "summary.csv")
     assert float(row["time_s"]) == pytest.approx(4.0) and row["seed"] == "154"  # its parameters kept
     # with --movie: the new movie shows the continuation, the one before is kept beside it
-    assert qdots_main(["resume", str(out / "grav.npz"), "--seconds", "1", "--movie"]) == 0
-    assert "grav.until-3s.mp4" in os.listdir(out) and "grav.mp4" in os.listdir(out)
-    assert "grav.until-4s.mp4" not in os.listdir(out)  # there was no movie up to 4 s
+    assert qdots_main(["resume", str(state), "--seconds", "1", "--movie", "--in-place"]) == 0
+    assert "grav.until-3s.mp4" in os.listdir(out / "grav") and "grav.mp4" in os.listdir(out / "grav")
+    assert "grav.until-4s.mp4" not in os.listdir(out / "grav")  # there was no movie up to 4 s
     # a new run replaces the whole set: the movies of the run it replaces go with it
     assert qdots_main(["run", str(scene), "--out", str(out)]) == 0
     printed = capsys.readouterr().out
     assert "removed the earlier grav.mp4" in printed and "removed the earlier grav.until-3s.mp4" in printed
-    assert sorted(os.listdir(out)) == ["grav.npz", "grav.png", "grav.toml", "summary.csv"]
+    assert sorted(os.listdir(out / "grav")) == ["grav.npz", "grav.png", "grav.toml"]
     (row,) = rows(out / "summary.csv")
     assert row.get("resumed_from", "") == "" and float(row["time_s"]) == pytest.approx(3.0)
 
@@ -400,9 +498,9 @@ def test_render_says_that_it_replaced_the_runs_picture(tmp_path, capsys):
     scene, out = gravity_scene_file(tmp_path), tmp_path / "out"
     assert qdots_main(["run", str(scene), "--out", str(out)]) == 0
     capsys.readouterr()
-    assert qdots_main(["render", str(out / "grav.npz")]) == 0
+    assert qdots_main(["render", str(out / "grav" / "grav.npz")]) == 0
     assert "replaced the earlier picture" in capsys.readouterr().out
-    assert qdots_main(["render", str(out / "grav.npz"), "--out", str(tmp_path / "new.png")]) == 0
+    assert qdots_main(["render", str(out / "grav" / "grav.npz"), "--out", str(tmp_path / "new.png")]) == 0
     assert "replaced" not in capsys.readouterr().out
 
 
@@ -472,3 +570,91 @@ def test_an_error_that_an_interrupt_caused_in_compiled_code_is_an_interruption(c
     parser.set_defaults(func=bug)
     with pytest.raises(SystemError, match="a bug"):
         run_main(parser, [])
+
+
+def test_planarize_interrupted_mid_run_says_so_on_its_own_line(tmp_path, capsys, monkeypatch):
+    from planarize.engines.fast import FastEngine
+
+    advance, calls = FastEngine.advance, [0]
+
+    def interrupted(self):
+        calls[0] += 1
+        if calls[0] == 30:
+            raise KeyboardInterrupt  # Ctrl-C while the progress bar is on its line
+        advance(self)
+
+    monkeypatch.setattr(FastEngine, "advance", interrupted)
+    assert planarize_main(["scene", "hill", "--out", str(tmp_path / "out")]) == 130
+    err = capsys.readouterr().err
+    assert err.endswith("\nplanarize: interrupted\n") and "oxide:" in err  # the bar ended its line first
+    assert not (tmp_path / "out").exists()
+
+
+FINISHED = """
+import os, signal, sys, time, types, atexit
+module = types.ModuleType("finished_cli")
+
+class Teardown:
+    def __del__(self):  # runs as Python tears its modules down, if it does
+        os.kill(os.getpid(), signal.SIGINT)
+        time.sleep(0.2)
+
+def main(argv):
+    module.kept = Teardown()
+    if argv == ["during-exit-handlers"]:
+        atexit.register(lambda: (os.kill(os.getpid(), signal.SIGINT), time.sleep(0.2)))
+    print("results written", flush=True)
+    return 0
+
+module.main = main
+sys.modules["finished_cli"] = module
+from labrig.launch import launch
+sys.exit(launch("qdots", "finished_cli", sys.argv[1:], console=True))
+"""
+
+
+@pytest.mark.parametrize("when", ["during-teardown", "during-exit-handlers"])
+def test_ctrl_c_after_the_command_finished_is_one_line_or_nothing_never_a_death_by_signal(when):
+    result = python(FINISHED, when)
+    assert result.stdout == "results written\n"
+    if when == "during-teardown":  # the entry point ends the process before Python tears its modules down
+        assert result.returncode == 0 and result.stderr == ""
+    else:
+        assert result.returncode == 130
+        assert result.stderr == "qdots: interrupted after it had finished (its results are written)\n"
+
+
+def test_ctrl_c_while_a_finished_sweep_prints_its_table_says_every_result_was_written(tmp_path, capsys, monkeypatch):
+    import labrig.sweeps.command as command
+
+    path = tmp_path / "k.toml"
+    path.write_text('[base]\nsurface.kind = "hill"\nsurface.refine = 1\nrun.thickness = 0.3\nrun.step = 0.05\n'
+                    '[axes]\n"run.k_exp" = [1.5, 2.0]\n')
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(command, "print_table", interrupted)
+    assert planarize_main(["sweep", str(path), "--workers", "1", "--out", str(tmp_path / "k")]) == 130
+    err = capsys.readouterr().err.splitlines()[-1]
+    assert err == f"planarize: interrupted after every run's result was written ({tmp_path / 'k' / 'table.csv'})"
+    assert len(rows(tmp_path / "k" / "table.csv")) == 2
+
+
+def test_a_ragged_row_of_an_earlier_summary_is_never_lost(tmp_path, capsys):
+    scene, out = gravity_scene_file(tmp_path), tmp_path / "out"
+    out.mkdir()
+    earlier = ("name,seed,state_file\n"
+               "kept,1,kept/kept.npz\n"
+               "ragged,2,ragged/ragged.npz,an extra cell\n"
+               "short,3\n")
+    (out / "summary.csv").write_text(earlier)
+    assert qdots_main(["run", str(scene), "--out", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert f"warning: {out / 'summary.csv'}: lines 3, 4 have more or fewer cells than the header" in err
+    assert f"kept whole as {out / 'summary.csv.ragged'}" in err
+    assert (out / "summary.csv.ragged").read_text() == earlier  # the rows it could not read, kept as written
+    assert [row["name"] for row in rows(out / "summary.csv")] == ["kept", "grav"]
+    assert qdots_main(["run", str(scene), "--out", str(out), "--seed", "3"]) == 0  # a good table: nothing set aside
+    assert "warning" not in capsys.readouterr().err and sorted(p.name for p in out.glob("summary.csv*")) == [
+        "summary.csv", "summary.csv.ragged"]

@@ -21,7 +21,8 @@ FILES = (".toml", ".npz", "_history.csv", "_fig3-8.png", "_fig3-9.png", "_surfac
 def hill_run(tmp_path_factory):
     out = tmp_path_factory.mktemp("hill")
     assert main(["scene", "hill", "--quick", "0.25", "--out", str(out), "--movie"]) == 0
-    return out
+    assert sorted(p.name for p in out.iterdir()) == ["hill_quick_0.25"]  # the run's folder
+    return out / "hill_quick_0.25"
 
 
 def test_scene_writes_every_file(hill_run, capsys):
@@ -44,16 +45,16 @@ def test_run_reproduces_the_scene_file_and_overrides_the_engine(hill_run, tmp_pa
     scene = hill_run / "hill_quick_0.25.toml"
     first = load_run(hill_run / "hill_quick_0.25.npz")
     assert main(["run", str(scene), "--out", str(tmp_path)]) == 0
-    again = load_run(tmp_path / "hill_quick_0.25.npz")
+    again = load_run(tmp_path / "hill_quick_0.25" / "hill_quick_0.25.npz")
     assert again.oxide == first.oxide and np.array_equal(again.history["metal_rms_nm"], first.history["metal_rms_nm"])
     assert main(["run", str(scene), "--out", str(tmp_path / "ref"), "--engine", "reference"]) == 0
-    reference = load_run(tmp_path / "ref" / "hill_quick_0.25.npz")
+    reference = load_run(tmp_path / "ref" / "hill_quick_0.25" / "hill_quick_0.25.npz")
     assert reference.parameters["engine"] == "reference" and reference.parameters["step"] == 0.04
     assert main(["run", str(scene), "--out", str(tmp_path / "fast"), "--engine", "fast"]) == 0
-    fast = load_run(tmp_path / "fast" / "hill_quick_0.25.npz")
+    fast = load_run(tmp_path / "fast" / "hill_quick_0.25" / "hill_quick_0.25.npz")
     assert reference.history["oxide_rms_nm"][-1] == pytest.approx(fast.history["oxide_rms_nm"][-1], abs=0.01)
     assert main(["run", str(scene), "--out", str(tmp_path / "loose"), "--rtol", "0.5"]) == 0
-    loose = load_run(tmp_path / "loose" / "hill_quick_0.25.npz")
+    loose = load_run(tmp_path / "loose" / "hill_quick_0.25" / "hill_quick_0.25.npz")
     assert loose.parameters["rtol"] == 0.5 and loose.parameters["refine"] <= first.parameters["refine"]
 
 
@@ -70,12 +71,12 @@ def test_import_runs_a_height_map(tmp_path, capsys):
     code = main(["import", str(tmp_path / "afm.csv"), "--unit", "m", "--spacing", "1e-9", "--thickness", "0.5",
                  "--out", str(out)])
     assert code == 0
-    assert sorted(p.name for p in out.iterdir()) == sorted("afm" + s for s in FILES)
-    run = load_run(out / "afm.npz")
+    assert sorted(p.name for p in (out / "afm").iterdir()) == sorted("afm" + s for s in FILES)
+    run = load_run(out / "afm" / "afm.npz")
     np.testing.assert_allclose(run.initial.z, z)
-    assert load_scene(out / "afm.toml").run.step == 0.01  # z-range 1 nm / 100
+    assert load_scene(out / "afm" / "afm.toml").run.step == 0.01  # z-range 1 nm / 100
     assert "metal RMS" in capsys.readouterr().out
-    scene = load_scene(out / "afm.toml")  # the provenance copy re-runs from anywhere
+    scene = load_scene(out / "afm" / "afm.toml")  # the provenance copy re-runs from anywhere
     assert scene.surface.params["path"] == str((tmp_path / "afm.csv").resolve())
     assert main(["import", str(tmp_path / "afm.csv"), "--unit", "m", "--spacing", "1e-9", "--thickness", "0.5",
                  "--step", "0.1", "--save", str(tmp_path / "s.toml")]) == 0
@@ -86,7 +87,7 @@ def test_an_empty_snapshot_list_runs_and_writes_its_files(tmp_path, capsys):
     path = tmp_path / "none.toml"
     path.write_text("name = 'none'\n[surface]\nrefine = 1\n[run]\nthickness = 0.2\nsnapshots = []\n")
     run_ok(main, ["run", str(path), "--out", str(tmp_path)], capsys)
-    assert (tmp_path / "none.npz").exists() and not (tmp_path / "none_surfaces.png").exists()
+    assert (tmp_path / "none" / "none.npz").exists() and not (tmp_path / "none" / "none_surfaces.png").exists()
 
 
 @pytest.mark.parametrize("argv, match", [

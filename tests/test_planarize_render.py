@@ -9,6 +9,8 @@ from matplotlib.figure import Figure
 import planarize
 from planarize import render
 
+from movie_probe import read_frames
+
 
 @pytest.fixture(scope="module")
 def run():
@@ -115,7 +117,8 @@ def test_movie_frames_are_labelled_with_the_state_shown_and_end_at_the_final_sta
     assert [t for _, t in frames] == [shot.thickness for shot in run.snapshots]
     assert frames[-1][1] == run.thickness and frames[-1][0] == run.oxide
     assert render.thickness_label("oxide", 1.0006103826481292) == "oxide after 1.001 nm of oxide"
-    assert render.thickness_label("metal", 0.0) == "metal, initial surface"
+    assert render.thickness_label("metal", 0.0) == render.thickness_label("oxide", 0.0) == \
+        "initial surface (no oxide yet)"  # before any oxide, metal and oxide are one surface
     # snapshots that stop short of the end: the final state is appended
     short = planarize.anodize(planarize.surfaces.hill(refine=1), 0.5, planarize.Model(step=0.05), record=2,
                               snapshots=[0.0, 0.2])
@@ -132,9 +135,7 @@ def test_figures_and_movie_files(run, tmp_path):
         image = imageio.imread(path)
         assert image.ndim == 3 and image.shape[0] > 200 and image[..., :3].std() > 5  # not blank
     movie = render.save_movie(run, tmp_path / "m.mp4", size_px=200)
-    reader = imageio.get_reader(movie)
-    frames = [frame for frame in reader]
-    reader.close()
+    frames = read_frames(movie)
     # one frame per snapshot, the last (the final state) held for a second at 10 frames/s
     assert len(frames) == len(run.snapshots) + 9 and frames[0].shape == (200, 200, 3)
     held = np.array(frames[len(run.snapshots) - 1:], dtype=float)
@@ -142,14 +143,39 @@ def test_figures_and_movie_files(run, tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.png", "b.png", "c.png", "m.mp4"]
 
 
-def test_fixed_scale_follows_the_mean(run):
+def colour_bar(figure):
+    """The axes of the colour bar of `snapshots_figure` (an inset of its last cell)."""
+    (bar,) = [ax for ax in figure.axes + [c for a in figure.axes for c in a.child_axes]
+              if ax.get_ylabel().startswith(render.HEIGHT_LABEL)]
+    return bar
+
+
+def test_fixed_scale_follows_the_mean_and_the_z_axes_show_what_the_colours_show(run):
     surfaces = [s.oxide for s in run.snapshots]
     half = render.surface_scale(surfaces)
     assert half == pytest.approx(max(np.abs(s.z - s.z.mean()).max() for s in surfaces))
     fig = Figure()
     for k, surface in enumerate(surfaces[:2]):
-        ax = render.draw_surface(surface, fig.add_subplot(1, 2, k + 1, projection="3d"), half_range=half)
-        assert ax.get_zlim() == pytest.approx((surface.z.mean() - half, surface.z.mean() + half))
+        ax = render.draw_surface(surface, fig.add_subplot(1, 2, k + 1, projection="3d"), half_range=half, title="t")
+        assert ax.get_zlim() == pytest.approx((-half, half)) and ax.get_zlabel() == render.HEIGHT_LABEL
+        assert ax.get_title() == f"t\nmean height {surface.z.mean():.4g} nm"
+    figure = render.snapshots_figure(run)
+    bar = colour_bar(figure)
+    assert bar.get_ylim() == pytest.approx((-half, half)) and bar.get_ylabel().startswith(render.HEIGHT_LABEL)
+    assert all(ax.get_zlim() == pytest.approx((-half, half)) for ax in figure.axes if hasattr(ax, "get_zlim"))
+    titles = [ax.get_title() for ax in figure.axes if hasattr(ax, "get_zlim")]
+    assert titles[0].startswith("initial surface (no oxide yet)") and "oxide after" in titles[-1]
+
+
+def test_the_surfaces_figure_keeps_its_titles_and_colour_bar_label_inside_it(run):
+    figure = render.snapshots_figure(run)
+    figure.canvas.draw()
+    box = figure.bbox
+    texts = [ax.title for ax in figure.axes if hasattr(ax, "get_zlim")] + [colour_bar(figure).yaxis.label]
+    for text in texts:
+        extent = text.get_window_extent()
+        assert text.get_text() and box.x0 <= extent.x0 and extent.x1 <= box.x1 and box.y0 <= extent.y0 and \
+            extent.y1 <= box.y1, text.get_text()
 
 
 def test_bad_arguments(run, tmp_path):

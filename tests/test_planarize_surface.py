@@ -148,3 +148,12 @@ def test_thesis_scenes():
 def test_bad_scene_parameters(call, message):
     with pytest.raises(ValueError, match=message):
         call()
+
+
+def test_a_refinement_factor_out_of_range_says_what_it_is_and_the_range():
+    surface = surfaces.hill()
+    for factor in (0, -1, 4097, 1.5, True):
+        with pytest.raises(ValueError) as error:
+            surface.refine(factor)
+        assert str(error.value) == (f"factor (grid steps each split into this many) must be an integer in [1, 4,096], "
+                                    f"got {factor!r}")

@@ -1,11 +1,11 @@
 """Size colouring, PNG and MP4 output, and the ``qdots`` command line."""
 
 import csv
-import math
 import subprocess
 import sys
 
 import imageio.v2 as imageio
+import matplotlib
 import numpy as np
 import pytest
 from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -16,12 +16,9 @@ import qdots
 from qdots import cli
 from qdots.placement import random_sequential
 from qdots.protocols import dot_masses
-from qdots.render import MovieWriter, draw_state, heavy_dots, key_entries, save_png, size_colours
+from qdots.render import MovieWriter, add_key, draw_state, heavy_dots, key_label, save_png, size_colours, size_range
 
-from movie_probe import assert_playable
-
-E = math.e
-
+from movie_probe import assert_playable, probe, read_frames
 
 def small_sim(n=10, seed=2):
     positions, radii = random_sequential(n, (120, 120), sigma=0.1, rng=seed)
@@ -32,30 +29,32 @@ def small_sim(n=10, seed=2):
 # --------------------------------------------------------------------------- colours
 
 
-def test_equal_sizes_are_pure_green():
-    np.testing.assert_array_equal(size_colours(np.full(5, 7.5)), np.tile([0.0, 1.0, 0.0], (5, 1)))
-    np.testing.assert_array_equal(size_colours([6.0, 9.0], sigma=0.0), [[0, 1, 0], [0, 1, 0]])
+def luminance(rgb):
+    """Relative luminance of sRGB colours (WCAG): what a reader without colour vision still tells apart."""
+    rgb = np.asarray(rgb, dtype=float)
+    linear = np.where(rgb <= 0.04045, rgb / 12.92, ((rgb + 0.055) / 1.055) ** 2.4)
+    return linear @ [0.2126, 0.7152, 0.0722]
 
 
-def test_thesis_colour_formula():
-    # mean diameter 15 px, sigma 10 % -> s = 1.5 px; diameters m, m + s, m - s.
-    colours = size_colours([7.5, 8.25, 6.75], mean=15.0, sigma=0.1)
-    expected = [[1 / E, 1.0, 1 / E], [1.0, 1 / E, E**-2], [E**-2, 1 / E, 1.0]]
-    np.testing.assert_allclose(colours, expected, rtol=1e-12)
+def test_sizes_take_viridis_from_the_smallest_dot_to_the_largest():
+    viridis = matplotlib.colormaps["viridis"]
+    np.testing.assert_allclose(size_colours([5.0, 7.5, 10.0]), [viridis(0.0)[:3], viridis(0.5)[:3], viridis(1.0)[:3]])
+    assert size_range([5.0, 7.5, 10.0]) == (10.0, 20.0)  # diameters, px
+    # a given range: dots outside it take its end colours
+    np.testing.assert_allclose(size_colours([4.0, 7.5, 11.0], (10.0, 20.0)), size_colours([5.0, 7.5, 10.0]))
+    with pytest.raises(ValueError, match="diameters must be"):
+        size_colours([5.0], (3.0, 3.0))
 
 
-def test_default_mean_and_spread_from_the_sizes():
-    # Diameters 10 and 20: mean 15, std 5, so the small dot is at m - s, the large at m + s.
-    colours = size_colours([5.0, 10.0])
-    np.testing.assert_allclose(colours, [[E**-2, 1 / E, 1.0], [1.0, 1 / E, E**-2]], rtol=1e-12)
+def test_equal_sizes_take_the_middle_colour():
+    np.testing.assert_allclose(size_colours(np.full(5, 7.5)), np.tile(matplotlib.colormaps["viridis"](0.5)[:3], (5, 1)))
+    assert size_range(np.full(5, 7.5)) == pytest.approx((15.0 * 0.95, 15.0 * 1.05))
 
 
-def test_larger_is_redder_smaller_is_bluer():
-    red, green, blue = size_colours(np.linspace(6.0, 9.0, 7)).T
-    assert np.all(np.diff(red) >= 0) and red[-1] > red[0]
-    assert np.all(np.diff(blue) <= 0) and blue[0] > blue[-1]
-    assert green[3] == 1.0 and green[0] < 1 and green[-1] < 1  # the mean size is the greenest
-    assert min(red.min(), green.min(), blue.min()) >= 0 and max(red.max(), blue.max()) <= 1
+def test_larger_dots_are_lighter_so_that_sizes_read_without_colour_vision():
+    colours = size_colours(np.linspace(6.0, 9.0, 50))
+    assert np.all(np.diff(luminance(colours)) > 0)  # one ordering, in lightness alone
+    assert luminance(colours[-1]) > 10 * luminance(colours[0])
 
 
 # --------------------------------------------------------------------------- pictures
@@ -90,14 +89,16 @@ def test_draw_state_makes_its_own_axes():
 
 def test_save_png_is_atomic_and_readable(tmp_path):
     state = small_sim().state()
-    path = save_png(state, tmp_path / "board.png")
+    path = save_png(state, tmp_path / "board.png", title="a run\n10 dots")
     assert path == tmp_path / "board.png"
     assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     image = imageio.imread(path)
-    assert image.shape[:2] == (600, 600)
+    assert image.shape[:2] == (int(100 * (1.45 + 4.5 + 0.75)), 600)
     rgb = image[..., :3].astype(int)
-    # Some dots are drawn in saturated size colours (the extremes of a 10 % spread).
-    assert np.any((rgb[..., 0] > 200) & (rgb[..., 2] < 80)) and np.any((rgb[..., 2] > 200) & (rgb[..., 0] < 80))
+    # the smallest and the largest dot in the map's end colours (and the colour bar has them too)
+    for end in (0.0, 1.0):
+        colour = np.round(255 * np.array(matplotlib.colormaps["viridis"](end)[:3])).astype(int)
+        assert (np.abs(rgb - colour).max(axis=2) <= 2).sum() > 200
     assert sorted(p.name for p in tmp_path.iterdir()) == ["board.png"]  # no temporary left
 
 
@@ -138,27 +139,22 @@ def test_heavy_dots_are_those_heavier_than_their_size_makes_them():
     assert heavy_dots(None, d / 2).shape == (400,) and not heavy_dots(None, d / 2).any()
 
 
-def test_key_states_the_colour_rule_and_the_heavy_dots():
+def test_the_colour_bar_says_what_the_colours_mean_and_which_dots_are_heavy():
     state = heavy_board()
     d = 2 * state.radii
-    m, s = d.mean(), d.std()  # 15 px and 2.24 px: size_colours' defaults
-    handles, labels, title = key_entries(state)
-    assert [h.get_markerfacecolor() for h in handles[:3]] == [(1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)]
-    assert labels[0].startswith("red: large") and f"m + s = {m + s:.3g} px" in labels[0]
-    assert labels[1].startswith("green: mean") and f"m = {m:.3g} px" in labels[1]
-    assert labels[2].startswith("blue: small") and f"m \u2212 s = {m - s:.3g} px" in labels[2]
-    assert f"s = {s:.2g} px" in title
-    # the stated thresholds are where size_colours saturates
-    red, green, blue = size_colours(np.array([m + s, m, m - s, m + 0.9 * s, m - 0.9 * s]) / 2, mean=m, sigma=s / m).T
-    assert red[0] == green[1] == blue[2] == 1 and red[3] < 1 and blue[4] < 1 and red[1] < 1 and blue[1] < 1
-    assert "heavy" in labels[3] and "(2 of 4)" in labels[3] and handles[3].get_markeredgewidth() > 1
-    # equal sizes and masses: one entry, no heavy dots
+    assert key_label(state) == (f"dot diameter d (px): mean {d.mean():.3g}, SD {d.std():.2g}\n"
+                                "thick dark edge: heavy, heavier than its size makes it (2 of 4 dots)")
     equal = qdots.State(time=0.0, positions=state.positions, velocities=state.velocities, radii=np.full(4, 7.5),
                         masses=np.ones(4), box=state.box, walls=state.walls)
-    assert key_entries(equal)[1] == ["green: all one size, d = 15 px"]
+    assert key_label(equal, "nm") == "dot diameter d (nm): mean 15, SD 0 (all one size)"
     fig = Figure()
+    FigureCanvasAgg(fig)
     ax = draw_state(state, ax=fig.add_subplot(), key=True)
-    assert [t.get_text() for t in ax.get_legend().get_texts()] == labels
+    (bar,) = [a for a in fig.axes if a is not ax]  # the colour bar, under the board
+    assert bar.get_xlabel() == key_label(state) and bar.get_xlim() == pytest.approx((12.0, 18.0))
+    assert bar.get_position().y1 < ax.get_position().y0
+    bar = add_key(ax, state, diameters=(10.0, 20.0), cax=fig.add_axes((0.1, 0.0, 0.8, 0.02)))
+    assert bar.ax.get_xlim() == pytest.approx((10.0, 20.0))
 
 
 def test_save_png_to_missing_directory_raises(tmp_path):
@@ -178,14 +174,12 @@ def test_movie_writer_frames(tmp_path):
         assert not path.exists()  # renamed into place only on close
     assert movie.frames == 11 and movie.closed
     assert sorted(p.name for p in tmp_path.iterdir()) == ["run.mp4"]
-    reader = imageio.get_reader(path)
-    try:
-        assert reader.count_frames() == 11
-        frame = reader.get_data(0)
-        assert frame.shape == (128, 128, 3)
-        assert reader.get_meta_data()["fps"] == pytest.approx(10)
-    finally:
-        reader.close()
+    # every frame has the colour bar of the sizes (over this board's, no range being given)
+    (bar,) = [ax for ax in movie.figure.axes if ax.get_xlabel().startswith("dot diameter d (px): mean")]
+    assert bar.get_xlim() == pytest.approx(size_range(sim.state().radii))
+    found = probe(path)
+    assert found["frames"] == 11 and found["fps"] == pytest.approx(10)
+    assert read_frames(path)[0].shape == (128, 128, 3)
 
 
 def test_movie_writer_cleans_up_on_error(tmp_path):
@@ -216,8 +210,8 @@ def test_movie_writer_validates(tmp_path, kwargs, message):
 
 def test_cli_demo_writes_outputs(tmp_path, capsys):
     assert cli.main(["demo", "--out", str(tmp_path), "--dots", "30", "--seconds", "1"]) == 0
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["demo.mp4", "demo.png", "summary.csv"]
-    with open(tmp_path / "summary.csv") as f:
+    assert sorted(p.name for p in (tmp_path / "demo").iterdir()) == ["demo.mp4", "demo.png", "summary.csv"]
+    with open(tmp_path / "demo" / "summary.csv") as f:
         (row,) = list(csv.DictReader(f))
     assert int(row["dots"]) == 30 and int(row["steps"]) == round(1.0 / qdots.EngineSettings().dt)
     assert float(row["simulated_s"]) == pytest.approx(1.0)
@@ -228,18 +222,18 @@ def test_cli_demo_writes_outputs(tmp_path, capsys):
                   "mean neighbours (interior)", "max overlap", "kinetic energy", "files"):
         assert label in out
     # a frame every 0.2 s over 1 s, start included; 25 frames/s and 600 px (MovieWriter's defaults)
-    assert_playable(tmp_path / "demo.mp4", frames=6, fps=25, size_px=600)
+    assert_playable(tmp_path / "demo" / "demo.mp4", frames=6, fps=25, size_px=600)
 
 
 def test_cli_demo_is_reproducible(tmp_path):
     args = ["demo", "--dots", "20", "--seconds", "0.3", "--no-movie", "--seed", "4"]
     assert cli.main(args + ["--out", str(tmp_path / "a")]) == 0
     assert cli.main(args + ["--out", str(tmp_path / "b")]) == 0
-    a = list(csv.DictReader(open(tmp_path / "a" / "summary.csv")))[0]
-    b = list(csv.DictReader(open(tmp_path / "b" / "summary.csv")))[0]
+    with open(tmp_path / "a" / "demo" / "summary.csv") as f, open(tmp_path / "b" / "demo" / "summary.csv") as g:
+        a, b = next(csv.DictReader(f)), next(csv.DictReader(g))
     for key in ("interior_fraction", "max_overlap_pct_radius", "kinetic_energy"):
         assert a[key] == b[key]
-    assert not (tmp_path / "a" / "demo.mp4").exists()
+    assert not (tmp_path / "a" / "demo" / "demo.mp4").exists()
 
 
 @pytest.mark.parametrize(
@@ -273,3 +267,34 @@ def test_python_dash_m():
     result = subprocess.run([sys.executable, "-m", "qdots", "--version"], capture_output=True, text=True, timeout=60)
     assert result.returncode == 0
     assert result.stdout.strip() == f"qdots {qdots.__version__}"
+
+
+def test_the_pictures_and_movies_of_a_run_say_which_run_they_show(tmp_path, capsys, monkeypatch):
+    from helpers import gravity_scene_file
+
+    import qdots.render as render
+
+    shown = []
+    save, init = render.save_png, render.MovieWriter.__init__
+
+    def noted_save(state, path, **options):
+        shown.append(("png", options["title"]))
+        return save(state, path, **options)
+
+    def noted_movie(self, path, **options):
+        shown.append(("mp4", options["title"]))
+        init(self, path, **options)
+
+    monkeypatch.setattr(render, "save_png", noted_save)
+    monkeypatch.setattr(render.MovieWriter, "__init__", noted_movie)
+    scene = gravity_scene_file(tmp_path, settle=0.2)
+    assert cli.main(["run", str(scene), "--out", str(tmp_path / "out"), "--movie", "--seed", "7"]) == 0
+    identity = "grav\n12 dots, sigma 0, equal masses, chipmunk engine, seed 7"
+    assert shown == [("mp4", identity), ("png", identity)]
+    assert cli.main(["resume", str(tmp_path / "out" / "grav" / "grav.npz"), "--seconds", "0.1"]) == 0
+    assert shown[-1] == ("png", identity.replace("grav\n", "grav-t0.3s\n"))
+    assert cli.main(["render", str(tmp_path / "out" / "grav" / "grav.npz"), "--out", str(tmp_path / "r.png")]) == 0
+    assert shown[-1] == ("png", identity)  # the state file says which run it is
+    assert cli.main(["demo", "--out", str(tmp_path / "demo"), "--dots", "10", "--seconds", "0.1", "--seed", "3"]) == 0
+    assert shown[-1] == ("png", "qdots demo\n10 dots, sigma 0.05, equal masses, chipmunk engine, seed 3")
+    capsys.readouterr()

@@ -110,6 +110,8 @@ def test_a_movie_takes_a_bounded_number_of_frames(tmp_path):
     ("[engine]\ndt = 1e9", r"engine.dt must be in \[1e-7, 0.1\] s"),
     ("[engine]\niterations = 4611686018427387904", r"engine.iterations must be an integer in \[1, 1,000\]"),
     ("[engine]\nspatial_hash = [10.0, 4611686018427387904]", r"spatial_hash count"),
+    ("[engine]\nspatial_hash = [1e-300, 1]", r"engine.spatial_hash cell size must be in \[0.1, 1e6\] px, got 1e-300"),
+    ("[deposition]\nmean_diameter = 1e-300", r"deposition.mean_diameter must be in \[0.01, 1e6\] px, got 1e-300"),
     ("[[forces]]\ntype = 'VanDerWaals'\nr0 = true", r"VanDerWaals.r0 must be a number"),
     ("[[forces]]\ntype = 'ThermalKicks'\ninterval = true", r"ThermalKicks.interval must be a number"),
     ("[[forces]]\ntype = 'Gravity'\nacceleration = ['1', '2']", r"Gravity.acceleration must be 2 numbers"),

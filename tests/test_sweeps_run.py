@@ -258,3 +258,34 @@ def test_damaged_sweep_records_are_run_again_and_damaged_tables_are_one_line(tmp
     table.write_text("\n".join(lines) + "\n")
     assert qdots_main(["sweep-plot", str(table), "--metric", "status", "--x", "x"]) == 2
     assert "holds no numbers" in one_line_error(capsys)
+
+
+def test_a_table_cut_at_a_row_boundary_is_refused_by_sweep_plot(tmp_path, capsys, log):
+    result = run_sweep(SWEEP, Toy(str(log)), tmp_path / "out", workers=1, progress=False)
+    table = result.table
+    lines = table.read_text().splitlines()
+    assert len(lines) == 9
+    argv = ["sweep-plot", str(table), "--metric", "y", "--x", "x"]
+    assert qdots_main(argv) == 0  # whole: plotted
+    capsys.readouterr()
+    table.write_text("\n".join(lines[:6]) + "\n")  # two thirds of it: it ends on a row boundary
+    assert qdots_main(argv) == 2
+    err = one_line_error(capsys)
+    assert "the table has 5 rows for the 8 runs that sweep.json beside it lists (3 missing" in err
+    if result.parquet is not None:  # the Parquet table is checked too
+        import pyarrow.parquet as pq
+
+        pq.write_table(pq.read_table(result.parquet).slice(0, 4), result.parquet)
+        assert qdots_main(["sweep-plot", str(result.parquet), "--metric", "y", "--x", "x"]) == 2
+        assert "the table has 4 rows for the 8 runs" in one_line_error(capsys)
+    assert summarize([dict(r) for r in result.rows][:5], "y", "x")  # rows given directly: no sweep to check
+
+
+def test_sweep_plot_writes_only_a_png(tmp_path, capsys, log):
+    result = run_sweep(SWEEP, Toy(str(log)), tmp_path / "out", workers=1, progress=False)
+    out = tmp_path / "x.txt"
+    assert qdots_main(["sweep-plot", str(result.table), "--metric", "y", "--x", "x", "--out", str(out)]) == 2
+    assert "--out must name a .png file" in one_line_error(capsys) and not out.exists()
+    out = tmp_path / "plot.PNG"
+    assert qdots_main(["sweep-plot", str(result.table), "--metric", "y", "--x", "x", "--out", str(out)]) == 0
+    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

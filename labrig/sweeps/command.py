@@ -12,7 +12,8 @@ from ..cli import fraction, int_in, print_table
 from ..files import slug
 from .backends import MAX_WORKERS
 from .execute import MAX_RETRIES, run_sweep
-from ..validate import printable
+from ..launch import LateInterrupt
+from ..validate import InputError, printable
 from .files import SweepFile
 from .spec import DEFAULT_MAX_RUNS, MAX_RUNS
 from .plot import save_sweep_plot, summarize, summary_lines
@@ -64,6 +65,14 @@ def run_sweep_command(args: argparse.Namespace, sweep_file: SweepFile, runner) -
     out = sweep_file.out if args.out is None else args.out
     result = run_sweep(sweep_file.sweep, runner, out, workers=args.workers, scheduler=args.scheduler,
                        retries=args.retries, state=sweep_file.state, max_runs=args.max_runs)
+    try:
+        return _report(result, sweep_file, out)
+    except KeyboardInterrupt:  # every result is on disk by now: say so
+        raise LateInterrupt(f"every run's result was written ({result.table})") from None
+
+
+def _report(result, sweep_file: SweepFile, out) -> int:
+    """Print what a finished sweep did; its exit status (1 if some run failed)."""
     rows = [("runs", str(len(result.rows))), ("ran now", str(result.ran)),
             ("already done", str(result.skipped)), ("failed", str(result.failed)), ("table", str(result.table))]
     if result.parquet is not None:
@@ -106,6 +115,8 @@ def add_plot_parser(subparsers, package: str) -> argparse.ArgumentParser:
 
 
 def run_plot_command(args: argparse.Namespace) -> int:
+    if args.out is not None and args.out.suffix.lower() != ".png":
+        raise InputError(f"--out must name a .png file (the plot is a PNG), got {str(args.out)!r}")
     where = dict(args.where)
     summary = summarize(args.table, args.metric, args.x, args.group, where)
     name = f"{args.metric}_vs_{args.x}" + (f"_by_{args.group}" if args.group else "")

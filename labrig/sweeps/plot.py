@@ -21,33 +21,55 @@ from ..validate import InputError
 from .table import is_number, parse_cell, read_table
 
 
-def _swept_columns(path: str | os.PathLike) -> list[str]:
-    """The swept columns other than the seed that the ``sweep.json`` at ``path`` records (none if it is missing).
+def _sweep_description(path: str | os.PathLike) -> tuple[list[str], list[str] | None]:
+    """The swept columns other than the seed, and the run ids, that the ``sweep.json`` at ``path`` records (none,
+    and None, if it is missing).
 
     Raises
     ------
     labrig.validate.InputError
         If the file is there but unreadable (`labrig.jsonfile.read_json`) or not an object whose ``swept``
-        is a list of column names and ``seed_key`` a name or null; the message starts with the path.
+        is a list of column names, ``seed_key`` a name or null and ``runs`` a list of ids; the message starts
+        with the path.
     """
     try:
         meta = read_json(path, "sweep description")
     except FileNotFoundError:
-        return []
+        return [], None
     swept = meta.get("swept") if isinstance(meta, dict) else None
     seed_key = meta.get("seed_key") if isinstance(meta, dict) else None
+    runs = meta.get("runs") if isinstance(meta, dict) else None
     if not (isinstance(swept, list) and all(isinstance(c, str) for c in swept)):
         raise InputError(f"{path}: swept must be a list of column names, got {swept!r:.200}")
     if seed_key is not None and not isinstance(seed_key, str):
         raise InputError(f"{path}: seed_key must be a column name or null, got {seed_key!r:.200}")
-    return [c for c in swept if c != seed_key]  # the seeds are averaged over
+    if not (isinstance(runs, list) and all(isinstance(r, str) for r in runs)):
+        raise InputError(f"{path}: runs must be a list of run ids, got {runs!r:.200}")
+    return [c for c in swept if c != seed_key], runs  # the seeds are averaged over
+
+
+def _check_whole(path: Path, rows: list[dict], runs: list[str]) -> None:
+    """`InputError` unless the table at ``path`` holds one row for each run of its sweep (``runs``, from its
+    ``sweep.json``): a table cut short at a row boundary reads as a smaller one."""
+    found = [row.get("run") for row in rows]
+    if found != runs and found != [parse_cell(run) for run in runs]:  # a CSV's cells are parsed: "1234..." an int
+        found = [str(run) for run in found]
+        missing, extra = len(set(runs) - set(found)), len(set(found) - set(runs))
+        raise InputError(f"{path}: the table has {len(found)} rows for the {len(runs)} runs that sweep.json beside it "
+                         f"lists ({missing} missing, {extra} not of that sweep): it was cut short, edited or written "
+                         "by another sweep; run the sweep again to rewrite it (finished runs are not run again)")
 
 
 def _rows(table) -> tuple[list[dict], list[str]]:
-    """Rows of ``table`` (a path or a list of dicts) and the swept columns recorded beside a path."""
+    """Rows of ``table`` (a path or a list of dicts) and the swept columns recorded beside a path (a table beside a
+    ``sweep.json`` must hold every run it lists)."""
     if isinstance(table, (str, os.PathLike)):
         path = Path(table)
-        return read_table(path), _swept_columns(path.parent / "sweep.json")
+        rows = read_table(path)
+        swept, runs = _sweep_description(path.parent / "sweep.json")
+        if runs is not None and rows and "run" in rows[0]:
+            _check_whole(path, rows, runs)
+        return rows, swept
     return list(table), []
 
 

@@ -10,7 +10,7 @@ from pathlib import Path
 from typing import Sequence
 
 from ..files import atomic_path, existing_file, write_csv
-from ..validate import InputError
+from ..validate import InputError, printable
 
 #: Largest table read, bytes.
 MAX_TABLE_BYTES = 2**30
@@ -57,12 +57,13 @@ def table_rows(runs: Sequence, records: Sequence[dict | None]) -> list[dict]:
 
 
 def _column_values(values: list) -> list:
-    """One type per column for Parquet: ints and floats together become floats, mixed with text all text."""
+    """One type per column for Parquet: ints and floats together become floats, mixed with text all text; control
+    characters in text escaped (`labrig.validate.printable`), as in the CSV."""
     kinds = {type(v) for v in values if v is not None}
     if kinds == {int, float}:
         return [None if v is None else float(v) for v in values]
-    if len(kinds) > 1:
-        return [None if v is None else str(v) for v in values]
+    if len(kinds) > 1 or kinds == {str}:
+        return [None if v is None else printable(v) for v in values]
     return values
 
 
@@ -78,7 +79,7 @@ def write_table(rows: Sequence[dict], out: str | os.PathLike, name: str = "table
         import pyarrow.parquet as pq
     except ImportError:
         return csv_path, None
-    columns = {key: _column_values([row[key] for row in rows]) for key in rows[0]}
+    columns = {printable(key): _column_values([row[key] for row in rows]) for key in rows[0]}
     parquet_path = out / f"{name}.parquet"
     with atomic_path(parquet_path) as tmp:
         pq.write_table(pa.table(columns), tmp)

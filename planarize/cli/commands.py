@@ -1,13 +1,13 @@
 """What the ``planarize`` subcommands do; `planarize.cli` parses arguments and calls these.
 
-`run_scene` writes, into its output directory, for a scene named ``NAME``:
+`run_scene` writes, into its output directory, for a scene named ``NAME``, the folder ``NAME/`` of
 ``NAME.toml`` (the scene it ran, for provenance), ``NAME.npz`` (the run,
 `planarize.io.results`), ``NAME_history.csv``, ``NAME_fig3-8.png`` (centre
 slice before/after), ``NAME_fig3-9.png`` (RMS and z-range against oxide
 thickness), ``NAME_surfaces.png`` (3-D oxide at the snapshots, Fig 3-11) and
-optionally ``NAME.mp4`` (the oxide growing): one `labrig.files.OutputSet`, switched in all at once.
-Runs of different names may share a directory; nothing in it is shared between them (no summary
-table), so concurrent runs of different names never touch each other's files.
+optionally ``NAME.mp4`` (the oxide growing): one `labrig.files.OutputSet`, switched into place in one
+atomic step. Runs of different names may share a directory; nothing in it is shared between them (no
+summary table), so concurrent runs of different names never touch each other's files.
 """
 
 from __future__ import annotations
@@ -40,7 +40,7 @@ def run_scene(scene: PlanarizeScene, out: Path, *, movie: bool = False, progress
 
     The files are one `labrig.files.OutputSet`, locked before the run starts (a second run of the same name
     into the same directory is refused) and switched in all at once when it has finished, so a failed or
-    killed run leaves earlier files of the same name as they were; ``source``, the scene file the scene was
+    killed run leaves the earlier folder of the same name as it was; ``source``, the scene file the scene was
     read from, is never written over (its provenance copy is then ``NAME.ran.toml``). An earlier
     ``NAME.mp4`` or ``NAME_surfaces.png`` that this run does not write is removed in the same switch (it
     showed the run this one replaces), and a line says so.
@@ -67,11 +67,10 @@ def run_scene(scene: PlanarizeScene, out: Path, *, movie: bool = False, progress
             render.save_movie(run, files.stage(f"{stem}.mp4"))
         else:
             files.drop(f"{stem}.mp4")
-        save_scene(scene, files.stage(files.name_beside(f"{stem}.toml", source), last=True))
+        save_scene(scene, files.stage(files.name_beside(f"{stem}.toml", source)))
     for path in files.removed:
         print(f"removed the earlier {path.name}: it showed the run that this one replaces"
               + (" (add --movie to make one)" if path.suffix == ".mp4" else ""))
-    files = files.written
     summary = summarize(scene, run)
     print_table(f"{scene.name}: {summary['grid']}, k_exp {summary['k_exp']:g}, {_method(summary)}", [
         ("oxide thickness", f"{summary['thickness_nm']:.4g} nm (mean {summary['distance_mean_nm']:.4g} "
@@ -81,7 +80,7 @@ def run_scene(scene: PlanarizeScene, out: Path, *, movie: bool = False, progress
         ("discretization error", _accuracy(summary)),
         ("volume balance error", f"{summary['volume_error']:.2g}"),
         ("wall time", f"{summary['wall_s']:.2f} s ({summary['point_updates_per_s']:,.0f} point updates/s)"),
-        ("files", ", ".join(str(f) for f in files)),
+        ("files", f"{files.path}{os.sep}: " + ", ".join(path.name for path in files.written)),
     ])
     return summary
 

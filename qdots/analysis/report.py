@@ -111,7 +111,8 @@ def table_rows(summary: dict) -> list[tuple[str, str]]:
         ("mean spacing (interior)", f"{s['mean_spacing']:.3f} px"),
         ("size-separation correlation", _correlation_text(s)),
         ("psi6 global / local", f"{s['psi6_global']:.3f} / {s['psi6_local']:.3f}"),
-        ("clusters (largest)", f"{s['clusters']} ({100 * s['largest_cluster_fraction']:.1f} % of dots)"),
+        ("clusters of neighbouring dots", f"{s['clusters']}; the largest holds {100 * s['largest_cluster_fraction']:.1f} "
+                                          "% of the dots"),
         ("Voronoi coordination", f"{s['voronoi_coordination']:.2f}"),
         ("max overlap", f"{100 * s['max_overlap']:.3f} % of radius"),
     ]

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import sys
 import time
 from pathlib import Path
@@ -31,7 +32,8 @@ DEMO_MAX_DOTS = 460
 
 
 def _add_demo(subparsers) -> None:
-    p = add_command(subparsers, "demo", _run_demo, "run a small demo board and write demo.png, demo.mp4, summary.csv")
+    p = add_command(subparsers, "demo", _run_demo,
+                    "run a small demo board and write the folder demo/: demo.png, demo.mp4, summary.csv")
     p.add_argument("--out", type=Path, default=Path("qdots-demo"), metavar="DIR",
                    help="output directory, created if missing (default ./qdots-demo)")
     p.add_argument("--seed", type=int_in(0, MAX_SEED), default=1, help="random seed (default 1)")
@@ -104,8 +106,12 @@ def _add_resume(subparsers) -> None:
     p.add_argument("--seconds", type=float_in(0.0, math.inf, low_open=True), required=True, metavar="T",
                    help="simulated time to add, s")
     _add_outputs(p, None)
-    p.add_argument("--out", type=Path, default=None, metavar="DIR",
-                   help="write the new set here (default: replace STATE's set in place, all at once)")
+    where = p.add_mutually_exclusive_group()
+    where.add_argument("--out", type=Path, default=None, metavar="DIR",
+                       help="write the continuation's folder here (default: beside STATE's own folder)")
+    where.add_argument("--in-place", action="store_true",
+                       help="replace STATE's own run folder with the continuation instead (all at once, when it "
+                            "has finished)")
 
 
 def _add_render(subparsers) -> None:
@@ -137,15 +143,17 @@ def _add_analyze(subparsers) -> None:
     p.add_argument("--seed", type=int_in(0, MAX_SEED), default=0, help="seed of the trap draws (default 0)")
 
 
-def _add_image_options(p) -> None:
-    """The arguments of the commands that read a micrograph (``measure``, ``compare``)."""
+def _add_image_options(p, out_default: str) -> None:
+    """The arguments of the commands that read a micrograph (``measure``, ``compare``), their files going to
+    ``./out_default`` by default."""
     from ..micrograph.profiles import PROFILES
     from ..micrograph.segment import POLARITIES
     from ..micrograph.scale import MAX_NM_PER_PX
 
     p.add_argument("image", type=Path, metavar="IMAGE",
                    help="micrograph: .tif/.tiff, .png, .jpg, .bmp, .gif, or .dm3/.dm4/.emd/.ser (qdots[microscope])")
-    p.add_argument("--out", type=Path, default=None, metavar="DIR", help="output directory (default: beside IMAGE)")
+    p.add_argument("--out", type=Path, default=Path(out_default), metavar="DIR",
+                   help=f"output directory, created if missing (default ./{out_default})")
     p.add_argument("--name", default=None, help="stem of the files written (default: IMAGE's stem)")
     scale = p.add_mutually_exclusive_group()
     scale.add_argument("--nm-per-px", type=float_in(0.0, MAX_NM_PER_PX, low_open=True, high_open=False), default=None,
@@ -165,7 +173,7 @@ def _add_image_options(p) -> None:
 
 def _add_measure(subparsers) -> None:
     p = add_command(subparsers, "measure", _run_measure, "find the dots of a micrograph and measure the film")
-    _add_image_options(p)
+    _add_image_options(p, "qdots-measure")
     p.add_argument("--no-lqe", action="store_true", help="skip the film LQE (the slowest part on large films)")
 
 
@@ -174,7 +182,7 @@ def _add_compare(subparsers) -> None:
     from ..micrograph.compare import MAX_COMPARE_DOTS, MAX_SEEDS
 
     p = add_command(subparsers, "compare", _run_compare, "measure a micrograph and simulate the film beside it")
-    _add_image_options(p)
+    _add_image_options(p, "qdots-compare")
     p.add_argument("--seeds", type=int_in(1, MAX_SEEDS), default=3, help="simulated films (default 3)")
     p.add_argument("--dots", type=int_in(2, MAX_COMPARE_DOTS), default=300,
                    help="dots of each simulated film (default 300, the thesis's)")
@@ -194,9 +202,8 @@ def _run_measure(args: argparse.Namespace) -> int:
     film = measure(args.image, args.out, name=args.name, nm_per_px=args.nm_per_px, scale_bar=args.scale_bar,
                    polarity=args.polarity, profile=args.profile, page=args.page, lqe=not args.no_lqe)
     print_table(f"{args.image}:", summary_rows(film.summary))
-    out = args.image.parent if args.out is None else args.out
     stem = film_stem(args)
-    print(f"wrote {out / f'{stem}.npz'}, {out / f'{stem}_detections.png'}, {out / f'{stem}_summary.csv'}")
+    print(f"wrote {args.out / stem}{os.sep}: {stem}.npz, {stem}_detections.png, {stem}_summary.csv")
     return 0
 
 
@@ -222,9 +229,8 @@ def _run_compare(args: argparse.Namespace) -> int:
     print_table(f"{args.image} against {len(comparison.states)} simulated films ({exp.deposition.n_dots} dots, "
                 f"{exp.board.width:.0f} x {exp.board.height:.0f} px, {comparison.nm_per_board_px:.3g} nm per px, "
                 f"{exp.engine.kind} engine):", table_rows(comparison))
-    out = args.image.parent if args.out is None else args.out
     stem = film_stem(args)
-    print(f"wrote {out / f'{stem}_compare.png'}, {out / f'{stem}_compare.csv'}, {out / f'{stem}_compare.toml'} "
+    print(f"wrote {args.out / f'{stem}_compare'}{os.sep}: {stem}_compare.png, {stem}_compare.csv, {stem}_compare.toml "
           f"and the boards ({stem}.npz, {stem}_sim-SEED.npz)")
     return 0
 
@@ -294,7 +300,7 @@ def _run_resume(args: argparse.Namespace) -> int:
     bit-identical to never having stopped."""
     from .commands import resume
 
-    resume(args.state, args.seconds, args.out, movie=args.movie, gsd=args.gsd)
+    resume(args.state, args.seconds, args.out, movie=args.movie, gsd=args.gsd, in_place=args.in_place)
     return 0
 
 
@@ -322,7 +328,7 @@ def _run_demo(args: argparse.Namespace) -> int:
     from ..analysis.packing import packing_summary
     from ..placement import random_sequential
     from ..render import MovieWriter, save_png
-    from .commands import OVERLAP_COLUMN, say_replaced
+    from .commands import OVERLAP_COLUMN, nominal_diameters, run_title, say_replaced
 
     out: Path = args.out
     movie = None
@@ -333,17 +339,21 @@ def _run_demo(args: argparse.Namespace) -> int:
                                          rng=np.random.default_rng(place_seed))
     scene = qdots.Scene(box=DEMO_BOX, positions=positions, radii=radii)
     sim = qdots.Simulation(scene, [qdots.VanDerWaals(), qdots.ThermalKicks()], seed=sim_seed)
+    title = run_title({"name": "qdots demo", "dots": args.dots, "sigma": args.sigma, "mass_model": "equal",
+                       "engine": sim.settings.kind, "seed": args.seed})
     start = time.perf_counter()
     with OutputSet(out, "demo") as files:  # locks the set before the run
         if args.no_movie:
             files.drop("demo.mp4")
         else:
             movie = sim.attach(files.adopt(MovieWriter(files.stage("demo.mp4"),
-                                                       every=max(1, round(DEMO_FRAME_INTERVAL / sim.dt)))))
+                                                       every=max(1, round(DEMO_FRAME_INTERVAL / sim.dt)), title=title,
+                                                       diameters=nominal_diameters(DEMO_DIAMETER, args.sigma))))
         state = sim.run(args.seconds, progress=True)
         wall = time.perf_counter() - start
         movie_wall = movie.wall_seconds if movie is not None else 0.0
-        save_png(state, files.stage("demo.png"))
+        save_png(state, files.stage("demo.png"), title=title,
+                 colour_range=nominal_diameters(DEMO_DIAMETER, args.sigma))
         summary = packing_summary(state)
         steps_per_s = sim.steps_taken / max(wall - movie_wall, 1e-9)
         row = {
@@ -367,7 +377,7 @@ def _run_demo(args: argparse.Namespace) -> int:
         ("mean neighbours (interior)", f"{summary['mean_neighbours_interior']:.2f}"),
         ("max overlap", f"{100 * summary['max_overlap']:.3f} % of radius"),
         ("kinetic energy", f"{summary['kinetic_energy']:.4g} mass px^2/s^2"),
-        ("files", ", ".join(str(f) for f in files.written)),
+        ("files", f"{files.path}{os.sep}: " + ", ".join(path.name for path in files.written)),
     ])
     return 0
 

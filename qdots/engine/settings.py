@@ -30,6 +30,9 @@ TOLERANCE_RANGE = (1e-6, 1.0)
 MAX_SLOP = 100.0
 #: Most cells of Chipmunk's spatial hash.
 MAX_HASH_CELLS = 10_000_000
+#: Smallest cell of Chipmunk's spatial hash, px: a dot of the thesis's 15 px then spans 150 x 150 cells (a smaller
+#: cell puts each dot in more cells than the hash can index).
+MIN_HASH_CELL = 0.1
 #: Largest `EngineSettings.near_gap`, px (twice the largest van der Waals range).
 MAX_NEAR_GAP = 2000.0
 #: Longest interval between passes over the far van der Waals pairs, s.
@@ -175,7 +178,7 @@ class EngineSettings:
                                 doc="fraction of an overlap left after 1 s",
                                 unset=f"{OVERLAP_CORRECTION:.0%} of an overlap corrected per sub-step"),
         "spatial_hash": Param("pair", optional=True, doc="Chipmunk's spatial hash", unset="Chipmunk's bounding-box tree",
-                              parts=(Param("float", 0.0, MAX_LENGTH, low_open=True, unit="px", doc="cell size"),
+                              parts=(Param("float", MIN_HASH_CELL, MAX_LENGTH, unit="px", doc="cell size"),
                                      Param("int", 1, MAX_HASH_CELLS, doc="count"))),
         "threads": Param("int", choices=(1, 2), doc="Chipmunk solver threads"),
         "pair_skin": Param("float", 0.0, MAX_SKIN, unit="px", doc="Verlet skin of the van der Waals pair list"),

@@ -57,6 +57,8 @@ ARRAYS = ("positions", "velocities", "radii", "masses", "segments")
 #: earlier have only the first three (their draws start from a key derived from the saved generator).
 COUNTERS = ("dot_dot", "dot_wall", "sticking", "draws", "key")
 OLD_COUNTERS = COUNTERS[:3]
+#: Engine settings that every version's state files hold (those added later take their defaults in older files).
+SAVED_ENGINE_KEYS = ("dt", "substeps", "iterations", "collision_slop", "collision_bias", "spatial_hash", "threads")
 #: Largest size of each saved array, bytes: float64 values of at most `qdots.scene.MAX_DOTS` dots and
 #: `qdots.scene.MAX_SEGMENTS` walls (`labrig.archive.read_archive` refuses a file that declares more).
 MAX_ARRAY_BYTES = {"positions": MAX_DOTS * 2 * 8, "velocities": MAX_DOTS * 2 * 8, "radii": MAX_DOTS * 8,
@@ -130,6 +132,19 @@ def _field(metadata: dict, key: str):
     return metadata[key]
 
 
+def _engine(metadata: dict) -> dict:
+    """The saved engine table, which holds at least the settings of `SAVED_ENGINE_KEYS` (a state resumes with the
+    settings of the run that saved it, never silently with defaults)."""
+    engine = _field(metadata, "engine")
+    if not isinstance(engine, dict):
+        raise InputError(f"engine must be a table of engine settings, got {engine!r:.80}")
+    missing = [key for key in SAVED_ENGINE_KEYS if key not in engine]
+    if missing:
+        raise InputError(f"engine has no {', '.join(map(repr, missing))}: a state file holds the engine settings of "
+                         f"the run that saved it (every version wrote {', '.join(SAVED_ENGINE_KEYS)})")
+    return engine
+
+
 def _read(path: str | os.PathLike) -> tuple[dict, Scene, Restitution]:
     """The checked metadata, the board and the collision rule of a state file, or an InputError that says what is
     wrong with it."""
@@ -139,7 +154,7 @@ def _read(path: str | os.PathLike) -> tuple[dict, Scene, Restitution]:
         time = real("time", _field(metadata, "time"), unit="s")
         start = real("start_time", _field(metadata, "start_time"), unit="s")
         steps = count("steps_taken", _field(metadata, "steps_taken"), 0)
-        if not math.isclose(start + steps * EngineSettings.from_dict(_field(metadata, "engine")).dt, time,
+        if not math.isclose(start + steps * EngineSettings.from_dict(_engine(metadata)).dt, time,
                             rel_tol=1e-9, abs_tol=1e-9):
             raise InputError(f"time {time!r} s is not start_time + steps_taken * dt")
         rule = _field(metadata, "restitution")

@@ -189,10 +189,10 @@ def side_by_side_figure(comparison: Comparison):
         ax.set_aspect("equal")
         ax.set_xlabel(unit)
         ax.set_ylabel(unit)
-    add_key(right, board, unit, loc="upper center", bbox_to_anchor=(0.5, -0.1), bbox_transform=right.transAxes)
+    add_key(right, board, unit)
     detected = film.detection
     sized = film_state(detected.centres[~detected.cut] * nm, detected.diameters[~detected.cut] * nm, (h * nm, w * nm))
-    add_key(left, sized, unit, loc="upper center", bbox_to_anchor=(0.5, -0.1), bbox_transform=left.transAxes)
+    add_key(left, sized, unit)
     fig.subplots_adjust(left=0.06, right=0.98, top=0.94, bottom=0.2, wspace=0.15)
     return fig
 

@@ -159,7 +159,8 @@ def summary_rows(summary: dict) -> list[tuple[str, str]]:
         ("interior fraction (>= 5 neighbours)", f"{s['interior_fraction']:.3f}"),
         ("mean neighbours", f"{s['mean_neighbours']:.2f}"),
         ("psi6 local / global", f"{s['psi6_local']:.3f} / {s['psi6_global']:.3f}"),
-        ("aggregates (>= 5 dots), largest share", f"{s['aggregates']}, {100 * s['largest_share']:.1f} % of dots"),
+        ("aggregates", f"{s['aggregates']} clusters of 5 or more dots; the largest cluster holds "
+                       f"{100 * s['largest_share']:.1f} % of the dots"),
         ("single dots", f"{s['single_dots']}"),
         ("g(r) first peak", f"{s['gr_peak_diameters']:.2f} mean diameters"),
     ]
@@ -229,8 +230,8 @@ def save_overlay(film: MeasuredFilm, path, dpi: int | None = None) -> Path:
 
 
 def overlay_figure(film: MeasuredFilm):
-    """The detections drawn on the image (`save_overlay_axes`) with a title, the thesis's size key and a scale
-    bar: a matplotlib Figure 10 in wide."""
+    """The detections drawn on the image (`save_overlay_axes`) with a title, the colour bar of the sizes and a
+    scale bar: a matplotlib Figure 10 in wide."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
@@ -252,8 +253,9 @@ def overlay_figure(film: MeasuredFilm):
     ax.set_title(f"{film.image.source}: {s['dots']} dots ({s['dots_cut_by_edge']} cut by the edge, dashed), "
                  f"d = {size}, σ = {100 * s['size_spread']:.1f} %, interior fraction {s['interior_fraction']:.2f}",
                  fontsize="medium")
-    sized = film_state(det.centres[~det.cut], det.diameters[~det.cut], (h, w))
-    add_key(ax, sized, loc="upper center", bbox_to_anchor=(0.5, -0.01), bbox_transform=ax.transAxes, ncol=3)
+    k, unit = (film.nm_per_px, "nm") if film.nm_per_px is not None else (1.0, "image px")
+    sized = film_state(det.centres[~det.cut] * k, det.diameters[~det.cut] * k, (h * k, w * k))
+    add_key(ax, sized, unit, cax=fig.add_axes((0.3, 0.5 / total_in, 0.4, 0.12 / total_in)))
     return fig
 
 
