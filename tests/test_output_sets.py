@@ -573,20 +573,20 @@ def test_an_error_that_an_interrupt_caused_in_compiled_code_is_an_interruption(c
 
 
 def test_planarize_interrupted_mid_run_says_so_on_its_own_line(tmp_path, capsys, monkeypatch):
-    from planarize.engines.fast import FastEngine
+    from planarize.engines.continuum import ContinuumEngine
 
-    advance, calls = FastEngine.advance, [0]
+    advance, calls = ContinuumEngine.advance, [0]
 
-    def interrupted(self):
+    def interrupted(self, until):
         calls[0] += 1
-        if calls[0] == 30:
+        if calls[0] == 10:
             raise KeyboardInterrupt  # Ctrl-C while the progress bar is on its line
-        advance(self)
+        advance(self, until)
 
-    monkeypatch.setattr(FastEngine, "advance", interrupted)
+    monkeypatch.setattr(ContinuumEngine, "advance", interrupted)
     assert planarize_main(["scene", "hill", "--out", str(tmp_path / "out")]) == 130
     err = capsys.readouterr().err
-    assert err.endswith("\nplanarize: interrupted\n") and "oxide:" in err  # the bar ended its line first
+    assert err.endswith("\nplanarize: interrupted\n") and "oxide, grid 1x:" in err  # the bar ended its line first
     assert not (tmp_path / "out").exists()
 
 

@@ -14,7 +14,7 @@ from movie_probe import read_frames
 
 @pytest.fixture(scope="module")
 def run():
-    return planarize.anodize(planarize.surfaces.hill(refine=2), 0.5, planarize.Model(step=0.05), record=5,
+    return planarize.anodize(planarize.surfaces.hill(refine=2), 0.5, planarize.Model(step=0.05), "fast", record=5,
                              snapshots=[0.0, 0.1, 0.2, 0.3, 0.4, 0.5])
 
 
@@ -51,6 +51,16 @@ def test_history_plots_rms_and_zrange_with_distance_spread(run):
     bars = rms_ax.containers[0].lines[2][0].get_segments()
     widths = np.array([seg[1][0] - seg[0][0] for seg in bars])
     np.testing.assert_allclose(widths, 2 * h["distance_std_nm"])
+
+
+def test_history_of_a_continuum_run_draws_its_estimated_error():
+    run = planarize.anodize(planarize.surfaces.hill(refine=2), 0.5, record=5)
+    rms_ax, _ = render.draw_history(run, Figure().subplots(1, 2))
+    h = run.history
+    bars = rms_ax.containers[0].lines[2][0].get_segments()  # vertical: value +- the estimated error
+    heights = np.array([seg[1][1] - seg[0][1] for seg in bars])
+    np.testing.assert_allclose(heights, 2 * h["metal_rms_error_nm"])
+    assert h["metal_rms_error_nm"][-1] > 0
 
 
 def test_history_on_log_axes_is_read_from_the_data(run):

