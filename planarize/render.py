@@ -161,7 +161,8 @@ def draw_history(run: Anodization, axes=None, *, errorbars: bool = True, log: bo
         _, axes = plt.subplots(1, 2, figsize=(10, 4))
     h = run.history
     x = h["thickness_nm"]
-    xerr = h["distance_std_nm"] if errorbars and np.any(h["distance_std_nm"]) else None
+    spread = np.asarray(h["distance_std_nm"])
+    xerr = spread if errorbars and np.any(spread > 1e-9 * np.max(np.abs(x), initial=1.0)) else None
     for ax, measure, label in zip(axes, ("rms", "zrange"), ("RMS (nm)", "z-range (nm)")):
         for name, style in (("metal", METAL), ("oxide", OXIDE)):
             yerr = h.get(f"{name}_{measure}_error_nm") if errorbars else None
