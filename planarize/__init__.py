@@ -13,7 +13,7 @@ from .anodize import Anodization, Snapshot, anodize
 from .engines import Fast, Matlab, Reference
 from .metrics import rms, z_range
 from .model import Model
-from .surface import Surface
+from .heightfield import Surface
 
 __all__ = ["Surface", "Model", "anodize", "Anodization", "Snapshot", "Fast", "Reference", "Matlab", "rms", "z_range",
            "surfaces", "engines"]

@@ -21,7 +21,7 @@ from .engines.base import check_oxide
 from .engines.continuum import Continuum
 from .metrics import history_row
 from .model import Model
-from .surface import Surface
+from .heightfield import Surface
 
 #: Thickest oxide grown, nm (1 mm).
 MAX_THICKNESS = 1e6

@@ -14,7 +14,7 @@ import numpy as np
 
 from labrig.validate import InputError, count, flag, real, reals
 
-from .surface import MAX_POINTS
+from .heightfield import MAX_POINTS
 
 #: The four grid directions of the thesis's line segments: +x, -x, +y, -y.
 EDGE_DIRECTIONS = ((1, 0), (-1, 0), (0, 1), (0, -1))

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .surface import Surface
+from .heightfield import Surface
 
 
 def _heights(surface) -> np.ndarray:

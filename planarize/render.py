@@ -24,7 +24,7 @@ from labrig.movies import FigureMovie
 from labrig.validate import InputError, count, printable
 
 from .anodize import Anodization
-from .surface import Surface
+from .heightfield import Surface
 
 #: Marker styles of Fig 3-8: metal squares, oxide circles.
 METAL = {"marker": "s", "color": "tab:blue"}

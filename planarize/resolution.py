@@ -25,13 +25,13 @@ import time
 
 import numpy as np
 
-from labrig.validate import InputError, available_memory, within_memory
+from labrig.validate import available_memory, within_memory
 
 from .anodize import Anodization, _progress, record_run
 from .engines.continuum import Continuum, ContinuumEngine
 from .metrics import ESTIMATED
 from .model import Model
-from .surface import MAX_POINTS, Surface
+from .heightfield import MAX_POINTS, Surface
 
 #: Order of convergence the error estimate assumes (see the module docstring).
 ORDER = 1.5

@@ -10,7 +10,7 @@ import numpy as np
 
 from labrig.validate import InputError, count, generator, real, reals
 
-from .surface import BOUNDARIES, MAX_HEIGHT, Surface
+from .heightfield import BOUNDARIES, MAX_HEIGHT, Surface
 
 #: Most grid points per side a builder lays out before refinement.
 MAX_SIDE = 4097

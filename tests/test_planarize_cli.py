@@ -9,7 +9,8 @@ import pytest
 import planarize
 from planarize.cli import build_parser, main
 from planarize.io.results import load_run
-from planarize.io.scenefile import SCENES, load_scene
+from planarize.io.scenefile import load_scene
+from planarize.scene import SCENES
 
 from helpers import refused_run, run_ok
 from movie_probe import assert_playable

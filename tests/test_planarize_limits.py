@@ -20,8 +20,9 @@ from planarize.grid import Grid
 from planarize.io import heights, load_heights, texttable
 from planarize.io.gwy import gwy_channels
 from planarize.io.limits import MAX_FILE_BYTES, TEXT_BYTES_PER_VALUE
-from planarize.io.scenefile import RunSettings, SurfaceSpec, scene_from_toml
-from planarize.surface import MAX_POINTS
+from planarize.io.scenefile import scene_from_toml
+from planarize.scene import RunSettings, SurfaceSpec
+from planarize.heightfield import MAX_POINTS
 from planarize.surfaces import MAX_SCALES
 
 from helpers import one_line_error

@@ -6,8 +6,8 @@ from helpers import refused_file
 
 import planarize
 from planarize import Fast, Model, Reference
-from planarize.io.scenefile import (SCENES, PlanarizeScene, RunSettings, SurfaceSpec, get_scene, load_scene,
-                                 save_scene, scene_from_toml, scene_to_toml)
+from planarize.io.scenefile import load_scene, save_scene, scene_from_toml, scene_to_toml
+from planarize.scene import SCENES, PlanarizeScene, RunSettings, SurfaceSpec, get_scene
 
 ALL = [*SCENES.values(), *(s.quick(0.5) for s in SCENES.values())]
 

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from planarize import Surface, surfaces
-from planarize.surface import volume_weights
+from planarize.heightfield import volume_weights
 
 
 def triangle_volume(surface: Surface) -> float:

@@ -6,7 +6,8 @@ import pytest
 
 import planarize
 from planarize.io.results import load_run
-from planarize.io.scenefile import SCENES, scene_from_dict
+from planarize.io.scenefile import scene_from_dict
+from planarize.scene import SCENES
 from planarize.cli.sweep import AnodizeRunner, load_sweep, scene_to_dict
 from labrig.sweeps import Sweep, run_sweep
 

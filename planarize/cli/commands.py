@@ -25,7 +25,8 @@ from labrig.validate import InputError
 from .. import render
 from ..anodize import Anodization
 from ..io.results import save_history_csv, save_run
-from ..io.scenefile import PlanarizeScene, RunSettings, SurfaceSpec, save_scene
+from ..io.scenefile import save_scene
+from ..scene import PlanarizeScene, RunSettings, SurfaceSpec
 from ..metrics import z_range
 
 #: Movie frames (oxide thicknesses evenly spaced from 0 to the target, plus the scene's snapshots).

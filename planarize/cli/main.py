@@ -20,7 +20,7 @@ from labrig.cli import UsageError, add_command, command_line, float_in, fraction
 
 from ..engines import ENGINES
 from ..model import RULES
-from ..io.scenefile import SCENES
+from ..scene import SCENES
 
 _positive = float_in(0.0, math.inf, low_open=True)
 
@@ -126,7 +126,8 @@ def _run_file(args: argparse.Namespace) -> int:
 
 
 def _run_named(args: argparse.Namespace) -> int:
-    from ..io.scenefile import get_scene, save_scene
+    from ..io.scenefile import save_scene
+    from ..scene import get_scene
     from .commands import run_scene
 
     scene = _prepare(get_scene(args.name), args)

@@ -36,7 +36,8 @@ from labrig.sweeps import load_sweep_file
 from labrig.sweeps.files import SweepFile
 from labrig.validate import InputError
 
-from ..io.scenefile import RUN, SCENES, PlanarizeScene, load_scene, scene_from_dict
+from ..io.scenefile import load_scene, scene_from_dict
+from ..scene import RUN, SCENES, PlanarizeScene
 
 #: History columns reported at each recorded thickness (``<column>@<thickness>``).
 AT_COLUMNS = ("metal_rms_nm", "metal_zrange_nm", "oxide_rms_nm", "oxide_zrange_nm")

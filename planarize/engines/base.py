@@ -34,7 +34,7 @@ from labrig.validate import InputError
 from ..grid import Grid
 from ..metrics import roughness
 from ..model import Model
-from ..surface import Surface, volume_weights
+from ..heightfield import Surface, volume_weights
 from .features import feature_tables
 from .kernels import max_feature_length
 

@@ -23,7 +23,7 @@ import numpy as np
 from labrig.validate import InputError, count, real
 
 from ..model import Model
-from ..surface import Surface, volume_weights
+from ..heightfield import Surface, volume_weights
 from .flow import GHOST, area_sums, fill_ghosts, metal_rate
 from .offset import coat, extremes, surface_moments
 from .threads import available_threads, row_ranges, run_in_threads
@@ -126,7 +126,6 @@ def resample(surface: Surface, factor: float) -> Surface:
 
 def _linear_axis(z: np.ndarray, positions: np.ndarray, axis: int, periodic: bool) -> np.ndarray:
     z = np.moveaxis(z, axis, 0)
-    n = z.shape[0]
     values = np.concatenate([z, z[:1]]) if periodic else z
     k = np.minimum(np.floor(positions).astype(int), len(values) - 2)
     w = (positions - k)[:, None]

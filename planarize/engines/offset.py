@@ -159,7 +159,7 @@ def surface_moments(z, periodic):
     """Mean height and RMS of the piecewise-linear surface over its area (exact integrals), nm.
 
     Each cell is four triangles meeting at its centre, whose height is the mean of the corners
-    (`planarize.surface`); the integrals of ``z`` and ``z^2`` over a triangle with corner heights
+    (`planarize.heightfield`); the integrals of ``z`` and ``z^2`` over a triangle with corner heights
     ``a, b, c`` are ``A (a + b + c) / 3`` and ``A (a^2 + b^2 + c^2 + ab + bc + ca) / 6``.
     """
     nx, ny = z.shape

@@ -22,7 +22,7 @@ import numpy as np
 from labrig import validate
 from labrig.validate import InputError, count
 
-from ..surface import MAX_POINTS, Surface
+from ..heightfield import MAX_POINTS, Surface
 from .limits import MAX_FILE_BYTES, checked_file
 from .units import FILE_UNITS, MAX_COORDINATE, file_unit, given_spacing, unit_scales
 

@@ -34,7 +34,7 @@ spacings, and results are then as accurate as the coarser spacing allows
 0.25 and 0.5 nm square grids). Pixels more elongated than ``max_aspect``
 (default 8: e.g. a 512 x 32 line scan of a square area) are refused.
 
-Sizes: a surface has at most `planarize.surface.MAX_POINTS` points, and nothing larger is read.
+Sizes: a surface has at most `planarize.heightfield.MAX_POINTS` points, and nothing larger is read.
 A file larger than such a surface could need is refused from its size before it is opened
 (`planarize.io.limits.MAX_FILE_BYTES`); text is read piece by piece into floats and refused as
 soon as it holds more numbers than that (`planarize.io.texttable`); the grid an XYZ file's
@@ -53,7 +53,7 @@ import numpy as np
 from labrig.files import atomic_path
 from labrig.validate import InputError, array, choice, flag, real
 
-from ..surface import BOUNDARIES, MAX_POINTS, Surface, check_heights
+from ..heightfield import BOUNDARIES, MAX_POINTS, Surface, check_heights
 from .gwy import read_gwy, write_gwy
 from .limits import checked_file
 from .texttable import is_number, read_table

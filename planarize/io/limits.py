@@ -1,6 +1,6 @@
 """How large a height-map file may be, and the check made before one is read.
 
-Every bound follows from the most grid points a surface may have (`planarize.surface.MAX_POINTS`):
+Every bound follows from the most grid points a surface may have (`planarize.heightfield.MAX_POINTS`):
 a file larger than a surface of that many points could need is refused from its size, before
 anything is read (`checked_file`). What the readers then allocate is bounded too: text tables by
 their count of numbers (`planarize.io.texttable`), ``.npy`` arrays and ``.gwy`` channels by their
@@ -14,7 +14,7 @@ import stat
 
 from labrig.validate import InputError
 
-from ..surface import MAX_POINTS
+from ..heightfield import MAX_POINTS
 
 #: Characters one number of a text height map takes at most, with its separator: the longest float64
 #: (``-1.2345678901234567e-100,``) takes 25; the rest is room for padding and line ends.

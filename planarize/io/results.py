@@ -28,7 +28,7 @@ from labrig.files import recover_beside, write_csv, write_text_atomic
 from labrig.validate import InputError, choice, reals
 
 from ..anodize import MAX_RECORD, Anodization, Snapshot
-from ..surface import BOUNDARIES, MAX_POINTS, Surface
+from ..heightfield import BOUNDARIES, MAX_POINTS, Surface
 
 FORMAT = "planarize-run"
 VERSION = 1
@@ -36,7 +36,7 @@ VERSION = 1
 ARRAYS = ("initial", "metal", "oxide", "distances", "snapshot_target", "snapshot_thickness", "snapshot_metal",
           "snapshot_oxide", "snapshot_distances")
 #: Largest size of each saved array, bytes (float64 or int64 values): a grid of at most
-#: `planarize.surface.MAX_POINTS` points, a history column or snapshot list of at most
+#: `planarize.heightfield.MAX_POINTS` points, a history column or snapshot list of at most
 #: `planarize.anodize.MAX_RECORD` rows plus the first and the last, and the snapshots' grids (bounded by the
 #: archive's total and the memory available; `labrig.archive.read_archive` refuses a file that declares more).
 GRID_BYTES = MAX_POINTS * 8
