@@ -149,9 +149,12 @@ def rules(quick: bool) -> Table:
 
 
 def _timed(job, queue) -> None:
-    start = time.perf_counter()
-    result = job()
-    queue.put((time.perf_counter() - start, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20, result))
+    try:
+        start = time.perf_counter()
+        result = job()
+        queue.put((time.perf_counter() - start, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20, result))
+    except BaseException as exc:  # the parent must hear of it, or it would wait for ever
+        queue.put(exc)
 
 
 def in_child(job):
@@ -162,6 +165,8 @@ def in_child(job):
     process.start()
     out = queue.get()
     process.join()
+    if isinstance(out, BaseException):
+        raise RuntimeError(f"the timed job failed: {out!r}") from out
     return out
 
 
