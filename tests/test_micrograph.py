@@ -10,6 +10,8 @@ import numpy as np
 import pytest
 from helpers import one_line_error, refused
 from PIL import Image
+from scipy import ndimage
+from skimage.filters import threshold_otsu
 
 from qdots.cli import main
 from qdots.io import checkpoint
@@ -275,7 +277,14 @@ def test_the_real_micrograph_matches_counts_and_sizes_taken_by_hand(tem_film):
     assert np.mean(measured) == pytest.approx(np.mean(list(HAND_WIDTHS.values())), rel=0.03)
     s = film.summary
     assert s["mean_diameter_nm"] == pytest.approx(np.mean(list(HAND_WIDTHS.values())) * 200 / 127, rel=0.06)
-    assert 0.35 < s["coverage"] < 0.5 and s["dots_cut_by_edge"] > 20
+    assert s["dots_cut_by_edge"] > 20
+    # coverage against an independent measure: the share of pixels (above the scale bar's rows) darker than halfway
+    # between the background and the particles' cores, which is a flat disc's edge; the union of the fitted discs
+    # covers a little less (irregular and fused particles stick out of their discs)
+    picture = ndimage.gaussian_filter(film.image.pixels[:820], 1.0)
+    split = threshold_otsu(picture)
+    half = 0.5 * (np.median(picture[picture > split]) + np.median(picture[picture < split]))
+    assert 0.8 * np.mean(picture < half) < s["coverage"] < 1.05 * np.mean(picture < half)
 
 
 def test_the_real_micrograph_overlay_is_written(tem_film, tmp_path):

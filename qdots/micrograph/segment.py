@@ -35,13 +35,14 @@ MIN_INSCRIBED = 1.0 / 3.0
 FUSED_AREA, FUSED_ELONGATION = 1.6, 1.4
 
 
-def scaled(image: np.ndarray, ignore: np.ndarray | None = None) -> np.ndarray:
-    """``image`` mapped to [0, 1] by its 0.5 and 99.5 percentiles (outside ``ignore``), clipped."""
+def scaled(image: np.ndarray, ignore: np.ndarray | None = None, clip: bool = True) -> np.ndarray:
+    """``image`` mapped to [0, 1] by its 0.5 and 99.5 percentiles (outside ``ignore``), clipped (or not)."""
     values = image[~ignore] if ignore is not None else image.ravel()
     low, high = np.percentile(values[::SUBSAMPLE], [0.5, 99.5])
     if high <= low:
         low, high = float(values.min()), float(values.max())
-    return np.clip((image - low) / (high - low), 0.0, 1.0)
+    out = (image - low) / (high - low)
+    return np.clip(out, 0.0, 1.0) if clip else out
 
 
 def background_level(image: np.ndarray, background: np.ndarray, width: float) -> np.ndarray:
