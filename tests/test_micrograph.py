@@ -89,7 +89,7 @@ def test_a_scale_bar_is_found_measured_and_left_out():
     image[270:276, 180:280] = image.min() - 0.2  # a solid black bar 100 px long
     bar = find_scale_bar(image)
     assert bar.length_px == 100 and bar.box == (180, 270, 280, 276) and bar.dark
-    nm_per_px, _ = scale_from_bar(image, "0.5um")
+    nm_per_px = scale_from_bar(bar, "0.5um")
     assert nm_per_px == pytest.approx(5.0)
     assert parse_length("200 nm") == 200.0 and parse_length("2µm") == 2000.0 and parse_length("15A") == 1.5
     detection = detect_dots(image, ignore=bar.mask(image.shape))

@@ -45,11 +45,12 @@ from scipy import ndimage
 from labrig.compiled import jit
 from labrig.validate import InputError, choice
 
+from .annotations import find_strips
 from .profiles import BIN, FIT_HIGH, FIT_LOW, FIT_STEP, PROFILES, fit_profiles, profile_table, radial_profiles
 from .refine import refine_dots, repeat_errors
 from .settle import FIRST_BLUR, settle_profile
 from .segment import (MIN_CONTRAST, MIN_INSCRIBED, MIN_SIGNAL, POLARITIES, background_level, decide_polarity,
-                      fill_small_holes, frame_width, label_maxima, pixel_noise, region_properties, scaled,
+                      fill_small_holes, label_maxima, pixel_noise, region_properties, scaled,
                       signal_to_noise, spaced_maxima, split_fused, typical_radius)
 
 
@@ -86,8 +87,8 @@ class Detection:
     image_shape : (int, int)
         ``(H, W)`` of the image, px.
     window : (int, int, int, int)
-        ``(x0, y0, x1, y1)``: the part of the image that is picture, px (a constant frame that some
-        programs draw around an image is left out, `frame_width`).
+        ``(x0, y0, x1, y1)``: the part of the image that is picture, px (a frame or data strips that
+        acquisition programs draw along its sides are left out, `qdots.micrograph.annotations.find_strips`).
     errors : ndarray, shape (N,)
         Each diameter's measurement error, px, from measuring the film again with another draw of its own noise
         (`qdots.micrograph.refine.repeat_errors`).
@@ -130,8 +131,8 @@ def paint_discs(covered, centres, radii):
                     covered[row, col] = True
 
 
-def detect_dots(image, polarity: str = "auto", profile: str = "auto", ignore: np.ndarray | None = None
-                ) -> Detection:
+def detect_dots(image, polarity: str = "auto", profile: str = "auto", ignore: np.ndarray | None = None,
+                window: tuple[int, int, int, int] | None = None) -> Detection:
     """Every dot of a grey image, with sub-pixel centres and fitted diameters (see the module docstring).
 
     Parameters
@@ -148,6 +149,9 @@ def detect_dots(image, polarity: str = "auto", profile: str = "auto", ignore: np
         `Detection.profile` says which and why.
     ignore : ndarray of bool, shape (H, W), optional
         Pixels to leave out (a scale bar and its label).
+    window : (int, int, int, int), optional
+        ``(x0, y0, x1, y1)``: the part of the image that is picture (default: the image less the frame and data
+        strips along its sides, `qdots.micrograph.annotations.find_strips`).
 
     Returns
     -------
@@ -165,13 +169,14 @@ def detect_dots(image, polarity: str = "auto", profile: str = "auto", ignore: np
     if ignore.shape != image.shape:
         raise InputError(f"ignore must have the image's shape {image.shape}, got {ignore.shape}")
     h, w = image.shape
-    top, bottom, left, right = frame_width(image)
-    if h - top - bottom < 2 or w - left - right < 2:
-        return _empty((h, w), "constant image", 0)
-    inner = (slice(top, h - bottom), slice(left, w - right))
+    x0, y0, x1, y1 = find_strips(image)[0] if window is None else (int(v) for v in window)
+    if not (0 <= x0 < x1 <= w and 0 <= y0 < y1 <= h):
+        raise InputError(f"window must lie inside the {w} x {h} px image, got {(x0, y0, x1, y1)}")
+    if x1 - x0 < 2 or y1 - y0 < 2:
+        return _empty((h, w), "no picture left inside the frame or strips", 0)
+    inner = (slice(y0, y1), slice(x0, x1))
     found = _detect(image[inner], polarity, profile, ignore[inner])
-    centres = found.centres + [left, top]
-    x0, y0, x1, y1 = left, top, w - right, h - bottom
+    centres = found.centres + [x0, y0]
     r = 0.5 * found.diameters
     cut = found.cut | (centres[:, 0] - r < x0) | (centres[:, 1] - r < y0) | (centres[:, 0] + r > x1) | (
         centres[:, 1] + r > y1)

@@ -160,27 +160,6 @@ def split_fused(labels: np.ndarray, distance: np.ndarray) -> np.ndarray:
     return relabelled
 
 
-def frame_width(image: np.ndarray) -> tuple[int, int, int, int]:
-    """Rows and columns of a constant frame around ``image`` (a border some programs draw): the number of
-    top, bottom, left and right lines, each of one value equal to the corner's, that are not picture."""
-    corner = image[0, 0]
-    h, w = image.shape
-
-    def run(lines) -> int:
-        k = 0
-        for line in lines:
-            if not np.all(line == corner):
-                break
-            k += 1
-        return k
-
-    top = run(image[i] for i in range(h // 4))
-    bottom = run(image[h - 1 - i] for i in range(h // 4))
-    left = run(image[:, j] for j in range(w // 4))
-    right = run(image[:, w - 1 - j] for j in range(w // 4))
-    return top, bottom, left, right
-
-
 def decide_polarity(smooth: np.ndarray, threshold: float, polarity: str, scale: float = 1.0) -> tuple[bool, str]:
     """Whether the dots are the dark phase, and why: given, or (``"auto"``) dark, as bright-field micrographs
     show them, unless the light phase's components away from the image edge are clearly the larger round
