@@ -92,6 +92,9 @@ class Detection:
     errors : ndarray, shape (N,)
         Each diameter's measurement error, px, from measuring the film again with another draw of its own noise
         (`qdots.micrograph.refine.repeat_errors`).
+    explained : float
+        The share of the image's contrast within the dots' discs that the fitted model of round dots explains
+        (`explained_share`): near 1 for a film of round particles, far less for letters or lines.
     """
 
     centres: np.ndarray
@@ -107,6 +110,7 @@ class Detection:
     image_shape: tuple[int, int]
     window: tuple[int, int, int, int]
     errors: np.ndarray
+    explained: float
 
     @property
     def n_dots(self) -> int:
@@ -272,11 +276,24 @@ def _detect(image: np.ndarray, polarity: str, profile: str, ignore: np.ndarray) 
                                    f"noise, less than the {MIN_CONTRAST:g} real dots have: noise alone", len(start))
     rejected += int(np.count_nonzero(~good))
     errors = 2.0 * repeat_errors(target, centres, refined, typical, shape, blur, level, level_map)
+    explained = explained_share(target, level_map, refined.model, centres[good], fitted[good])
     centres, fitted, contrast, touches, errors = (part[good] for part in (centres, fitted, contrast, touches, errors))
     return Detection(centres, 2.0 * fitted, touches, contrast, dark, how, float(shape), how_shape,
-                     float(np.median(blur)), rejected, (h, w), (0, 0, w, h), errors)
+                     float(np.median(blur)), rejected, (h, w), (0, 0, w, h), errors, explained)
+
+
+def explained_share(image, level_map, model, centres, radii) -> float:
+    """``1 - sum (image - (level - model))^2 / sum (image - level)^2`` over the pixels inside the fitted discs
+    (``radii``, px) and not left out (NaN in ``image``): how much of the dots' contrast round dots explain."""
+    inside = np.zeros(image.shape, dtype=np.bool_)
+    paint_discs(inside, np.ascontiguousarray(centres, dtype=float), np.asarray(radii, dtype=float))
+    inside &= np.isfinite(image)
+    contrast = image[inside] - level_map[inside]
+    total = float(np.sum(contrast**2))
+    return 1.0 - float(np.sum((contrast + model[inside]) ** 2)) / total if total > 0 else math.nan
 
 
 def _empty(shape, how: str, rejected: int) -> Detection:
     return Detection(np.zeros((0, 2)), np.zeros(0), np.zeros(0, dtype=bool), np.zeros(0), "light" not in how, how,
-                     math.nan, "", math.nan, rejected, tuple(shape), (0, 0, shape[1], shape[0]), np.zeros(0))
+                     math.nan, "", math.nan, rejected, tuple(shape), (0, 0, shape[1], shape[0]), np.zeros(0),
+                     math.nan)

@@ -4,7 +4,8 @@ instrument's text and magnification), and a scale bar drawn solid, ruled (divide
 
 Everything is drawn with matplotlib on a canvas of the image's own pixels (`label_micrograph`): the
 text is its anti-aliased text, the bars are pixel-exact rectangles, as acquisition software draws them.
-The truth comes back with the picture: where the film is, where the bar is and how long.
+The truth comes back with the picture: where the film is, where the bar is and how long. `not_a_film`
+draws pictures that a measurement must refuse: a plot, a page of text, a drawing.
 """
 
 from __future__ import annotations
@@ -22,6 +23,8 @@ BAR_STYLES = ("solid", "ruled", "checkered", "ruler")
 LABEL_PLACES = ("under", "over", "beside")
 #: Largest canvas side, px.
 MAX_CANVAS = 8192
+#: Pictures that are not films (`not_a_film`).
+NOT_FILMS = ("plot", "text", "drawing")
 
 
 @dataclass(frozen=True)
@@ -178,3 +181,44 @@ def label_micrograph(film, nm_per_px: float, *, bar_nm: float = 100.0, strip: st
     top_of_bar = min(b for _, b, _, _, _ in pieces)
     bottom_of_bar = max(d for _, _, _, d, _ in pieces)
     return Labelled(pixels[:H, :W], (x0, y0, x0 + w, y0 + h), (bx, top_of_bar, bx + bar_px, bottom_of_bar), bar_px)
+
+
+def not_a_film(kind: str, shape: tuple[int, int] = (480, 640), seed: int = 0) -> np.ndarray:
+    """A picture that is not a micrograph of a film, grey values in [0, 1], as matplotlib draws it: a line
+    ``"plot"`` with its title, axes and legend, a page of ``"text"``, or a ``"drawing"`` (outlined and filled
+    shapes, circles among them)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+    from matplotlib.patches import Circle, Rectangle
+
+    kind = choice("kind", kind, NOT_FILMS)
+    h, w = (count("shape", v, 16, MAX_CANVAS) for v in shape)
+    rng = np.random.default_rng(seed)
+    fig = Figure(figsize=(w / 100.0, h / 100.0), dpi=100)
+    FigureCanvasAgg(fig)
+    if kind == "plot":
+        ax = fig.add_subplot()
+        x = np.linspace(0, 10, 200)
+        ax.plot(x, np.sin(x) * np.exp(-x / 5), label="decay")
+        ax.plot(x, np.cos(x), "--", label="reference")
+        ax.set_title("Photoluminescence lifetime")
+        ax.set_xlabel("time (ns)")
+        ax.set_ylabel("intensity (a.u.)")
+        ax.legend()
+    elif kind == "text":
+        words = "the quantum dots form a film whose order depends on the size spread and the rate of arrival".split()
+        for line in range(int(h / 22)):
+            fig.text(0.05, 1.0 - (line + 1) * 22 / h, " ".join(rng.choice(words, 9)), fontsize=11)
+    else:
+        ax = fig.add_axes((0, 0, 1, 1))
+        ax.set_xlim(0, w)
+        ax.set_ylim(0, h)
+        ax.set_axis_off()
+        for _ in range(25):
+            x, y, r = rng.uniform(0, w), rng.uniform(0, h), rng.uniform(8, 40)
+            shade = str(rng.uniform(0.2, 0.8))
+            patch = Circle((x, y), r) if rng.random() < 0.6 else Rectangle((x, y), 2 * r, r)
+            patch.set(facecolor=shade if rng.random() < 0.5 else "none", edgecolor="black", linewidth=1.5)
+            ax.add_patch(patch)
+    fig.canvas.draw()
+    return np.asarray(fig.canvas.buffer_rgba(), dtype=float)[:h, :w, :3].mean(axis=-1) / 255.0

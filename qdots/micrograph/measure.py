@@ -22,6 +22,7 @@ from labrig.validate import InputError
 from .detect import Detection, detect_dots
 from .film import complete_neighbourhood, film_metrics, film_state
 from .read import Micrograph, read_micrograph
+from .admit import check_film, check_picture
 from .annotations import Annotations, find_annotations
 from .scale import ScaleBar, check_nm_per_px, parse_length, scale_from_bar
 
@@ -134,7 +135,8 @@ def measure_image(path: str | os.PathLike, *, nm_per_px=None, scale_bar: str | N
     Raises
     ------
     labrig.validate.InputError
-        Bad file or scale (one line), or no dot found in the image.
+        Bad file or scale (one line), no dot found in the image, or a picture that is not a film of round
+        particles (`qdots.micrograph.admit`).
     """
     from ..analysis.lqe import film_lqe
 
@@ -144,6 +146,7 @@ def measure_image(path: str | os.PathLike, *, nm_per_px=None, scale_bar: str | N
         parse_length(scale_bar)
     image = read_micrograph(path, page)
     found = find_annotations(image.pixels)
+    check_picture(image.pixels, found, str(path))
     bar = found.bar
     scale, how = settle_scale(image, bar, nm_per_px, scale_bar)
     detection = detect_dots(image.pixels, polarity=polarity, profile=profile, ignore=found.ignore,
@@ -151,6 +154,7 @@ def measure_image(path: str | os.PathLike, *, nm_per_px=None, scale_bar: str | N
     if detection.n_dots == 0:
         raise InputError(f"{path}: no dots found ({detection.polarity}); nothing written. Check --polarity, "
                          "or crop the image to the film")
+    check_film(detection, str(path))
     state = film_state(detection.centres, detection.diameters, image.shape)
     h = image.shape[0]
     x0, y0, x1, y1 = detection.window
@@ -274,7 +278,8 @@ def mark_annotations(ax, film: MeasuredFilm, k: float = 1.0) -> None:
         pad = 3
         ax.add_patch(Rectangle(((a - pad) * k, (b - pad) * k), (c - a + 2 * pad) * k, (d - b + 2 * pad) * k,
                                facecolor="none", edgecolor="magenta", linewidth=1.5))
-        used = f" = {film.bar.length_px * film.nm_per_px:.4g} nm" if "scale bar" in film.scale else ""
+        from_bar = film.nm_per_px is not None and "from the scale bar" in film.scale
+        used = f" = {film.bar.length_px * film.nm_per_px:.4g} nm" if from_bar else ""
         ax.text((a + c) / 2 * k, (b - 2 * pad) * k, f"scale bar {film.bar.length_px} px{used}", color="magenta",
                 ha="center", va="bottom", fontsize="small",
                 bbox={"facecolor": "white", "edgecolor": "none", "alpha": 0.7, "pad": 1})
