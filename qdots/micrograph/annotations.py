@@ -2,9 +2,10 @@
 along the sides (black or white, with text, the magnification and often the scale bar), label boxes over
 the film, and the scale bar with its label.
 
-A **strip** (`find_strips`) is a band along a side whose lines are mostly one flat colour, the colour of
-the side's outermost line, until the film begins (lines that hardly hold that colour). A frame is a strip
-of lines of nothing else (whatever follows: a film may hold that colour too, in saturated dots). The picture is what the strips leave (`Annotations.window`).
+A **strip** (`find_strips`) is a band along a side whose lines are drawn: mostly black or white (the
+strip's colour, its text's and its bar's; JPEG's ringing stays near them), until the film begins (lines
+that hardly hold either). A frame is a band of lines of one colour only (whatever follows: a film may hold
+that colour too, in saturated dots). The picture is what the strips leave (`Annotations.window`).
 
 A **box** over the film (`find_boxes`) is a flat rectangle of one colour, at least `MIN_BOX` px, holding
 something else (text or a bar): a flat dot core holds nothing, a label box does.
@@ -24,9 +25,11 @@ from .scale import ScaleBar, find_scale_bar
 
 #: Sides, in the order strips are looked for.
 SIDES = ("top", "bottom", "left", "right")
-#: A strip's lines hold on average at least STRIP_SHARE of its colour; the film's first lines (FILM_LINES of
-#: them) less than FILM_SHARE; a strip takes at most MAX_STRIP of the image's height or width.
-STRIP_SHARE, FILM_SHARE, FILM_LINES, MAX_STRIP = 0.5, 0.25, 3, 0.4
+#: Drawn pixels are within EXTREME of the image's range of its darkest or lightest value (a strip is black or
+#: white, its text and bar the other). A strip's outermost line is at least STRIP_START drawn, its lines on
+#: average STRIP_SHARE; the film's first lines (FILM_LINES of them) less than FILM_SHARE; a strip takes at most
+#: MAX_STRIP of the image's height or width.
+EXTREME, STRIP_START, STRIP_SHARE, FILM_SHARE, FILM_LINES, MAX_STRIP = 0.1, 0.9, 0.7, 0.3, 3, 0.4
 #: Lines of at least FRAME_SHARE of one colour from the edge inward are a frame, whatever follows.
 FRAME_SHARE = 0.99
 #: Pixels within FLAT of the image's range of a colour are that colour (a drawn strip is flat; a film is not).
@@ -83,43 +86,44 @@ class Annotations:
         return ", ".join(parts) if parts else "nothing"
 
 
-def line_shares(image: np.ndarray, side: str, value: float, tolerance: float, depth: int) -> np.ndarray:
-    """Share of each of the ``depth`` lines from ``side`` inward that lies within ``tolerance`` of ``value``."""
-    near = np.abs(image - value) <= tolerance
+def line_shares(mask: np.ndarray, side: str, depth: int) -> np.ndarray:
+    """Share of each of the ``depth`` lines of ``mask`` from ``side`` inward that is set."""
     if side == "top":
-        return near[:depth].mean(axis=1)
+        return mask[:depth].mean(axis=1)
     if side == "bottom":
-        return near[::-1][:depth].mean(axis=1)
+        return mask[::-1][:depth].mean(axis=1)
     if side == "left":
-        return near[:, :depth].mean(axis=0)
-    return near[:, ::-1][:, :depth].mean(axis=0)
+        return mask[:, :depth].mean(axis=0)
+    return mask[:, ::-1][:, :depth].mean(axis=0)
 
 
 def find_strips(image: np.ndarray) -> tuple[tuple[int, int, int, int], tuple[Strip, ...]]:
     """The picture's window ``(x0, y0, x1, y1)`` and the strips along its sides (see the module)."""
     image = np.asarray(image, dtype=float)
     h, w = image.shape
-    span = float(image.max() - image.min())
-    tolerance = FLAT * span
+    low, high = float(image.min()), float(image.max())
+    span = high - low
+    drawn = (image <= low + EXTREME * span) | (image >= high - EXTREME * span)
     cut = {"top": 0, "bottom": 0, "left": 0, "right": 0}
     strips = []
     for side in SIDES:
         extent = h if side in ("top", "bottom") else w
         outer = {"top": image[0], "bottom": image[-1], "left": image[:, 0], "right": image[:, -1]}[side]
-        values, counts = np.unique(np.round(outer / max(tolerance, 1e-12)), return_counts=True)
-        value = float(values[np.argmax(counts)] * max(tolerance, 1e-12))
+        value = low if np.mean(outer <= low + EXTREME * span) >= np.mean(outer >= high - EXTREME * span) else high
         depth = int(MAX_STRIP * extent)
-        shares = line_shares(image, side, value, tolerance, depth + FILM_LINES)
-        if shares[0] < STRIP_SHARE:
-            continue
-        frame = int(np.argmin(shares >= FRAME_SHARE)) if shares[-1] < FRAME_SHARE else 0
-        film = np.convolve(shares < FILM_SHARE, np.ones(FILM_LINES), mode="valid") == FILM_LINES
-        starts = np.flatnonzero(film[:depth + 1])
-        width = int(starts[0]) if starts.size and shares[:max(1, int(starts[0]))].mean() >= STRIP_SHARE else 0
+        frame_shares = line_shares(np.abs(image - float(np.median(outer))) <= FLAT * span, side, depth)
+        frame = int(np.argmin(frame_shares >= FRAME_SHARE)) if frame_shares[-1] < FRAME_SHARE else 0
+        shares = line_shares(drawn, side, depth + FILM_LINES)
+        width = 0
+        if shares[0] >= STRIP_START:
+            film = np.convolve(shares < FILM_SHARE, np.ones(FILM_LINES), mode="valid") == FILM_LINES
+            starts = np.flatnonzero(film[:depth + 1])
+            if starts.size and shares[:max(1, int(starts[0]))].mean() >= STRIP_SHARE:
+                width = int(starts[0])
         width = max(width, frame)
         if width >= 1:
             cut[side] = width
-            strips.append(Strip(side, width, value))
+            strips.append(Strip(side, width, float(np.median(outer)) if width == frame else value))
     window = (cut["left"], cut["top"], w - cut["right"], h - cut["bottom"])
     return window, tuple(strips)
 

@@ -69,7 +69,8 @@ class Detection:
     diameters : ndarray, shape (N,)
         Fitted diameter of each dot, px.
     cut : ndarray of bool, shape (N,)
-        Dots whose disc crosses the edge of the picture (`window`), measured on their visible part.
+        Dots whose disc crosses the edge of the picture (`window`) or pixels left out (``ignore``), measured on
+        their visible part.
     contrast : ndarray, shape (N,)
         Fitted contrast ``C`` of each dot, in units of the background level.
     dark : bool
@@ -92,9 +93,6 @@ class Detection:
     errors : ndarray, shape (N,)
         Each diameter's measurement error, px, from measuring the film again with another draw of its own noise
         (`qdots.micrograph.refine.repeat_errors`).
-    explained : float
-        The share of the image's contrast within the dots' discs that the fitted model of round dots explains
-        (`explained_share`): near 1 for a film of round particles, far less for letters or lines.
     """
 
     centres: np.ndarray
@@ -110,7 +108,6 @@ class Detection:
     image_shape: tuple[int, int]
     window: tuple[int, int, int, int]
     errors: np.ndarray
-    explained: float
 
     @property
     def n_dots(self) -> int:
@@ -121,6 +118,18 @@ class Detection:
         covered = np.zeros(self.image_shape, dtype=np.bool_)
         paint_discs(covered, np.ascontiguousarray(self.centres, dtype=float), 0.5 * np.asarray(self.diameters, float))
         return float(covered.mean())
+
+
+@jit
+def paint_labels(labels, centres, radii):
+    """Set the pixels of ``labels`` inside dot k's disc to k + 1 (a later dot over an earlier one)."""
+    h, w = labels.shape
+    for k in range(len(radii)):
+        x, y, r = centres[k, 0], centres[k, 1], radii[k]
+        for row in range(max(0, int(y - r)), min(h, int(y + r) + 2)):
+            for col in range(max(0, int(x - r)), min(w, int(x + r) + 2)):
+                if (col + 0.5 - x) ** 2 + (row + 0.5 - y) ** 2 <= r * r:
+                    labels[row, col] = k + 1
 
 
 @jit
@@ -184,6 +193,10 @@ def detect_dots(image, polarity: str = "auto", profile: str = "auto", ignore: np
     r = 0.5 * found.diameters
     cut = found.cut | (centres[:, 0] - r < x0) | (centres[:, 1] - r < y0) | (centres[:, 0] + r > x1) | (
         centres[:, 1] + r > y1)
+    if ignore.any():  # a dot partly hidden by what is left out (a label box, the bar) is cut too
+        labels = np.zeros(image.shape, dtype=np.int64)
+        paint_labels(labels, np.ascontiguousarray(centres, dtype=float), r)
+        cut[np.unique(labels[ignore & (labels > 0)]) - 1] = True
     return replace(found, centres=centres, cut=cut, image_shape=(h, w), window=(x0, y0, x1, y1))
 
 
@@ -263,6 +276,8 @@ def _detect(image: np.ndarray, polarity: str, profile: str, ignore: np.ndarray) 
     typical = float(np.median(first[0][sure])) if sure.any() else radius
     shape, blur, level, level_map, how_shape = settle_profile(target, centres, first[0], first[2], first[1], typical,
                                                               whole, profile)
+    if np.ptp(blur) > 0.05:
+        how_shape += f"; the blur {np.min(blur):.2f}-{np.max(blur):.2f} px across the film (uneven focus)"
     refined = refine_dots(target, centres, first[0], first[2], typical, shape, blur, level, move=True)
     centres = np.where(touches[:, None], centres, refined.centres)  # a cut dot keeps the centre of its visible part
     fitted, background, contrast = refined.radius, refined.background, refined.contrast
@@ -276,24 +291,11 @@ def _detect(image: np.ndarray, polarity: str, profile: str, ignore: np.ndarray) 
                                    f"noise, less than the {MIN_CONTRAST:g} real dots have: noise alone", len(start))
     rejected += int(np.count_nonzero(~good))
     errors = 2.0 * repeat_errors(target, centres, refined, typical, shape, blur, level, level_map)
-    explained = explained_share(target, level_map, refined.model, centres[good], fitted[good])
     centres, fitted, contrast, touches, errors = (part[good] for part in (centres, fitted, contrast, touches, errors))
     return Detection(centres, 2.0 * fitted, touches, contrast, dark, how, float(shape), how_shape,
-                     float(np.median(blur)), rejected, (h, w), (0, 0, w, h), errors, explained)
-
-
-def explained_share(image, level_map, model, centres, radii) -> float:
-    """``1 - sum (image - (level - model))^2 / sum (image - level)^2`` over the pixels inside the fitted discs
-    (``radii``, px) and not left out (NaN in ``image``): how much of the dots' contrast round dots explain."""
-    inside = np.zeros(image.shape, dtype=np.bool_)
-    paint_discs(inside, np.ascontiguousarray(centres, dtype=float), np.asarray(radii, dtype=float))
-    inside &= np.isfinite(image)
-    contrast = image[inside] - level_map[inside]
-    total = float(np.sum(contrast**2))
-    return 1.0 - float(np.sum((contrast + model[inside]) ** 2)) / total if total > 0 else math.nan
+                     float(np.median(blur)), rejected, (h, w), (0, 0, w, h), errors)
 
 
 def _empty(shape, how: str, rejected: int) -> Detection:
     return Detection(np.zeros((0, 2)), np.zeros(0), np.zeros(0, dtype=bool), np.zeros(0), "light" not in how, how,
-                     math.nan, "", math.nan, rejected, tuple(shape), (0, 0, shape[1], shape[0]), np.zeros(0),
-                     math.nan)
+                     math.nan, "", math.nan, rejected, tuple(shape), (0, 0, shape[1], shape[0]), np.zeros(0))

@@ -29,25 +29,47 @@ from .profiles import BIN, FIT_STEP, fit_dot, polish_dot, profile_table, table_v
 PASSES = 3
 #: How far the residual is rolled for the repeated measurement of `repeat_errors`, px (rows, columns).
 REPEAT_SHIFT = (37, 61)
+#: Most dots measured again (`repeat_errors`).
+REPEAT_DOTS = 2000
 #: Radius search of the first pass, in units of the film's typical radius; of the later ones, of the dot's own,
 #: by steps of POLISH_STEP of it (`qdots.micrograph.profiles.polish_dot`).
 WIDE, NARROW, POLISH_STEP = (0.45, 1.8), (0.85, 1.18), 0.02
 #: A dot's profile reaches REACH times its radius (or the typical one, if larger) plus REACH_PAD px.
-REACH, REACH_PAD = 1.4, 6.0
+REACH, REACH_PAD = 1.4, 4.0
 
 @jit
 def paint_dot(model, x, y, r, c, table, blur, sign):
     """Add ``sign * C F(|p - (x, y)| / r)`` (the blurred profile of `profile_table`) to ``model``, out to 2 r."""
-    if not (r > 0.0) or not (c > 0.0):
-        return
+    replace_dot(model, x, y, 0.0, 0.0, x, y, r, sign * c, table, blur)
+
+
+@jit
+def replace_dot(model, old_x, old_y, old_r, old_c, x, y, r, c, table, blur):
+    """Take a dot's old model (centre, radius, contrast) out of ``model`` and put its new one in, in one sweep
+    over the pixels either covers (out to twice its radius)."""
     h, w = model.shape
-    reach = 2.0 * r
-    s = blur / r
-    for row in range(max(0, int(y - reach)), min(h, int(y + reach) + 2)):
-        for col in range(max(0, int(x - reach)), min(w, int(x + reach) + 2)):
-            rho = math.sqrt((col + 0.5 - x) ** 2 + (row + 0.5 - y) ** 2)
-            if rho < reach:
-                model[row, col] += sign * c * table_value(table, s, rho / r)
+    old = old_r > 0.0 and old_c != 0.0
+    new = r > 0.0 and c != 0.0
+    if not old and not new:
+        return
+    reach = 2.0 * max(old_r if old else 0.0, r if new else 0.0)
+    mx = 0.5 * (old_x + x) if old and new else (x if new else old_x)
+    my = 0.5 * (old_y + y) if old and new else (y if new else old_y)
+    reach += 0.5 * math.sqrt((x - old_x) ** 2 + (y - old_y) ** 2) if old and new else 0.0
+    s_old = blur / old_r if old else 0.0
+    s_new = blur / r if new else 0.0
+    for row in range(max(0, int(my - reach)), min(h, int(my + reach) + 2)):
+        for col in range(max(0, int(mx - reach)), min(w, int(mx + reach) + 2)):
+            change = 0.0
+            if new:
+                rho = math.sqrt((col + 0.5 - x) ** 2 + (row + 0.5 - y) ** 2)
+                if rho < 2.0 * r:
+                    change += c * table_value(table, s_new, rho / r)
+            if old:
+                rho = math.sqrt((col + 0.5 - old_x) ** 2 + (row + 0.5 - old_y) ** 2)
+                if rho < 2.0 * old_r:
+                    change -= old_c * table_value(table, s_old, rho / old_r)
+            model[row, col] += change
 
 
 @jit
@@ -136,15 +158,17 @@ def centre_shift(image, model, x, y, r, c, table, blur, level):
 
 @jit
 def refine_pass(image, model, centres, radius, contrast, background, residual, level, free, table, blurs, reach,
-                n_bins, typical, wide, move):
-    """One pass over the dots in order, each fitted on ``image + model - own model`` and its model replaced in
-    ``model`` at once (Gauss-Seidel: the next dot sees it). ``wide``: radii searched over `WIDE` times ``typical``;
-    else near the dot's own (`qdots.micrograph.profiles.polish_dot`). ``move``: each centre first moved to where
-    its darkness balances (`centre_shift`). Updates the arrays in place."""
+                n_bins, typical, wide, move, active):
+    """One pass over the ``active`` dots in order, each fitted on ``image + model - own model`` and its model
+    replaced in ``model`` at once (Gauss-Seidel: the next dot sees it). ``wide``: radii searched over `WIDE` times
+    ``typical``; else near the dot's own (`qdots.micrograph.profiles.polish_dot`). ``move``: each centre first
+    moved to where its darkness balances (`centre_shift`). Updates the arrays in place."""
     sums = np.zeros(n_bins)
     counts = np.zeros(n_bins)
     rhos = np.zeros(n_bins)
     for k in range(len(radius)):
+        if not active[k]:
+            continue
         x = centres[k, 0]
         y = centres[k, 1]
         blur = blurs[k]
@@ -153,10 +177,9 @@ def refine_pass(image, model, centres, radius, contrast, background, residual, l
         if move and old_r > 0.0 and old_c > 0.0:
             dx, dy = centre_shift(image, model, x, y, old_r, old_c, table, blur, level[k])
             if dx != 0.0 or dy != 0.0:
-                paint_dot(model, x, y, old_r, old_c, table, blur, -1.0)
+                replace_dot(model, x, y, old_r, old_c, x + dx, y + dy, old_r, old_c, table, blur)
                 x += dx
                 y += dy
-                paint_dot(model, x, y, old_r, old_c, table, blur, 1.0)
                 centres[k, 0] = x
                 centres[k, 1] = y
         dot_profile(image, model, x, y, old_r, old_c, table, blur, reach[k], BIN, -1, sums, counts, rhos)
@@ -167,8 +190,7 @@ def refine_pass(image, model, centres, radius, contrast, background, residual, l
             r, big, c, error = polish_dot(sums, counts, rhos, level[k], free, table, blur, old_r, POLISH_STEP,
                                           NARROW[0], NARROW[1])
         new_c = c if (r > 0.0 and c > 0.0) else 0.0
-        paint_dot(model, x, y, old_r, old_c, table, blur, -1.0)
-        paint_dot(model, x, y, r, new_c, table, blur, 1.0)
+        replace_dot(model, x, y, old_r, old_c, x, y, r if r > 0.0 else 0.0, new_c, table, blur)
         radius[k] = r
         contrast[k] = new_c
         background[k] = big
@@ -226,7 +248,7 @@ def profile_reach(radii, typical: float) -> np.ndarray:
 
 def refine_dots(image, centres, radii, contrast, typical: float, shape: float, blur: float, level,
                 passes: int = PASSES, reach=None, wide: bool = True, keep_profiles: bool = True,
-                move: bool = False) -> Refined:
+                move: bool = False, active=None) -> Refined:
     """Fit every dot again on ``image`` with its neighbours' model added back, ``passes`` times (`refine_pass`:
     the first searches radii widely, the later ones near each dot's own).
 
@@ -256,6 +278,8 @@ def refine_dots(image, centres, radii, contrast, typical: float, shape: float, b
         Whether to return the last profiles (`Refined.profiles`, else None).
     move : bool
         Whether the passes after a wide one also move each centre (`centre_shift`; not with the background free).
+    active : ndarray of bool (N,), optional
+        The dots to fit (default all); the others stay as given, in the model.
     """
     table = profile_table(shape)
     centres = np.array(centres, dtype=float)
@@ -272,7 +296,8 @@ def refine_dots(image, centres, radii, contrast, typical: float, shape: float, b
     for k in range(passes):
         first = wide and k == 0
         refine_pass(image, model, centres, radius, contrast, background, residual, base, level is None, table,
-                    blurs, reach, n_bins, float(typical), first, move and not first and level is not None)
+                    blurs, reach, n_bins, float(typical), first, move and not first and level is not None,
+                    np.ones(n, dtype=bool) if active is None else np.asarray(active, dtype=bool))
     profiles = dot_profiles(image, model, centres, np.nan_to_num(radius), contrast, table, blurs, reach, n_bins,
                             BIN, -1) if keep_profiles else None
     return Refined(centres, radius, background, contrast, residual, profiles, model, reach)
@@ -284,10 +309,14 @@ def repeat_errors(image, centres, refined: Refined, typical: float, shape: float
     the fitted model plus the first image's residual (``image - (level_map - model)``: its noise, grain and
     misfit) rolled by ``shift`` px, so that each dot sees noise of the same kind but another draw of it. Two
     measurements with independent errors of deviation ``e`` differ by ``sqrt(2) e``: the error of each dot is
-    its difference over ``sqrt(2)``, whose root mean square over the dots is ``e``."""
+    its difference over ``sqrt(2)``, whose root mean square over the dots is ``e``. Up to `REPEAT_DOTS` dots,
+    evenly chosen, are measured again (the others' errors are NaN): the error is a statistic of the film."""
     clean = level_map - refined.model
     again = clean + np.nan_to_num(np.roll(image - clean, shift, axis=(0, 1)))
     again[np.isnan(image)] = np.nan
+    n = len(refined.radius)
+    active = np.zeros(n, dtype=bool)
+    active[::max(1, math.ceil(n / REPEAT_DOTS))] = True
     second = refine_dots(again, refined.centres, refined.radius, refined.contrast, typical, shape, blur, level,
-                         passes=2, reach=refined.reach, wide=False, keep_profiles=False, move=True)
-    return np.abs(second.radius - refined.radius) / np.sqrt(2.0)
+                         passes=2, reach=refined.reach, wide=False, keep_profiles=False, move=True, active=active)
+    return np.where(active, np.abs(second.radius - refined.radius) / np.sqrt(2.0), np.nan)

@@ -15,8 +15,8 @@ from .read import UNIT_NM
 
 #: A scale bar is at least this many times longer than it is thick.
 BAR_ASPECT = 5.0
-#: Cuts in a ruled bar up to this many px wide are closed.
-BAR_GAP = 3
+#: Cuts in a ruled bar up to this many px wide are closed; holes in a bar of fewer px are specks of noise.
+BAR_GAP, MIN_HOLE = 3, 4
 #: Shortest scale bar, px.
 MIN_BAR = 10
 #: Pixels within this share of the image's range of its darkest (or lightest) value are bar colour.
@@ -109,9 +109,10 @@ def bar_candidate(component: np.ndarray, holes: np.ndarray) -> tuple[int, int] |
         return None
     if holes.any():
         hole_labels, _ = ndimage.label(holes)
-        for rows, _cols in ndimage.find_objects(hole_labels):
-            if rows.stop - rows.start < 0.5 * thickness:
-                return None
+        sizes = np.bincount(hole_labels.ravel())[1:]
+        for (rows, _cols), size in zip(ndimage.find_objects(hole_labels), sizes):
+            if size >= MIN_HOLE and rows.stop - rows.start < 0.5 * thickness:
+                return None  # a hole of its own, low: text or a smaller bar in a box (specks of noise aside)
     return length, thickness
 
 
