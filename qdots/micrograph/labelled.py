@@ -150,7 +150,7 @@ def label_micrograph(film, nm_per_px: float, *, bar_nm: float = 100.0, strip: st
     ax.set_ylim(H, 0)
     ax.set_axis_off()
     bx = area[2] - bar_px - 2 * thick
-    by = {"under": area[1] + 2 * thick, "over": area[3] - 3 * thick,
+    by = {"under": area[1] + 3 * thick, "over": area[3] - 4 * thick,
           "beside": (area[1] + area[3]) // 2 - thick // 2}[label]  # end ticks reach a thickness beyond the bar
     if boxed:
         ax.add_patch(Rectangle((area[0], area[1]), area[2] - area[0], area[3] - area[1], facecolor=str(field),

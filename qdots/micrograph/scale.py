@@ -38,7 +38,7 @@ class ScaleBar:
     dark : bool
         Whether it is drawn in the image's darkest colour (else its lightest).
     ruled : bool
-        Whether it is divided (ticks, cuts, blocks in an outline) rather than solid.
+        Whether it is divided or ticked (cuts, blocks in an outline, ticks, end caps) rather than a plain bar.
     thickness : int
         The thickness of its spine, px (ticks and end caps aside).
     """
@@ -96,8 +96,8 @@ def spine(component: np.ndarray) -> tuple[int, int, int] | None:
     return length, thickness, int(component[~rows].sum())
 
 
-def bar_candidate(component: np.ndarray, holes: np.ndarray) -> tuple[int, int] | None:
-    """(length, thickness) when ``component`` (a boolean crop, holes filled) is a scale bar, solid, ruled or in
+def bar_candidate(component: np.ndarray, holes: np.ndarray) -> tuple[int, int, int] | None:
+    """(length, thickness, pixels off the spine) when ``component`` (a boolean crop, holes filled) is a scale bar, solid, ruled or in
     an outline: a spine at least `MIN_BAR` px long and `BAR_ASPECT` times its thickness, no more of it off the
     spine than on it, and its holes (the empty blocks of a checkered bar; ``holes`` the filled-in pixels) as
     tall as half the spine (a box holding text and a smaller bar has low holes)."""
@@ -113,7 +113,7 @@ def bar_candidate(component: np.ndarray, holes: np.ndarray) -> tuple[int, int] |
         for (rows, _cols), size in zip(ndimage.find_objects(hole_labels), sizes):
             if size >= MIN_HOLE and rows.stop - rows.start < 0.5 * thickness:
                 return None  # a hole of its own, low: text or a smaller bar in a box (specks of noise aside)
-    return length, thickness
+    return length, thickness, off
 
 
 def find_scale_bar(image: np.ndarray) -> ScaleBar | None:
@@ -150,7 +150,8 @@ def find_scale_bar(image: np.ndarray) -> ScaleBar | None:
             found = bar_candidate(filled, holes) if w >= h else bar_candidate(filled.T, holes.T)
             if found is not None and (best is None or found[0] > best.length_px):
                 best = ScaleBar(found[0], (cols.start, rows.start, cols.stop, rows.stop), dark,
-                                ruled=bool(holes.any() or (own & ~colour[box]).any()), thickness=found[1])
+                                ruled=bool(holes.any() or found[2] > 0 or (own & ~colour[box]).any()),
+                                thickness=found[1])
     return best
 
 
