@@ -280,14 +280,15 @@ def _detect(image: np.ndarray, polarity: str, profile: str, ignore: np.ndarray) 
         how_shape += f"; the blur {np.min(blur):.2f}-{np.max(blur):.2f} px across the film (uneven focus)"
     refined = refine_dots(target, centres, first[0], first[2], typical, shape, blur, level, move=True)
     centres = np.where(touches[:, None], centres, refined.centres)  # a cut dot keeps the centre of its visible part
-    fitted, background, contrast = refined.radius, refined.background, refined.contrast
+    fitted, background = refined.radius, refined.background
+    contrast = refined.contrast / np.maximum(background, 1e-12)  # in units of the background, as Detection has it
     noise = pixel_noise(unit, ignore)
     good = np.isfinite(fitted) & (contrast > 0)
     sums, counts, _ = refined.profiles
     good[good] = signal_to_noise(sums[good], counts[good], fitted[good], background[good], noise) >= MIN_SIGNAL
     if not good.any() or float(np.median(contrast[good])) < MIN_CONTRAST * noise:
-        typical = float(np.median(contrast[good])) / noise if good.any() else 0.0
-        return _empty(image.shape, f"{how}; what looks like dots has a contrast of {typical:.1f} times the pixel "
+        ratio = float(np.median(contrast[good])) / noise if good.any() else 0.0
+        return _empty(image.shape, f"{how}; what looks like dots has a contrast of {ratio:.1f} times the pixel "
                                    f"noise, less than the {MIN_CONTRAST:g} real dots have: noise alone", len(start))
     rejected += int(np.count_nonzero(~good))
     errors = 2.0 * repeat_errors(target, centres, refined, typical, shape, blur, level, level_map)
