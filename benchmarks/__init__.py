@@ -20,6 +20,7 @@ BENCHMARKS = [
     "analysis",
     "lqe",
     "micrograph",
+    "micrograph_films",
     "planarize_reference",
     "planarize_fast",
     "planarize_accuracy",

@@ -10,6 +10,8 @@ import numpy as np
 import pytest
 from helpers import one_line_error, refused
 from PIL import Image
+from scipy import ndimage
+from skimage.filters import threshold_otsu
 
 from qdots.cli import main
 from qdots.io import checkpoint
@@ -87,7 +89,7 @@ def test_a_scale_bar_is_found_measured_and_left_out():
     image[270:276, 180:280] = image.min() - 0.2  # a solid black bar 100 px long
     bar = find_scale_bar(image)
     assert bar.length_px == 100 and bar.box == (180, 270, 280, 276) and bar.dark
-    nm_per_px, _ = scale_from_bar(image, "0.5um")
+    nm_per_px = scale_from_bar(bar, "0.5um")
     assert nm_per_px == pytest.approx(5.0)
     assert parse_length("200 nm") == 200.0 and parse_length("2µm") == 2000.0 and parse_length("15A") == 1.5
     detection = detect_dots(image, ignore=bar.mask(image.shape))
@@ -277,7 +279,14 @@ def test_the_real_micrograph_matches_counts_and_sizes_taken_by_hand(tem_film):
     assert np.mean(measured) == pytest.approx(np.mean(list(HAND_WIDTHS.values())), rel=0.03)
     s = film.summary
     assert s["mean_diameter_nm"] == pytest.approx(np.mean(list(HAND_WIDTHS.values())) * 200 / 127, rel=0.06)
-    assert 0.35 < s["coverage"] < 0.5 and s["dots_cut_by_edge"] > 20
+    assert s["dots_cut_by_edge"] > 20
+    # coverage against an independent measure: the share of pixels (above the scale bar's rows) darker than halfway
+    # between the background and the particles' cores, which is a flat disc's edge; the union of the fitted discs
+    # covers a little less (irregular and fused particles stick out of their discs)
+    picture = ndimage.gaussian_filter(film.image.pixels[:820], 1.0)
+    split = threshold_otsu(picture)
+    half = 0.5 * (np.median(picture[picture > split]) + np.median(picture[picture < split]))
+    assert 0.8 * np.mean(picture < half) < s["coverage"] < 1.05 * np.mean(picture < half)
 
 
 def test_the_real_micrograph_overlay_is_written(tem_film, tmp_path):

@@ -1,6 +1,6 @@
 """Finding every dot of a micrograph, touching ones included: centres and diameters to a fraction of a pixel.
 
-Five stages, each a maintained library's tool except the profile fit:
+Five stages, each a maintained library's tool except the profile fits:
 
 1. **Segment.** The image is scaled to [0, 1] by its 0.5 and 99.5 percentiles, smoothed (Gaussian,
    1 px), and split by Otsu's threshold (scikit-image). The illumination is then flattened: the
@@ -13,18 +13,20 @@ Five stages, each a maintained library's tool except the profile fit:
    region that is clearly two or more fused dots with no neck (large and elongated) is split by
    k-means (`split_fused`). Objects whose inscribed radius is under a third of the typical one
    (text, scale-bar strokes, debris) are not dots.
-3. **Centre.** The centroid of each dot's watershed region; for a dot cut by the image edge, the
-   point of its region farthest from the visible rim, which stays the disc's centre when part of
-   the disc is outside the image.
+3. **Centre.** The centroid of each dot's watershed region (then refined with the fit, stage 4); for
+   a dot cut by the image edge, the point of its region farthest from the visible rim, which stays the
+   disc's centre when part of the disc is outside the image.
 4. **Diameter from the radial profile.** A threshold puts the edge of a projected sphere (whose
    contrast falls as ``sqrt(1 - rho^2/r^2)``) well inside the true edge (13 % of the diameter at
-   half contrast). Instead each dot's azimuthally averaged profile, over its region grown by 0.6
-   radii into the background (`skimage.segmentation.expand_labels`), is fitted by
-   ``B - C f_p(rho / r)`` blurred by a 2-D Gaussian of width ``s``, with ``f_p(u) = (1 - u^2)^p``
-   (``p = 0``: a flat disc; ``p = 1/2``: a projected sphere), ``B`` the local background and ``C``,
-   ``r`` per dot (`fit_profiles`: a compiled search over r, refined by a parabola). The blur ``s``
-   is chosen once per image by the least residual over up to `SHAPE_SAMPLE` whole dots, the shape
-   ``p`` from the curvature of the dots' centres (`central_curvature`), or given.
+   half contrast). Instead each dot's azimuthally averaged profile is fitted by ``B - C f_p(rho / r)``
+   blurred by a 2-D Gaussian of width ``s``, with ``f_p(u) = (1 - u^2)^p`` (``p = 0``: a flat disc;
+   ``p = 1/2``: a projected sphere). A first fit of each dot alone (its region grown by 0.6 radii,
+   `fit_profiles`) starts the fit with its neighbours taken out (`qdots.micrograph.refine`): every dot
+   is modelled and refitted on the image plus its neighbours' model, and its centre moved to where its
+   darkness balances. The background ``B`` (a smooth field), the blur and the shape ``p`` are settled
+   once per image on a sample of the film (`qdots.micrograph.settle`), or ``p`` is given. Each
+   diameter's measurement error comes from measuring the film again with another draw of its own
+   noise (`qdots.micrograph.refine.repeat_errors`).
 5. **Noise.** A dot must stand out of the noise (`signal_to_noise`), and an image's dots must have a
    median contrast of several pixel-noise deviations (`MIN_CONTRAST`): noise alone finds no dots.
 
@@ -43,10 +45,12 @@ from scipy import ndimage
 from labrig.compiled import jit
 from labrig.validate import InputError, choice
 
-from .profiles import (BIN, FIT_HIGH, FIT_LOW, FIT_STEP, PROFILES, choose_profile, fit_profiles, profile_table,
-                       radial_profiles)
+from .annotations import find_strips
+from .profiles import BIN, FIT_HIGH, FIT_LOW, FIT_STEP, PROFILES, fit_profiles, profile_table, radial_profiles
+from .refine import refine_dots, repeat_errors
+from .settle import FIRST_BLUR, settle_profile
 from .segment import (MIN_CONTRAST, MIN_INSCRIBED, MIN_SIGNAL, POLARITIES, background_level, decide_polarity,
-                      fill_small_holes, frame_width, label_maxima, pixel_noise, region_properties, scaled,
+                      fill_small_holes, label_maxima, pixel_noise, region_properties, scaled,
                       signal_to_noise, spaced_maxima, split_fused, typical_radius)
 
 
@@ -65,7 +69,8 @@ class Detection:
     diameters : ndarray, shape (N,)
         Fitted diameter of each dot, px.
     cut : ndarray of bool, shape (N,)
-        Dots whose disc crosses the edge of the picture (`window`), measured on their visible part.
+        Dots whose disc crosses the edge of the picture (`window`) or pixels left out (``ignore``), measured on
+        their visible part.
     contrast : ndarray, shape (N,)
         Fitted contrast ``C`` of each dot, in units of the background level.
     dark : bool
@@ -83,8 +88,11 @@ class Detection:
     image_shape : (int, int)
         ``(H, W)`` of the image, px.
     window : (int, int, int, int)
-        ``(x0, y0, x1, y1)``: the part of the image that is picture, px (a constant frame that some
-        programs draw around an image is left out, `frame_width`).
+        ``(x0, y0, x1, y1)``: the part of the image that is picture, px (a frame or data strips that
+        acquisition programs draw along its sides are left out, `qdots.micrograph.annotations.find_strips`).
+    errors : ndarray, shape (N,)
+        Each diameter's measurement error, px, from measuring the film again with another draw of its own noise
+        (`qdots.micrograph.refine.repeat_errors`).
     """
 
     centres: np.ndarray
@@ -99,6 +107,7 @@ class Detection:
     rejected: int
     image_shape: tuple[int, int]
     window: tuple[int, int, int, int]
+    errors: np.ndarray
 
     @property
     def n_dots(self) -> int:
@@ -109,6 +118,18 @@ class Detection:
         covered = np.zeros(self.image_shape, dtype=np.bool_)
         paint_discs(covered, np.ascontiguousarray(self.centres, dtype=float), 0.5 * np.asarray(self.diameters, float))
         return float(covered.mean())
+
+
+@jit
+def paint_labels(labels, centres, radii):
+    """Set the pixels of ``labels`` inside dot k's disc to k + 1 (a later dot over an earlier one)."""
+    h, w = labels.shape
+    for k in range(len(radii)):
+        x, y, r = centres[k, 0], centres[k, 1], radii[k]
+        for row in range(max(0, int(y - r)), min(h, int(y + r) + 2)):
+            for col in range(max(0, int(x - r)), min(w, int(x + r) + 2)):
+                if (col + 0.5 - x) ** 2 + (row + 0.5 - y) ** 2 <= r * r:
+                    labels[row, col] = k + 1
 
 
 @jit
@@ -123,8 +144,8 @@ def paint_discs(covered, centres, radii):
                     covered[row, col] = True
 
 
-def detect_dots(image, polarity: str = "auto", profile: str = "auto", ignore: np.ndarray | None = None
-                ) -> Detection:
+def detect_dots(image, polarity: str = "auto", profile: str = "auto", ignore: np.ndarray | None = None,
+                window: tuple[int, int, int, int] | None = None) -> Detection:
     """Every dot of a grey image, with sub-pixel centres and fitted diameters (see the module docstring).
 
     Parameters
@@ -141,6 +162,9 @@ def detect_dots(image, polarity: str = "auto", profile: str = "auto", ignore: np
         `Detection.profile` says which and why.
     ignore : ndarray of bool, shape (H, W), optional
         Pixels to leave out (a scale bar and its label).
+    window : (int, int, int, int), optional
+        ``(x0, y0, x1, y1)``: the part of the image that is picture (default: the image less the frame and data
+        strips along its sides, `qdots.micrograph.annotations.find_strips`).
 
     Returns
     -------
@@ -158,16 +182,21 @@ def detect_dots(image, polarity: str = "auto", profile: str = "auto", ignore: np
     if ignore.shape != image.shape:
         raise InputError(f"ignore must have the image's shape {image.shape}, got {ignore.shape}")
     h, w = image.shape
-    top, bottom, left, right = frame_width(image)
-    if h - top - bottom < 2 or w - left - right < 2:
-        return _empty((h, w), "constant image", 0)
-    inner = (slice(top, h - bottom), slice(left, w - right))
+    x0, y0, x1, y1 = find_strips(image)[0] if window is None else (int(v) for v in window)
+    if not (0 <= x0 < x1 <= w and 0 <= y0 < y1 <= h):
+        raise InputError(f"window must lie inside the {w} x {h} px image, got {(x0, y0, x1, y1)}")
+    if x1 - x0 < 2 or y1 - y0 < 2:
+        return _empty((h, w), "no picture left inside the frame or strips", 0)
+    inner = (slice(y0, y1), slice(x0, x1))
     found = _detect(image[inner], polarity, profile, ignore[inner])
-    centres = found.centres + [left, top]
-    x0, y0, x1, y1 = left, top, w - right, h - bottom
+    centres = found.centres + [x0, y0]
     r = 0.5 * found.diameters
     cut = found.cut | (centres[:, 0] - r < x0) | (centres[:, 1] - r < y0) | (centres[:, 0] + r > x1) | (
         centres[:, 1] + r > y1)
+    if ignore.any():  # a dot partly hidden by what is left out (a label box, the bar) is cut too
+        labels = np.zeros(image.shape, dtype=np.int64)
+        paint_labels(labels, np.ascontiguousarray(centres, dtype=float), r)
+        cut[np.unique(labels[ignore & (labels > 0)]) - 1] = True
     return replace(found, centres=centres, cut=cut, image_shape=(h, w), window=(x0, y0, x1, y1))
 
 
@@ -186,8 +215,12 @@ def _detect(image: np.ndarray, polarity: str, profile: str, ignore: np.ndarray) 
     first += float(np.mean(smooth[half]))
     threshold = threshold_otsu(first[~ignore[half]])
     dark, how = decide_polarity(first, threshold, polarity, scale=2.0)
+    # the dots are measured on the unclipped image (clipping would flatten the darkest cores and the noise), the
+    # pixels to ignore left out (NaN)
+    target = ndimage.gaussian_filter(scaled(image, ignore, clip=False), 1.0)
+    target[ignore] = np.nan
     if not dark:
-        smooth, first, threshold = 1.0 - smooth, 1.0 - first, 1.0 - threshold
+        smooth, first, threshold, target = 1.0 - smooth, 1.0 - first, 1.0 - threshold, 1.0 - target
     # flatten the illumination (its level away from the dots, found at half resolution), then threshold again
     mask = (first < threshold) & ~ignore[half]
     radius = 2.0 * typical_radius(ndimage.distance_transform_edt(mask))
@@ -234,24 +267,36 @@ def _detect(image: np.ndarray, polarity: str, profile: str, ignore: np.ndarray) 
     grow = max(2, math.ceil(0.6 * radius))
     regions = expand_labels(labels, distance=grow)
     n_bins = math.ceil(FIT_HIGH * 1.2 * start.max() / BIN) + 1
-    sums, counts = radial_profiles(flat, regions, centres, n_bins)
+    sums, counts, rhos = radial_profiles(target, regions, centres, n_bins)
     whole = np.flatnonzero(~touches)
-    shape, blur, how_shape = choose_profile(sums, counts, start, whole, profile)
-    fitted, background, contrast, _ = fit_profiles(sums, counts, np.ones(len(start)), True, start, profile_table(shape), blur,
-                                                   FIT_LOW, FIT_HIGH, FIT_STEP, BIN)
+    first = fit_profiles(sums, counts, rhos, np.ones(len(start)), True, start, profile_table(0.5), FIRST_BLUR,
+                         FIT_LOW, FIT_HIGH, FIT_STEP)
+    ok = np.isfinite(first[0]) & (first[2] > 0)
+    sure = ok & ~touches if (ok & ~touches).any() else ok
+    typical = float(np.median(first[0][sure])) if sure.any() else radius
+    shape, blur, level, level_map, how_shape = settle_profile(target, centres, first[0], first[2], first[1], typical,
+                                                              whole, profile)
+    if np.ptp(blur) > 0.05:
+        how_shape += f"; the blur {np.min(blur):.2f}-{np.max(blur):.2f} px across the film (uneven focus)"
+    refined = refine_dots(target, centres, first[0], first[2], typical, shape, blur, level, move=True)
+    centres = np.where(touches[:, None], centres, refined.centres)  # a cut dot keeps the centre of its visible part
+    fitted, background = refined.radius, refined.background
+    contrast = refined.contrast / np.maximum(background, 1e-12)  # in units of the background, as Detection has it
     noise = pixel_noise(unit, ignore)
     good = np.isfinite(fitted) & (contrast > 0)
+    sums, counts, _ = refined.profiles
     good[good] = signal_to_noise(sums[good], counts[good], fitted[good], background[good], noise) >= MIN_SIGNAL
     if not good.any() or float(np.median(contrast[good])) < MIN_CONTRAST * noise:
-        typical = float(np.median(contrast[good])) / noise if good.any() else 0.0
-        return _empty(image.shape, f"{how}; what looks like dots has a contrast of {typical:.1f} times the pixel "
+        ratio = float(np.median(contrast[good])) / noise if good.any() else 0.0
+        return _empty(image.shape, f"{how}; what looks like dots has a contrast of {ratio:.1f} times the pixel "
                                    f"noise, less than the {MIN_CONTRAST:g} real dots have: noise alone", len(start))
     rejected += int(np.count_nonzero(~good))
-    centres, fitted, contrast, touches = centres[good], fitted[good], contrast[good], touches[good]
-    return Detection(centres, 2.0 * fitted, touches, contrast, dark, how, float(shape), how_shape, float(blur), rejected,
-                     (h, w), (0, 0, w, h))
+    errors = 2.0 * repeat_errors(target, centres, refined, typical, shape, blur, level, level_map)
+    centres, fitted, contrast, touches, errors = (part[good] for part in (centres, fitted, contrast, touches, errors))
+    return Detection(centres, 2.0 * fitted, touches, contrast, dark, how, float(shape), how_shape,
+                     float(np.median(blur)), rejected, (h, w), (0, 0, w, h), errors)
 
 
 def _empty(shape, how: str, rejected: int) -> Detection:
     return Detection(np.zeros((0, 2)), np.zeros(0), np.zeros(0, dtype=bool), np.zeros(0), "light" not in how, how,
-                     math.nan, "", math.nan, rejected, tuple(shape), (0, 0, shape[1], shape[0]))
+                     math.nan, "", math.nan, rejected, tuple(shape), (0, 0, shape[1], shape[0]), np.zeros(0))

@@ -22,8 +22,12 @@ from labrig.validate import InputError
 from .detect import Detection, detect_dots
 from .film import complete_neighbourhood, film_metrics, film_state
 from .read import Micrograph, read_micrograph
-from .scale import ScaleBar, check_nm_per_px, find_scale_bar, parse_length, scale_from_bar
+from .admit import check_film, check_picture
+from .annotations import Annotations, find_annotations
+from .scale import ScaleBar, check_nm_per_px, parse_length, scale_from_bar
 
+#: Diameters, nm, of quantum dots and nanocrystals: a scale that puts the dots outside says so (`scale_check`).
+PLAUSIBLE_NM = (1.0, 100.0)
 #: Trap draws of the film LQE (as ``qdots analyze``) on films of up to LQE_DOTS dots; larger films take
 #: fewer (at least 2: their standard error is small anyway, and a draw costs seconds at 10^4 dots).
 LQE_DRAWS, LQE_DOTS = 8, 2000
@@ -50,9 +54,11 @@ class MeasuredFilm:
     scale : str
         Where the scale came from, in words.
     bar : ScaleBar or None
-        The scale bar found on the image, if one was looked for or left out of the detection.
+        The scale bar found on the image (used for the scale when its length was given).
     summary : dict
         `film_metrics` with ``coverage``, the film LQE and how the image was read.
+    annotations : Annotations or None
+        What was found drawn on the image and left out (`qdots.micrograph.annotations.find_annotations`).
     """
 
     image: Micrograph
@@ -63,25 +69,45 @@ class MeasuredFilm:
     scale: str
     bar: ScaleBar | None
     summary: dict
+    annotations: Annotations | None = None
 
 
-def settle_scale(image: Micrograph, nm_per_px=None, scale_bar: str | None = None
-                 ) -> tuple[float | None, str, ScaleBar | None]:
-    """The scale of ``image``: the file's own, else ``nm_per_px``, else read off the scale bar ``scale_bar``
-    long (such as ``"200nm"``). Returns (nm per px or None, where it came from, the bar if one was found)."""
-    bar = find_scale_bar(image.pixels)
+def settle_scale(image: Micrograph, bar: ScaleBar | None, nm_per_px=None, scale_bar: str | None = None
+                 ) -> tuple[float | None, str]:
+    """The scale of ``image``: the file's own, else ``nm_per_px``, else read off the scale ``bar`` found on it
+    (`qdots.micrograph.annotations.find_annotations`), ``scale_bar`` long (such as ``"200nm"``). Returns (nm per
+    px or None, where it came from in words: the bar's length in px, where it is and what kind)."""
     if image.nm_per_px is not None:
         given = "" if nm_per_px is None and scale_bar is None else " (the scale given is not used: the file has one)"
-        return image.nm_per_px, f"{image.nm_per_px:.4g} nm/px from the file's metadata{given}", bar
+        return image.nm_per_px, f"{image.nm_per_px:.4g} nm/px from the file's metadata{given}"
     if nm_per_px is not None:
         value = check_nm_per_px(nm_per_px)
-        return value, f"{value:.4g} nm/px (given)", bar
+        return value, f"{value:.4g} nm/px (given)"
     if scale_bar is not None:
-        value, bar = scale_from_bar(image.pixels, scale_bar)
-        x0, y0, x1, y1 = bar.box
-        return value, (f"{value:.4g} nm/px from the scale bar: {scale_bar} over {bar.length_px} px "
-                       f"(the bar at x {x0}-{x1}, y {y0}-{y1} px)"), bar
-    return None, "none (sizes in px; give --nm-per-px or --scale-bar)", bar
+        value = scale_from_bar(bar, scale_bar)
+        return value, f"{value:.4g} nm/px from the scale bar: {scale_bar} over {describe_bar(bar)}"
+    if bar is not None:
+        return None, (f"none (sizes in px): a scale bar of {describe_bar(bar)}; give its length with "
+                      "--scale-bar (such as --scale-bar 200nm), or the scale with --nm-per-px")
+    return None, "none (sizes in px; give --nm-per-px or --scale-bar)"
+
+
+def describe_bar(bar: ScaleBar) -> str:
+    """``127 px (a solid bar at x 730-857, y 837-845 px)``."""
+    x0, y0, x1, y1 = bar.box
+    return f"{bar.length_px} px (a {'ruled' if bar.ruled else 'solid'} bar at x {x0}-{x1}, y {y0}-{y1} px)"
+
+
+def scale_check(summary: dict) -> str:
+    """One line on whether the scale makes the dots plausible nanocrystals (`PLAUSIBLE_NM` across)."""
+    d = summary.get("mean_diameter_nm", math.nan)
+    if not math.isfinite(summary["nm_per_px"]) or not math.isfinite(d):
+        return "no scale: sizes are in px"
+    low, high = PLAUSIBLE_NM
+    if low <= d <= high:
+        return f"dots {d:.3g} nm across: within the {low:g}-{high:g} nm of quantum dots and nanocrystals"
+    return (f"dots {d:.3g} nm across, outside the {low:g}-{high:g} nm of quantum dots and nanocrystals: check the "
+            f"scale ({summary['nm_per_px']:.4g} nm/px)")
 
 
 def measure_image(path: str | os.PathLike, *, nm_per_px=None, scale_bar: str | None = None, polarity: str = "auto",
@@ -109,7 +135,8 @@ def measure_image(path: str | os.PathLike, *, nm_per_px=None, scale_bar: str | N
     Raises
     ------
     labrig.validate.InputError
-        Bad file or scale (one line), or no dot found in the image.
+        Bad file or scale (one line), no dot found in the image, or a picture that is not a film of round
+        particles (`qdots.micrograph.admit`).
     """
     from ..analysis.lqe import film_lqe
 
@@ -118,12 +145,16 @@ def measure_image(path: str | os.PathLike, *, nm_per_px=None, scale_bar: str | N
     if scale_bar is not None:
         parse_length(scale_bar)
     image = read_micrograph(path, page)
-    scale, how, bar = settle_scale(image, nm_per_px, scale_bar)
-    ignore = bar.mask(image.shape) if bar is not None else None
-    detection = detect_dots(image.pixels, polarity=polarity, profile=profile, ignore=ignore)
+    found = find_annotations(image.pixels)
+    check_picture(image.pixels, found, str(path))
+    bar = found.bar
+    scale, how = settle_scale(image, bar, nm_per_px, scale_bar)
+    detection = detect_dots(image.pixels, polarity=polarity, profile=profile, ignore=found.ignore,
+                            window=found.window)
     if detection.n_dots == 0:
         raise InputError(f"{path}: no dots found ({detection.polarity}); nothing written. Check --polarity, "
                          "or crop the image to the film")
+    check_film(detection, str(path))
     state = film_state(detection.centres, detection.diameters, image.shape)
     h = image.shape[0]
     x0, y0, x1, y1 = detection.window
@@ -132,13 +163,16 @@ def measure_image(path: str | os.PathLike, *, nm_per_px=None, scale_bar: str | N
                "nm_per_px": scale if scale is not None else math.nan, "scale": how,
                "polarity": detection.polarity, "profile": detection.profile, "profile_p": detection.shape,
                "blur_px": detection.blur, "rejected_objects": detection.rejected,
-               "dots_cut_by_edge": int(detection.cut.sum()), "coverage": detection.coverage()}
-    summary.update(film_metrics(state, measured=~detection.cut, complete=complete, nm_per_px=scale))
+               "dots_cut_by_edge": int(detection.cut.sum()), "coverage": detection.coverage(),
+               "left_out": found.describe(float(image.pixels.min()), float(image.pixels.max()))}
+    summary.update(film_metrics(state, measured=~detection.cut, complete=complete, nm_per_px=scale,
+                                errors=detection.errors))
+    summary["scale_check"] = scale_check(summary)
     if lqe:
         draws = lqe_draws(state.n_dots)
         average = film_lqe(state, draws=draws, seed=0)
         summary.update(lqe=average.mean, lqe_standard_error=average.standard_error, lqe_trap_draws=draws)
-    return MeasuredFilm(image, detection, state, complete, scale, how, bar, summary)
+    return MeasuredFilm(image, detection, state, complete, scale, how, bar, summary, found)
 
 
 def summary_rows(summary: dict) -> list[tuple[str, str]]:
@@ -149,13 +183,18 @@ def summary_rows(summary: dict) -> list[tuple[str, str]]:
             else f"{s['mean_diameter_px']:.2f} +- {s['sd_diameter_px']:.2f} px")
     rows = [
         ("scale", s["scale"]),
+        ("scale check", s["scale_check"]),
+        ("left out", s["left_out"]),
         ("dots", (f"{s['dots']} ({s['dots_cut_by_edge']} cut by the edge; {s['dots_complete']} with their whole "
                  f"neighbourhood in the picture)")),
         ("polarity", s["polarity"]),
-        ("profile", f"{s['profile']}, blur {s['blur_px']:g} px"),
+        ("profile", f"{s['profile']}, blur {s['blur_px']:.2f} px"),
         ("coverage", f"{s['coverage']:.3f}"),
         ("mean diameter +- SD", size),
-        ("size spread sigma (SD / mean)", f"{100 * s['size_spread']:.1f} %"),
+        ("size spread sigma (SD / mean)", (f"{100 * s['size_spread']:.1f} % (measured {100 * s['size_spread_measured']:.1f} %, "
+                                           f"of which {100 * s['size_spread_error']:.1f} % is each diameter's "
+                                           f"measurement error; from the interquartile range "
+                                           f"{100 * s['size_spread_robust']:.1f} %)")),
         ("interior fraction (>= 5 neighbours)", f"{s['interior_fraction']:.3f}"),
         ("mean neighbours", f"{s['mean_neighbours']:.2f}"),
         ("psi6 local / global", f"{s['psi6_local']:.3f} / {s['psi6_global']:.3f}"),
@@ -214,9 +253,37 @@ def save_overlay_axes(film: MeasuredFilm, ax, extent_nm: tuple[float, float] | N
                                                                                  det.diameters[det.cut])],
                                       facecolor="none", edgecolor="white", linewidth=0.9, linestyle="--"))
     ax.plot(det.centres[:, 0] * k, det.centres[:, 1] * k, "+", color="yellow", markersize=3, markeredgewidth=0.6)
+    mark_annotations(ax, film, k)
     draw_scale_bar(ax, film.nm_per_px / k if film.nm_per_px is not None else None, w * k, h * k)
     ax.set_xlim(0, w * k)
     ax.set_ylim(h * k, 0)
+
+
+def mark_annotations(ax, film: MeasuredFilm, k: float = 1.0) -> None:
+    """Shade what was left out (strips, label boxes) and outline the scale bar, with its length in px and, when
+    it gave the scale, in nm (``k``: axes units per image px)."""
+    from matplotlib.patches import Rectangle
+
+    found = film.annotations
+    if found is None:
+        return
+    h, w = film.image.shape
+    x0, y0, x1, y1 = found.window
+    shaded = [(0, 0, w, y0), (0, y1, w, h), (0, y0, x0, y1), (x1, y0, w, y1), *found.boxes]
+    for a, b, c, d in shaded:
+        if c > a and d > b:
+            ax.add_patch(Rectangle((a * k, b * k), (c - a) * k, (d - b) * k, facecolor="none", edgecolor="orange",
+                                   hatch="///", linewidth=0.6, alpha=0.8))
+    if film.bar is not None:
+        a, b, c, d = film.bar.box
+        pad = 3
+        ax.add_patch(Rectangle(((a - pad) * k, (b - pad) * k), (c - a + 2 * pad) * k, (d - b + 2 * pad) * k,
+                               facecolor="none", edgecolor="magenta", linewidth=1.5))
+        from_bar = film.nm_per_px is not None and "from the scale bar" in film.scale
+        used = f" = {film.bar.length_px * film.nm_per_px:.4g} nm" if from_bar else ""
+        ax.text((a + c) / 2 * k, (b - 2 * pad) * k, f"scale bar {film.bar.length_px} px{used}", color="magenta",
+                ha="center", va="bottom", fontsize="small",
+                bbox={"facecolor": "white", "edgecolor": "none", "alpha": 0.7, "pad": 1})
 
 
 def save_overlay(film: MeasuredFilm, path, dpi: int | None = None) -> Path:

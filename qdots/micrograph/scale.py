@@ -13,12 +13,14 @@ from labrig.validate import InputError, real
 
 from .read import UNIT_NM
 
-#: A scale bar is at least this many times longer than it is thick, and fills this share of its box.
-BAR_ASPECT, BAR_FILL = 5.0, 0.85
+#: A scale bar is at least this many times longer than it is thick.
+BAR_ASPECT = 5.0
+#: Cuts in a ruled bar up to this many px wide are closed; holes in a bar of fewer px are specks of noise.
+BAR_GAP, MIN_HOLE = 3, 4
 #: Shortest scale bar, px.
 MIN_BAR = 10
 #: Pixels within this share of the image's range of its darkest (or lightest) value are bar colour.
-BAR_TOLERANCE = 0.02
+BAR_TOLERANCE = 0.05
 #: Largest scale, nm per px (1 mm per pixel).
 MAX_NM_PER_PX = 1e6
 
@@ -35,11 +37,17 @@ class ScaleBar:
         ``(x0, y0, x1, y1)`` of the bar, px (x the column, y the row; ``x1``, ``y1`` exclusive).
     dark : bool
         Whether it is drawn in the image's darkest colour (else its lightest).
+    ruled : bool
+        Whether it is divided or ticked (cuts, blocks in an outline, ticks, end caps) rather than a plain bar.
+    thickness : int
+        The thickness of its spine, px (ticks and end caps aside).
     """
 
     length_px: int
     box: tuple[int, int, int, int]
     dark: bool
+    ruled: bool = False
+    thickness: int = 0
 
     def mask(self, shape: tuple[int, int], margin: int = 2) -> np.ndarray:
         """The bar's pixels and ``margin`` px around it, as a boolean image of ``shape``."""
@@ -68,12 +76,53 @@ def parse_length(text: str, name: str = "scale_bar") -> float:
     return value * per_unit
 
 
-def find_scale_bar(image: np.ndarray) -> ScaleBar | None:
-    """The longest solid bar drawn on ``image`` in its darkest or lightest colour, or None.
+def spine(component: np.ndarray) -> tuple[int, int, int] | None:
+    """The spine of a horizontal bar-like component (a boolean crop, its holes filled): ``(length, thickness,
+    off)`` where ``length`` is the longest run of its pixels along a row, ``thickness`` the rows whose run is at
+    least 0.9 of it, ``off`` its pixels outside those rows (ticks, end caps); None when the spine does not span
+    the component (text, a chain of dots)."""
+    padded = np.pad(component, ((0, 0), (1, 1)))
+    edges = np.diff(padded.astype(np.int8), axis=1)
+    runs = np.zeros(component.shape[0], dtype=int)
+    for row in range(component.shape[0]):
+        starts, stops = np.flatnonzero(edges[row] == 1), np.flatnonzero(edges[row] == -1)
+        if starts.size:
+            runs[row] = int((stops - starts).max())
+    length = int(runs.max())
+    if length < 0.9 * component.shape[1]:
+        return None
+    rows = runs >= 0.9 * length
+    thickness = int(rows.sum())
+    return length, thickness, int(component[~rows].sum())
 
-    A bar is a connected patch of pixels within `BAR_TOLERANCE` of the image's extreme value, not
-    touching the image's edge (a frame is not a bar), at least `MIN_BAR` px long, `BAR_ASPECT` times
-    longer than thick and filling `BAR_FILL` of its bounding box. Dots are never that flat in colour.
+
+def bar_candidate(component: np.ndarray, holes: np.ndarray) -> tuple[int, int, int] | None:
+    """(length, thickness, pixels off the spine) when ``component`` (a boolean crop, holes filled) is a scale bar, solid, ruled or in
+    an outline: a spine at least `MIN_BAR` px long and `BAR_ASPECT` times its thickness, no more of it off the
+    spine than on it, and its holes (the empty blocks of a checkered bar; ``holes`` the filled-in pixels) as
+    tall as half the spine (a box holding text and a smaller bar has low holes)."""
+    found = spine(component)
+    if found is None:
+        return None
+    length, thickness, off = found
+    if length < MIN_BAR or length < BAR_ASPECT * thickness or off > length * thickness:
+        return None
+    if holes.any():
+        hole_labels, _ = ndimage.label(holes)
+        sizes = np.bincount(hole_labels.ravel())[1:]
+        for (rows, _cols), size in zip(ndimage.find_objects(hole_labels), sizes):
+            if size >= MIN_HOLE and rows.stop - rows.start < 0.5 * thickness:
+                return None  # a hole of its own, low: text or a smaller bar in a box (specks of noise aside)
+    return length, thickness, off
+
+
+def find_scale_bar(image: np.ndarray) -> ScaleBar | None:
+    """The longest scale bar drawn on ``image`` in its darkest or lightest colour, or None.
+
+    The pixels within `BAR_TOLERANCE` of the image's darkest (or lightest) value are closed along rows and
+    columns by `BAR_GAP` px (the thin cuts of a ruled bar) and their holes filled (the blocks of a checkered
+    bar in its outline); a component not touching the image's edge (a frame is not a bar) is a bar when it is
+    one horizontally or vertically (`bar_candidate`). Dots are never that flat in colour, nor that long.
     """
     image = np.asarray(image, dtype=float)
     low, high = float(image.min()), float(image.max())
@@ -82,7 +131,10 @@ def find_scale_bar(image: np.ndarray) -> ScaleBar | None:
         return None
     best = None
     for dark, value in ((True, low), (False, high)):
-        labels, _n = ndimage.label(np.abs(image - value) <= BAR_TOLERANCE * span)
+        colour = np.abs(image - value) <= BAR_TOLERANCE * span
+        closed = colour | ndimage.binary_closing(colour, np.ones((1, BAR_GAP))) | ndimage.binary_closing(
+            colour, np.ones((BAR_GAP, 1)))
+        labels, _n = ndimage.label(closed)
         for k, box in enumerate(ndimage.find_objects(labels), start=1):
             if box is None:
                 continue
@@ -90,22 +142,24 @@ def find_scale_bar(image: np.ndarray) -> ScaleBar | None:
             h, w = rows.stop - rows.start, cols.stop - cols.start
             if rows.start == 0 or cols.start == 0 or rows.stop == image.shape[0] or cols.stop == image.shape[1]:
                 continue
-            long, thick = max(h, w), min(h, w)
-            if long < MIN_BAR or long < BAR_ASPECT * thick:
+            if max(h, w) < MIN_BAR or max(h, w) < BAR_ASPECT * min(h, w) / 4:
                 continue
-            if np.count_nonzero(labels[box] == k) < BAR_FILL * h * w:
-                continue
-            if best is None or long > best.length_px:
-                best = ScaleBar(int(long), (cols.start, rows.start, cols.stop, rows.stop), dark)
+            own = labels[box] == k
+            filled = ndimage.binary_fill_holes(own)
+            holes = filled & ~own
+            found = bar_candidate(filled, holes) if w >= h else bar_candidate(filled.T, holes.T)
+            if found is not None and (best is None or found[0] > best.length_px):
+                best = ScaleBar(found[0], (cols.start, rows.start, cols.stop, rows.stop), dark,
+                                ruled=bool(holes.any() or found[2] > 0 or (own & ~colour[box]).any()),
+                                thickness=found[1])
     return best
 
 
-def scale_from_bar(image: np.ndarray, length: str) -> tuple[float, ScaleBar]:
-    """nm per px from the scale bar on ``image`` that is ``length`` long (``"200nm"``), and the bar."""
+def scale_from_bar(bar: ScaleBar | None, length: str) -> float:
+    """nm per px from the scale ``bar`` found on an image (`find_scale_bar`) that is ``length`` long (``"200nm"``)."""
     nm = parse_length(length)
-    bar = find_scale_bar(image)
     if bar is None:
-        raise InputError(f"scale_bar: no scale bar found on the image (a solid bar in its darkest or lightest "
-                         f"colour, at least {MIN_BAR} px long and {BAR_ASPECT:g} times longer than thick); "
+        raise InputError(f"scale_bar: no scale bar found on the image (a bar, solid or ruled, in its darkest or "
+                         f"lightest colour, at least {MIN_BAR} px long and {BAR_ASPECT:g} times longer than thick); "
                          "give the scale with --nm-per-px instead")
-    return check_nm_per_px(nm / bar.length_px, "scale from the scale bar"), bar
+    return check_nm_per_px(nm / bar.length_px, "scale from the scale bar")

@@ -35,13 +35,14 @@ MIN_INSCRIBED = 1.0 / 3.0
 FUSED_AREA, FUSED_ELONGATION = 1.6, 1.4
 
 
-def scaled(image: np.ndarray, ignore: np.ndarray | None = None) -> np.ndarray:
-    """``image`` mapped to [0, 1] by its 0.5 and 99.5 percentiles (outside ``ignore``), clipped."""
+def scaled(image: np.ndarray, ignore: np.ndarray | None = None, clip: bool = True) -> np.ndarray:
+    """``image`` mapped to [0, 1] by its 0.5 and 99.5 percentiles (outside ``ignore``), clipped (or not)."""
     values = image[~ignore] if ignore is not None else image.ravel()
     low, high = np.percentile(values[::SUBSAMPLE], [0.5, 99.5])
     if high <= low:
         low, high = float(values.min()), float(values.max())
-    return np.clip((image - low) / (high - low), 0.0, 1.0)
+    out = (image - low) / (high - low)
+    return np.clip(out, 0.0, 1.0) if clip else out
 
 
 def background_level(image: np.ndarray, background: np.ndarray, width: float) -> np.ndarray:
@@ -157,27 +158,6 @@ def split_fused(labels: np.ndarray, distance: np.ndarray) -> np.ndarray:
                 following += 1
     relabelled, _, _ = relabel_sequential(out)
     return relabelled
-
-
-def frame_width(image: np.ndarray) -> tuple[int, int, int, int]:
-    """Rows and columns of a constant frame around ``image`` (a border some programs draw): the number of
-    top, bottom, left and right lines, each of one value equal to the corner's, that are not picture."""
-    corner = image[0, 0]
-    h, w = image.shape
-
-    def run(lines) -> int:
-        k = 0
-        for line in lines:
-            if not np.all(line == corner):
-                break
-            k += 1
-        return k
-
-    top = run(image[i] for i in range(h // 4))
-    bottom = run(image[h - 1 - i] for i in range(h // 4))
-    left = run(image[:, j] for j in range(w // 4))
-    right = run(image[:, w - 1 - j] for j in range(w // 4))
-    return top, bottom, left, right
 
 
 def decide_polarity(smooth: np.ndarray, threshold: float, polarity: str, scale: float = 1.0) -> tuple[bool, str]:

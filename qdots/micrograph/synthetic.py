@@ -2,9 +2,11 @@
 
 `render_micrograph` draws dots as a bright-field TEM shows them: each dot removes a share
 ``c_i (1 - rho^2 / r_i^2)^p`` of the local illumination (``p = 1/2``: a projected sphere, the
-default; ``p = 0``: a flat disc), the contrast ``c_i`` spread dot to dot, the illumination falling
-across the image, the picture blurred and noisy. `dense_board` and `sparse_board` give touching
-films and scattered dots of a chosen size spread.
+default; ``p = 0``: a flat disc), the contrast ``c_i`` spread dot to dot (and, for uneven contrast,
+across the film), the illumination falling across the image, the picture blurred (unevenly, for uneven
+focus), the support's grain and noise added. `dense_board`, `superlattice_board` and `sparse_board` give
+touching films, square and hexagonal superlattices with ligand gaps, and scattered dots of a chosen size
+spread.
 """
 
 from __future__ import annotations
@@ -14,13 +16,16 @@ import math
 import numpy as np
 from scipy import ndimage
 
-from labrig.validate import InputError, count, generator, real
+from labrig.validate import InputError, choice, count, generator, real
 
-from ..geometry import clashing_pairs
+from ..geometry import clashing_pairs, pairs_within
 from .film import complete_neighbourhood, film_metrics, film_state
 
 #: Largest synthetic image side, px.
 MAX_SIDE = 8192
+#: Lattices of `superlattice_board`, and its most sites.
+LATTICES = ("hexagonal", "square")
+MAX_SITES = 4_000_000
 
 
 def dense_board(width: float, height: float, mean_diameter: float, sigma: float, seed=0, vacancies: float = 0.1
@@ -71,9 +76,54 @@ def sparse_board(width: float, height: float, mean_diameter: float, sigma: float
     return x[taken], d[taken]
 
 
+def superlattice_board(width: float, height: float, mean_diameter: float, sigma: float, gap: float,
+                       lattice: str = "hexagonal", seed=0, jitter: float = 0.02, vacancies: float = 0.0
+                       ) -> tuple[np.ndarray, np.ndarray]:
+    """An ordered film: a square or hexagonal lattice of spacing ``mean_diameter + gap`` (px; ``gap`` the ligand
+    shell between neighbours, 0 for touching dots), diameters drawn from N(mean, sigma mean) cut at 2.5 SD,
+    each site shifted by ``jitter`` spacings at random and ``vacancies`` of them empty; dots closer than
+    a tenth of ``gap`` (surface to surface) are pushed apart until none is (so no two overlap: larger dots
+    shift their neighbours, as in a real superlattice). Returns centres (N, 2) and diameters (N,), px."""
+
+    lattice = choice("lattice", lattice, LATTICES)
+    real("mean_diameter", mean_diameter, 0.0, MAX_SIDE, low_open=True)
+    real("gap", gap, 0.0, mean_diameter)
+    real("sigma", sigma, 0.0, 0.3)
+    real("jitter", jitter, 0.0, 0.5)
+    real("vacancies", vacancies, 0.0, 1.0, high_open=True)
+    rng = generator("seed", seed)
+    spacing = mean_diameter + gap
+    row = spacing * math.sqrt(3) / 2 if lattice == "hexagonal" else spacing
+    rows = count("rows", int(height / row) + 3, 1, MAX_SIDE)
+    cols = count("columns", int(width / spacing) + 3, 1, MAX_SIDE)
+    count("lattice sites", rows * cols, 1, MAX_SITES)
+    j, i = np.mgrid[-1:rows - 1, -1:cols - 1]
+    x = (i + (0.5 * (j % 2) if lattice == "hexagonal" else 0.0)) * spacing
+    centres = np.column_stack([x.ravel(), (j * row).ravel()]).astype(float)
+    keep = rng.random(len(centres)) >= vacancies
+    centres = centres[keep] + jitter * spacing * rng.standard_normal((int(keep.sum()), 2))
+    d = mean_diameter * (1.0 + sigma * np.clip(rng.standard_normal(len(centres)), -2.5, 2.5))
+    clearance = 0.1 * gap
+    for _ in range(500):  # push overlapping pairs apart, half the overlap each, until none is left
+        first, second = pairs_within(centres[:, 0], centres[:, 1], float(d.max() + clearance))
+        delta = centres[second] - centres[first]
+        distance = np.hypot(*delta.T)
+        short = 0.5 * (d[first] + d[second]) + clearance - distance
+        bad = short > 1e-6
+        if not bad.any():
+            break
+        push = (0.5 * short[bad] + 1e-4)[:, None] * delta[bad] / np.maximum(distance[bad], 1e-9)[:, None]
+        np.add.at(centres, first[bad], -push)
+        np.add.at(centres, second[bad], push)
+    inside = (np.abs(centres[:, 0] - 0.5 * width) < 0.5 * (width + d)) & (
+        np.abs(centres[:, 1] - 0.5 * height) < 0.5 * (height + d))
+    return centres[inside], d[inside]
+
+
 def render_micrograph(centres, diameters, shape: tuple[int, int], *, profile: float = 0.5, contrast: float = 0.6,
-                      contrast_spread: float = 0.12, blur: float = 1.0, illumination: float = 0.3,
-                      noise: float = 0.05, dark: bool = True, seed=0) -> np.ndarray:
+                      contrast_spread: float = 0.12, blur=1.0, illumination: float = 0.3,
+                      noise: float = 0.05, dark: bool = True, contrast_tilt: float = 0.0, texture: float = 0.0,
+                      seed=0) -> np.ndarray:
     """A grey micrograph of dots at ``centres`` ((x, y) = (column, row), px) with ``diameters`` (px).
 
     Parameters
@@ -86,14 +136,21 @@ def render_micrograph(centres, diameters, shape: tuple[int, int], *, profile: fl
         Mean share of the light a dot's centre removes, in (0, 1).
     contrast_spread : float
         Relative standard deviation of the contrast from dot to dot (the issue's 10-15 %).
-    blur : float
-        Gaussian blur, px.
+    blur : float or (float, float)
+        Gaussian blur, px; a pair for uneven focus: the blur goes from the first at the left edge to the
+        second at the right (the picture blended from the two blurs, column by column).
     illumination : float
         Fall of the illumination from one corner to the opposite one, as a share of its maximum.
     noise : float
         Standard deviation of the additive Gaussian noise, in units of the mean background level.
     dark : bool
         Dark dots on a light background (bright field), else light on dark.
+    contrast_tilt : float
+        Uneven contrast: the dots' contrast is scaled by ``1 - contrast_tilt`` at the top edge, rising linearly
+        to ``1 + contrast_tilt`` at the bottom (thickness or orientation across the film).
+    texture : float
+        The support's grain (amorphous carbon): noise correlated over about 1.5 px, its standard deviation
+        in units of the mean background level.
 
     Returns
     -------
@@ -102,13 +159,18 @@ def render_micrograph(centres, diameters, shape: tuple[int, int], *, profile: fl
     h, w = (count("shape", v, 2, MAX_SIDE) for v in shape)
     real("contrast", contrast, 0.0, 1.0, low_open=True, high_open=True)
     real("noise", noise, 0.0, 10.0)
-    real("blur", blur, 0.0, 50.0)
+    real("texture", texture, 0.0, 10.0)
+    real("contrast_tilt", contrast_tilt, 0.0, 1.0, high_open=True)
+    blurs = tuple(real("blur", b, 0.0, 50.0) for b in np.atleast_1d(blur))
+    if len(blurs) not in (1, 2):
+        raise InputError(f"blur must be one width or a pair (left, right), got {len(blurs)} values")
     rng = generator("seed", seed)
     centres = np.asarray(centres, dtype=float).reshape(-1, 2)
     radii = 0.5 * np.asarray(diameters, dtype=float).reshape(-1)
     if len(radii) != len(centres):
         raise InputError(f"centres and diameters differ in length: {len(centres)} and {len(radii)}")
-    c = np.clip(contrast * (1.0 + contrast_spread * rng.standard_normal(len(radii))), 0.05, 0.95)
+    tilt = 1.0 + contrast_tilt * (2.0 * np.clip(centres[:, 1] / max(h, 1), 0.0, 1.0) - 1.0)
+    c = np.clip(contrast * tilt * (1.0 + contrast_spread * rng.standard_normal(len(radii))), 0.05, 0.95)
     absorbed = np.zeros((h, w))
     sub = 4  # 4 x 4 samples per pixel
     offsets = (np.arange(sub) + 0.5) / sub
@@ -128,8 +190,15 @@ def render_micrograph(centres, diameters, shape: tuple[int, int], *, profile: fl
     image = light * (1.0 - absorbed)
     if not dark:
         image = light * (0.2 + absorbed)
-    if blur > 0:
-        image = ndimage.gaussian_filter(image, blur)
+    if len(blurs) == 1:
+        image = ndimage.gaussian_filter(image, blurs[0]) if blurs[0] > 0 else image
+    else:
+        share = np.linspace(0.0, 1.0, w)[None, :]
+        image = ((1.0 - share) * ndimage.gaussian_filter(image, blurs[0])
+                 + share * ndimage.gaussian_filter(image, blurs[1]))
+    if texture > 0:
+        grain = ndimage.gaussian_filter(rng.standard_normal((h, w)), 1.5)
+        image = image + texture * float(np.mean(light)) * grain / max(float(grain.std()), 1e-12)
     return image + noise * float(np.mean(light)) * rng.standard_normal((h, w))
 
 

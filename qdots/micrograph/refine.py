@@ -1,0 +1,322 @@
+"""Dots measured with their neighbours taken out: each dot's profile fitted on the image plus its
+neighbours' fitted model, and each dot's measurement error from two halves of its profile.
+
+On a dense film a dot's azimuthal profile holds its neighbours' blurred edges, and on a superlattice the
+narrow ligand gaps never reach the background level: a lone fit's radius and background are pulled by
+them. Here every dot is modelled (`paint_model`: ``C_j F_p(|x - x_j| / r_j)`` blurred, summed over the
+dots; the image is ``B - model``), and dot ``i``'s profile is taken from ``image + model - own model``
+(`dot_profile`): its neighbours' darkening added back, what is left is one dot on the background. Its
+``C`` and ``r`` are fitted again (`qdots.micrograph.profiles.fit_dot`) and its model replaced at once, dot
+after dot, pass after pass (`refine_pass`, `refine_dots`). The background and the blur come from
+`qdots.micrograph.settle`.
+
+The measurement error of each diameter (`repeat_errors`): the film measured again on the fitted model
+plus the image's own residual rolled aside, which holds noise and grain of the same kind as the image's.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from labrig.compiled import jit
+
+from .profiles import BIN, FIT_STEP, fit_dot, polish_dot, profile_table, table_value
+
+#: Fitting passes.
+PASSES = 3
+#: How far the residual is rolled for the repeated measurement of `repeat_errors`, px (rows, columns).
+REPEAT_SHIFT = (37, 61)
+#: Most dots measured again (`repeat_errors`).
+REPEAT_DOTS = 2000
+#: Radius search of the first pass, in units of the film's typical radius; of the later ones, of the dot's own,
+#: by steps of POLISH_STEP of it (`qdots.micrograph.profiles.polish_dot`).
+WIDE, NARROW, POLISH_STEP = (0.45, 1.8), (0.85, 1.18), 0.02
+#: A dot's profile reaches REACH times its radius (or the typical one, if larger) plus REACH_PAD px.
+REACH, REACH_PAD = 1.4, 4.0
+
+@jit
+def paint_dot(model, x, y, r, c, table, blur, sign):
+    """Add ``sign * C F(|p - (x, y)| / r)`` (the blurred profile of `profile_table`) to ``model``, out to 2 r."""
+    replace_dot(model, x, y, 0.0, 0.0, x, y, r, sign * c, table, blur)
+
+
+@jit
+def replace_dot(model, old_x, old_y, old_r, old_c, x, y, r, c, table, blur):
+    """Take a dot's old model (centre, radius, contrast) out of ``model`` and put its new one in, in one sweep
+    over the pixels either covers (out to twice its radius)."""
+    h, w = model.shape
+    old = old_r > 0.0 and old_c != 0.0
+    new = r > 0.0 and c != 0.0
+    if not old and not new:
+        return
+    reach = 2.0 * max(old_r if old else 0.0, r if new else 0.0)
+    mx = 0.5 * (old_x + x) if old and new else (x if new else old_x)
+    my = 0.5 * (old_y + y) if old and new else (y if new else old_y)
+    reach += 0.5 * math.sqrt((x - old_x) ** 2 + (y - old_y) ** 2) if old and new else 0.0
+    s_old = blur / old_r if old else 0.0
+    s_new = blur / r if new else 0.0
+    for row in range(max(0, int(my - reach)), min(h, int(my + reach) + 2)):
+        for col in range(max(0, int(mx - reach)), min(w, int(mx + reach) + 2)):
+            change = 0.0
+            if new:
+                rho = math.sqrt((col + 0.5 - x) ** 2 + (row + 0.5 - y) ** 2)
+                if rho < 2.0 * r:
+                    change += c * table_value(table, s_new, rho / r)
+            if old:
+                rho = math.sqrt((col + 0.5 - old_x) ** 2 + (row + 0.5 - old_y) ** 2)
+                if rho < 2.0 * old_r:
+                    change -= old_c * table_value(table, s_old, rho / old_r)
+            model[row, col] += change
+
+
+@jit
+def paint_model(model, centres, radii, contrast, table, blurs):
+    """Add every dot's `paint_dot` to ``model`` (``blurs[k]`` the blur at dot k, px)."""
+    for k in range(len(radii)):
+        paint_dot(model, centres[k, 0], centres[k, 1], radii[k], contrast[k], table, blurs[k], 1.0)
+
+
+@jit
+def dot_profile(image, model, x, y, r, c, table, blur, far, bin_width, parity, sums, counts, rhos):
+    """Fill ``sums``, ``counts`` and ``rhos`` (zeroed here) with the radial bins of ``image + model - own model``
+    around (x, y), out to ``far`` px; ``parity`` -1 takes every pixel, 0 or 1 only those in the even or odd 45
+    degree sectors around the centre."""
+    sums[:] = 0.0
+    counts[:] = 0.0
+    rhos[:] = 0.0
+    h, w = image.shape
+    own = r > 0.0 and c > 0.0
+    s = blur / r if own else 0.0
+    n_bins = sums.shape[0]
+    for row in range(max(0, int(y - far)), min(h, int(y + far) + 2)):
+        for col in range(max(0, int(x - far)), min(w, int(x + far) + 2)):
+            dx = col + 0.5 - x
+            dy = row + 0.5 - y
+            rho = math.sqrt(dx * dx + dy * dy)
+            b = int(rho / bin_width)
+            if rho >= far or b >= n_bins:
+                continue
+            if parity >= 0 and int((math.atan2(dy, dx) + math.pi) / (0.25 * math.pi)) % 2 != parity:
+                continue
+            v = image[row, col] + model[row, col]
+            if not (v == v):  # a pixel left out (NaN)
+                continue
+            if own:
+                v -= c * table_value(table, s, rho / r)
+            sums[b] += v
+            counts[b] += 1.0
+            rhos[b] += rho
+
+
+@jit
+def dot_profiles(image, model, centres, radii, contrast, table, blurs, reach, n_bins, bin_width, parity):
+    """`dot_profile` of every dot: (sums, counts, rhos) arrays of shape (N, n_bins), as
+    `qdots.micrograph.profiles.radial_profiles` gives."""
+    n = len(radii)
+    sums = np.zeros((n, n_bins))
+    counts = np.zeros((n, n_bins))
+    rhos = np.zeros((n, n_bins))
+    for k in range(n):
+        dot_profile(image, model, centres[k, 0], centres[k, 1], radii[k], contrast[k], table, blurs[k], reach[k],
+                    bin_width, parity, sums[k], counts[k], rhos[k])
+    return sums, counts, rhos
+
+
+@jit
+def centre_shift(image, model, x, y, r, c, table, blur, level):
+    """How far the centre of the dot at (x, y) is from where its darkness alone (``level - (image + model - own
+    model)``, positive part) balances within 0.9 r: (dx, dy), px; (0, 0) when the window crosses the image edge
+    or holds no darkness. Repeated, this converges on the dot's centre of symmetry."""
+    h, w = image.shape
+    window = 0.9 * r
+    if not (r > 0.0) or x - window < 0.0 or y - window < 0.0 or x + window > w or y + window > h:
+        return 0.0, 0.0
+    s = blur / r
+    sx = 0.0
+    sy = 0.0
+    total = 0.0
+    for row in range(max(0, int(y - window)), min(h, int(y + window) + 2)):
+        for col in range(max(0, int(x - window)), min(w, int(x + window) + 2)):
+            dx = col + 0.5 - x
+            dy = row + 0.5 - y
+            rho = math.sqrt(dx * dx + dy * dy)
+            if rho >= window:
+                continue
+            dark = level - (image[row, col] + model[row, col] - c * table_value(table, s, rho / r))
+            if dark > 0.0:  # (False for a pixel left out: NaN)
+                sx += dark * dx
+                sy += dark * dy
+                total += dark
+    if total <= 0.0:
+        return 0.0, 0.0
+    limit = 0.25 * r
+    return min(max(sx / total, -limit), limit), min(max(sy / total, -limit), limit)
+
+
+@jit
+def refine_pass(image, model, centres, radius, contrast, background, residual, level, free, table, blurs, reach,
+                n_bins, typical, wide, move, active):
+    """One pass over the ``active`` dots in order, each fitted on ``image + model - own model`` and its model
+    replaced in ``model`` at once (Gauss-Seidel: the next dot sees it). ``wide``: radii searched over `WIDE` times
+    ``typical``; else near the dot's own (`qdots.micrograph.profiles.polish_dot`). ``move``: each centre first
+    moved to where its darkness balances (`centre_shift`). Updates the arrays in place."""
+    sums = np.zeros(n_bins)
+    counts = np.zeros(n_bins)
+    rhos = np.zeros(n_bins)
+    for k in range(len(radius)):
+        if not active[k]:
+            continue
+        x = centres[k, 0]
+        y = centres[k, 1]
+        blur = blurs[k]
+        old_r = radius[k] if radius[k] > 0.0 else 0.0
+        old_c = contrast[k]
+        if move and old_r > 0.0 and old_c > 0.0:
+            dx, dy = centre_shift(image, model, x, y, old_r, old_c, table, blur, level[k])
+            if dx != 0.0 or dy != 0.0:
+                replace_dot(model, x, y, old_r, old_c, x + dx, y + dy, old_r, old_c, table, blur)
+                x += dx
+                y += dy
+                centres[k, 0] = x
+                centres[k, 1] = y
+        dot_profile(image, model, x, y, old_r, old_c, table, blur, reach[k], BIN, -1, sums, counts, rhos)
+        if wide or not (old_r > 0.0):
+            r, big, c, error = fit_dot(sums, counts, rhos, level[k], free, table, blur, typical, WIDE[0], WIDE[1],
+                                       FIT_STEP * 2.0)
+        else:
+            r, big, c, error = polish_dot(sums, counts, rhos, level[k], free, table, blur, old_r, POLISH_STEP,
+                                          NARROW[0], NARROW[1])
+        new_c = c if (r > 0.0 and c > 0.0) else 0.0
+        replace_dot(model, x, y, old_r, old_c, x, y, r if r > 0.0 else 0.0, new_c, table, blur)
+        radius[k] = r
+        contrast[k] = new_c
+        background[k] = big
+        residual[k] = error
+
+
+def per_dot(value, n: int) -> np.ndarray:
+    """``value`` (a number or an array of ``n``) as a float array of ``n``."""
+    return np.array(np.broadcast_to(np.asarray(value, dtype=float), (n,)))
+
+
+def model_image(shape, centres, radii, contrast, table, blur) -> np.ndarray:
+    """The darkening of every dot (`paint_model`) as an image of ``shape``; ``blur`` one width or one per dot."""
+    model = np.zeros(shape)
+    paint_model(model, np.ascontiguousarray(centres, dtype=float), np.nan_to_num(np.asarray(radii, float)),
+                np.asarray(contrast, float), table, per_dot(blur, len(radii)))
+    return model
+
+
+@dataclass(frozen=True)
+class Refined:
+    """Every dot fitted with its neighbours taken out (`refine_dots`).
+
+    Attributes
+    ----------
+    centres : ndarray (N, 2)
+        Each dot's centre, px (moved only when asked).
+    radius, background, contrast, residual : ndarray (N,)
+        The last pass's fit of each dot: radius (px, NaN where the fit failed), ``B``, ``C`` and the residual
+        sum of squares.
+    profiles : (ndarray, ndarray, ndarray) or None
+        The neighbour-corrected profiles of the fitted dots (sums, counts and summed radii per bin).
+    model : ndarray (H, W)
+        The darkening of all dots as fitted.
+    reach : ndarray (N,)
+        How far from its centre each dot's profile reaches, px.
+    """
+
+    centres: np.ndarray
+    radius: np.ndarray
+    background: np.ndarray
+    contrast: np.ndarray
+    residual: np.ndarray
+    profiles: tuple
+    model: np.ndarray
+    reach: np.ndarray
+
+
+def profile_reach(radii, typical: float) -> np.ndarray:
+    """How far each dot's profile reaches, px: `REACH` times its radius (the typical one where larger or
+    unknown) plus `REACH_PAD`."""
+    radii = np.nan_to_num(np.asarray(radii, dtype=float))
+    return REACH * np.maximum(radii, typical) + REACH_PAD
+
+
+def refine_dots(image, centres, radii, contrast, typical: float, shape: float, blur: float, level,
+                passes: int = PASSES, reach=None, wide: bool = True, keep_profiles: bool = True,
+                move: bool = False, active=None) -> Refined:
+    """Fit every dot again on ``image`` with its neighbours' model added back, ``passes`` times (`refine_pass`:
+    the first searches radii widely, the later ones near each dot's own).
+
+    Parameters
+    ----------
+    image : ndarray (H, W)
+        The image, dots darker than the background; NaN where a pixel is to be left out.
+    centres : ndarray (N, 2)
+        ``(x, y)`` of each dot, px.
+    radii, contrast : ndarray (N,)
+        Each dot's first fit (NaN or 0 where it failed: such a dot is left out of the first model).
+    typical : float
+        The film's typical radius, px: the first pass searches [`WIDE`] times it.
+    shape : float
+        The profile shape ``p`` (`qdots.micrograph.profiles.profile_table`).
+    blur : float or ndarray (N,)
+        The blur, px: one for the film or one for each dot.
+    level : ndarray (N,) or None
+        The background under each dot, or None to fit it dot by dot.
+    passes : int
+        Passes; 0 keeps the radii given (their profiles and model are still computed).
+    reach : ndarray (N,), optional
+        How far each profile reaches (default `profile_reach` of ``radii``).
+    wide : bool
+        Whether the first pass searches widely (else every pass starts from the radii given).
+    keep_profiles : bool
+        Whether to return the last profiles (`Refined.profiles`, else None).
+    move : bool
+        Whether the passes after a wide one also move each centre (`centre_shift`; not with the background free).
+    active : ndarray of bool (N,), optional
+        The dots to fit (default all); the others stay as given, in the model.
+    """
+    table = profile_table(shape)
+    centres = np.array(centres, dtype=float)
+    n = len(centres)
+    radius = np.array(radii, dtype=float)
+    contrast = np.where(np.isfinite(contrast) & (np.asarray(contrast) > 0), contrast, 0.0).astype(float)
+    reach = profile_reach(radius, typical) if reach is None else reach
+    n_bins = math.ceil(float(reach.max(initial=1.0)) / BIN) + 1
+    base = np.ones(n) if level is None else np.array(level, dtype=float)
+    background = base.copy()
+    residual = np.full(n, np.inf)
+    blurs = per_dot(blur, n)
+    model = model_image(image.shape, centres, radius, contrast, table, blurs)
+    for k in range(passes):
+        first = wide and k == 0
+        refine_pass(image, model, centres, radius, contrast, background, residual, base, level is None, table,
+                    blurs, reach, n_bins, float(typical), first, move and not first and level is not None,
+                    np.ones(n, dtype=bool) if active is None else np.asarray(active, dtype=bool))
+    profiles = dot_profiles(image, model, centres, np.nan_to_num(radius), contrast, table, blurs, reach, n_bins,
+                            BIN, -1) if keep_profiles else None
+    return Refined(centres, radius, background, contrast, residual, profiles, model, reach)
+
+
+def repeat_errors(image, centres, refined: Refined, typical: float, shape: float, blur, level, level_map,
+                  shift: tuple[int, int] = REPEAT_SHIFT) -> np.ndarray:
+    """Each radius's measurement error, px, by measuring the film again on a second image of the same film:
+    the fitted model plus the first image's residual (``image - (level_map - model)``: its noise, grain and
+    misfit) rolled by ``shift`` px, so that each dot sees noise of the same kind but another draw of it. Two
+    measurements with independent errors of deviation ``e`` differ by ``sqrt(2) e``: the error of each dot is
+    its difference over ``sqrt(2)``, whose root mean square over the dots is ``e``. Up to `REPEAT_DOTS` dots,
+    evenly chosen, are measured again (the others' errors are NaN): the error is a statistic of the film."""
+    clean = level_map - refined.model
+    again = clean + np.nan_to_num(np.roll(image - clean, shift, axis=(0, 1)))
+    again[np.isnan(image)] = np.nan
+    n = len(refined.radius)
+    active = np.zeros(n, dtype=bool)
+    active[::max(1, math.ceil(n / REPEAT_DOTS))] = True
+    second = refine_dots(again, refined.centres, refined.radius, refined.contrast, typical, shape, blur, level,
+                         passes=2, reach=refined.reach, wide=False, keep_profiles=False, move=True, active=active)
+    return np.where(active, np.abs(second.radius - refined.radius) / np.sqrt(2.0), np.nan)

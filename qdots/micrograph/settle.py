@@ -1,0 +1,227 @@
+"""The shape, blur and background of a film's dots, settled on the fits with the neighbours taken out.
+
+On a dense film the background ``B`` cannot be left free dot by dot: raising every dot's background,
+contrast and radius together fits almost as well, and fits dot by dot drift along that direction. So
+``B`` is a field: the lone fits' backgrounds smoothed over several dots (`smooth_level`), times a factor
+``k``. The factor, the blur and the profile shape are those that leave the least squared difference
+between the image and the model of all dots over a patch of the film, its gaps and holes included
+(`Sample`, `settle_profile`), where the true film has its minimum. Uneven focus and contrast: the blur and
+``k`` are settled again on each of a few tiles of the film and laid over it (`settle_tiles`).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .profiles import PROFILES, central_curvature, predicted_curvature
+from .refine import PASSES, REACH, REACH_PAD, WIDE, profile_reach, refine_dots
+
+#: The background field: the lone fits' backgrounds averaged over LEVEL_WIDTH typical radii (`smooth_level`),
+#: times a factor searched in LEVEL_RANGE, first at LEVEL_SCAN (on a dense film the lone fits see the narrow
+#: gaps as background, far darker than it).
+LEVEL_WIDTH, LEVEL_RANGE = 6.0, (0.8, 2.5)
+LEVEL_SCAN = (0.9, 1.0, 1.1, 1.25, 1.45, 1.7, 2.0)
+#: Shapes ``p`` tried by ``profile="auto"`` (0 a flat disc, 0.5 a projected sphere); another than the sphere is
+#: taken only when its predicted central curvature matches the measured one by CURVATURE_MARGIN more.
+SHAPES, CURVATURE_MARGIN = (0.0, 0.5), 0.05
+#: Blurs searched, px (the detector smooths every image by 1 px first, so none is under 1 px); the first one
+#: tried (also the blur of the lone fits that start everything).
+BLURS, FIRST_BLUR = (1.0, 5.0), 1.5
+#: The first 3 x 3 pattern of blurs (px) and background factors: its steps.
+FOCUS_STEP = (0.3, 0.04)
+#: Most dots the shape, blur and background are settled on; the film is cut in TILES x TILES tiles, each
+#: settled again when the film holds TILE_DOTS whole dots a tile (`settle_tiles`).
+SAMPLE, TILES, TILE_DOTS = 100, 3, 50
+#: Passes of each fit while settling (from a state fitted at the middle of the pattern).
+SAMPLE_PASSES = 2
+
+
+def choice_sample(centres, whole, typical: float, point=None):
+    """Up to `SAMPLE` whole dots (indices ``whole``) nearest ``point`` (default the middle of the film), the dots
+    near enough to them to touch their profiles (``members``, sorted) and the sample's places among the members."""
+    if len(whole) == 0:
+        whole = np.arange(len(centres))
+    point = np.median(centres[whole], axis=0) if point is None else np.asarray(point, dtype=float)
+    sample = whole[np.argsort(np.hypot(*(centres[whole] - point).T), kind="stable")[:SAMPLE]]
+    middle = np.median(centres[sample], axis=0)
+    distance = np.hypot(*(centres - middle).T)
+    margin = REACH * WIDE[1] * typical + REACH_PAD + 2.0 * WIDE[1] * typical
+    members = np.flatnonzero(distance <= distance[sample].max() + margin)
+    return sample, members, np.searchsorted(members, sample)
+
+
+class Sample:
+    """A patch of the film to settle the profile on: the image around up to `SAMPLE` whole dots near ``point``,
+    its dots (all those whose profiles touch the sample's), their first fits and background field, and the
+    pixels the residual is summed over (a disc over the sample, its gaps and holes included)."""
+
+    def __init__(self, image, centres, radii, contrast, field, field_map, typical: float, whole, point=None):
+        sample, members, self.inner = choice_sample(centres, whole, typical, point)
+        self.size = len(sample)
+        self.typical = typical
+        self.radii, self.contrast, self.part = radii[members], contrast[members], field[members]
+        self.reach = profile_reach(self.radii, typical)
+        margin = float(self.reach.max()) + 2.0 * WIDE[1] * typical
+        (x0, y0) = np.maximum(centres[members].min(axis=0) - margin, 0).astype(int)
+        (x1, y1) = np.ceil(centres[members].max(axis=0) + margin).astype(int)
+        self.image, self.field_map = image[y0:y1, x0:x1], field_map[y0:y1, x0:x1]
+        self.offset = np.array([x0, y0], dtype=float)
+        self.where = centres[members] - self.offset
+        middle = np.median(self.where[self.inner], axis=0)
+        extent = float(np.max(np.hypot(*(self.where[self.inner] - middle).T)))
+        rows, cols = np.ogrid[:self.image.shape[0], :self.image.shape[1]]
+        self.area = (cols + 0.5 - middle[0]) ** 2 + (rows + 0.5 - middle[1]) ** 2 <= extent**2
+
+    def fit(self, shape, blur, k, start=None, passes: int = PASSES, keep_profiles: bool = False):
+        """`refine_dots` of the patch's dots at (shape, blur, ``k`` times the field), from their first fits or
+        ``start`` (a `Refined` state: then every pass starts near its radii)."""
+        radii, contrast = (self.radii, self.contrast) if start is None else (start.radius, start.contrast)
+        return refine_dots(self.image, self.where, radii, contrast, self.typical, shape, blur, k * self.part,
+                           passes=passes, reach=self.reach, wide=start is None, keep_profiles=keep_profiles)
+
+    def misfit(self, state, k) -> float:
+        """Sum of squares of image minus (background minus model) over the patch's area."""
+        area = self.area
+        return float(np.nansum((self.image[area] - k * self.field_map[area] + state.model[area]) ** 2))
+
+    def pattern(self, shape, centre, step) -> tuple[np.ndarray, float]:
+        """The 3 x 3 blurs and ``k`` ``step`` apart around ``centre``, each fitted from a state fitted at ``centre``:
+        the minimum of the quadratic surface through their residuals (`quadratic_minimum`, within two steps of
+        ``centre``), and the least residual."""
+        low = np.maximum([BLURS[0], LEVEL_RANGE[0]], centre - 2.0 * step)  # the surface is trusted near its points
+        high = np.minimum([BLURS[1], LEVEL_RANGE[1]], centre + 2.0 * step)
+        anchor = self.fit(shape, centre[0], centre[1])
+        points = np.clip(centre + step * np.array([(i, j) for i in (-1, 0, 1) for j in (-1, 0, 1)]), low, high)
+        values = np.array([self.misfit(self.fit(shape, b, k, anchor, SAMPLE_PASSES), k) for b, k in points])
+        return quadratic_minimum(points, values, low, high)[0], float(values.min())
+
+
+def total_residual(residual) -> float:
+    """Sum of the finite residuals (inf when none is)."""
+    finite = np.isfinite(residual)
+    return float(np.sum(residual[finite])) if finite.any() else math.inf
+
+
+def smooth_level(centres, background, typical: float, shape) -> tuple[np.ndarray, np.ndarray]:
+    """The dots' backgrounds averaged over their neighbourhood (a Gaussian of `LEVEL_WIDTH` typical radii, on a
+    grid of one typical radius): its value at each centre, and the map of it over an image of ``shape``."""
+    from scipy import ndimage
+
+    cell = max(typical, 1.0)
+    grid = (int(shape[0] / cell) + 1, int(shape[1] / cell) + 1)
+    rows = np.clip((centres[:, 1] / cell).astype(int), 0, grid[0] - 1)
+    cols = np.clip((centres[:, 0] / cell).astype(int), 0, grid[1] - 1)
+    ok = np.isfinite(background)
+    total, weight = np.zeros(grid), np.zeros(grid)
+    np.add.at(total, (rows[ok], cols[ok]), background[ok])
+    np.add.at(weight, (rows[ok], cols[ok]), 1.0)
+    total = ndimage.gaussian_filter(total, LEVEL_WIDTH, mode="nearest")
+    weight = ndimage.gaussian_filter(weight, LEVEL_WIDTH, mode="nearest")
+    fallback = float(np.median(background[ok])) if ok.any() else 1.0
+    with np.errstate(invalid="ignore", divide="ignore"):
+        level = np.where(weight > 1e-6, total / weight, fallback)
+    y = np.clip((np.arange(shape[0]) + 0.5) / cell - 0.5, 0, grid[0] - 1)
+    x = np.clip((np.arange(shape[1]) + 0.5) / cell - 0.5, 0, grid[1] - 1)
+    full = ndimage.map_coordinates(level, np.meshgrid(y, x, indexing="ij"), order=1, mode="nearest")
+    return full[np.clip(centres[:, 1].astype(int), 0, shape[0] - 1), np.clip(centres[:, 0].astype(int), 0,
+                                                                             shape[1] - 1)], full
+
+
+def quadratic_minimum(points: np.ndarray, values: np.ndarray, low, high) -> tuple[np.ndarray, float]:
+    """Where the quadratic surface fitted (least squares) to ``values`` at 2-D ``points`` is least, kept within
+    the box [low, high], and its value there; the best point when the surface has no minimum."""
+    x, y = points.T
+    design = np.column_stack([np.ones_like(x), x, y, x * x, y * y, x * y])
+    a = np.linalg.lstsq(design, values, rcond=None)[0]
+    hessian = np.array([[2 * a[3], a[5]], [a[5], 2 * a[4]]])
+    if np.all(np.linalg.eigvalsh(hessian) > 0):
+        u, v = np.clip(np.linalg.solve(hessian, -a[1:3]), low, high)
+        return np.array([u, v]), float(a @ [1.0, u, v, u * u, v * v, u * v])
+    best = int(np.argmin(values))
+    return points[best], float(values[best])
+
+
+def settle_profile(image, centres, radii, contrast, background, typical: float, whole, profile: str
+                   ) -> tuple[float, float, np.ndarray, np.ndarray, str]:
+    """The dots' shape ``p``, the blur and the background at each dot and everywhere, settled on a `Sample` of the
+    film: those that leave the least squared difference between the image and the model of all dots
+    (`refine_dots`, every dot fitted with the background fixed) over the sample's pixels.
+
+    The background is ``k`` times the lone fits' ``background`` smoothed (`smooth_level`). Each candidate shape
+    (`SHAPES` for ``profile="auto"``, else the one given) is fitted at 3 x 3 blurs and ``k`` `FOCUS_STEP` apart
+    around `FIRST_BLUR` and the best ``k`` of `LEVEL_SCAN`, from a state fitted at the middle one, and again
+    around the minimum of the quadratic surface through the nine residuals (`quadratic_minimum`) at half the
+    steps. For ``profile="auto"`` the shape is then the one whose predicted central curvature
+    (`qdots.micrograph.profiles.predicted_curvature`, at its blur) is nearest the curvature measured on the
+    neighbour-corrected profiles (`qdots.micrograph.profiles.central_curvature`), the projected sphere unless
+    another matches by `CURVATURE_MARGIN` more (the residual itself hardly tells a sphere from a disc on real
+    particles, which are neither exactly). A last pattern at a quarter of the steps settles the blur and ``k``
+    of the shape taken, then each tile of the film (`settle_tiles`). Returns (p, the blur at each dot, px, the
+    level at each dot, the level map, how p was chosen).
+    """
+    centres = np.asarray(centres, dtype=float)
+    field, whole_map = smooth_level(centres, background, typical, image.shape)
+    patch = Sample(image, centres, radii, contrast, field, whole_map, typical, whole)
+    shapes = SHAPES if profile == "auto" else (PROFILES[profile],)
+    step = np.array(FOCUS_STEP)
+    scan = [patch.misfit(patch.fit(shapes[-1], FIRST_BLUR, k), k) for k in LEVEL_SCAN]
+    start = np.array([FIRST_BLUR, LEVEL_SCAN[int(np.argmin(scan))]])
+    found = {shape: patch.pattern(shape, start, step)[0] for shape in shapes}
+    found = {shape: patch.pattern(shape, found[shape], 0.5 * step)[0] for shape in shapes}
+    how = f"{profile} (given)"
+    shape = shapes[0]
+    inner = patch.inner
+    if profile == "auto":
+        measured, predicted = {}, {}
+        for p in shapes:
+            state = patch.fit(p, found[p][0], found[p][1], keep_profiles=True)
+            radius = state.radius[inner]
+            measured[p] = central_curvature(*(part_[inner] for part_ in state.profiles), radius,
+                                            found[p][1] * patch.part[inner])
+            predicted[p] = predicted_curvature(p, found[p][0] / float(np.nanmedian(radius)))
+        miss = {p: abs(measured[p] - predicted[p]) if np.isfinite(measured[p]) else np.inf for p in shapes}
+        shape = min(shapes, key=miss.get)
+        if miss[0.5] - miss[shape] < CURVATURE_MARGIN:
+            shape = 0.5
+        how = (f"p = {shape:g} from the curvature of {patch.size} dots' centres ({measured[shape]:.3f} r^2 measured, "
+               f"{predicted[shape]:.3f} for p = {shape:g}; a sphere would give {predicted[0.5]:.3f} against "
+               f"{measured[0.5]:.3f} measured, a flat disc {predicted[0.0]:.3f} against {measured[0.0]:.3f})")
+    blur, k = patch.pattern(shape, found[shape], 0.25 * step)[0]
+    blurs, levels, level_map = settle_tiles(image, centres, radii, contrast, field, whole_map, typical, whole, shape,
+                                            np.array([blur, k]))
+    return float(shape), blurs, levels, level_map, how
+
+
+def settle_tiles(image, centres, radii, contrast, field, field_map, typical: float, whole, shape: float, settled
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Uneven focus and contrast: the blur and ``k`` settled again (one pattern at a quarter of `FOCUS_STEP`,
+    around the film's ``settled`` pair) on a sample near the middle of each of `TILES` x `TILES` tiles of the
+    film, when the film holds `TILE_DOTS` whole dots a tile; a plane fitted to the tiles' blurs, and one to their
+    ``k``, lay them over the film (a focus or thickness that changes slowly, without each tile's own scatter). Returns the blur and the level at each dot, and the level map."""
+    h, w = image.shape
+    n_whole = len(whole) if len(whole) else len(centres)
+    if n_whole < TILES * TILES * TILE_DOTS:
+        blur, k = settled
+        return np.full(len(centres), blur), k * field, k * field_map
+    middles, values = [], []
+    for i in range(TILES):
+        for j in range(TILES):
+            point = ((j + 0.5) * w / TILES, (i + 0.5) * h / TILES)
+            patch = Sample(image, centres, radii, contrast, field, field_map, typical, whole, point)
+            middles.append(np.median(patch.where[patch.inner] + patch.offset, axis=0))
+            values.append(patch.pattern(shape, settled, 0.25 * np.array(FOCUS_STEP))[0])
+    middles, values = np.array(middles), np.array(values)
+    design = np.column_stack([np.ones(len(middles)), middles / [w, h]])
+    planes = np.linalg.lstsq(design, values, rcond=None)[0]  # blur and k, each a plane over the film
+
+    def lay(x, y):
+        return np.column_stack([np.ones(np.size(x)), np.ravel(x) / w, np.ravel(y) / h]) @ planes
+
+    at_dots = lay(centres[:, 0], centres[:, 1])
+    rows, cols = np.mgrid[0:h, 0:w]
+    k_map = lay(cols + 0.5, rows + 0.5)[:, 1].reshape(h, w)
+    blurs = np.clip(at_dots[:, 0], *BLURS)
+    return blurs, at_dots[:, 1] * field, k_map * field_map
+

@@ -1,0 +1,216 @@
+"""Micrographs as microscopes write them (issue 52): dense and ordered films measured honestly, data strips and
+ruled scale bars, the scale checks, and pictures that are not films refused."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from helpers import one_line_error, refused
+from PIL import Image
+
+from qdots.analysis.structure import radial_distribution
+from qdots.cli import main
+from qdots.micrograph.annotations import find_annotations
+from qdots.micrograph.detect import detect_dots
+from qdots.micrograph.film import film_metrics, film_state, size_spread
+from qdots.micrograph.labelled import label_micrograph, not_a_film
+from qdots.micrograph.measure import measure_image, save_overlay, scale_check
+from qdots.micrograph.scale import find_scale_bar
+from qdots.micrograph.synthetic import render_micrograph, superlattice_board
+
+#: 10 nm dots at 0.6 nm/px, imaged with uneven focus and contrast, the support's grain and noise.
+D = 10.0 / 0.6
+IMAGING = {"noise": 0.05, "blur": (0.6, 1.2), "contrast": 0.55, "contrast_spread": 0.15, "contrast_tilt": 0.2,
+           "texture": 0.02, "illumination": 0.3}
+
+
+def first_shell(centres, diameters, shape) -> float:
+    """Where g(r) peaks within 1.6 mean diameters, in mean diameters."""
+    state = film_state(centres, diameters, shape)
+    mean = float(np.mean(diameters))
+    rdf = radial_distribution(state, r_max=1.6 * mean, bins=64)
+    return float(rdf.r[int(np.nanargmax(rdf.g))] / mean)
+
+
+def inside(centres, diameters, shape) -> np.ndarray:
+    h, w = shape
+    r = diameters / 2
+    return (centres[:, 0] >= r) & (centres[:, 1] >= r) & (centres[:, 0] + r <= w) & (centres[:, 1] + r <= h)
+
+
+@pytest.mark.parametrize("lattice, gap_nm", [("hexagonal", 1.5), ("square", 1.0)])
+def test_a_superlattice_with_ligand_gaps_is_measured_honestly(lattice, gap_nm):
+    centres, diameters = superlattice_board(288, 288, D, 0.05, gap_nm / 0.6, lattice, seed=1)
+    image = render_micrograph(centres, diameters, (288, 288), seed=2, **IMAGING)
+    detection = detect_dots(image)
+    true = diameters[inside(centres, diameters, image.shape)]
+    metrics = film_metrics(film_state(detection.centres, detection.diameters, image.shape), ~detection.cut,
+                           errors=detection.errors)
+    assert abs(metrics["size_spread"] - true.std(ddof=1) / true.mean()) <= 0.015
+    # the goal is 2 % (met on the benchmark's 512 px films); this small film settles its focus on ~150 dots
+    assert abs(metrics["mean_diameter_px"] / true.mean() - 1) <= 0.025
+    whole = ~detection.cut
+    assert first_shell(detection.centres[whole], detection.diameters[whole], image.shape) >= 1.0  # no overlap
+    assert 0 < metrics["size_spread_error"] < metrics["size_spread_measured"]
+
+
+def test_the_spread_takes_the_measurement_error_out():
+    rng = np.random.default_rng(3)
+    d = rng.normal(20.0, 1.0, 4000)
+    errors = np.abs(rng.normal(0.0, 0.6, 4000))
+    s = size_spread(d, errors)
+    measured = d.std(ddof=1) / d.mean()
+    error = np.sqrt(np.mean(errors**2)) / d.mean()
+    assert s["size_spread_measured"] == pytest.approx(measured)
+    assert s["size_spread_error"] == pytest.approx(error)
+    assert s["size_spread"] ** 2 == pytest.approx(measured**2 - error**2)
+    assert size_spread(d)["size_spread"] == pytest.approx(measured)  # no errors given: nothing taken out
+    assert size_spread(d, np.full(4000, 50.0))["size_spread"] == 0.0  # errors larger than the spread
+    outliers = np.concatenate([d, np.full(80, 40.0)])  # 2 % fused pairs: the SD grows, the quartiles hardly
+    assert size_spread(outliers)["size_spread_measured"] > 2 * size_spread(outliers)["size_spread_robust"]
+
+
+def bar_image(style: str) -> tuple[np.ndarray, int]:
+    """A grey field with a 120 px bar drawn by hand (no matplotlib): ``style`` ruled (cut by 2 px gaps), checkered
+    (blocks in an outline), ruler (a line with ticks), or boxed (a white box holding the bar and a 'label')."""
+    image = np.full((80, 200), 0.5) + 0.02 * np.random.default_rng(0).standard_normal((80, 200))
+    x, y, length = 40, 40, 120
+    if style == "ruled":
+        image[y:y + 6, x:x + length] = 0.0
+        for k in range(1, 5):
+            image[y:y + 6, x + 24 * k - 1:x + 24 * k + 1] = 0.5
+        image[y - 4:y + 10, x:x + 2] = image[y - 4:y + 10, x + length - 2:x + length] = 0.0
+    elif style == "checkered":
+        image[y:y + 8, x:x + length] = 0.0
+        image[y + 1:y + 7, x + 1:x + length - 1] = 1.0
+        for k in range(0, 5, 2):
+            image[y:y + 8, x + 24 * k:x + 24 * (k + 1)] = 0.0
+    elif style == "ruler":
+        image[y + 4:y + 6, x:x + length] = 0.0
+        for k in range(6):
+            tip = y - 6 if k in (0, 5) else y
+            image[tip:y + 6, min(x + 24 * k, x + length - 2):min(x + 24 * k, x + length - 2) + 2] = 0.0
+    else:
+        image[y - 14:y + 30, x - 10:x + length + 10] = 1.0
+        image[y:y + 6, x:x + length] = 0.0
+        image[y + 12:y + 24, x + 40:x + 46] = image[y + 12:y + 24, x + 60:x + 70] = 0.0  # 'letters'
+    return image, length
+
+
+@pytest.mark.parametrize("style", ["ruled", "checkered", "ruler", "boxed"])
+def test_ruled_checkered_and_boxed_bars_are_measured_whole(style):
+    image, length = bar_image(style)
+    bar = find_scale_bar(image)
+    assert bar is not None and bar.length_px == length and bar.ruled == (style != "boxed")
+
+
+LAYOUTS = [dict(strip="bottom", colour="black", style="ruled", boxed=True, label="under"),
+           dict(strip="top", colour="white", style="checkered", label="over"),
+           dict(strip="right", colour="black", style="ruler", label="beside", strip_px=150, bar_nm=40),
+           dict(strip="left", colour="white", style="solid", label="under", strip_px=150, bar_nm=40),
+           dict(strip=None, colour="white", style="ruled", boxed=True, label="under"),
+           dict(strip=None, colour="black", style="solid", label="beside")]
+
+
+@pytest.fixture(scope="module")
+def picture():
+    centres, diameters = superlattice_board(330, 260, D, 0.05, 2.5, "hexagonal", seed=4)
+    film = render_micrograph(centres, diameters, (260, 330), seed=5, **IMAGING)
+    return np.clip(film / np.percentile(film, 99.9) * 0.85, 0, 1)
+
+
+@pytest.mark.parametrize("layout", LAYOUTS, ids=lambda k: f"{k['strip']}-{k['colour']}-{k['style']}-{k['label']}")
+def test_data_strips_and_bars_are_found_whatever_their_side_colour_and_style(picture, layout):
+    labelled = label_micrograph(picture, 0.6, **{"bar_nm": 60, **layout})
+    found = find_annotations(labelled.image)
+    assert found.window == labelled.window
+    assert found.bar is not None and abs(found.bar.length_px - labelled.bar_px) <= 1
+    assert [s.side for s in found.strips] == ([layout["strip"]] if layout["strip"] else [])
+
+
+def test_a_film_with_a_black_data_strip_is_measured_without_it(picture, tmp_path, capsys):
+    labelled = label_micrograph(picture, 0.6, bar_nm=60, strip="bottom", colour="black", style="ruled", boxed=True)
+    path = tmp_path / "strip.jpg"
+    Image.fromarray((255 * labelled.image).astype(np.uint8)).save(path, quality=85)
+    assert main(["measure", str(path), "--scale-bar", "60nm", "--out", str(tmp_path / "out"), "--no-lqe"]) == 0
+    printed = capsys.readouterr().out
+    assert f"over {labelled.bar_px} px (a ruled bar" in printed and "data strip" in printed and "bottom" in printed
+    film = measure_image(path, scale_bar="60nm", lqe=False)
+    assert film.nm_per_px == pytest.approx(0.6, rel=0.01)
+    assert film.detection.centres[:, 1].max() < labelled.window[3]  # no dot in the strip
+    assert film.detection.n_dots > 100 and 8.5 < film.summary["mean_diameter_nm"] < 10.5
+    overlay = save_overlay(film, tmp_path / "overlay.png")
+    with Image.open(overlay) as shown:
+        rgb = np.asarray(shown.convert("RGB"), dtype=int)
+    magenta = (rgb[..., 0] > 200) & (rgb[..., 1] < 80) & (rgb[..., 2] > 200)
+    assert magenta.sum() > 100  # the bar used is outlined
+
+
+def test_a_scale_that_makes_the_dots_implausible_is_said_so():
+    plausible = {"nm_per_px": 0.6, "mean_diameter_nm": 9.8}
+    assert "within the 1-100 nm" in scale_check(plausible)
+    assert "outside the 1-100 nm" in scale_check({"nm_per_px": 5.0, "mean_diameter_nm": 83.0 * 5})
+    assert "outside" in scale_check({"nm_per_px": 0.01, "mean_diameter_nm": 0.2})
+    assert "no scale" in scale_check({"nm_per_px": float("nan")})
+
+
+def board_png(path):
+    from qdots.micrograph.synthetic import dense_board
+    from qdots.render import save_png
+
+    centres, diameters = dense_board(200, 200, 15.0, 0.05, seed=4, vacancies=0.3)
+    return save_png(film_state(centres, diameters, (200, 200)), path)
+
+
+@pytest.mark.parametrize("kind", ["plot", "text", "drawing", "board", "noisy text", "noisy drawing"])
+def test_pictures_that_are_not_films_are_refused_in_one_line(kind, tmp_path, capsys):
+    path = tmp_path / "picture.png"
+    if kind == "board":
+        board_png(path)
+    else:
+        drawn = not_a_film(kind.split()[-1], (240, 320))
+        if kind.startswith("noisy"):
+            drawn = np.clip(drawn + 0.03 * np.random.default_rng(1).standard_normal(drawn.shape), 0, 1)
+        Image.fromarray((255 * drawn).astype(np.uint8)).save(path)
+    out = tmp_path / "out"
+    assert main(["measure", str(path), "--out", str(out), "--no-lqe"]) == 2
+    message = one_line_error(capsys)
+    assert "not a micrograph" in message or "not a film" in message
+    assert not out.exists()
+
+
+def test_the_refusal_names_its_reason():
+    flat = np.zeros((200, 200))
+    flat[50:150, 50:150] = 1.0
+    from qdots.micrograph.admit import check_picture
+
+    refused(lambda: check_picture(flat, find_annotations(flat), "square.png"), "square.png", "flat colour")
+
+
+@pytest.mark.slow
+def test_dense_and_ordered_films_meet_the_goals_of_issue_52():
+    from benchmarks.micrograph_films import FILMS, SPREADS, dense_table
+
+    names = [name for name in FILMS if "no vacancies" not in name]  # a perfect touching crystal hides its background
+    _, rows = dense_table(512, names, SPREADS)
+    for row in rows:
+        assert abs(row["measured"] - row["sigma"]) <= 0.015, row
+        assert abs(row["d"]) <= 0.02, row
+        assert row["gr"] >= 1.0 and row["true_gr"] >= 1.0, row
+        assert row["threshold"] < -0.1 < row["d"], row  # a threshold under-sizes projected spheres; the fit does not
+
+
+@pytest.mark.slow
+def test_each_diameters_error_is_that_of_measuring_again():
+    """The error from the film's own residual rolled aside (`repeat_errors`) against a true repeat: the same film
+    imaged twice with independent noise. The estimate leaves out how the blur and background settled on each
+    image differ (a true repeat settles them again), so it may come out lower, never much higher."""
+    from scipy.spatial import cKDTree
+
+    centres, diameters = superlattice_board(512, 512, D, 0.03, 1.0 / 0.6, "hexagonal", seed=1)
+    a, b = (detect_dots(render_micrograph(centres, diameters, (512, 512), seed=s, **IMAGING)) for s in (2, 3))
+    distance, nearest = cKDTree(b.centres).query(a.centres)
+    same = (distance < 2) & ~a.cut & ~b.cut[nearest]
+    true = np.std(a.diameters[same] - b.diameters[nearest[same]]) / np.sqrt(2)
+    estimate = np.sqrt(np.nanmean(a.errors[same] ** 2))
+    assert 0.5 * true <= estimate <= 1.2 * true
