@@ -198,14 +198,17 @@ def test_paths_that_are_not_files_are_said_to_be(tmp_path, capsys):
 def test_measure_writes_into_its_own_folder_by_default_not_beside_the_image(tmp_path, capsys, monkeypatch):
     from PIL import Image
 
+    from qdots.placement import random_sequential
+
     data = tmp_path / "data"
     data.mkdir()
-    board = qdots.placement.random_sequential(40, (160, 160), 14.0, 0.1, rng=3)[0]
+    board = random_sequential(40, (160, 160), 14.0, 0.1, rng=3)[0]
     yy, xx = np.mgrid[:160, :160]
-    picture = np.full((160, 160), 200, dtype=np.uint8)
+    picture = np.full((160, 160), 200.0)
     for x, y in board:
         picture[(xx - x) ** 2 + (yy - y) ** 2 <= 36] = 40
-    Image.fromarray(picture).save(data / "film.png")
+    picture += np.random.default_rng(3).normal(scale=12, size=picture.shape)  # a micrograph's noise
+    Image.fromarray(np.clip(picture, 0, 255).astype(np.uint8)).save(data / "film.png")
     monkeypatch.chdir(tmp_path)
     printed = run_ok(main, ["measure", str(data / "film.png"), "--nm-per-px", "1", "--no-lqe"], capsys).out
     assert sorted(p.name for p in data.iterdir()) == ["film.png"]  # the data folder as it was
