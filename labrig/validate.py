@@ -166,7 +166,7 @@ def array(name: str, value, shape: tuple[int | None, ...], *, limit: float = mat
         except (TypeError, ValueError) as exc:  # ragged nested lists
             raise InputError(f"{name} must be an array of numbers: {exc}") from None
     if raw.size == 0 and raw.dtype.kind not in "iuf":
-        raw = raw.astype(np.float64)
+        raw = np.zeros(raw.shape, dtype=np.float64)  # (an empty array of any kind holds no bad value)
     if raw.dtype.kind not in "iuf":
         raise InputError(f"{name} must hold real numbers, got an array of {raw.dtype}")
     if max_size is not None and raw.size > max_size:

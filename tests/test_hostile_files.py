@@ -454,3 +454,12 @@ def test_control_characters_are_escaped_in_sweep_tables_and_planarize_stderr(tmp
     assert planarize_main(["run", str(scene), "--out", str(tmp_path / "out")]) == 0  # no glyph warning
     captured = capsys.readouterr()
     assert "\x1b" not in captured.out + captured.err and "h\\x1b[31mill" in captured.out
+
+
+def test_an_empty_complex_array_in_a_state_file_is_an_empty_float_array():
+    """A case the state-file fuzzer found: empty arrays of any kind hold no bad value and load as float
+    (casting an empty complex array warned, and warnings are errors)."""
+    from labrig.validate import array
+
+    segments = array("segments", np.zeros((0, 4), dtype=complex), (None, 4))
+    assert segments.shape == (0, 4) and segments.dtype == np.float64
