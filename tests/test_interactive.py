@@ -328,13 +328,13 @@ def test_the_engine_knob_switches_the_running_board_to_the_event_engine_and_back
     for _ in range(4):
         live.advance()
     live.set(engine="event")
-    assert type(live.sim.engine).__name__ == "EventEngine" and live.sim.settings.kind == "event"
+    assert type(live.sim.backend).__name__ == "EventBackend" and live.sim.engine.kind == "event"
     dropped, impacts = live.sim.n_dots, live.sim.collisions.dot_dot
     for _ in range(30):
         live.advance()
     assert live.sim.n_dots == 20 > dropped and live.sim.collisions.dot_dot >= impacts  # the count goes on
     live.set(engine="chipmunk")
     live.advance()
-    assert type(live.sim.engine).__name__ == "ChipmunkEngine" and live.sim.time == pytest.approx(3.5)
+    assert type(live.sim.backend).__name__ == "ChipmunkBackend" and live.sim.time == pytest.approx(3.5)
     with pytest.raises(InputError, match="engine must be one of 'chipmunk', 'event'"):
         live.set(engine="lammps")

@@ -117,7 +117,7 @@ def _identity_of(state_path: Path, sim: Simulation, name: str) -> dict:
     """The identity of the run saved in ``state_path`` (`run_identity`, as `finish` saves it), renamed ``name``;
     for a state saved without one, its dots and engine."""
     saved = checkpoint.read_metadata(state_path).get("run")
-    saved = saved if isinstance(saved, dict) else {"dots": sim.n_dots, "engine": sim.settings.kind}
+    saved = saved if isinstance(saved, dict) else {"dots": sim.n_dots, "engine": sim.engine.kind}
     return {**saved, "name": name}
 
 
@@ -160,7 +160,7 @@ def finish(sim: Simulation, files: OutputSet, stem: str, wall: float, extra: dic
               file=sys.stderr)
     row = {
         **extra,
-        "engine": sim.settings.kind,
+        "engine": sim.engine.kind,
         "dots": summary["n_dots"],
         "time_s": round(state.time, 9),
         "steps": sim.steps_taken,
@@ -171,7 +171,7 @@ def finish(sim: Simulation, files: OutputSet, stem: str, wall: float, extra: dic
         OVERLAP_COLUMN: 100 * summary["max_overlap"],
         "escaped_dots": summary["escaped_dots"],
         # event engine: frames of this run that reached max_events (their rest unmoved, as the thesis's loop)
-        "capped_frames": getattr(sim.engine, "capped_frames", ""),
+        "capped_frames": sim.backend.diagnostics().get("capped_frames", ""),
         "kinetic_energy": summary["kinetic_energy"],
         "state_file": f"{stem}/{stem}.npz",
     }

@@ -340,7 +340,7 @@ def _run_demo(args: argparse.Namespace) -> int:
     scene = qdots.Scene(box=DEMO_BOX, positions=positions, radii=radii)
     sim = qdots.Simulation(scene, [qdots.VanDerWaals(), qdots.ThermalKicks()], seed=sim_seed)
     title = run_title({"name": "qdots demo", "dots": args.dots, "sigma": args.sigma, "mass_model": "equal",
-                       "engine": sim.settings.kind, "seed": args.seed})
+                       "engine": sim.engine.kind, "seed": args.seed})
     start = time.perf_counter()
     with OutputSet(out, "demo") as files:  # locks the set before the run
         if args.no_movie:
