@@ -20,3 +20,11 @@ MAX_MASS = 1e6
 MAX_SPEED = 1e6
 #: Largest Verlet skin of a pair list, px.
 MAX_SKIN = 1000.0
+#: Largest Förster radius, in mean radii (as ``forster_radii``, and for ``forster_radius`` in px): far
+#: beyond any dot film (the thesis uses 2).
+MAX_FORSTER_RADII = 1000.0
+#: Largest ``forster_radius`` on any board, px: `MAX_FORSTER_RADII` radii of the largest dot a scene may
+#: hold (`MAX_LENGTH`). Its sixth power (1e54) is far within a float.
+MAX_FORSTER_PX = MAX_FORSTER_RADII * MAX_LENGTH
+#: Most trap draws `qdots.analysis.lqe.film_lqe` averages (as ``qdots analyze --draws``).
+MAX_DRAWS = 10_000

@@ -92,7 +92,7 @@ class Simulation:
         self.steps_taken = 0
         #: Simulation time at step 0, s (nonzero for a run resumed from a checkpoint).
         self.start_time = 0.0
-        #: Chipmunk sub-steps taken, summed over all steps.
+        #: Sub-steps the engine took, summed over all steps (one a step on an engine without sub-steps).
         self.substeps_taken = 0
         self._schedule = WriterSchedule()
         self._warned_travel = False

@@ -123,10 +123,3 @@ class ExperimentRunner:
 def load_sweep(path: str | os.PathLike) -> SweepFile:
     """Read a qdots sweep file (`labrig.sweeps.files`); its seeds go to the experiment's ``seed``."""
     return load_sweep_file(path, seed_key="seed")
-
-
-def add_sweep_command(subparsers) -> None:
-    """``qdots sweep SWEEP.toml [--out DIR] [--workers N] [--scheduler ADDRESS] [--quick F]``."""
-    from labrig.sweeps.command import add_sweep_command as add
-
-    add(subparsers, "qdots", "qdots experiments", load_sweep, ExperimentRunner, "scale every run down by F (fewer dots, shorter times) for a first look")

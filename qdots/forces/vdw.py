@@ -150,7 +150,7 @@ class VanDerWaals(Force):
     The force states its law (`add_pair_kicks`): how hard a pair at a surface gap pulls over some seconds. Which
     pairs are pulled in which step is the engine's numerical scheme, handed to the force in each step's context
     (`qdots.engine.PairScheme`, ``ctx.pairs``): every pair in range every step by default, as the thesis pulled
-    every pair once per frame, or the far pairs every ``far_interval`` (multiple time stepping). The thesis
+    every pair once per frame, or the far pairs once per interval (multiple time stepping). The thesis
     proxy's cap applies to the pull of the time it is given, a step or an interval, as it did to the thesis's
     frame (it binds only for dots lighter than ~1/400 of the mean mass).
 
