@@ -16,10 +16,12 @@ from __future__ import annotations
 import argparse
 import sys
 from dataclasses import dataclass
-from typing import Callable, Sequence
+from typing import Callable, Sequence, TypeVar
 
 from .launch import INTERRUPTED, interrupted_line
 from .validate import InputError, count, printable, real
+
+T = TypeVar("T")
 
 
 class UsageError(Exception):
@@ -33,7 +35,7 @@ class Parser(argparse.ArgumentParser):
         raise UsageError(f"{message} (see '{self.prog} --help')")
 
 
-def _argument(check) -> Callable[[str], object]:
+def _argument(check: Callable[[str], T]) -> Callable[[str], T]:
     """An argparse type from a `labrig.validate` check: the check's message, without a key (argparse names
     the option)."""
     def parse(text: str):
@@ -93,15 +95,16 @@ def run_main(parser: argparse.ArgumentParser, argv: Sequence[str] | None) -> int
 def interrupted(exc: BaseException) -> bool:
     """Whether ``exc`` is a KeyboardInterrupt or was raised while one was handled (its ``__cause__`` /
     ``__context__`` chain holds one): compiled code interrupted by Ctrl-C raises such wrappers."""
-    seen, pending = set(), [exc]
+    seen: set[int] = set()
+    pending: list[BaseException | None] = [exc]
     while pending:
-        exc = pending.pop()
-        if exc is None or id(exc) in seen:
+        found = pending.pop()
+        if found is None or id(found) in seen:
             continue
-        if isinstance(exc, KeyboardInterrupt):
+        if isinstance(found, KeyboardInterrupt):
             return True
-        seen.add(id(exc))
-        pending += [exc.__cause__, exc.__context__]
+        seen.add(id(found))
+        pending += [found.__cause__, found.__context__]
     return False
 
 

@@ -63,10 +63,12 @@ def __getattr__(name: str):
 
 
 def _engine_settings(**settings):
-    """What ``EngineSettings(**settings)`` of 0.2 meant: the settings of the engine ``kind`` (default chipmunk)."""
+    """What ``EngineSettings(**settings)`` of 0.2 meant: the settings of the engine ``kind`` (default chipmunk); the
+    other engine's settings, which 0.2 took and that engine never read, are checked and dropped."""
     from .engine import engine_from_dict
+    from .io.old_spellings import current_engine
 
-    return engine_from_dict(settings)
+    return engine_from_dict(current_engine(settings))
 
 
 def __dir__() -> list[str]:

@@ -16,7 +16,7 @@ from qdots.forces import FORCE_TYPES, thesis_offset
 from qdots.experiment import Board, Deposition, Experiment
 from qdots.presets import PRESETS, get_preset
 from qdots.io import experiment_file
-from qdots.engine import ENGINES, Chipmunk, Event
+from qdots.engine import ENGINES, Chipmunk
 from qdots.io.experiment_file import (TABLES, experiment_from_toml, experiment_to_toml, load_experiment,
                                       save_experiment, table_params)
 

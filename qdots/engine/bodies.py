@@ -1,11 +1,10 @@
 """Bulk reads and writes of dot positions and velocities.
 
-Reading or writing bodies one by one costs ~12 ms per direction at 3,000 dots. The step's own
-reads (positions and velocities) and writes (velocity changes) go straight to Chipmunk's body memory from
-compiled code, at the offsets `qdots.engine.pymunk_adapter.internals` found: at 300 dots that is ~3 us a
-direction, against ~15 us for a `pymunk.batch` call and its Python wrapping (measured on this 2-core
-machine). Without them (an untested pymunk), the same reads and writes go through `pymunk.batch`, with
-the same numbers.
+Reading or writing bodies one by one is slow at thousands of dots. The step's own reads (positions and
+velocities) and writes (velocity changes) go straight to Chipmunk's body memory from compiled code, at the
+offsets `qdots.engine.pymunk_adapter.internals` found, several times faster than a `pymunk.batch` call and its
+Python wrapping (the measurements: docs/performance.md, "Design measurements"). Without them (an untested
+pymunk), the same reads and writes go through `pymunk.batch`, with the same numbers.
 
 Measured facts the `pymunk.batch` path relies on (pymunk 7.3, checked at construction):
 

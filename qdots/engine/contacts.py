@@ -11,9 +11,9 @@ only in a contact's first step, and a lasting contact was perfectly inelastic: e
 touching neighbour was absorbed, one reason why films of unequal masses came out colder and more
 cohesive than the thesis's model; see `qdots.engine.chipmunk_step` for the other.)
 
-Speed. A film makes hundreds of contacts per Chipmunk step. A Python callback costs ~6 us per contact,
-so the rule is compiled (`impact_elasticity`) and Chipmunk calls it through a C function pointer
-(~0.1 us). The callback reads the two bodies' velocities and the contact normal from Chipmunk's memory
+Speed. A film makes hundreds of contacts per Chipmunk step, too many for a Python callback each, so the rule
+is compiled (`impact_elasticity`) and Chipmunk calls it through a C function pointer (docs/performance.md,
+"Design measurements"). The callback reads the two bodies' velocities and the contact normal from Chipmunk's memory
 (`qdots.engine.pymunk_adapter.internals`); without them (an untested pymunk), the same compiled rule runs from
 a Python callback (slower, same numbers).
 
@@ -26,8 +26,8 @@ bounce would start from there. The thesis's model resolves it at contact (its st
 the sub-step the pair would have separated again by ``e delta``. So every impact would leave the pair
 ``(1 + e) delta`` closer than the model, and with the thesis's van der Waals proxy that is not a small
 error: the proxy acts only at gaps >= 0.1 px and is steepest just above that, so pairs that bounce from
-too close are pulled too hard in the next frame, which injected 11-14 % more energy than the model and
-left the films hotter and, with masses ~ d^3, more fragmented (docs/engines.md, "Energy budget"). The
+too close are pulled too hard in the next frame, which injected more energy than the model and left the
+films hotter and, with masses ~ d^3, more fragmented (the numbers: docs/engines.md, "Energy budget"). The
 callback therefore moves the two bodies of every impact apart along the normal by ``(1 + e) delta``,
 shared in inverse proportion to their masses (all of it on the dot at a wall), where the impact at
 contact would have left them; velocities are not touched. A lasting contact that a kick drives together

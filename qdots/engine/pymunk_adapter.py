@@ -252,9 +252,8 @@ def advance(space: pymunk.Space, h: float, k: int) -> None:
     """Advance ``space`` by ``k`` Chipmunk steps of ``h`` s.
 
     pymunk's ``Space.step`` wraps each C step in Python bookkeeping for what Python callbacks may
-    have asked during it (bodies to check, additions and removals, post-step callbacks): about
-    20 us a step, against ~60 us for the C step of a settled 300-dot film without forces and
-    ~500 us with van der Waals pressing its ~700 contacts (measured on this 2-core machine). With
+    have asked during it (bodies to check, additions and removals, post-step callbacks), a cost of the
+    order of the C step itself on a small film (docs/performance.md, "Design measurements"). With
     `internals`, the steps go straight to Chipmunk unless some of that is pending; the C step is the
     same either way.
     """
