@@ -16,7 +16,7 @@ from qdots.forces import FORCE_TYPES, thesis_offset
 from qdots.experiment import Board, Deposition, Experiment
 from qdots.presets import PRESETS, get_preset
 from qdots.io import experiment_file
-from qdots.engine import ENGINES, Chipmunk
+from qdots.engine import ENGINES, Chipmunk, Event
 from qdots.io.experiment_file import (TABLES, experiment_from_toml, experiment_to_toml, load_experiment,
                                       save_experiment, table_params)
 
@@ -312,3 +312,13 @@ def test_the_python_api_takes_todays_spellings_only():
         Deposition(protocol="center")
     with pytest.raises(ValueError, match=r"unknown preset 'center-gravity' \(known: .*centre-gravity"):
         get_preset("center-gravity")
+
+
+def test_an_event_engine_file_holds_its_own_settings_and_one_key_switches_engines():
+    exp = Experiment(engine=Event(dt=0.01, max_events=2500, buffer=1e-5))
+    text = experiment_to_toml(exp)
+    engine = text[text.index("[engine]"):text.index("[[forces]]")]
+    assert 'kind = "event"' in engine and "max_events = 2500" in engine and "substeps" not in engine
+    assert experiment_from_toml(text) == exp
+    switched = experiment_from_toml(text.replace('kind = "event"', 'kind = "chipmunk"'))
+    assert switched.engine == Chipmunk(dt=0.01)  # the shared settings kept; the event engine's checked, unread

@@ -162,8 +162,10 @@ class LiveRun:
             raise InputError(f"engine must be a qdots.Chipmunk or qdots.Event, got {type(engine).__name__}")
         self.frame_steps = count("frame_steps", frame_steps, 1, MAX_FRAME_STEPS)
         sim_seed, drop_seed = np.random.SeedSequence(seed).spawn(2)
+        #: The settings of each engine the board has run on, by kind: a toggle back finds its own again.
+        self._engines = {engine.kind: engine}
         self.sim = Simulation(scene, self.knobs.forces(scene.box), restitution=Restitution(mean=self.knobs.elasticity),
-                              seed=sim_seed, engine=engine.replace(dt=self.knobs.dt, kind=self.knobs.engine))
+                              seed=sim_seed, engine=self._engine_for(self.knobs))
         self._drop_rng = np.random.default_rng(drop_seed)
         self._drops: collections.deque[_Drop] = collections.deque()
         self._next_drop = -np.inf
@@ -188,13 +190,22 @@ class LiveRun:
         knobs = dataclasses.replace(self.knobs, **changes)
         sim, old = self.sim, self.knobs
         if (knobs.dt, knobs.engine) != (old.dt, old.engine):
-            sim.engine = sim.engine.replace(dt=knobs.dt, kind=knobs.engine)
+            self._engines[sim.engine.kind] = sim.engine
+            sim.engine = self._engine_for(knobs)
         if knobs.elasticity != old.elasticity:
             sim.restitution = dataclasses.replace(sim.restitution, mean=knobs.elasticity)
         forces = knobs.forces(sim.scene.box)
         if [f.to_dict() for f in forces] != [f.to_dict() for f in old.forces(sim.scene.box)]:
             sim.forces = forces
         self.knobs = knobs
+
+    def _engine_for(self, knobs: Knobs) -> Settings:
+        """The settings of the engine ``knobs.engine`` at time step ``knobs.dt``: those it had on this board (or
+        was given), else the current engine's switched to it (`qdots.engine.Settings.replace`)."""
+        known = self._engines.get(knobs.engine)
+        if known is None:
+            known = next(iter(self._engines.values())).replace(kind=knobs.engine)
+        return known.replace(dt=knobs.dt)
 
     def _rebuild(self, board: Scene) -> None:
         """A new simulation of ``board`` that goes on with the old one's time, random stream, forces and writers."""
