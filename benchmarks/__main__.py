@@ -4,7 +4,8 @@
 `benchmarks.BENCHMARKS` (or those named) and writes, under ``DIR`` (default ``docs/``):
 
 * ``performance.json``: every section's results and the machine it ran on (the report's data),
-* ``performance.md``: the report rendered from it (headline table, then one section per benchmark),
+* ``performance.md``: the report rendered from it (headline table, then one section per benchmark, then the
+  design measurements kept by hand in ``benchmarks/design_measurements.md``),
 * ``figures/<name>.png``: the plots.
 
 With ``--only`` the other sections are kept from the previous ``performance.json``, so one
@@ -31,6 +32,8 @@ from . import BENCHMARKS
 from .report import Figure, Headline, Note, load_store, machine_info, machine_line, save_figure, section_markdown
 
 DOCS = Path(__file__).resolve().parent.parent / "docs"
+#: Measurements behind choices in the code, kept by hand: the report's last section.
+DESIGN = Path(__file__).resolve().parent / "design_measurements.md"
 
 
 def run_module(name: str, quick: bool) -> list:
@@ -86,6 +89,7 @@ def render(store: dict) -> str:
                   f"*{s['mode']} run, {s['seconds']:.0f} s, {s['machine']['date']}; "
                   f"re-run alone: `python -m benchmarks --only {name}`, or `python -m benchmarks.{name}`.*",
                   "", s["markdown"]]
+    lines += ["", "## Design measurements", "", DESIGN.read_text(encoding="utf-8").strip()]
     return "\n".join(lines) + "\n"
 
 

@@ -1,11 +1,15 @@
-"""Cold start: the first run after installing (numba compiles every kernel it reaches) against later runs.
+"""Cold start: how fast the command lines answer, and the first run after installing against later runs.
 
-Each command runs twice in a fresh process with its own empty numba cache directory (``NUMBA_CACHE_DIR``):
-first cold, as on a fresh install, then warm, loading what the first run cached. ``compile`` is the cold wall
-time less the warm one. ``error`` compares the two runs' results (the summary table's numbers): compiling or
-loading a kernel must not change what it computes, so 0 is expected.
+The command lines' start: ``qdots --help``, ``--version`` and argument errors (and ``planarize``'s), each run
+`START_REPEATS` times in a fresh process as the console command runs it; the fewest seconds of each are
+reported (the machine may be shared: the fewest is the command's own cost), beside Python's own start.
 
-Run: ``python -m benchmarks.cold_start [--quick]``
+The first run: each command of `COMMANDS` runs twice in a fresh process with its own empty numba cache
+directory (``NUMBA_CACHE_DIR``): first cold, as on a fresh install, then warm, loading what the first run cached.
+``compile`` is the cold wall time less the warm one. ``error`` compares the two runs' results (the summary
+table's numbers): compiling or loading a kernel must not change what it computes, so 0 is expected.
+
+Run: ``python -m benchmarks.cold_start [--quick] [--start-only]``
 """
 
 from __future__ import annotations
@@ -29,6 +33,45 @@ COMMANDS = {
 }
 #: Longest a command may take, s.
 TIMEOUT = 1800
+#: The command-line answers timed: (program, arguments); the first ones must load no simulator.
+STARTS = [
+    ("python", []),  # Python's own start, for scale
+    ("qdots", ["--help"]), ("qdots", ["--version"]), ("qdots", ["nosuch"]), ("qdots", ["run"]),
+    ("qdots", ["run", "x.toml", "--engine", "verlet"]), ("qdots", ["preset", "nosuch"]), ("qdots", ["analyze"]),
+    ("planarize", ["--help"]), ("planarize", ["--version"]), ("planarize", ["nosuch"]),
+    ("qdots", ["measure"]), ("planarize", ["run"]),  # their parsers read bounds in the simulators' modules
+]
+#: How often each answer is timed (`--quick`: fewer).
+START_REPEATS = 9
+#: How the console commands start (setuptools' entry-point script, ``labrig.launch``).
+CONSOLE = "import sys; from labrig.launch import {prog}; sys.exit({prog}())"
+
+
+def start_seconds(prog: str, argv: list[str], repeats: int) -> list[float]:
+    """Wall seconds of ``repeats`` fresh processes answering ``prog argv`` as the console command does."""
+    code = "pass" if prog == "python" else CONSOLE.format(prog=prog)
+    out = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        subprocess.run([sys.executable, "-c", code, *argv], capture_output=True, timeout=TIMEOUT)
+        out.append(time.perf_counter() - start)
+    return out
+
+
+def starts(repeats: int) -> list:
+    """The table of the command lines' start, and its headline."""
+    rows = []
+    for prog, argv in STARTS:
+        seconds = sorted(start_seconds(prog, argv, repeats))
+        rows.append([" ".join([prog, *argv]) if prog != "python" else "python -c pass", seconds[0],
+                     seconds[len(seconds) // 2]])
+    worst = max(row[1] for row in rows[1:-2])
+    return [Table(f"Command-line start (s, whole process, {repeats} runs each)", ["command", "fewest", "median"], rows,
+                  note="As the console commands run (``labrig.launch``); the fewest is the command's own cost on a "
+                       "machine others share. The last two build parsers whose bounds live in the simulators' modules "
+                       "(the micrograph reader's, planarize's engines)."),
+            Headline("command-line start: --help, --version and argument errors", f"{worst:.2f} s at most (fewest "
+                     f"of {repeats})", "n/a")]
 
 
 def timed_run(argv: list[str], out: Path, cache: Path) -> float:
@@ -70,7 +113,10 @@ def difference(a: dict, b: dict) -> float:
     return worst
 
 
-def run(quick: bool) -> list:
+def run(quick: bool, start_only: bool = False) -> list:
+    results = starts(3 if quick else START_REPEATS)
+    if start_only:
+        return results
     rows, headlines = [], []
     for name, (argv, table) in COMMANDS.items():
         argv = argv + (["--seconds", "2"] if quick and argv[0] == "qdots" else [])
@@ -87,14 +133,15 @@ def run(quick: bool) -> list:
                   note="cold: a fresh numba cache, as after installing; warm: the same command again. The bars "
                        "say when they compile and leave it out of their ETA."),
             Note("The first run of each command compiles its kernels once per machine (and again after an "
-                 "upgrade of numba or of the package); every later run loads them."), *headlines]
+                 "upgrade of numba or of the package); every later run loads them."), *headlines, *results]
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="shorter runs")
+    parser.add_argument("--start-only", action="store_true", help="only the command lines' start")
     args = parser.parse_args(argv)
-    print_results(run(args.quick))
+    print_results(run(args.quick, args.start_only))
     return 0
 
 

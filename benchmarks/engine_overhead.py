@@ -42,7 +42,7 @@ from qdots.engine.allocator import tune_allocator
 from .report import Figure, Headline, Note, Table
 
 #: The default time step, ms.
-DT_MS = 1e3 * qdots.EngineSettings().dt
+DT_MS = 1e3 * qdots.Chipmunk().dt
 #: Sizes of the scaling run (``run``), full and quick.
 SIZES = {False: [300, 1000, 3000, 10000, 30000, 100000], True: [300, 1000, 3000]}
 
@@ -215,7 +215,7 @@ def run(quick: bool) -> list:
 
 def machine() -> str:
     """The machine and versions; whether the allocator was tuned (the cached result of the call the simulations
-    built before made, `qdots.EngineSettings.tune_allocator`)."""
+    built before made, `qdots.Chipmunk.tune_allocator`)."""
     import os
 
     return (f"python {platform.python_version()}, pymunk {pymunk.version}, numpy {np.__version__}, "

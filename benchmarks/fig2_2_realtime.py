@@ -7,7 +7,7 @@ and reports for each setting:
 
 * wall time per run (the overlap sampling below excluded) and the real-time multiple
   (simulated s / wall s), and the speed-up against the default settings;
-* Chipmunk sub-steps per time step (the sub-steps adapt to approach speeds, `qdots.engine.stepping`);
+* Chipmunk sub-steps per time step (the sub-steps adapt to approach speeds, `qdots.engine.chipmunk_step`);
 * the worst overlap (r_i + r_j - d) / mean radius, sampled every 20 ms of simulated time (the
   thesis's kick interval) and at the end: mean over seeds and the worst seed;
 * the restitution error |measured - drawn| of an isolated head-on impact at the same settings;
@@ -45,7 +45,7 @@ from qdots.presets import get_preset
 
 from .report import Headline, Note, Table
 
-#: (label, engine settings changed from the preset's, `qdots.EngineSettings` keywords, the van der Waals
+#: (label, engine settings changed from the preset's, `qdots.Chipmunk` keywords, the van der Waals
 #: pair list's knobs among them); the first is the converged reference of the paired differences, the second
 #: the default.
 SETTINGS = [
@@ -83,7 +83,7 @@ class WorstOverlap:
         self.wall += time.perf_counter() - start
 
 
-def restitution_error(settings: qdots.EngineSettings, seed: int = 3) -> float:
+def restitution_error(settings: qdots.Chipmunk, seed: int = 3) -> float:
     """|measured - drawn| restitution of an isolated head-on impact at ``settings``."""
     scene = qdots.Scene(box=(400, 200), positions=[[170, 100], [230, 100]], radii=[7.5, 7.5],
                         velocities=[[40.0, 0.0], [-25.0, 0.0]])
@@ -160,7 +160,7 @@ def tables(runs: dict, settings, preset: str, workers: int) -> list:
         wall = float(np.mean([r["wall_s"] for r in rs]))
         default_wall = float(np.mean([r["wall_s"] for r in shared_seeds(default, rs)[0]]))
         worst = [r["worst_overlap_pct"] for r in rs]
-        engine = qdots.EngineSettings(**changes)
+        engine = qdots.Chipmunk(**changes)
         speed_rows.append([label, len(rs), 1e3 * engine.dt, float(np.mean([r["substeps"] for r in rs])), wall,
                            first["simulated_s"] / wall, default_wall / wall, float(np.mean(worst)),
                            float(np.max(worst)), restitution_error(engine)])
@@ -220,7 +220,7 @@ def run(quick: bool, seeds: int | None = None, workers: int | None = None) -> li
                         "sampling excluded). Packing differences are paired by seed against the converged "
                         "reference: dt = 0.25 ms, 10 solver iterations, every van der Waals pair pulled every "
                         "step; `1 ms, fixed sub-steps` (10 iterations, vdW every step) is the step of 0.2 on this "
-                        "engine (0.2 also handed the forces to Chipmunk differently, see `qdots.engine.stepping`)."))
+                        "engine (0.2 also handed the forces to Chipmunk differently, see `qdots.engine.chipmunk_step`)."))
     for preset in PRESETS:
         results += tables(runs, settings, preset, workers)
     return results

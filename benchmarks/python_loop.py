@@ -24,10 +24,10 @@ class LoopForces:
     """van der Waals (thesis proxy) + thermal kicks + drag on a pymunk space, one body at a time."""
 
     def __init__(self, space: pymunk.Space, vdw: qdots.VanDerWaals, kicks: qdots.ThermalKicks, drag: qdots.Drag,
-                 settings: qdots.EngineSettings, restitution: qdots.Restitution):
-        if vdw.model != "thesis" or vdw.contact != "hold" or vdw.split(settings):
+                 pairs: qdots.engine.PairScheme, restitution: qdots.Restitution):
+        if vdw.model != "thesis" or vdw.contact != "hold" or pairs.splits(vdw.max_gap):
             raise ValueError("the loop version implements VanDerWaals('thesis', contact='hold') with every pair "
-                             "every step (EngineSettings(far_interval=None)) only")
+                             "every step (PairScheme(far_interval=None)) only")
         #: The proxy's offset b under the collision rule ``restitution``, px.
         self.offset = vdw.proxy_offset(restitution.sticking_speed)
         self.bodies = [b for b in space.bodies if b.body_type == pymunk.Body.DYNAMIC]

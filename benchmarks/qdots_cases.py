@@ -1,6 +1,6 @@
 """Test problems of the qdots engine with exact or converged answers, each timed as it runs.
 
-Every case takes engine settings (`qdots.EngineSettings` keywords, the van der Waals pair list's
+Every case takes engine settings (`qdots.Chipmunk` keywords, the van der Waals pair list's
 ``pair_skin``, ``near_gap`` and ``far_interval`` among them) and returns a `Measured`: the error against
 the exact answer and the wall time per simulated second of the same run.
 
@@ -38,10 +38,10 @@ from scipy.integrate import solve_ivp
 import qdots
 from qdots.analysis import overlaps
 from qdots.forces import StepContext
-from qdots.hard_cases import loose_film
+from qdots.diagnostics.hard_cases import loose_film
 
 #: The engine's defaults (the knob values marked on every plot).
-DEFAULTS = qdots.EngineSettings().to_dict()
+DEFAULTS = qdots.Chipmunk().to_dict()
 #: The collision rule of the elastic gas: elastic impacts and walls, no sticking.
 ELASTIC = qdots.Restitution(mean=1.0, wall=1.0, sticking_speed=0.0)
 
@@ -196,14 +196,14 @@ def dense_pack(settings: dict, quick: bool, gravity: float) -> Measured:
 
 
 # ---------------------------------------------------------------- the vdW force against a plain pair search
-def vdw_change(sim: qdots.Simulation, force: qdots.VanDerWaals, settings: qdots.EngineSettings,
+def vdw_change(sim: qdots.Simulation, force: qdots.VanDerWaals, settings: qdots.Chipmunk,
                cache: dict) -> np.ndarray:
     """The velocity change ``force`` gives in the simulation's next step, from its present state, under the engine
     ``settings`` with the force's per-run ``cache`` (its pair lists)."""
     state = sim.state()
     ctx = StepContext(time=sim.time, dt=sim.dt, x=state.positions[:, 0].copy(), y=state.positions[:, 1].copy(),
                       velocity=state.velocities, radii=sim.radii, masses=sim.masses,
-                      rng=np.random.default_rng(0), dv=np.zeros_like(state.velocities), settings=settings,
+                      rng=np.random.default_rng(0), dv=np.zeros_like(state.velocities), pairs=settings.pairs,
                       restitution=sim.restitution, cache=cache)
     force.kick(ctx)
     return ctx.dv
@@ -218,10 +218,10 @@ def vdw_against(sim: qdots.Simulation, changes: dict, steps: int, summed: bool) 
     """
     force = next(f for f in sim.forces if isinstance(f, qdots.VanDerWaals))
     own, other = sim.force_cache(force), {}  # the run's own pair lists, and fresh ones for the other settings
-    other_settings = sim.settings.replace(**changes)
+    other_settings = sim.engine.replace(**changes)
     worst, totals = 0.0, 0.0
     for _ in range(steps):
-        dv, dv_other = vdw_change(sim, force, sim.settings, own), vdw_change(sim, force, other_settings, other)
+        dv, dv_other = vdw_change(sim, force, sim.engine, own), vdw_change(sim, force, other_settings, other)
         if summed:
             totals = totals + np.stack([dv, dv_other])
         else:

@@ -2,7 +2,7 @@
 
 Why does the Chipmunk engine end its films 5-25 % hotter than the event engine (the thesis's algorithm)? Each
 engine runs the same films, full size, seeds 154-158 (`--quick`: boards scaled down 10x, seeds 154-155), with
-an `qdots.energy_budget.EnergyBudget` attached: the free film with masses ~ d^3 at sigma 10 % (the
+an `qdots.diagnostics.energy_budget.EnergyBudget` attached: the free film with masses ~ d^3 at sigma 10 % (the
 ``fig2-6`` setting, dots split into mass terciles) and with equal masses at sigma 0 (``fig2-2`` a).
 
 * **Budget per frame**, over the settling (the last 100 s, every dot on the board): energy injected by the van
@@ -33,7 +33,7 @@ from matplotlib.figure import Figure as MplFigure
 
 import qdots
 from qdots.analysis import packing_summary
-from qdots.energy_budget import EnergyBudget
+from qdots.diagnostics.energy_budget import EnergyBudget
 from qdots.analysis.structure import clusters
 from qdots.experiment import build_simulation, populate
 from qdots.presets import get_preset
@@ -121,7 +121,7 @@ def paired(board, sigma: float, model: str, engine: tuple, seed: int) -> np.ndar
     scene = qdots.Scene(box=board.box, positions=board.positions, radii=board.radii, masses=board.masses,
                         velocities=board.velocities, from_engine=True)
     sim = qdots.Simulation(scene, [qdots.VanDerWaals(), qdots.ThermalKicks()], seed=seed,
-                           engine=qdots.EngineSettings(kind=kind, **changes))
+                           engine=qdots.engine.ENGINES[kind](**changes))
     budget = EnergyBudget(mass_edges(sigma, model)).attach(sim)
     sim.run(PAIRED_FRAMES * sim.dt)
     budget.finish(sim)

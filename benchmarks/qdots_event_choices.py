@@ -74,7 +74,7 @@ def one_run(args) -> dict:
     return {"film": film, "variant": variant, "seed": seed, "wall": time.perf_counter() - start,
             "interior": summary["interior_fraction"], "aggregates": float(np.sum(sizes >= 5)),
             "largest": float(sizes[0] / sizes.sum()), "speed": float(np.hypot(*state.velocities.T).mean()),
-            "capped": sim.engine.capped_frames, "events": sim.engine.events}
+            "capped": sim.backend.diagnostics()["capped_frames"], "events": sim.backend.diagnostics()["events"]}
 
 
 def mean_se(values) -> tuple[float, float]:
@@ -116,7 +116,7 @@ def run(quick: bool) -> list:
         Note("A shift above 2 SE means the choice matters for the figures; our choice rests on the thesis's text: "
              "Eq 2.3 is a pair force (equal and opposite, once per pair), and the Java's epsilonSpace is 1e-6; step 5 "
              "caps the loop at a number of iterations (the Java's 2,500), which we raise so that a frame's "
-             "collisions are resolved (qdots.EngineSettings.max_events says what the Java's cap does to a film)."),
+             "collisions are resolved (qdots.Event.max_events says what the Java's cap does to a film)."),
     ]
 
 

@@ -1,11 +1,11 @@
-"""qdots hard cases (`qdots.hard_cases`): each run and checked, with the time it takes.
+"""qdots hard cases (`qdots.diagnostics.hard_cases`): each run and checked, with the time it takes.
 
 Run: ``python -m benchmarks.qdots_hard_cases [--quick]``
 """
 
 from __future__ import annotations
 
-from qdots.hard_cases import CASES, SAMPLE, check, passed
+from qdots.diagnostics.hard_cases import CASES, SAMPLE, check, passed
 
 from .report import Headline, Note, Table, cli
 

@@ -12,7 +12,7 @@ simulation with no forces at fixed sub-steps (``overlap_tolerance = None``) agai
 ``space.step`` called directly, and an open board against a closed one (no dot reaches a wall in
 the timed steps), must give bit-identical boards (error = largest position difference, 0
 expected) at the same cost within noise. The default ``no forces`` row adapts its sub-steps to
-the approach speeds (`qdots.engine.stepping`): it is not bare Chipmunk but a more accurate integration,
+the approach speeds (`qdots.engine.chipmunk_step`): it is not bare Chipmunk but a more accurate integration,
 so it is reported with its sub-steps per step and its worst overlap beside the direct steps'.
 ``bulk I/O only`` is a force that adds nothing: what any force pays for reading and writing the
 velocities.
@@ -118,7 +118,7 @@ def _advance(sim: qdots.Simulation, raw: bool, steps: int) -> None:
         sim.step(steps)
         return
     for _ in range(steps):  # what Simulation.step does with no forces, minus its bookkeeping
-        sim.engine.space.step(sim.dt)
+        sim.backend.space.step(sim.dt)
     sim.steps_taken += steps
     sim.substeps_taken += steps
 
@@ -131,7 +131,7 @@ def table(rows: list[dict]) -> Table:
         out.append([r["N"], r["label"], r["ms"], f"+- {r['noise']:.2f}", f"{added:+.2f}",
                     f"{r['forces_ms']:.4f}", f"{r['substeps']:.2f}", f"{r['overlap']:.3f}",
                     r["difference"], r["wall_contacts"]])
-    return Table(f"ms per step (dt {1e3 * qdots.EngineSettings().dt:g} ms) of each force alone, from the same board",
+    return Table(f"ms per step (dt {1e3 * qdots.Chipmunk().dt:g} ms) of each force alone, from the same board",
                  ["N", "simulation", "ms/step (median)", "noise (IQR/2)", "vs no forces", "force phase ms/step",
                   "Chipmunk sub-steps per step", "worst overlap (% r)",
                   "error: max position difference (px)", "wall contacts"], out)

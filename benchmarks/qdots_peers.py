@@ -36,7 +36,7 @@ import numpy as np
 import qdots
 from qdots.analysis import overlaps
 from qdots.forces import StepContext
-from qdots.hard_cases import loose_film
+from qdots.diagnostics.hard_cases import loose_film
 
 from . import lammps_scene
 from .python_loop import LoopForces
@@ -82,7 +82,7 @@ def ours(n: int, fraction: float, seconds: float, dt: float | None = None, warmu
     """qdots on the peer scene at its defaults, or at time step ``dt`` s."""
     positions, velocities, box = initial_board(n, fraction)
     scene = qdots.Scene(box=(box, box), positions=positions, radii=np.full(n, RADIUS), velocities=velocities)
-    settings = qdots.EngineSettings() if dt is None else qdots.EngineSettings(dt=dt)
+    settings = qdots.Chipmunk() if dt is None else qdots.Chipmunk(dt=dt)
     sim = qdots.Simulation(scene, [qdots.Langevin(GAMMA, KT)], restitution=qdots.Restitution(mean=RESTITUTION),
                            seed=1, engine=settings)
     sim.run(warmup)
@@ -99,7 +99,7 @@ def ours(n: int, fraction: float, seconds: float, dt: float | None = None, warmu
             "overlap": sampler.worst, "kT": float(np.mean(sampler.kT)), "restitution": our_restitution_error(settings)}
 
 
-def our_restitution_error(settings: qdots.EngineSettings, seed: int = 3) -> float:
+def our_restitution_error(settings: qdots.Chipmunk, seed: int = 3) -> float:
     scene = qdots.Scene(box=(300, 200), positions=[[100, 100], [117, 100]], radii=[RADIUS, RADIUS],
                         velocities=[[IMPACT_SPEED / 2, 0.0], [-IMPACT_SPEED / 2, 0.0]])
     sim = qdots.Simulation(scene, restitution=qdots.Restitution(mean=RESTITUTION), seed=seed, engine=settings)
@@ -167,7 +167,7 @@ def loop_row(n: int, rounds: int) -> dict:
     forces = [qdots.VanDerWaals(contact="hold"), qdots.ThermalKicks(), qdots.Drag()]  # the model the loop writes
     vector = qdots.Simulation(scene, forces, seed=1, far_interval=None)
     plain = qdots.Simulation(scene, [], seed=1, far_interval=None)
-    loop = LoopForces(plain.engine.space, *forces, plain.settings, plain.restitution)
+    loop = LoopForces(plain.backend.space, *forces, plain.engine.pairs, plain.restitution)
     error = loop_error(plain, loop, forces)
     vector.step(5)  # first pair-list build
     vector.timings.update(forces=0.0, pymunk=0.0)
@@ -192,7 +192,7 @@ def loop_error(sim: qdots.Simulation, loop: LoopForces, forces) -> float:
         raise RuntimeError("pymunk's body order differs from the simulation's")
     ctx = StepContext(time=time_, dt=dt, x=state.positions[:, 0].copy(), y=state.positions[:, 1].copy(),
                       velocity=state.velocities, radii=sim.radii, masses=sim.masses,
-                      rng=np.random.default_rng(7), dv=np.zeros_like(state.velocities), settings=sim.settings,
+                      rng=np.random.default_rng(7), dv=np.zeros_like(state.velocities), pairs=sim.engine.pairs,
                       restitution=sim.restitution)
     for force in forces:
         ctx.cache = {}  # each force's own, fresh for this state

@@ -19,4 +19,4 @@ One module per job, no physics, no knowledge of either package:
 """
 
 #: The version of the distribution (qdots, planarize and labrig are released together).
-__version__ = "0.2.0"
+__version__ = "0.3.0"

@@ -160,11 +160,12 @@ def _check_sizes(members: dict, max_bytes: Mapping[str, int]) -> dict[str, int]:
     """The limit of each member, bytes of values: every member covered by ``max_bytes`` and within it (with
     its header), all of them within `MAX_ARCHIVE_BYTES` and the memory available (their sizes as the archive
     declares them: no member is read beyond its size, whatever its compressed data inflates to)."""
-    limits = {}
+    limits: dict[str, int] = {}
     for name, info in members.items():
-        limit = limits[name] = _limit(name, max_bytes)
+        limit = _limit(name, max_bytes)
         if limit is None:
             raise InputError(f"it holds an array {name!r}, which this format has not")
+        limits[name] = limit
         if info.file_size > limit + _HEADER_BYTES:
             raise InputError(f"its array {name!r} is {info.file_size:,} bytes, more than the {limit:,} this format "
                              "holds")

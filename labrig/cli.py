@@ -5,16 +5,23 @@ Bad input never prints a usage dump or a traceback: `run_main` turns it (an argp
 stderr and exit status 2 (130 when interrupted: ``PROG: interrupted``, with what had been written whole by then
 when a `labrig.launch.LateInterrupt` says so). Any other exception is a bug and keeps its
 traceback.
+
+A command line answers at once: each subcommand is a `Command` whose arguments are added only when it is
+the one chosen (`command_line`), so ``PROG --help``, ``PROG --version`` and a wrong command import nothing of
+the simulators, and a subcommand imports only what its own arguments need.
 """
 
 from __future__ import annotations
 
 import argparse
 import sys
-from typing import Callable, Sequence
+from dataclasses import dataclass
+from typing import Callable, Sequence, TypeVar
 
 from .launch import INTERRUPTED, interrupted_line
 from .validate import InputError, count, printable, real
+
+T = TypeVar("T")
 
 
 class UsageError(Exception):
@@ -28,7 +35,7 @@ class Parser(argparse.ArgumentParser):
         raise UsageError(f"{message} (see '{self.prog} --help')")
 
 
-def _argument(check) -> Callable[[str], object]:
+def _argument(check: Callable[[str], T]) -> Callable[[str], T]:
     """An argparse type from a `labrig.validate` check: the check's message, without a key (argparse names
     the option)."""
     def parse(text: str):
@@ -88,46 +95,50 @@ def run_main(parser: argparse.ArgumentParser, argv: Sequence[str] | None) -> int
 def interrupted(exc: BaseException) -> bool:
     """Whether ``exc`` is a KeyboardInterrupt or was raised while one was handled (its ``__cause__`` /
     ``__context__`` chain holds one): compiled code interrupted by Ctrl-C raises such wrappers."""
-    seen, pending = set(), [exc]
+    seen: set[int] = set()
+    pending: list[BaseException | None] = [exc]
     while pending:
-        exc = pending.pop()
-        if exc is None or id(exc) in seen:
+        found = pending.pop()
+        if found is None or id(found) in seen:
             continue
-        if isinstance(exc, KeyboardInterrupt):
+        if isinstance(found, KeyboardInterrupt):
             return True
-        seen.add(id(exc))
-        pending += [exc.__cause__, exc.__context__]
+        seen.add(id(found))
+        pending += [found.__cause__, found.__context__]
     return False
 
 
-def add_command(subparsers, name: str, func: Callable[[argparse.Namespace], int], help: str,
-                description: str | None = None) -> argparse.ArgumentParser:
-    """Register the subcommand ``name``, run by ``func``.
+@dataclass(frozen=True)
+class Command:
+    """One subcommand of a command line (`command_line`).
 
     Parameters
     ----------
-    subparsers
-        What ``add_subparsers`` returned (the argument of each entry of `command_line`'s ``commands``).
     name : str
         The subcommand's name.
-    func : callable
-        ``func(args)`` runs it and returns the exit status.
     help : str
         Its line in the list of commands.
+    run : callable
+        ``run(args)`` runs it and returns the exit status.
+    arguments : callable, optional
+        ``arguments(parser)`` adds its arguments to its parser; called only when the command is the one chosen
+        (or the whole parser is built), so it may import what they need (choices, bounds).
     description : str, optional
-        What its ``--help`` says first; default ``func``'s docstring.
-
-    Returns
-    -------
-    argparse.ArgumentParser
-        The subcommand's parser, for its arguments.
+        What its ``--help`` says first; default ``run``'s docstring.
     """
-    p = subparsers.add_parser(name, help=help, description=description or func.__doc__)
-    p.set_defaults(func=func)
-    return p
+
+    name: str
+    help: str
+    run: Callable[[argparse.Namespace], int]
+    arguments: Callable[[argparse.ArgumentParser], None] | None = None
+    description: str | None = None
 
 
-def command_line(prog: str, description: str, commands: Sequence[Callable]) -> tuple[Callable, Callable]:
+#: `command_line`'s ``build_parser(command=EVERY)``: the arguments of every command (for documentation and tests).
+EVERY = "\0every"
+
+
+def command_line(prog: str, description: str, commands: Sequence[Command]) -> tuple[Callable, Callable]:
     """The ``build_parser`` and ``main`` of a command line of subcommands, ``PROG [--version] COMMAND ...``.
 
     Parameters
@@ -136,32 +147,38 @@ def command_line(prog: str, description: str, commands: Sequence[Callable]) -> t
         The command's name.
     description : str
         What ``PROG --help`` says first.
-    commands : sequence of callable
-        One per subcommand, in the order ``--help`` lists them: ``add(subparsers)`` registers it
-        (with `add_command`).
+    commands : sequence of Command
+        The subcommands, in the order ``--help`` lists them.
 
     Returns
     -------
     build_parser : callable
-        ``build_parser()``: a `Parser` with ``--version`` and one subparser per entry of ``commands``.
+        ``build_parser(command=EVERY)``: a `Parser` with ``--version`` and one subparser per command; only
+        ``command``'s gets its arguments (every command's by default, none for None).
     main : callable
-        ``main(argv=None)``: runs the command line (`run_main`) and returns the exit status: 0 on
-        success, 2 on bad input (a one-line ``PROG: error: ...`` on stderr).
+        ``main(argv=None)``: runs the command line (`run_main`) with only the chosen command's arguments built,
+        and returns the exit status: 0 on success, 2 on bad input (a one-line ``PROG: error: ...`` on stderr).
     """
-    def build_parser() -> Parser:
-        """The argument parser: ``--version`` and one subparser per command."""
+    def build_parser(command: str | None = EVERY) -> Parser:
+        """The argument parser: ``--version`` and one subparser per command (arguments: see `command_line`)."""
         from . import __version__
 
         parser = Parser(prog=prog, description=description)
         parser.add_argument("--version", action="version", version=f"{prog} {__version__}")
         subparsers = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
-        for add in commands:
-            add(subparsers)
+        for entry in commands:
+            p = subparsers.add_parser(entry.name, help=entry.help, description=entry.description or entry.run.__doc__)
+            p.set_defaults(func=entry.run)
+            if entry.arguments is not None and command in (EVERY, entry.name):
+                entry.arguments(p)
         return parser
 
     def main(argv: Sequence[str] | None = None) -> int:
         """Run the command line; returns the exit status (0 on success, 2 on bad input: one line on stderr)."""
-        return run_main(build_parser(), argv)
+        argv = sys.argv[1:] if argv is None else list(argv)
+        # the top level takes options without values only (--help, --version): its first other word is the command
+        chosen = next((word for word in argv if not word.startswith("-")), None)
+        return run_main(build_parser(chosen), argv)
 
     return build_parser, main
 

@@ -33,7 +33,7 @@ def jit(function=None, *, inline: bool = False):
 def c_callback(signature: str):
     """Compile a function with a C signature (e.g. ``"void(voidptr, voidptr, voidptr)"``); its
     ``.address`` is the C function pointer."""
-    return numba.cfunc(signature, nopython=True, cache=True, error_model="numpy")
+    return numba.cfunc(signature, cache=True, error_model="numpy")  # compiled without Python objects, as every cfunc
 
 
 @intrinsic

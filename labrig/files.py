@@ -63,10 +63,10 @@ def remove_stale_temporaries(directory: str | os.PathLike, older_than: float = S
     A process that is killed mid-write leaves its temporary file behind; a newer one may belong to
     a writer still running, so it is kept. Returns the files removed.
     """
-    removed = []
+    removed: list[Path] = []
     now = time.time()
     try:
-        entries = list(os.scandir(directory))
+        entries = list(os.scandir(os.fspath(directory)))
     except OSError:
         return removed
     for entry in entries:

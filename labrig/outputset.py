@@ -154,7 +154,7 @@ class OutputSet(AllOrNothing):
                 carried = self._carry_over(names)
                 for name, write in self._updates:
                     updates.append(self._rewrite(name, write))
-                self._staging.switch(then=lambda: [os.replace(tmp, path) for tmp, path in updates])
+                self._staging.switch(then=lambda: self._replace_all(updates))
                 self._committed = True
                 self.written = [self.target(name) for name in names + carried]
                 self.updated = [path for _, path in updates]
@@ -166,6 +166,12 @@ class OutputSet(AllOrNothing):
         finally:
             self._staged, self._updates = [], []
         return self.written
+
+    @staticmethod
+    def _replace_all(updates: list[tuple[Path, Path]]) -> None:
+        """Move each rewritten table into place (``(temporary, path)`` pairs, in order)."""
+        for temporary, path in updates:
+            os.replace(temporary, path)
 
     def _close_streams(self) -> list[str]:
         """Close the streams; the staged names that hold a file (a stream that wrote nothing has none)."""

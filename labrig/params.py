@@ -89,6 +89,8 @@ class Param:
             raise ValueError("a 'pair' Param takes two parts, no other kind takes parts")
         if self.kind == "str" and not self.choices and math.isinf(self.high):
             raise ValueError("a 'str' Param takes choices or a longest length (high)")
+        if self.kind == "int" and not self.choices and not math.isfinite(self.low):
+            raise ValueError("an 'int' Param takes a finite lowest value (low)")
 
     @property
     def file_kind(self) -> str:
@@ -106,7 +108,7 @@ class Param:
             return real(key, value, self.low, self.high, low_open=self.low_open, high_open=self.high_open,
                         unit=self.unit)
         if self.kind == "int":
-            return count(key, value, self.low, None if math.isinf(self.high) else self.high)
+            return count(key, value, int(self.low), None if math.isinf(self.high) else int(self.high))
         if self.kind == "str":
             return text(key, value, int(self.high))
         if self.kind == "bool":

@@ -36,16 +36,18 @@ import shutil
 import signal
 import threading
 import time
+import types
 from dataclasses import dataclass
 from pathlib import Path
 
+from .launch import LateInterrupt
+from .validate import InputError
+
+fcntl: types.ModuleType | None
 try:
     import fcntl
 except ImportError:  # pragma: no cover - not POSIX: no locks; a staging directory is live while its pid runs
     fcntl = None
-
-from .launch import LateInterrupt
-from .validate import InputError
 
 #: Name of a staging directory: ``.staging-NAME-<pid>-<8 hex digits>``; ``.old`` after it: the earlier set of a
 #: two-rename switch.
@@ -160,7 +162,7 @@ class StagingEntry:
 def staging_entries(directory: str | os.PathLike) -> list[StagingEntry]:
     """The staging directories in ``directory`` (live or not), by name."""
     found = []
-    with os.scandir(directory) as entries:
+    with os.scandir(os.fspath(directory)) as entries:
         for entry in entries:
             match = STAGING_PATTERN.match(entry.name) if entry.name.startswith(PREFIX) else None
             if match and entry.is_dir(follow_symlinks=False):

@@ -64,7 +64,8 @@ def _structure_problem(text: str) -> str | None:
     while (mark := _MARK.search(text, pos)) is not None:
         char, pos = mark.group(), mark.end()
         if char in _STRING_REST:
-            pos = _STRING_REST[char].match(text, pos).end()
+            rest = _STRING_REST[char].match(text, pos)
+            pos = rest.end() if rest is not None else len(text)  # the patterns match any text (maybe empty)
         elif char == "#":
             end = text.find("\n", pos)
             pos = len(text) if end < 0 else end
@@ -99,7 +100,7 @@ def _structure_problem(text: str) -> str | None:
 def _value_problem(data: dict) -> str | None:
     """What in parsed TOML is out of bounds (None if nothing is): nesting deeper than `MAX_DEPTH` (the
     top-level table is 1) or an integer outside `INT_RANGE`."""
-    pending = [(data, 1, "")]
+    pending: list[tuple[dict | list, int, str]] = [(data, 1, "")]
     while pending:
         node, depth, where = pending.pop()
         if depth > MAX_DEPTH:

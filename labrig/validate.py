@@ -18,17 +18,23 @@ nothing is allocated for a typo (`count`, `within_memory`).
 `InputError` is a ``ValueError``: code that catches ``ValueError`` keeps working, and the command
 lines (`labrig.cli.run_main`) report it in one line, while any other exception is a bug and keeps
 its traceback.
+
+The module imports numpy only where an array or a generator is asked for, so that a command line checks
+its arguments without loading it.
 """
 
 from __future__ import annotations
 
 import math
-import os
 import numbers
+import os
+import sys
+from typing import TYPE_CHECKING
 
-import numpy as np
+if TYPE_CHECKING:
+    import numpy as np
 
-__all__ = ["InputError", "number", "interval", "is_real", "real", "count", "seed", "generator", "choice", "flag", "text", "reals",
+__all__ = ["InputError", "number", "interval", "is_bool", "is_real", "real", "count", "seed", "generator", "choice", "flag", "text", "reals",
            "array", "typed", "within_memory", "available_memory", "printable", "MAX_SEED"]
 
 #: Largest seed accepted (numpy's generators take any integer >= 0; this keeps seeds within 64 bits).
@@ -54,9 +60,17 @@ def interval(low: float = -math.inf, high: float = math.inf, low_open: bool = Fa
     return f"in {'(' if low_open else '['}{number(low)}, {number(high)}{')' if high_open else ']'}"
 
 
+def is_bool(value) -> bool:
+    """True for ``True``, ``False`` and numpy's booleans (a numpy boolean exists only once numpy is loaded)."""
+    if isinstance(value, bool):
+        return True
+    numpy = sys.modules.get("numpy")
+    return numpy is not None and isinstance(value, numpy.bool_)
+
+
 def is_real(value) -> bool:
     """True for a real number (int, float, numpy scalars); False for booleans, strings, complex numbers."""
-    return isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_))
+    return isinstance(value, numbers.Real) and not is_bool(value)
 
 
 def real(name: str, value, low: float = -math.inf, high: float = math.inf, *, low_open: bool = False,
@@ -88,7 +102,7 @@ def real(name: str, value, low: float = -math.inf, high: float = math.inf, *, lo
 
 def count(name: str, value, low: int = 0, high: int | None = None) -> int:
     """``value`` as an int in ``[low, high]``; `InputError` naming ``name`` and the range otherwise."""
-    ok = isinstance(value, numbers.Integral) and not isinstance(value, (bool, np.bool_))
+    ok = isinstance(value, numbers.Integral) and not is_bool(value)
     if ok:
         value = int(value)
         ok = value >= low and (high is None or value <= high)
@@ -106,11 +120,13 @@ def seed(name: str, value) -> int:
 def generator(name: str, rng) -> np.random.Generator:
     """A numpy random Generator from what people pass: a Generator (used as is), a SeedSequence, an
     integer seed in [0, `MAX_SEED`] or None (fresh entropy)."""
+    import numpy as np
+
     if isinstance(rng, np.random.Generator):
         return rng
     if rng is None or isinstance(rng, np.random.SeedSequence):
         return np.random.default_rng(rng)
-    if isinstance(rng, numbers.Integral) and not isinstance(rng, (bool, np.bool_)):
+    if isinstance(rng, numbers.Integral) and not is_bool(rng):
         return np.random.default_rng(seed(name, rng))
     raise InputError(f"{name} must be a numpy Generator, a SeedSequence, an integer seed >= 0 or None, got {rng!r}")
 
@@ -124,7 +140,7 @@ def choice(name: str, value, allowed):
 
 def flag(name: str, value) -> bool:
     """``value`` if it is ``True`` or ``False`` (not ``"no"``, not 0)."""
-    if not isinstance(value, (bool, np.bool_)):
+    if not is_bool(value):
         raise InputError(f"{name} must be true or false, got {value!r}")
     return bool(value)
 
@@ -158,6 +174,8 @@ def array(name: str, value, shape: tuple[int | None, ...], *, limit: float = mat
     Integer and float arrays are accepted; booleans, strings, complex numbers, dates and objects are
     not. ``limit`` bounds the magnitude of every element and ``max_size`` the number of elements.
     """
+    import numpy as np
+
     if isinstance(value, np.ndarray):
         raw = value
     else:
@@ -247,11 +265,11 @@ def _as_kind(value, kind: str):
     if kind == "float":
         return float(value) if is_real(value) else None
     if kind == "int":
-        return int(value) if isinstance(value, numbers.Integral) and not isinstance(value, (bool, np.bool_)) else None
+        return int(value) if isinstance(value, numbers.Integral) and not is_bool(value) else None
     if kind == "str":
         return value if isinstance(value, str) else None
     if kind == "bool":
-        return bool(value) if isinstance(value, (bool, np.bool_)) else None
+        return bool(value) if is_bool(value) else None
     if not isinstance(value, (list, tuple)):
         return None
     if kind == "floats":

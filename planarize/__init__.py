@@ -6,14 +6,49 @@
 >>> run.history["oxide_rms_nm"][-1]                        # doctest: +SKIP
 """
 
+import importlib
+import sys
+import types
+
 from labrig import __version__  # noqa: F401 (one version for the distribution)
 
-from . import engines, surfaces
-from .anodize import Anodization, Snapshot, anodize
-from .engines import Fast, Matlab, Reference
-from .metrics import rms, z_range
-from .model import Model
-from .heightfield import Surface
+#: Where each public name lives (imported when first used, so that ``planarize --help`` loads no engine).
+_NAMES = {"Anodization": "anodize", "Snapshot": "anodize", "Continuum": "engines", "Fast": "engines",
+          "Matlab": "engines", "Reference": "engines", "rms": "metrics", "z_range": "metrics", "Model": "model",
+          "Surface": "heightfield"}
+_MODULES = ("engines", "surfaces")
 
-__all__ = ["Surface", "Model", "anodize", "Anodization", "Snapshot", "Fast", "Reference", "Matlab", "rms", "z_range",
-           "surfaces", "engines"]
+__all__ = ["Surface", "Model", "anodize", "Anodization", "Snapshot", "Continuum", "Fast", "Reference", "Matlab", "rms",
+           "z_range", "surfaces", "engines"]
+
+
+def __getattr__(name: str):
+    if name in _NAMES:
+        value = getattr(importlib.import_module(f".{_NAMES[name]}", __name__), name)
+    elif name in _MODULES:
+        value = importlib.import_module(f".{name}", __name__)
+    else:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *__all__})
+
+
+class _Package(types.ModuleType):
+    """The package's module: ``planarize.anodize`` is the function, also once its module ``planarize/anodize.py``
+    is imported (which makes the import system set the package's attribute of that name to the module; the
+    module stays in ``sys.modules``)."""
+
+    @property
+    def anodize(self):
+        return importlib.import_module(".anodize", __name__).anodize
+
+    @anodize.setter
+    def anodize(self, module) -> None:
+        pass
+
+
+sys.modules[__name__].__class__ = _Package

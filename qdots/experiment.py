@@ -27,7 +27,8 @@ from .forces import Force, ThermalKicks, VanDerWaals, force_from_dict
 from .placement import MAX_TRIES
 from .protocols import GAP, MASS_MODELS, MAX_INTERVAL, deposit, deposit_around_centre, ring_radius
 from .scene import MAX_DOTS, MAX_LENGTH, MAX_MASS, MIN_DIAMETER, Scene
-from .simulation import MAX_STEPS, EngineSettings, Simulation
+from .engine import Chipmunk, Settings
+from .simulation import MAX_STEPS, Simulation
 
 #: Deposition protocols: dots at random in the board (or grating channel), or on a ring around a centre.
 PROTOCOLS = ("random", "centre")
@@ -168,8 +169,8 @@ class Experiment:
     forces : tuple of dict
         Forces as ``Force.to_dict()`` tables (Force instances are accepted and
         converted); stored in full, every parameter spelled out.
-    engine : qdots.EngineSettings
-        Time step, sub-steps, solver iterations, ...
+    engine : qdots.Chipmunk or qdots.Event
+        The engine and its numerical knobs (time step, sub-steps, ...); default ``qdots.Chipmunk()``.
     """
 
     name: str = "experiment"
@@ -179,7 +180,7 @@ class Experiment:
     deposition: Deposition = field(default_factory=Deposition)
     restitution: Restitution = field(default_factory=Restitution)
     forces: tuple = field(default_factory=default_forces)
-    engine: EngineSettings = field(default_factory=EngineSettings)
+    engine: Settings = field(default_factory=Chipmunk)
 
     #: Declarations of the top-level fields: checks and file comments (`labrig.params`).
     PARAMS: ClassVar[dict[str, Param]] = {
@@ -195,10 +196,10 @@ class Experiment:
             _set(self, "grating", 0.0)
         check_fields(self, self.PARAMS)
         for key, cls in (("board", Board), ("deposition", Deposition), ("restitution", Restitution),
-                         ("engine", EngineSettings)):
+                         ("engine", Settings)):
             if not isinstance(getattr(self, key), cls):
-                raise InputError(f"{key} must be a {cls.__module__}.{cls.__name__}, "
-                                 f"got {type(getattr(self, key)).__name__}")
+                what = "qdots.Chipmunk or qdots.Event" if key == "engine" else f"{cls.__module__}.{cls.__name__}"
+                raise InputError(f"{key} must be a {what}, got {type(getattr(self, key)).__name__}")
         if isinstance(self.forces, (dict, str, Force)) or not hasattr(self.forces, "__iter__"):
             raise InputError(f"forces must be a sequence of force tables, got {self.forces!r}")
         _set(self, "forces", tuple(_canonical_force(k, f) for k, f in enumerate(self.forces)))

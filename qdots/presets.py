@@ -17,16 +17,22 @@
 Figure runs set gravity and friction to zero (``setGravity(0)``,
 ``setFriction(0, 0)``): only van der Waals attraction and thermal kicks act.
 Every run uses the Java's seed, ``new Random(154)``, as its root seed.
+
+`NAMES` is known at import; the experiments (`PRESETS`) are made when first
+used, so that the command line lists the presets without loading the
+simulators.
 """
 
 from __future__ import annotations
 
+import functools
 import math
+from typing import TYPE_CHECKING
 
 from labrig.validate import InputError, real
 
-from .experiment import Board, Deposition, Experiment, default_forces
-from .forces import CentreGravity, Drag
+if TYPE_CHECKING:
+    from .experiment import Experiment
 
 #: Root seed of every preset (the Java's ``new Random(154)``).
 THESIS_SEED = 154
@@ -41,6 +47,8 @@ QUICK_FACTOR = 0.1
 def _film(name: str, sigma: float, *, n_dots: int = 300, mass_model: str = "equal", grating: float = 0.0,
           heavy_mass: float = 2.0) -> Experiment:
     """A ``runRandomAttraction*`` run: random deposition, 1 s apart, 100 s to settle, vdW + kicks."""
+    from .experiment import Board, Deposition, Experiment, default_forces
+
     deposition = Deposition(protocol="random", n_dots=n_dots, mean_diameter=MEAN_DIAMETER, sigma=sigma,
                             mass_model=mass_model, heavy_mass=heavy_mass, interval=1.0, settle=100.0)
     return Experiment(name=name, seed=THESIS_SEED, board=Board(600.0, 600.0, True), grating=grating,
@@ -49,6 +57,9 @@ def _film(name: str, sigma: float, *, n_dots: int = 300, mass_model: str = "equa
 
 def _central(name: str, sigma: float, n_dots: int = 500) -> Experiment:
     """A ``runRandomCenterGravity`` run: ring deposition 0.5 s apart, centre gravity and drag."""
+    from .experiment import Board, Deposition, Experiment, default_forces
+    from .forces import CentreGravity, Drag
+
     deposition = Deposition(protocol="centre", n_dots=n_dots, mean_diameter=MEAN_DIAMETER, sigma=sigma,
                             mass_model="equal", interval=0.5, settle=15.0)
     forces = default_forces() + (CentreGravity((300.0, 300.0), 750.0).to_dict(),
@@ -66,15 +77,28 @@ def _fig2_6() -> tuple[Experiment, ...]:
     return tuple(runs)
 
 
-#: Every preset by name: a tuple of experiments, in the thesis's order.
-PRESETS: dict[str, tuple[Experiment, ...]] = {
-    "fig2-2": (_film("fig2-2a sigma=0", 0.0), _film("fig2-2b sigma=0.15", 0.15)),
-    "fig2-3": (_film("fig2-3a grating sigma=0", 0.0, n_dots=150, mass_model="volume", grating=GRATING_WIDTH),
-               _film("fig2-3b grating sigma=0.15", 0.15, n_dots=150, mass_model="volume",
-                     grating=GRATING_WIDTH)),
-    "fig2-6": _fig2_6(),
-    "centre-gravity": (_central("central sigma=0", 0.0), _central("central sigma=0.15", 0.15)),
+#: How each preset's experiments are made, by name, in the thesis's order.
+_MAKERS = {
+    "fig2-2": lambda: (_film("fig2-2a sigma=0", 0.0), _film("fig2-2b sigma=0.15", 0.15)),
+    "fig2-3": lambda: (_film("fig2-3a grating sigma=0", 0.0, n_dots=150, mass_model="volume", grating=GRATING_WIDTH),
+                       _film("fig2-3b grating sigma=0.15", 0.15, n_dots=150, mass_model="volume",
+                             grating=GRATING_WIDTH)),
+    "fig2-6": _fig2_6,
+    "centre-gravity": lambda: (_central("central sigma=0", 0.0), _central("central sigma=0.15", 0.15)),
 }
+#: The presets' names, in the thesis's order.
+NAMES = tuple(_MAKERS)
+
+
+@functools.cache
+def _presets() -> dict[str, tuple[Experiment, ...]]:
+    return {key: make() for key, make in _MAKERS.items()}
+
+
+def __getattr__(name: str):
+    if name == "PRESETS":  # every preset by name: a tuple of experiments, made once, when first asked for
+        return _presets()
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def get_preset(name: str, quick: bool | float = False) -> list[Experiment]:
@@ -83,7 +107,7 @@ def get_preset(name: str, quick: bool | float = False) -> list[Experiment]:
     Parameters
     ----------
     name : str
-        One of `PRESETS` (``"fig2-2"``, ``"fig2-3"``, ``"fig2-6"``, ``"centre-gravity"``).
+        One of `NAMES` (``"fig2-2"``, ``"fig2-3"``, ``"fig2-6"``, ``"centre-gravity"``).
     quick : bool or float
         False: the thesis's sizes. True: `Experiment.quick` with `QUICK_FACTOR`
         (0.1). A number in (0, 1]: that factor.
@@ -97,9 +121,10 @@ def get_preset(name: str, quick: bool | float = False) -> list[Experiment]:
     ValueError
         On an unknown name (the message lists the known ones) or a bad ``quick``.
     """
-    if name not in PRESETS:
-        raise InputError(f"unknown preset {name!r} (known: {', '.join(PRESETS)})")
+    if name not in NAMES:
+        raise InputError(f"unknown preset {name!r} (known: {', '.join(NAMES)})")
+    runs = _presets()[name]
     if quick is False:
-        return list(PRESETS[name])
+        return list(runs)
     factor = QUICK_FACTOR if quick is True else real("quick", quick, 0.0, 1.0, low_open=True)
-    return [exp.quick(factor) for exp in PRESETS[name]]
+    return [exp.quick(factor) for exp in runs]

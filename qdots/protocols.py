@@ -218,8 +218,8 @@ def deposit(sim, n_dots: int, mean_diameter: float = 15.0, sigma: float = 0.0, r
 
     Returns
     -------
-    ndarray, shape (n_dots,)
-        Diameters of the dots placed, px, in order.
+    ndarray, shape (N,)
+        Diameters of the ``N = n_dots`` dots placed, px, in order.
 
     Raises
     ------
@@ -265,8 +265,8 @@ def deposit_around_centre(sim, n_dots: int, centre, mean_diameter: float = 15.0,
 
     Returns
     -------
-    ndarray, shape (n_dots,)
-        Diameters placed, px.
+    ndarray, shape (N,)
+        Diameters of the ``N = n_dots`` dots placed, px.
 
     Raises
     ------

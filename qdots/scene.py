@@ -17,20 +17,7 @@ import numpy as np
 from labrig.validate import InputError, array, flag, is_real, number, real, reals
 
 from .geometry import DiscTree, worst_overlap, worst_wall_overlap
-
-#: Most dots a scene holds (Chipmunk needs about 1 kB per dot).
-MAX_DOTS = 1_000_000
-#: Most static segments besides the box edges.
-MAX_SEGMENTS = 100_000
-#: Largest board side and largest coordinate, px.
-MAX_LENGTH = 1e6
-#: Smallest mean dot diameter a deposition takes, px: ten thousandths of the thesis's 15 px (below it a dot moves
-#: many radii per step under any force, and sizes near 1e-300 px overflow the motion's checks).
-MIN_DIAMETER = 0.01
-#: Largest mass, in mean dot masses (and smallest: its inverse).
-MAX_MASS = 1e6
-#: Largest speed given as input, px/s (a mean dot crosses the thesis's board in 0.6 ms).
-MAX_SPEED = 1e6
+from .limits import MAX_DOTS, MAX_LENGTH, MAX_MASS, MAX_SEGMENTS, MAX_SPEED, MIN_DIAMETER  # noqa: F401 (public here too)
 
 
 def _positive(name: str, arr: np.ndarray, high: float) -> None:

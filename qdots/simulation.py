@@ -4,19 +4,21 @@ A `Scene` says what exists; a `Simulation` holds what acts on it and what record
 
 * ``sim.forces`` -- the forces (`qdots.forces`), replaceable between runs (``sim.forces = [...]``);
 * ``sim.restitution`` -- the collision rule (`qdots.Restitution`), replaceable between runs;
-* ``sim.settings`` -- the engine's numerical knobs (`qdots.EngineSettings`), replaceable between runs;
+* ``sim.engine`` -- the engine and its numerical knobs (`qdots.Chipmunk` or `qdots.Event`), replaceable
+  between runs;
 * writers -- anything with a ``write(state)`` method, attached once with a trigger
   (``sim.attach(movie, every=200)`` or ``seconds=0.5``) and given the state on that schedule in
   every later run.
 
-Everything a run needs while it runs (the Chipmunk space and bodies, the collision callbacks and their
-record, the sub-step plan, each force's per-run cache) belongs to its engine, ``sim.engine``
-(`qdots.engine.ChipmunkEngine`): forces and the collision rule hold physics only, so one force object can
-serve any number of simulations.
+Everything a run needs while it runs (Chipmunk's space and bodies or the event engine's arrays, the collision
+record, each force's per-run cache) belongs to the backend the engine's settings build, ``sim.backend``
+(`qdots.engine.Backend`, the engine protocol): forces and the collision rule hold physics only, so one force
+object can serve any number of simulations.
 """
 
 from __future__ import annotations
 
+import warnings
 from typing import Iterable, Sequence
 
 import numpy as np
@@ -24,9 +26,8 @@ import numpy as np
 from labrig.progress import progress_bar
 from labrig.validate import InputError, generator, real
 
-from .engine import ENGINE_CLASSES
+from .engine import Backend, Settings, engine_from_dict
 from .engine.contacts import CollisionRecord, stream_key
-from .engine.settings import OVERLAP_CORRECTION, EngineSettings  # noqa: F401 (public here too)
 from .forces.base import Force
 from .motion import SAFE_TRAVEL, RunawayError, check_motion, describe_forces, warn_travel  # noqa: F401
 from .restitution import Restitution
@@ -42,19 +43,16 @@ OVERLAP_WARNING = 0.1
 MAX_STEPS = 1_000_000_000
 #: Fewest steps between two checks of the dots' motion in `Simulation.run` (a check reads the whole board).
 CHECK_EVERY = 50
-#: Settings the forces' numerical methods read: changing one empties the forces' caches.
-FORCE_NUMERICS = ("pair_skin", "near_gap", "far_interval")
 
 
 class Simulation:
-    """Dots of a `Scene` moving under forces and a collision rule, on the Chipmunk engine.
+    """Dots of a `Scene` moving under forces and a collision rule, on an engine.
 
-    Each step (`qdots.engine.stepping`): read all positions and velocities in bulk, choose the Chipmunk
-    sub-steps so that no dot travels more than ``overlap_tolerance`` radii into a contact within
-    one, let every force add its velocity change (evaluated where the dots are at the end of the
-    first sub-step), hand that change to Chipmunk as a body force, and advance Chipmunk, which moves
-    the dots, adds the forces' velocity change, and resolves contacts with the partial-elasticity
-    rule (`qdots.engine.contacts`). With no forces and ``overlap_tolerance=None`` the bulk read is skipped.
+    Each time step, every force adds its velocity change where the dots are at the step's start (the thesis's
+    frame: "acceleration ... is added only at the beginning of each time step as a change in velocity"); the
+    engine then moves the dots to the step's end and resolves their collisions with the partial-elasticity rule:
+    Chipmunk's impulse solver in planned sub-steps (`qdots.Chipmunk`, the default) or the thesis's exact events
+    (`qdots.Event`).
 
     Parameters
     ----------
@@ -68,23 +66,22 @@ class Simulation:
         Seed of the simulation's generator. Every random draw (collision
         elasticities, thermal noise) comes from it, so equal seeds give
         bit-identical runs.
-    engine : EngineSettings, optional
-        The engine's numerical knobs; default ``EngineSettings()``.
+    engine : qdots.Chipmunk or qdots.Event, optional
+        The engine and its numerical knobs; default ``qdots.Chipmunk()``.
     **settings
-        Shorthand for ``engine=EngineSettings(**settings)`` (e.g. ``dt=2e-3``).
+        Shorthand for the engine's settings (e.g. ``dt=2e-3``, or ``kind="event"``; `qdots.engine.engine_from_dict`).
     """
 
     def __init__(self, scene: Scene, forces: Iterable[Force] = (), *, restitution: Restitution | None = None,
-                 seed: int | np.random.SeedSequence | None = None, engine: EngineSettings | None = None,
+                 seed: int | np.random.SeedSequence | None = None, engine: Settings | None = None,
                  **settings):
         if not isinstance(scene, Scene):
             raise InputError(f"scene must be a qdots.Scene, got {type(scene).__name__}")
         if engine is not None and settings:
-            raise InputError(f"give engine=EngineSettings(...) or the settings {sorted(settings)}, not both")
+            raise InputError(f"give engine=qdots.Chipmunk(...) (or Event) or the settings {sorted(settings)}, not both")
         if engine is None:
-            engine = EngineSettings.from_dict(settings)
-        if not isinstance(engine, EngineSettings):
-            raise InputError(f"engine must be a qdots.EngineSettings, got {type(engine).__name__}")
+            engine = engine_from_dict(settings)
+        _check_engine("engine", engine)
         restitution = Restitution() if restitution is None else restitution
         if not isinstance(restitution, Restitution):
             raise InputError(f"restitution must be a qdots.Restitution, got {type(restitution).__name__}")
@@ -95,14 +92,15 @@ class Simulation:
         self.steps_taken = 0
         #: Simulation time at step 0, s (nonzero for a run resumed from a checkpoint).
         self.start_time = 0.0
-        #: Chipmunk sub-steps taken, summed over all steps.
+        #: Sub-steps the engine took, summed over all steps (one a step on an engine without sub-steps).
         self.substeps_taken = 0
         self._schedule = WriterSchedule()
         self._warned_travel = False
         self._forces: tuple[Force, ...] = ()
-        #: The engine: everything a run needs while it runs (`qdots.engine.ChipmunkEngine` or `EventEngine`).
-        self.engine = ENGINE_CLASSES[engine.kind](scene.wall_segments(), restitution, engine, stream_key(self.rng),
-                                                  scene.positions, scene.velocities, scene.radii, scene.masses)
+        #: The engine of this simulation, built by its settings: everything a run needs while it runs
+        #: (`qdots.engine.Backend`).
+        self.backend: Backend = engine.build(scene.wall_segments(), restitution, stream_key(self.rng), scene.positions,
+                                             scene.velocities, scene.radii, scene.masses)
         self.forces = forces
 
     # -- what acts on the dots ----------------------------------------------------------------
@@ -124,22 +122,21 @@ class Simulation:
             force.check_run(self.dt)
             force.check_rule(self._restitution)
         self._forces = forces
-        self.engine.forget_forces()
+        self.backend.forget_forces()
 
     @property
-    def settings(self) -> EngineSettings:
-        """The engine's knobs; assign new `EngineSettings` to change them between runs.
+    def engine(self) -> Settings:
+        """The engine and its knobs (`qdots.Chipmunk` or `qdots.Event`); assign new settings between runs.
 
-        The time step, iterations, slop and bias apply at once; a different spatial index or
-        thread count rebuilds Chipmunk's space from the board (as `reseat` does); a different pair
-        skin, near gap or far interval empties the forces' caches.
+        Settings of the same engine go to its backend (`qdots.engine.Backend.retune`), which applies them and
+        rebuilds from the board what needs it; another engine's settings build that engine on the current board,
+        with the same collision record. The time so far is kept either way.
         """
         return self._settings
 
-    @settings.setter
-    def settings(self, settings: EngineSettings) -> None:
-        if not isinstance(settings, EngineSettings):
-            raise InputError(f"settings must be a qdots.EngineSettings, got {type(settings).__name__}")
+    @engine.setter
+    def engine(self, settings: Settings) -> None:
+        _check_engine("engine", settings)
         for force in self._forces:
             force.check_run(settings.dt)
         time_now = self.time
@@ -147,17 +144,24 @@ class Simulation:
         if settings.dt != old.dt:  # the time so far is kept; steps count from here with the new step
             self._schedule.restart(self.steps_taken, settings.dt)
             self.start_time, self.steps_taken = time_now, 0
-        if settings.kind != old.kind:  # another engine goes on from this board, with the same record
-            board, record = self.current_scene(), self.engine.collisions
-            self.engine = ENGINE_CLASSES[settings.kind](board.wall_segments(), self._restitution, settings, record.key,
-                                                        board.positions, board.velocities, board.radii, board.masses)
-            self.engine.collisions.copy_from(record)
-        elif (old.spatial_hash, old.threads) != (settings.spatial_hash, settings.threads):
-            self.reseat()
-        else:
-            self.engine.tune(settings)
-        if any(getattr(old, name) != getattr(settings, name) for name in FORCE_NUMERICS):
-            self.engine.forget_forces()
+        if type(settings) is type(old):
+            self.backend.retune(settings)
+            return
+        board, record = self.current_scene(), self.backend.collisions  # another engine goes on from this board
+        self.backend = settings.build(board.wall_segments(), self._restitution, record.key, board.positions,
+                                      board.velocities, board.radii, board.masses)
+        self.backend.collisions.copy_from(record)
+
+    @property
+    def settings(self) -> Settings:
+        """Deprecated alias of `engine` (0.3; removed in 0.4)."""
+        _deprecated("Simulation.settings", "Simulation.engine")
+        return self.engine
+
+    @settings.setter
+    def settings(self, settings: Settings) -> None:
+        _deprecated("Simulation.settings", "Simulation.engine")
+        self.engine = settings
 
     @property
     def restitution(self) -> Restitution:
@@ -171,35 +175,36 @@ class Simulation:
         for force in self._forces:
             force.check_rule(rule)
         self._restitution = rule
-        self.engine.set_restitution(rule)
-        self.engine.forget_forces()  # the sticking speed enters the thesis's van der Waals proxy
+        self.backend.set_restitution(rule)
+        self.backend.forget_forces()  # the sticking speed enters the thesis's van der Waals proxy
 
     @property
     def collisions(self) -> CollisionRecord:
         """Counts of impacts and the position in the elasticity draws (`qdots.engine.contacts.CollisionRecord`)."""
-        return self.engine.collisions
+        return self.backend.collisions
 
     @property
     def timings(self) -> dict:
-        """Wall-clock seconds spent in the force phase and in Chipmunk's steps, over all steps."""
-        return self.engine.timings
+        """Wall-clock seconds spent in each part of the engine's steps (the forces, the engine's own work), over
+        all steps."""
+        return self.backend.timings
 
     @property
     def radii(self) -> np.ndarray:
         """Dot radii, px (read-only)."""
-        return self.engine.radii
+        return self.backend.radii
 
     @property
     def masses(self) -> np.ndarray:
         """Dot masses, mean dot masses (read-only)."""
-        return self.engine.masses
+        return self.backend.masses
 
     def force_cache(self, force: Force) -> dict:
         """What ``force`` (one of `forces`) derived from the dots in this simulation: its pair lists, per-dot
         constants (the engine owns it; a benchmark reads a pair list's ``rebuilds`` there)."""
         for k, candidate in enumerate(self._forces):
             if candidate is force:
-                return self.engine.force_cache(k)
+                return self.backend.force_cache(k)
         raise InputError(f"{force!r} is not one of this simulation's forces")
 
     # -- writers --------------------------------------------------------------------------------
@@ -254,7 +259,7 @@ class Simulation:
                       velocities=velocities)
         if fresh.n_dots:
             check_clear(fresh, self.state(), self.scene.segments)
-            self.engine.add_dots(fresh.positions, fresh.velocities, fresh.radii, fresh.masses)
+            self.backend.add_dots(fresh.positions, fresh.velocities, fresh.radii, fresh.masses)
 
     def current_scene(self) -> Scene:
         """The board as it is now, as a `Scene` (``from_engine=True``: soft-contact overlaps and dots
@@ -264,7 +269,7 @@ class Simulation:
                                   radii=state.radii, masses=state.masses, from_engine=True)
 
     def reseat(self) -> None:
-        """Rebuild Chipmunk's space from the current board.
+        """Rebuild the engine from the current board (`qdots.engine.Backend.rebuild`).
 
         Positions, velocities, time, the generator, the forces and the writers carry over;
         Chipmunk's contact cache and spatial index start afresh, exactly as in
@@ -273,11 +278,11 @@ class Simulation:
         checkpoint therefore continue bit for bit alike.
         """
         board = self.current_scene()
-        self.engine.build(self._settings, board.positions, board.velocities, board.radii, board.masses)
+        self.backend.rebuild(board.positions, board.velocities, board.radii, board.masses)
 
     @property
     def n_dots(self) -> int:
-        return self.engine.n_dots
+        return self.backend.n_dots
 
     @property
     def dt(self) -> float:
@@ -295,7 +300,7 @@ class Simulation:
         """Advance ``n`` time steps (no writers, no checks: `run` is the checked way)."""
         for _ in range(int(n)):
             try:
-                k = self.engine.step(self._forces, self._settings, self.time, self.rng)
+                k = self.backend.step(self._forces, self.time, self.rng)
             except (ValueError, OverflowError, MemoryError, FloatingPointError, RuntimeError):
                 self._check_motion()  # a blown-up board makes the pair searches fail: say what happened
                 raise
@@ -367,23 +372,23 @@ class Simulation:
         """Stop when the dots leave the model's range; warn (once) when contacts can be missed at this speed."""
         if not self.n_dots:
             return
-        position, velocity = self.engine.read()
+        position, velocity = self.backend.read()
 
         def describe() -> tuple[str, str]:
             forces = describe_forces(self._forces)
             return f"at t = {self.time:g} s (step {self.steps_taken})", f"the forces ({forces}) or the time step"
 
-        sub_dt = self.dt / max(self.engine.last_substeps, self._settings.substeps)  # the last step's sub-step
-        travel = check_motion(position, velocity, self.radii, sub_dt, self.scene.box, describe)
-        if self._settings.overlap_tolerance is not None:  # contacts are planned for: warn only when capped
-            travel = self.engine.take_capped_travel()
+        travel = check_motion(position, velocity, self.radii, self.backend.substep(), self.scene.box, describe)
+        unplanned = self.backend.take_unplanned_travel()
+        if unplanned is not None:  # the engine plans for its contacts: warn only when it could not
+            travel = unplanned
         if travel > SAFE_TRAVEL and not self._warned_travel:
             self._warned_travel = True
             warn_travel(travel, f"at t = {self.time:g} s")
 
     def state(self) -> State:
         """A snapshot of the board (copies of every array)."""
-        position, velocity = self.engine.read()
+        position, velocity = self.backend.read()
         return State(
             time=self.time,
             positions=position,
@@ -400,8 +405,19 @@ class Simulation:
         v = np.asarray(velocities, dtype=float)
         if v.shape != (self.n_dots, 2) or not np.isfinite(v).all():
             raise InputError(f"velocities must be a finite ({self.n_dots}, 2) array, got shape {v.shape}")
-        self.engine.write_velocities(v)
+        self.backend.write_velocities(v)
 
     def __repr__(self) -> str:
-        return (f"Simulation(n_dots={self.n_dots}, t={self.time:g} s, dt={self.dt:g} s, "
-                f"substeps={self._settings.substeps}, forces={list(self._forces)})")
+        return (f"Simulation(n_dots={self.n_dots}, t={self.time:g} s, engine={self._settings!r}, "
+                f"forces={list(self._forces)})")
+
+
+def _check_engine(name: str, engine) -> None:
+    """`InputError` unless ``engine`` is the settings of an engine (`qdots.Chipmunk`, `qdots.Event`)."""
+    if not isinstance(engine, Settings) or type(engine) is Settings:
+        raise InputError(f"{name} must be the settings of an engine, qdots.Chipmunk(...) or qdots.Event(...), "
+                         f"got {type(engine).__name__}")
+
+
+def _deprecated(old: str, new: str) -> None:
+    warnings.warn(f"{old} is deprecated since 0.3 and goes in 0.4: use {new}", DeprecationWarning, stacklevel=3)

@@ -18,7 +18,6 @@ import planarize
 from benchmarks.planarize_continuum import converged, level, relative
 from benchmarks.report import Figure, Table
 from planarize import Model, render, surfaces
-from planarize.engines import Continuum
 
 from .item import Item, Quote, make_items, mean_se, pm
 

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 import qdots
-from qdots import hard_cases
+from qdots.diagnostics import hard_cases
 from qdots.analysis import lqe, lqe_thesis, packing, report, structure
 from qdots.analysis.forster import TAU_NS, exciton_network
 from qdots.geometry import MAX_DISTANCES, MAX_PAIRS, segment_distances
@@ -23,7 +23,7 @@ from qdots.protocols import deposit
 from labrig.figures import MAX_DPI
 from qdots.render import save_png
 from qdots.scene import MAX_DOTS, MAX_SEGMENTS, Scene, grating_segments
-from qdots.engine.settings import EngineSettings
+from qdots.engine import Chipmunk
 from qdots.simulation import MAX_STEPS
 
 from helpers import refused
@@ -106,7 +106,7 @@ def long_case():
 
 
 THESIS_DT = 0.999e-3 * TAU_NS  # n_excitons = MAX_EXCITONS at this dt: just above MAX_THESIS_STEPS
-DEPOSITS = MAX_STEPS // round(1e4 / EngineSettings().dt) + 1  # dots 1e4 s apart: just above MAX_STEPS
+DEPOSITS = MAX_STEPS // round(1e4 / Chipmunk().dt) + 1  # dots 1e4 s apart: just above MAX_STEPS
 RNG = np.random.default_rng(0)
 
 #: (call, words its one-line message holds): each asks for just more than one bound.

@@ -70,7 +70,7 @@ def test_saved_file_is_plain_numpy_and_json(tmp_path):
         assert f["positions"].shape == (80, 2)
         assert f["segments"].tolist() == [[0, 120, 60, 120]]
     assert meta["format"] == "qdots-state" and meta["version"] == 1
-    assert meta["steps_taken"] == round(0.04 / qdots.EngineSettings().dt) and meta["engine"]["substeps"] == 2
+    assert meta["steps_taken"] == round(0.04 / qdots.Chipmunk().dt) and meta["engine"]["substeps"] == 2
     assert [f["type"] for f in meta["forces"]] == ["VanDerWaals", "ThermalKicks", "Drag", "Langevin"]
     state = qdots.read_state(path)
     np.testing.assert_array_equal(state.positions, sim.state().positions)

@@ -145,7 +145,7 @@ def test_large_overlap_at_a_coarse_time_step_is_measured_and_warned_not_refused(
     captured = capsys.readouterr()
     saved = tmp_path / "out" / "coarse" / "coarse.npz"
     state = qdots.read_state(saved)
-    assert qdots.load(saved).settings.overlap_tolerance is None  # as the file said
+    assert qdots.load(saved).engine.overlap_tolerance is None  # as the file said
     overlap = qdots.analysis.overlaps(state)[0]
     assert overlap > qdots.simulation.OVERLAP_WARNING  # measured and kept ...
     header, row = (tmp_path / "out" / "summary.csv").read_text().splitlines()[:2]

@@ -1,5 +1,5 @@
-"""The per-frame kinetic-energy budget (`qdots.energy_budget`) closes and changes nothing, on both
-engines; the Chipmunk prototype that resolves impacts at contact (`qdots.engine.at_contact`) leaves a pair where
+"""The per-frame kinetic-energy budget (`qdots.diagnostics.energy_budget`) closes and changes nothing, on both
+engines; the Chipmunk prototype that resolves impacts at contact (``qdots.Chipmunk(impacts="contact")``) leaves a pair where
 the exact collision does."""
 
 import numpy as np
@@ -8,7 +8,7 @@ import pytest
 import qdots
 from labrig.validate import InputError
 from qdots.engine.contacts import install_handlers
-from qdots.energy_budget import EnergyBudget
+from qdots.diagnostics.energy_budget import EnergyBudget
 
 ENGINES = ("event", "chipmunk")
 EDGES = (0.9, 1.1)
@@ -34,7 +34,7 @@ def energies(state, budget) -> np.ndarray:
 def test_the_budget_closes_frame_by_frame(kind):
     """start = the energy before the frame, end = after it, and injected - removed = end - start, by class, to round-off."""
     sim = qdots.Simulation(small_board(), [qdots.VanDerWaals(), qdots.ThermalKicks()], seed=5,
-                           engine=qdots.EngineSettings(kind=kind))
+                           engine=qdots.engine.ENGINES[kind]())
     budget = EnergyBudget(EDGES, ("light", "middle", "heavy")).attach(sim)
     before, after = [], []
     for _ in range(40):
@@ -59,7 +59,7 @@ def test_the_budget_closes_frame_by_frame(kind):
 def test_a_run_with_the_budget_is_bit_identical(kind):
     def run(with_budget):
         sim = qdots.Simulation(small_board(), [qdots.VanDerWaals(), qdots.ThermalKicks()], seed=11,
-                               engine=qdots.EngineSettings(kind=kind))
+                               engine=qdots.engine.ENGINES[kind]())
         if with_budget:
             EnergyBudget(EDGES).attach(sim)
         sim.run(0.4)
@@ -100,9 +100,9 @@ def test_impacts_at_contact_leave_a_bounced_pair_where_the_exact_collision_does(
         scene = qdots.Scene(box=(200.0, 200.0), positions=[(92.49, 100.0), (107.51, 100.0)], radii=[7.5, 7.5],
                             masses=masses, velocities=[(6.0, 0.0), (-4.0, 0.0)])
         sim = qdots.Simulation(scene, [], restitution=qdots.Restitution(mean=e), seed=1,
-                               engine=qdots.EngineSettings(kind=kind, impacts=impacts))
+                               engine=qdots.Chipmunk(impacts=impacts) if kind == "chipmunk" else qdots.Event())
         if kind == "chipmunk" and not compiled:
-            install_handlers(sim.engine.space, sim.restitution, sim.collisions, impacts == "contact", compiled=False)
+            install_handlers(sim.backend.space, sim.restitution, sim.collisions, impacts == "contact", compiled=False)
         out = []
         for _ in range(2):
             sim.step(1)
@@ -120,7 +120,7 @@ def test_a_wall_impact_at_contact_moves_the_dot_only():
     """At a wall the whole move is the dot's: it leaves the wall where the exact collision leaves it."""
     def gap(kind):
         scene = qdots.Scene(box=(100.0, 100.0), positions=[(7.51, 50.0)], radii=[7.5], velocities=[(-8.0, 0.0)])
-        sim = qdots.Simulation(scene, [], seed=1, engine=qdots.EngineSettings(kind=kind))
+        sim = qdots.Simulation(scene, [], seed=1, engine=qdots.engine.ENGINES[kind]())
         sim.step(2)
         assert sim.collisions.dot_wall == 1
         return sim.state().positions[0, 0] - 7.5
@@ -130,14 +130,14 @@ def test_a_wall_impact_at_contact_moves_the_dot_only():
 
 def test_the_impacts_setting_is_checked_and_changes_a_live_engine():
     with pytest.raises(InputError, match="impacts"):
-        qdots.EngineSettings(impacts="late")
+        qdots.Chipmunk(impacts="late")
     scene = qdots.Scene(box=(200.0, 200.0), positions=[(92.49, 100.0), (107.51, 100.0)], radii=[7.5, 7.5],
                         velocities=[(6.0, 0.0), (-4.0, 0.0)])
     ends = []
     for switch in (False, True):
-        sim = qdots.Simulation(scene, [], seed=1, engine=qdots.EngineSettings(impacts="overlap"))
+        sim = qdots.Simulation(scene, [], seed=1, engine=qdots.Chipmunk(impacts="overlap"))
         if switch:
-            sim.settings = sim.settings.replace(impacts="contact")
+            sim.engine = sim.engine.replace(impacts="contact")
         sim.step(2)
         ends.append(sim.state().positions[1, 0] - sim.state().positions[0, 0])
     assert ends[1] - ends[0] > 0.02

@@ -1,4 +1,4 @@
-"""The Chipmunk adapter (`qdots.engine.chipmunk`, `qdots.engine.bodies`): bulk reads and writes of the bodies
+"""The Chipmunk adapter (`qdots.engine.pymunk_adapter`, `qdots.engine.bodies`): bulk reads and writes of the bodies
 and direct stepping give pymunk's own numbers, it is the only module that touches pymunk's internals, an
 untested pymunk runs on the public API, and the allocator is tuned only on request."""
 
@@ -20,9 +20,9 @@ import pytest
 
 import qdots
 from qdots.engine import bodies as body_io
-from qdots.engine import chipmunk
+from qdots.engine import pymunk_adapter as chipmunk
 from qdots.engine.bodies import BodyArrays
-from qdots.engine.chipmunk import advance, internals
+from qdots.engine.pymunk_adapter import advance, internals
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -110,7 +110,7 @@ def test_a_run_is_the_same_through_pymunk_batch(monkeypatch):
         scene = qdots.Scene(box=(220, 220), positions=grid, radii=np.full(len(grid), 7.5),
                             velocities=rng.normal(0, 20, grid.shape))
         sim = qdots.Simulation(scene, [qdots.VanDerWaals(), qdots.ThermalKicks()], seed=6)
-        assert sim.engine.io.direct is direct
+        assert sim.backend.io.direct is direct
         sim.run(0.5)
         return sim.state()
 
@@ -153,11 +153,11 @@ def pymunk_internals_used(path: Path) -> list[str]:
 
 def test_only_the_chipmunk_adapter_touches_pymunk_internals():
     package = Path(qdots.__file__).resolve().parent
-    adapter = package / "engine" / "chipmunk.py"
+    adapter = package / "engine" / "pymunk_adapter.py"
     sources = sorted(package.rglob("*.py"))
     assert adapter in sources and len(sources) > 30
     used = {path.relative_to(package).as_posix(): pymunk_internals_used(path) for path in sources}
-    assert used.pop("engine/chipmunk.py")  # the scan sees the adapter's own uses
+    assert used.pop("engine/pymunk_adapter.py")  # the scan sees the adapter's own uses
     assert {name: where for name, where in used.items() if where} == {}
 
 
@@ -195,7 +195,7 @@ def test_an_untested_pymunk_runs_on_the_public_api_with_one_warning(monkeypatch,
     if chipmunk.internals() is None:
         pytest.skip(f"pymunk {pymunk.version} is untested here: there are no internals to compare with")
     direct, expected = small_collider()
-    assert direct.engine.io.direct and direct.collisions.compiled
+    assert direct.backend.io.direct and direct.collisions.compiled
     assert expected["dot_dot"] >= 3 and expected["dot_wall"] >= 3 and expected["draws"] >= 1
 
     monkeypatch.setattr(pymunk, "version", "7.9.0")
@@ -206,7 +206,7 @@ def test_an_untested_pymunk_runs_on_the_public_api_with_one_warning(monkeypatch,
     runtime = [w for w in caught if issubclass(w.category, RuntimeWarning)]
     assert len(runtime) == 1, [str(w.message) for w in runtime]
     assert "pymunk 7.9.0 is not a tested version" in str(runtime[0].message)
-    assert public.engine.io.direct is False and public.collisions.compiled is False
+    assert public.backend.io.direct is False and public.collisions.compiled is False
     for key, value in expected.items():
         np.testing.assert_array_equal(got[key], value, err_msg=key)
 
@@ -233,7 +233,7 @@ from qdots.engine.allocator import tune_allocator
 
 assert tune_allocator.cache_info().misses == 0, "importing qdots tuned the allocator"
 scene = qdots.Scene(box=(100.0, 100.0), positions=[[50.0, 50.0]], radii=[7.5])
-qdots.Simulation(scene, engine=qdots.EngineSettings(tune_allocator=False)).step(2)
+qdots.Simulation(scene, engine=qdots.Chipmunk(tune_allocator=False)).step(2)
 assert tune_allocator.cache_info().misses == 0, "a simulation that opted out tuned the allocator"
 qdots.Simulation(scene).step(2)
 info = tune_allocator.cache_info()

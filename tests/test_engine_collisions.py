@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 import qdots
-from qdots.engine import stepping
+from qdots.engine import chipmunk_step as stepping
 from qdots.engine.contacts import CollisionRecord, elasticity_of_impact, install_handlers
 from qdots.restitution import impact_normal
 
@@ -238,7 +238,7 @@ def test_sub_steps_adapt_to_a_fast_dot_and_warn_only_when_capped(recwarn):
     assert not [w for w in recwarn if issubclass(w.category, RuntimeWarning)]
     assert sim.substeps_taken > sim.steps_taken  # split where the dot meets a wall (6 times) ...
     # ... and only there: per bounce at most one step at max_substeps, then halving back to 1
-    assert sim.substeps_taken < sim.steps_taken + 6 * 2 * sim.settings.max_substeps
+    assert sim.substeps_taken < sim.steps_taken + 6 * 2 * sim.engine.max_substeps
     assert 7.5 <= sim.state().positions[0, 0] <= 392.5
     assert sim.state().velocities[0] == pytest.approx([4500.0, 0.0], abs=TOL)  # elastic walls, 6 bounces
     capped = qdots.Scene(box=(4000, 200), positions=[[3000, 100]], radii=[7.5], velocities=[[2e5, 0.0]])
@@ -291,7 +291,7 @@ def busy_film(seed, compiled):
     scene = qdots.Scene(box=(220, 220), positions=grid, radii=rng.uniform(6.5, 8.5, len(grid)),
                         velocities=rng.normal(0, 40, (len(grid), 2)), segments=[[0, 110, 80, 110]])
     sim = qdots.Simulation(scene, [qdots.VanDerWaals(contact="hold"), qdots.ThermalKicks()], seed=seed, dt=2.5e-3)
-    install_handlers(sim.engine.space, sim.restitution, sim.collisions, compiled=compiled)
+    install_handlers(sim.backend.space, sim.restitution, sim.collisions, compiled=compiled)
     sim.run(1.0)
     return sim
 
@@ -321,7 +321,7 @@ def test_a_still_board_skips_the_pair_plan_and_keeps_the_same_sub_steps(monkeypa
         sim = qdots.Simulation(scene, [qdots.Drag(linear=5.0)], seed=0)
         sim.step(1)
         if not shortcut:
-            sim.engine._stepper.smallest = 0.0  # no dot is ever slow enough: the plan always reads the pairs
+            sim.backend._stepper.smallest = 0.0  # no dot is ever slow enough: the plan always reads the pairs
         sim.step(800)
         boards.append((sim.state(), sim.substeps_taken, len(calls)))
     (fast, k_fast, planned), (full, k_full, every) = boards

@@ -7,11 +7,12 @@ import numpy as np
 import pytest
 
 import qdots
-from qdots.engine import EngineSettings, EventEngine
-from qdots.engine.events import pair_time, wall_time
+from qdots.engine import Event
+from qdots.engine.event_backend import EventBackend
+from qdots.engine.event_loop import pair_time, wall_time
 from qdots.experiment import Board, Deposition, Experiment, run_experiment
 
-EVENT = EngineSettings(kind="event", dt=0.02)
+EVENT = Event(dt=0.02)
 ELASTIC = qdots.Restitution(mean=1.0, sticking_speed=0.0)
 
 
@@ -113,17 +114,17 @@ def test_a_frame_that_reaches_its_cap_leaves_the_rest_unmoved_and_is_counted():
     """The thesis's loop stopped after 2,500 impacts in a frame (our default cap is 1,000,000); the rest of the
     frame was not moved."""
     scene = two_dots(1.0, 1.0, 10.0, 0.0, 0.0)
-    capped = EngineSettings(kind="event", dt=0.02, max_events=1)
+    capped = Event(dt=0.02, max_events=1)
     sim = qdots.Simulation(scene, [], restitution=ELASTIC, seed=1, engine=capped)
     free = qdots.Simulation(scene, [], restitution=ELASTIC, seed=1, engine=EVENT)
     for s in (sim, free):
         s.run(3.0)
-    assert sim.engine.capped_frames == 0  # one impact: the cap is never exceeded
+    assert sim.backend.diagnostics()["capped_frames"] == 0  # one impact: the cap is never exceeded
     many = qdots.Scene(box=(60.0, 20.0), positions=[[10.0, 10.0], [50.0, 10.0]], radii=[5.0, 5.0],
                        velocities=[[3000.0, 0.0], [-3000.0, 0.0]])
     sim = qdots.Simulation(many, [], restitution=ELASTIC, seed=1, engine=capped)
     sim.run(0.02)
-    assert sim.engine.capped_frames == 1 and sim.engine.events == 1
+    assert sim.backend.diagnostics() == {"capped_frames": 1, "events": 1}
     x = sim.state().positions[:, 0]
     assert x[1] - x[0] == pytest.approx(10.0, abs=1e-3)  # stopped at the first impact, 0.005 s into the frame
 
@@ -133,7 +134,7 @@ def test_a_resumed_run_continues_bit_for_bit(tmp_path):
     sim = run_experiment(exp)
     qdots.save(sim, tmp_path / "x.npz")
     back = qdots.load(tmp_path / "x.npz")
-    assert isinstance(back.engine, EventEngine) and back.settings == sim.settings
+    assert isinstance(back.backend, EventBackend) and back.engine == sim.engine
     sim.run(1.0)
     back.run(1.0)
     assert sim.state().positions.tobytes() == back.state().positions.tobytes()
@@ -144,8 +145,8 @@ def test_the_engine_can_change_between_runs():
     sim = qdots.Simulation(two_dots(1.0, 1.0, 10.0, 0.0, 0.0), [], seed=1)
     sim.run(0.1)
     counts = sim.collisions.to_dict()
-    sim.settings = EVENT
-    assert isinstance(sim.engine, EventEngine) and sim.collisions.to_dict() == counts
+    sim.engine = EVENT
+    assert isinstance(sim.backend, EventBackend) and sim.collisions.to_dict() == counts
     sim.run(4.0)
     assert sim.collisions.dot_dot == counts["dot_dot"] + 1
 
@@ -157,14 +158,14 @@ def test_the_javas_event_cap_lets_a_collapse_heat_a_film_and_the_default_does_no
     one frame. At the Java's cap of 2,500 the frames stop short, keep what the collisions would have damped, and the
     film heats (measured: mean speed 14 -> 128 px/s, 35.5 at the end, 82 single dots); at the default cap the frame
     resolves and the film stays near 12 px/s."""
-    from qdots.engine.settings import THESIS_EVENTS
+    from qdots.engine.event import THESIS_EVENTS
     from qdots.presets import get_preset
 
     base = get_preset("fig2-2")[0]
     films = {}
-    for cap in (THESIS_EVENTS, EngineSettings().max_events):
+    for cap in (THESIS_EVENTS, Event().max_events):
         sim = run_experiment(base.replace(seed=159, engine=base.engine.replace(kind="event", max_events=cap)))
-        films[cap] = (sim.engine.capped_frames, float(np.hypot(*sim.state().velocities.T).mean()))
-    (capped, hot), (none, calm) = films[THESIS_EVENTS], films[EngineSettings().max_events]
+        films[cap] = (sim.backend.diagnostics()["capped_frames"], float(np.hypot(*sim.state().velocities.T).mean()))
+    (capped, hot), (none, calm) = films[THESIS_EVENTS], films[Event().max_events]
     assert capped > 10 and hot > 25.0, films
     assert none == 0 and calm < 16.0, films

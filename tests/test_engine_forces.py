@@ -7,6 +7,7 @@ from scipy.integrate import solve_ivp
 import qdots
 from labrig.validate import InputError
 from qdots.experiment import Experiment
+from qdots.engine import PairScheme
 from qdots.forces import StepContext, hamaker_force, thesis_offset
 from qdots.units import thesis_kick_speed
 
@@ -14,9 +15,9 @@ from helpers import lone_dot, worst_overlap
 
 BIG_BOX = (2000.0, 2000.0)
 #: Every van der Waals pair pulled every step (no far pass).
-EVERY_STEP = qdots.EngineSettings(far_interval=None)
+EVERY_STEP = PairScheme(far_interval=None)
 #: Far pairs (gap beyond near_gap) pulled once per 20 ms far interval.
-FAR_PASS = qdots.EngineSettings(far_interval=0.02)
+FAR_PASS = PairScheme(far_interval=0.02)
 
 
 # ---------------------------------------------------------------- van der Waals vs solve_ivp
@@ -102,7 +103,7 @@ def test_far_pass_is_second_order_in_its_interval(model, masses):
     gap0 = 20.0
     t_end = round(0.8 * contact_time(model, gap0, masses, force) / 0.04) * 0.04
     reference = vdw_pair_reference(model, gap0, masses, t_end, force).sol(t_end)
-    assert reference[1] - reference[0] - 15.0 > 2 * qdots.EngineSettings().near_gap  # far all along
+    assert reference[1] - reference[0] - 15.0 > 2 * PairScheme().near_gap  # far all along
     intervals = (0.04, 0.02, 0.01)
     errors = [pair_error(force, gap0, masses, t_end, 5e-3, reference, far_interval=i) for i in intervals]
     orders = np.log2(np.array(errors[:-1]) / np.array(errors[1:]))
@@ -149,14 +150,14 @@ def test_a_rule_that_never_sticks_and_the_thesis_proxy():
     assert given.state().velocities[0, 0] > 0.0  # pulled toward the other dot
 
 
-def kick_speed(force, gap, dt=1e-3, masses=(1.0, 1.0), time=0.0, settings=None, restitution=None):
+def kick_speed(force, gap, dt=1e-3, masses=(1.0, 1.0), time=0.0, pairs=None, restitution=None):
     """Speed change of dot 0 toward dot 1 in one step from ``time``, two 7.5 px dots at surface gap `gap`, under the
-    engine ``settings`` (default `qdots.EngineSettings`) and collision rule ``restitution`` (default the thesis's)."""
+    pair scheme ``pairs`` (default `qdots.engine.PairScheme`) and collision rule ``restitution`` (default the thesis's)."""
     radii, masses = np.array([7.5, 7.5]), np.array(masses)
     x = np.array([0.0, 15.0 + gap])
     ctx = StepContext(time=time, dt=dt, x=x, y=np.zeros(2), velocity=np.zeros((2, 2)), radii=radii,
                       masses=masses, rng=np.random.default_rng(0), dv=np.zeros((2, 2)),
-                      settings=settings or qdots.EngineSettings(), restitution=restitution or qdots.Restitution(),
+                      pairs=pairs or PairScheme(), restitution=restitution or qdots.Restitution(),
                       cache={})
     force.kick(ctx)
     assert ctx.dv[0, 1] == 0 and ctx.dv[1, 1] == 0
@@ -170,7 +171,7 @@ def test_thesis_proxy_one_step(gap, dt):
     force = qdots.VanDerWaals()
     a = (15.0 / (gap - force.proxy_offset(1.0))) ** 7
     expected = min(a * dt / 2, np.sqrt(gap * a) / 2)
-    assert kick_speed(force, gap, dt, settings=EVERY_STEP) == pytest.approx(expected, rel=1e-12)
+    assert kick_speed(force, gap, dt, pairs=EVERY_STEP) == pytest.approx(expected, rel=1e-12)
 
 
 def test_thesis_proxy_mass_dependence():
@@ -183,7 +184,7 @@ def test_vdw_range_and_contact_rules():
     hold, zero = qdots.VanDerWaals(contact="hold"), qdots.VanDerWaals(contact="zero")
 
     def kick(force, gap):
-        return kick_speed(force, gap, settings=EVERY_STEP)
+        return kick_speed(force, gap, pairs=EVERY_STEP)
 
     assert kick(hold, 31.0) == 0.0  # beyond 2 R0
     assert kick(hold, 29.0) > 0.0
@@ -200,10 +201,10 @@ def test_far_pairs_get_the_pull_of_their_interval_at_its_middle(model):
     force = qdots.VanDerWaals(model)
 
     def split(gap, dt, time=0.0):
-        return kick_speed(force, gap, dt, time=time, settings=FAR_PASS)
+        return kick_speed(force, gap, dt, time=time, pairs=FAR_PASS)
 
     def every(gap, dt):
-        return kick_speed(force, gap, dt, settings=EVERY_STEP)
+        return kick_speed(force, gap, dt, pairs=EVERY_STEP)
 
     far, near = 10.0, 2.0  # surface gaps, px, beyond and within near_gap
     assert FAR_PASS.near_gap == 4.0 and FAR_PASS.far_interval == 0.02
@@ -213,8 +214,8 @@ def test_far_pairs_get_the_pull_of_their_interval_at_its_middle(model):
     assert split(far, 0.05, time=0.05) == pytest.approx(every(far, 0.06), rel=1e-12)  # 3 middles
     assert split(near, 1e-3) == every(near, 1e-3)
     assert split(31.0, 1e-3, time=0.0105) == 0.0  # beyond max_gap either way
-    wide = qdots.EngineSettings(near_gap=40.0, far_interval=0.02)
-    assert kick_speed(force, far, 1e-3, settings=wide) == every(far, 1e-3)
+    wide = PairScheme(near_gap=40.0, far_interval=0.02)
+    assert kick_speed(force, far, 1e-3, pairs=wide) == every(far, 1e-3)
 
 
 @pytest.mark.parametrize("model", ["thesis", "hamaker"])
@@ -225,13 +226,13 @@ def test_fade_between_the_passes_keeps_each_pairs_whole_pull(model):
     near_gap = FAR_PASS.near_gap
     gaps = np.linspace(0.5 * near_gap, near_gap, 9)
     # no far pass in a step of 1 ms from 0 (no middle in (-1 ms, 0])
-    weights = [kick_speed(force, g, 1e-3, settings=FAR_PASS) / kick_speed(force, g, 1e-3, settings=EVERY_STEP)
+    weights = [kick_speed(force, g, 1e-3, pairs=FAR_PASS) / kick_speed(force, g, 1e-3, pairs=EVERY_STEP)
                for g in gaps]
     assert weights[0] == 1.0 and weights[-1] == 0.0
     assert np.all(np.diff(weights) < 0) and weights[4] == pytest.approx(0.5, abs=1e-12)  # smoothstep's middle
     for g in gaps:
-        whole = kick_speed(force, g, 0.02, settings=EVERY_STEP)
-        assert kick_speed(force, g, 0.02, settings=FAR_PASS) == pytest.approx(whole, rel=1e-12)
+        whole = kick_speed(force, g, 0.02, pairs=EVERY_STEP)
+        assert kick_speed(force, g, 0.02, pairs=FAR_PASS) == pytest.approx(whole, rel=1e-12)
 
 
 def test_pair_crossing_near_gap_is_neither_pulled_twice_nor_missed():
@@ -254,7 +255,7 @@ def test_default_hamaker_strength_matches_proxy_at_one_px():
     assert hamaker.strength is None  # unset: derived per run from the proxy's offset
     strength = hamaker.hamaker_strength(offset)
     assert float(hamaker_force(np.array(1.0), np.array(7.5), np.array(7.5), strength)) == pytest.approx(proxy)
-    assert kick_speed(hamaker, 1.0, settings=EVERY_STEP) == pytest.approx(kick_speed(thesis, 1.0, settings=EVERY_STEP))
+    assert kick_speed(hamaker, 1.0, pairs=EVERY_STEP) == pytest.approx(kick_speed(thesis, 1.0, pairs=EVERY_STEP))
 
 
 def test_hamaker_force_limits():

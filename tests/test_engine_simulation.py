@@ -110,7 +110,7 @@ def test_a_fixed_step_takes_its_sub_steps_whatever_the_number_of_forces(n_forces
                              overlap_tolerance=None) for k in (0, n_forces)]
     for sim in sims:
         sim.step(400)  # one impact and a few bounces
-        assert (sim.substeps_taken, sim.engine.last_substeps) == (1200, 3)
+        assert (sim.substeps_taken, sim.backend.diagnostics()["last_substeps"]) == (1200, 3)
     assert sims[1].collisions.to_dict() == sims[0].collisions.to_dict() and sims[0].collisions.dot_dot == 1
     np.testing.assert_array_equal(sims[1].state().positions, sims[0].state().positions)
     np.testing.assert_array_equal(sims[1].state().velocities, sims[0].state().velocities)
@@ -126,7 +126,7 @@ def bulk_traffic(forces, **settings):
     """The bulk reads (`BodyArrays.read_rows`, the read a step makes) and velocity changes of 10 steps of a lone dot
     moving at 10 px/s, and its x after them."""
     sim = qdots.Simulation(lone_dot(velocity=(10.0, 0.0)), forces, seed=0, **settings)
-    io = sim.engine.io
+    io = sim.backend.io
     calls = {"read_rows": 0, "add_velocities": 0}
     for name in calls:
         method = getattr(io, name)
@@ -146,7 +146,7 @@ def test_no_forces_means_no_bulk_traffic():
     plan (which reads the velocities) every step reads, and with a force every step also writes."""
     calls, x = bulk_traffic([], overlap_tolerance=None)
     assert calls == {"read_rows": 0, "add_velocities": 0}
-    assert x == pytest.approx(1000.0 + 10.0 * 10 * qdots.EngineSettings().dt, rel=1e-15)  # it did move
+    assert x == pytest.approx(1000.0 + 10.0 * 10 * qdots.Chipmunk().dt, rel=1e-15)  # it did move
     assert bulk_traffic([])[0] == {"read_rows": 10, "add_velocities": 0}  # the plan reads; nothing to write
     assert bulk_traffic([qdots.Drag(0.0, 0.0)])[0] == {"read_rows": 10, "add_velocities": 10}
 
@@ -221,7 +221,7 @@ def test_writer_in_seconds_keeps_its_interval_when_dt_changes():
     sim = qdots.Simulation(lone_dot(), seed=0, dt=1e-3)
     sim.attach(writer, seconds=0.01)
     sim.run(0.02)
-    sim.settings = sim.settings.replace(dt=2e-3)  # the time so far is kept
+    sim.engine = sim.engine.replace(dt=2e-3)  # the time so far is kept
     assert sim.time == pytest.approx(0.02)
     sim.run(0.02)
     np.testing.assert_allclose(writer.times, [0.0, 0.01, 0.02, 0.03, 0.04])

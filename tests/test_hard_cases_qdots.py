@@ -1,20 +1,20 @@
-"""Numerical stability of the qdots engine on hard cases (scenes: `qdots.hard_cases`).
+"""Numerical stability of the qdots engine on hard cases (scenes: `qdots.diagnostics.hard_cases`).
 
 Each case asserts: every sampled state is finite; no dot is lost (left the box, or swallowed by
 another); no dot crossed a grating line; the settled overlap (dots and walls) is below 5 % of a
 radius, and every sampled overlap is below 10 % (plus, with fixed sub-steps, the discrete-contact
 bound ``impact_speed * dt / substeps / r``: Chipmunk sees a contact only once the discs overlap).
-`qdots.hard_cases` states each case's impact-speed bound and why.
+`qdots.diagnostics.hard_cases` states each case's impact-speed bound and why.
 
 Known failures (measured limits, listed in docs/performance.md) are strict xfails: a change that
 fixes one shows up as an unexpected pass. Long cases are marked slow. With the default adaptive
-sub-steps the settled bound is `qdots.hard_cases.SETTLED_TOLERANCE` (5 %) and the transient bound
+sub-steps the settled bound is `qdots.diagnostics.hard_cases.SETTLED_TOLERANCE` (5 %) and the transient bound
 10 %.
 """
 
 import pytest
 
-from qdots.hard_cases import CASES, check
+from qdots.diagnostics.hard_cases import CASES, check
 
 
 def case_params() -> list:

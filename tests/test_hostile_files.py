@@ -16,7 +16,7 @@ import pytest
 
 import qdots
 from labrig.archive import MAX_METADATA_CHARS, read_archive, write_archive
-from labrig.cli import command_line, print_table
+from labrig.cli import Command, command_line, print_table
 from labrig.jsonfile import MAX_CONTAINERS as JSON_MAX_CONTAINERS
 from labrig.jsonfile import MAX_DEPTH as JSON_MAX_DEPTH
 from labrig.jsonfile import parse_json, read_json
@@ -417,7 +417,7 @@ def test_the_error_line_escapes_control_characters(capsys):
     def fail(args):
         raise InputError("name 'a\x1b[2J\rb' is\nbad")
 
-    _, main = command_line("prog", "a test", [lambda sub: sub.add_parser("go").set_defaults(func=fail)])
+    _, main = command_line("prog", "a test", [Command("go", "fail", fail)])
     assert main(["go"]) == 2
     assert one_line_error(capsys, "prog") == "prog: error: name 'a\\x1b[2J\\rb' is\\nbad"
 

@@ -328,13 +328,21 @@ def test_the_engine_knob_switches_the_running_board_to_the_event_engine_and_back
     for _ in range(4):
         live.advance()
     live.set(engine="event")
-    assert type(live.sim.engine).__name__ == "EventEngine" and live.sim.settings.kind == "event"
+    assert type(live.sim.backend).__name__ == "EventBackend" and live.sim.engine.kind == "event"
     dropped, impacts = live.sim.n_dots, live.sim.collisions.dot_dot
     for _ in range(30):
         live.advance()
     assert live.sim.n_dots == 20 > dropped and live.sim.collisions.dot_dot >= impacts  # the count goes on
     live.set(engine="chipmunk")
     live.advance()
-    assert type(live.sim.engine).__name__ == "ChipmunkEngine" and live.sim.time == pytest.approx(3.5)
+    assert type(live.sim.backend).__name__ == "ChipmunkBackend" and live.sim.time == pytest.approx(3.5)
     with pytest.raises(InputError, match="engine must be one of 'chipmunk', 'event'"):
         live.set(engine="lammps")
+
+
+def test_an_engine_toggled_away_and_back_keeps_its_own_settings():
+    live = LiveRun(seed=3, frame_steps=5, engine=qdots.Chipmunk(iterations=9, max_substeps=64))
+    live.set(engine="event", dt=0.01)
+    assert live.sim.engine == qdots.Event(dt=0.01)
+    live.set(engine="chipmunk")
+    assert live.sim.engine == qdots.Chipmunk(iterations=9, max_substeps=64, dt=0.01)

@@ -4,6 +4,8 @@ import subprocess
 import sys
 import textwrap
 
+from labrig.tomlfile import tomllib
+
 import pytest
 
 BLOCKED_RUN = textwrap.dedent("""
@@ -76,3 +78,24 @@ def test_a_warning_fails_the_test_suite(tmp_path):
                            str(root / "pyproject.toml"), "--rootdir", str(tmp_path), str(tmp_path / "test_warns.py")],
                           capture_output=True, text=True, timeout=300, cwd=tmp_path)
     assert done.returncode == 1 and "RuntimeWarning: leaked" in done.stdout, done.stdout[-2000:]
+
+
+def test_a_release_states_its_version_licence_and_types():
+    """The changelog's newest entry is this version's and names the physics it changed; the licence file is the
+    one pyproject declares; each package says its type hints are part of it (PEP 561)."""
+    from pathlib import Path
+
+    import labrig
+
+    root = Path(__file__).resolve().parent.parent
+    changelog = (root / "CHANGELOG.md").read_text(encoding="utf-8")
+    newest = changelog.split("\n## ")[1]
+    assert newest.startswith(f"{labrig.__version__} ("), newest[:40]
+    for change in ("event engine", "20 ms frame", "impacts at contact", "continuum engine"):
+        assert change in newest.lower(), change
+    pyproject = tomllib.loads((root / "pyproject.toml").read_text(encoding="utf-8"))
+    assert pyproject["project"]["license"] == {"text": "MIT"}
+    assert (root / "LICENSE").read_text(encoding="utf-8").startswith("MIT License\n")
+    for package in ("labrig", "qdots", "planarize"):
+        assert (root / package / "py.typed").is_file(), package
+    assert pyproject["tool"]["setuptools"]["package-data"]["*"] == ["py.typed"]

@@ -6,7 +6,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from labrig.validate import InputError
 from planarize import Model, Surface, anodize, surfaces
 from planarize.engines import Continuum
 from planarize.engines.continuum import ContinuumEngine, resample

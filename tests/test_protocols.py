@@ -198,7 +198,7 @@ def test_unknown_preset_lists_the_known_ones():
     (lambda: Experiment(grating=50.0, deposition=Deposition(protocol="centre")), r"cannot be combined with a grating"),
     (lambda: Experiment(seed=-1), r"seed must be an integer in \[0, "),
     (lambda: Experiment(name=""), r"name must be a non-empty string"),
-    (lambda: Experiment(engine={"dt": 1e-3}), r"engine must be a qdots.engine.settings.EngineSettings"),
+    (lambda: Experiment(engine={"dt": 1e-3}), r"engine must be a qdots.Chipmunk or qdots.Event"),
     (lambda: Experiment(forces=({"type": "Magnetic"},)), r"forces\[0\]: unknown force type 'Magnetic'"),
     (lambda: Experiment(forces=({"type": "Drag", "lin": 1.0},)), r"forces\[0\]: Drag has no parameter 'lin'"),
     (lambda: Experiment(deposition=Deposition(protocol="centre", n_dots=5000)),

@@ -213,7 +213,7 @@ def test_cli_demo_writes_outputs(tmp_path, capsys):
     assert sorted(p.name for p in (tmp_path / "demo").iterdir()) == ["demo.mp4", "demo.png", "summary.csv"]
     with open(tmp_path / "demo" / "summary.csv") as f:
         (row,) = list(csv.DictReader(f))
-    assert int(row["dots"]) == 30 and int(row["steps"]) == round(1.0 / qdots.EngineSettings().dt)
+    assert int(row["dots"]) == 30 and int(row["steps"]) == round(1.0 / qdots.Chipmunk().dt)
     assert float(row["simulated_s"]) == pytest.approx(1.0)
     assert 0.0 <= float(row["interior_fraction"]) <= 1.0
     assert 0.0 <= float(row["max_overlap_pct_radius"]) < 5  # percent of a radius

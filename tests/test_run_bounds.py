@@ -46,7 +46,7 @@ def test_python_refuses_the_same_schedules_before_running():
         qdots.Simulation(ONE_DOT, [qdots.ThermalKicks(interval=1e-9)])
     sim = qdots.Simulation(ONE_DOT, [qdots.ThermalKicks(interval=1e-5)], dt=1e-3)
     with pytest.raises(InputError, match="kicks per time step of 0.05 s"):  # a longer step, the same interval
-        sim.settings = sim.settings.replace(dt=0.05)
+        sim.engine = sim.engine.replace(dt=0.05)
     assert sim.dt == 1e-3
     with pytest.raises(InputError, match="kicks per time step"):
         sim.forces = [qdots.ThermalKicks(interval=1e-9)]

@@ -16,9 +16,9 @@ from qdots.forces import FORCE_TYPES, thesis_offset
 from qdots.experiment import Board, Deposition, Experiment
 from qdots.presets import PRESETS, get_preset
 from qdots.io import experiment_file
+from qdots.engine import ENGINES, Chipmunk, Event
 from qdots.io.experiment_file import (TABLES, experiment_from_toml, experiment_to_toml, load_experiment,
-                                      save_experiment)
-from qdots.simulation import EngineSettings
+                                      save_experiment, table_params)
 
 ALL_PRESET_RUNS = [exp for name in PRESETS for exp in (*PRESETS[name], *get_preset(name, quick=True))]
 
@@ -38,7 +38,7 @@ def test_floats_and_optional_engine_settings_round_trip_exactly():
         board=Board(width=1 / 3 * 900, height=600.0, closed=False),
         deposition=Deposition(sigma=0.1 + 0.2, interval=1e-17 + 0.7, heavy_mass=2.0000000000000004),
         restitution=qdots.Restitution(mean=0.8123456789012345, wall=0.9, sticking_speed=0.0),
-        engine=EngineSettings(dt=1e-3 / 3, substeps=3, iterations=25, collision_slop=1e-9,
+        engine=Chipmunk(dt=1e-3 / 3, substeps=3, iterations=25, collision_slop=1e-9,
                               collision_bias=0.123, spatial_hash=(22.5, 1000), threads=2),
         forces=(qdots.Langevin(gamma=0.7), qdots.CentreGravity((123.456, 0.1 + 0.2), 1e-300),
                 qdots.Gravity((0.0, -9.81))),
@@ -51,7 +51,7 @@ def test_floats_and_optional_engine_settings_round_trip_exactly():
 def test_an_unset_setting_whose_default_is_set_round_trips_as_false():
     """Fixed sub-steps (``overlap_tolerance=None``) would read back as the adaptive default if the key
     were left out of the file: it is written ``overlap_tolerance = false``."""
-    exp = Experiment(engine=EngineSettings(overlap_tolerance=None))
+    exp = Experiment(engine=Chipmunk(overlap_tolerance=None))
     text = experiment_to_toml(exp)
     assert "\noverlap_tolerance = false " in text and "# collision_bias (unset)" in text
     assert experiment_from_toml(text) == exp
@@ -65,7 +65,7 @@ def test_the_far_pass_round_trips_set_and_unset():
     text = experiment_to_toml(exp)
     assert "# far_interval (unset)" in text and "# strength (unset)" in text
     assert experiment_from_toml(text) == exp and experiment_from_toml(text).engine.far_interval is None
-    split = exp.replace(engine=EngineSettings(dt=2.5e-3, far_interval=0.02))
+    split = exp.replace(engine=Chipmunk(dt=2.5e-3, far_interval=0.02))
     back = experiment_from_toml(experiment_to_toml(split))
     assert back == split and back.engine.far_interval == 0.02
 
@@ -76,7 +76,7 @@ def test_written_file_has_every_key_with_units():
     text = experiment_to_toml(PRESETS["fig2-2"][1])
     for line in ("sigma = 0.15", "# standard deviation of the diameter as a fraction of the mean: unitless, in [0, 1)",
                  "[board]", "[deposition]", "[restitution]", "[engine]", "[[forces]]", 'type = "VanDerWaals"',
-                 f"dt = {EngineSettings().dt}", "# collision_bias (unset)", "# spatial_hash (unset)"):
+                 f"dt = {Chipmunk().dt}", "# collision_bias (unset)", "# spatial_hash (unset)"):
         assert line in text, line
     assert "# board width: px, in (0, 1e6]" in text and "# simulated time after the last dot: s, in [0, 100000]" in text
 
@@ -116,15 +116,16 @@ def test_every_key_of_a_saved_preset_states_its_unit_and_range(exp):
         assert UNIT.search(comment), f"[{table}] {key}: no unit in {comment!r}"
         assert RANGE.search(comment), f"[{table}] {key}: no range in {comment!r}"
     keys = {(table, key) for table, key, _ in lines}
-    assert {("", key) for key in Experiment.PARAMS} | {(name, key) for name, cls in TABLES.items()
-                                                       for key in cls.PARAMS} <= keys
-    assert len(lines) == len(Experiment.PARAMS) + sum(len(cls.PARAMS) for cls in TABLES.values()) + \
+    tables = {name: table_params(getattr(exp, name)) for name in TABLES}
+    assert {("", key) for key in Experiment.PARAMS} | {(name, key) for name, params in tables.items()
+                                                       for key in params} <= keys
+    assert len(lines) == len(Experiment.PARAMS) + sum(len(params) for params in tables.values()) + \
         sum(len(spec) for spec in exp.forces)  # every key of every table once, each force's type and parameters
 
 
 def test_declarations_cover_every_parameter_and_the_file_module_restates_no_bound():
     assert list(Experiment.PARAMS) == ["name", "seed", "grating"]
-    for cls in TABLES.values():
+    for cls in (Board, Deposition, qdots.Restitution, *ENGINES.values()):
         assert list(cls.PARAMS) == [f.name for f in dataclasses.fields(cls)], cls
     for name, cls in FORCE_TYPES.items():
         assert list(cls.PARAMS) == [p for p in inspect.signature(cls.__init__).parameters if p != "self"], name
@@ -135,13 +136,12 @@ def test_a_bound_changed_in_its_declaration_changes_the_check_and_the_file_comme
     """The check of a value and the comment of its key come from one declaration: change the declared bound and
     both follow (a table's field, an engine setting, a force parameter)."""
     monkeypatch.setitem(Board.PARAMS, "width", dataclasses.replace(Board.PARAMS["width"], high=500.0))
-    monkeypatch.setitem(EngineSettings.PARAMS, "near_gap", dataclasses.replace(EngineSettings.PARAMS["near_gap"],
-                                                                               high=8.0, unit="px"))
+    monkeypatch.setitem(Chipmunk.PARAMS, "near_gap", dataclasses.replace(Chipmunk.PARAMS["near_gap"], high=8.0, unit="px"))
     monkeypatch.setitem(qdots.Drag.PARAMS, "linear", dataclasses.replace(qdots.Drag.PARAMS["linear"], low_open=True))
     with pytest.raises(ValueError, match=r"^board.width must be in \(0, 500\] px, got 550.0$"):
         Board(width=550.0)
     with pytest.raises(ValueError, match=r"^near_gap must be in \(0, 8\] px, got 9.0$"):
-        EngineSettings(near_gap=9.0)
+        Chipmunk(near_gap=9.0)
     with pytest.raises(ValueError, match=r"^Drag.linear must be in \(0, 1e6\] 1/s, got 0.0$"):
         qdots.Drag(linear=0.0)
     exp = Experiment(board=Board(400.0, 400.0), forces=(qdots.Drag(),))
@@ -238,7 +238,7 @@ def test_a_file_of_0_2_with_vdw_numerics_means_what_it_meant():
            '[[forces]]\ntype = "VanDerWaals"\nskin = 3.0\nnear_gap = 6.0\nfar_interval = false\nsticking_speed = 2.0\n'
            '[[forces]]\ntype = "VanDerWaals"\nsticking_speed = 1.0\n')
     exp = experiment_from_toml(old)
-    assert exp.engine == EngineSettings(pair_skin=3.0, near_gap=6.0, far_interval=None)
+    assert exp.engine == Chipmunk(pair_skin=3.0, near_gap=6.0, far_interval=None)
     assert exp.forces[0] == qdots.VanDerWaals(offset=thesis_offset(15.0, 0.1, 2.0)).to_dict()
     assert exp.forces[1] == qdots.VanDerWaals().to_dict()  # the rule's own sticking speed: nothing to keep
     assert experiment_from_toml(experiment_to_toml(exp)) == exp
@@ -312,3 +312,13 @@ def test_the_python_api_takes_todays_spellings_only():
         Deposition(protocol="center")
     with pytest.raises(ValueError, match=r"unknown preset 'center-gravity' \(known: .*centre-gravity"):
         get_preset("center-gravity")
+
+
+def test_an_event_engine_file_holds_its_own_settings_and_one_key_switches_engines():
+    exp = Experiment(engine=Event(dt=0.01, max_events=2500, buffer=1e-5))
+    text = experiment_to_toml(exp)
+    engine = text[text.index("[engine]"):text.index("[[forces]]")]
+    assert 'kind = "event"' in engine and "max_events = 2500" in engine and "substeps" not in engine
+    assert experiment_from_toml(text) == exp
+    switched = experiment_from_toml(text.replace('kind = "event"', 'kind = "chipmunk"'))
+    assert switched.engine == Chipmunk(dt=0.01)  # the shared settings kept; the event engine's checked, unread

@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 import qdots
+from qdots.engine import PairScheme
 from qdots.forces.base import StepContext
 from qdots.forces.vdw import hamaker_force
 from qdots.geometry import VerletPairs
@@ -12,26 +13,26 @@ from qdots.geometry import VerletPairs
 RULE = qdots.Restitution()
 
 
-def context(x, y, radii, masses, dt, time=0.0, settings=None, cache=None, rng=None):
-    """The step context a simulation would give a force: the engine ``settings`` (default `qdots.EngineSettings`),
+def context(x, y, radii, masses, dt, time=0.0, pairs=None, cache=None, rng=None):
+    """The step context a simulation would give a force: the pair scheme ``pairs`` (default `qdots.engine.PairScheme`),
     `RULE`, and ``cache`` (a fresh one by default: one per simulation)."""
     n = len(x)
     return StepContext(time=time, dt=dt, x=x, y=y, velocity=np.zeros((n, 2)), radii=radii, masses=masses,
                        rng=rng or np.random.default_rng(0), dv=np.zeros((n, 2)),
-                       settings=settings or qdots.EngineSettings(), restitution=RULE,
+                       pairs=pairs or PairScheme(), restitution=RULE,
                        cache={} if cache is None else cache)
 
 
-def numpy_kicks(force: qdots.VanDerWaals, settings, x, y, radii, masses, dt, time=0.0):
-    """Velocity changes of one step from ``time`` under the engine ``settings``, written array-wise (bincount over
+def numpy_kicks(force: qdots.VanDerWaals, pairs, x, y, radii, masses, dt, time=0.0):
+    """Velocity changes of one step from ``time`` under the pair scheme ``pairs``, written array-wise (bincount over
     the pair list): with the split, the pull of each pair for ``dt`` times ``w(g)`` (1 below ``near_gap / 2``,
     smoothstep down to 0 at ``near_gap``) plus, in the step after a far interval's middle, its pull over that
     interval times ``1 - w(g)``."""
     offset = force.proxy_offset(RULE.sticking_speed)
     strength = force.hamaker_strength(offset)
-    pairs = VerletPairs(settings.pair_skin)
-    pairs.update(x, y, force.max_gap + 2.0 * radii.max())
-    i, j = pairs.i, pairs.j
+    verlet = VerletPairs(pairs.pair_skin)
+    verlet.update(x, y, force.max_gap + 2.0 * radii.max())
+    i, j = verlet.i, verlet.j
     ri, rj, inv_mi, inv_mj = radii[i], radii[j], 1.0 / masses[i], 1.0 / masses[j]
     dx, dy = x[j] - x[i], y[j] - y[i]
     d = np.sqrt(dx * dx + dy * dy)
@@ -52,8 +53,8 @@ def numpy_kicks(force: qdots.VanDerWaals, settings, x, y, radii, masses, dt, tim
                 np.minimum(0.5 * seconds * pull * inv_mj, capped * np.sqrt(inv_mj)))
 
     speed_i, speed_j = speeds(dt)
-    if force.split(settings):
-        interval, near_gap = settings.far_interval, settings.near_gap
+    if pairs.splits(force.max_gap):
+        interval, near_gap = pairs.far_interval, pairs.near_gap
         # the far pass runs at the start of the step after each middle: the middles in (time - dt, time]
         middles = np.floor(time / interval + 0.5 + 1e-9) - np.floor((time - dt) / interval + 0.5 + 1e-9)
         s = np.clip((gap - near_gap / 2) / (near_gap / 2), 0.0, 1.0)
@@ -86,11 +87,11 @@ def test_compiled_pass_matches_the_numpy_oracle(model, contact, dt, masses, far)
     x, y, radii = random_film()
     m = np.ones(len(x)) if masses == "equal" else np.where(np.arange(len(x)) % 2, 2.0, 1.0)
     force = qdots.VanDerWaals(model, contact=contact)
-    settings = qdots.EngineSettings(far_interval=None if far is None else 0.05)
+    pairs = PairScheme(far_interval=None if far is None else 0.05)
     time = 0.025 + dt / 2 if far == "a middle" else 0.0  # the middle of the first far interval is 25 ms
-    ctx = context(x, y, radii, m, dt, time, settings)
+    ctx = context(x, y, radii, m, dt, time, pairs)
     force.kick(ctx)
-    expected = numpy_kicks(force, settings, x, y, radii, m, dt, time)
+    expected = numpy_kicks(force, pairs, x, y, radii, m, dt, time)
     assert np.abs(expected).max() > 0
     np.testing.assert_allclose(ctx.dv, expected, rtol=1e-12, atol=1e-12 * np.abs(expected).max())
 
@@ -100,7 +101,7 @@ def test_the_cap_binds_where_the_numpy_oracle_says():
     force = qdots.VanDerWaals()
     radii, m = np.array([7.5, 7.5]), np.ones(2)
     x, y = np.array([0.0, 15.2]), np.zeros(2)
-    ctx = context(x, y, radii, m, 0.02, settings=qdots.EngineSettings(far_interval=None))
+    ctx = context(x, y, radii, m, 0.02, pairs=PairScheme(far_interval=None))
     force.kick(ctx)
     dv = ctx.dv
     pull = (force.r0 / (0.2 - force.proxy_offset(RULE.sticking_speed))) ** 7
@@ -123,13 +124,13 @@ def test_the_split_force_matches_the_oracle_while_the_dots_move():
     x, y, radii = random_film(n=200, seed=3)
     m = np.ones(len(x))
     force = qdots.VanDerWaals()
-    settings = qdots.EngineSettings(far_interval=0.01)
+    pairs = PairScheme(far_interval=0.01)
     cache = {}  # one simulation's: the pair lists live on from step to step
     rng, dt = np.random.default_rng(4), 2e-3
     for step in range(60):
         x, y = x + rng.normal(0, 0.4, x.size), y + rng.normal(0, 0.4, y.size)
-        ctx = context(x, y, radii, m, dt, step * dt, settings, cache, rng)
+        ctx = context(x, y, radii, m, dt, step * dt, pairs, cache, rng)
         force.kick(ctx)
-        expected = numpy_kicks(force, settings, x, y, radii, m, dt, step * dt)
+        expected = numpy_kicks(force, pairs, x, y, radii, m, dt, step * dt)
         np.testing.assert_allclose(ctx.dv, expected, rtol=1e-12, atol=1e-12 * np.abs(expected).max(), err_msg=step)
     assert 3 < cache["pairs"].rebuilds < 60

@@ -22,11 +22,25 @@ number of workers and the order in which runs finish. Physics lives in the
 runners: `qdots.cli.sweep` and `planarize.cli.sweep`.
 """
 
-from .execute import SweepResult, run_sweep
-from .files import SweepFile, load_sweep_file, sweep_from_dict
-from .plot import plot_sweep, save_sweep_plot, summarize
-from .spec import Run, Sweep, run_id
-from .table import read_table
+import importlib
+
+#: Where each public name lives (imported when first used: the command lines register the sweep commands
+#: without loading the sweep machinery).
+_NAMES = {"SweepResult": "execute", "run_sweep": "execute", "SweepFile": "files", "load_sweep_file": "files",
+          "sweep_from_dict": "files", "plot_sweep": "plot", "save_sweep_plot": "plot", "summarize": "plot",
+          "Run": "spec", "Sweep": "spec", "run_id": "spec", "read_table": "table"}
 
 __all__ = ["Sweep", "Run", "run_id", "run_sweep", "SweepResult", "SweepFile", "load_sweep_file", "sweep_from_dict",
            "read_table", "summarize", "plot_sweep", "save_sweep_plot"]
+
+
+def __getattr__(name: str):
+    if name not in _NAMES:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(f".{_NAMES[name]}", __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *__all__})

@@ -29,7 +29,7 @@ class Serial:
     capacity = 1
 
     def submit(self, fn, *args) -> Future:
-        future = Future()
+        future: Future = Future()
         future.set_result(fn(*args))
         return future
 
@@ -77,7 +77,7 @@ class LocalPool:
 
     def __init__(self, workers: int):
         self.capacity = workers
-        self.pool = None
+        self.pool: ProcessPoolExecutor | None = None
 
     def submit(self, fn, *args) -> Future:
         if self.pool is None:

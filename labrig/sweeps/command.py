@@ -1,4 +1,8 @@
-"""The ``sweep`` and ``sweep-plot`` subcommands, shared by the ``qdots`` and ``planarize`` command lines."""
+"""The ``sweep`` and ``sweep-plot`` subcommands, shared by the ``qdots`` and ``planarize`` command lines.
+
+`sweep_command` and `plot_command` make their `labrig.cli.Command` entries; the sweep machinery is imported only
+when one of them is chosen.
+"""
 
 from __future__ import annotations
 
@@ -8,26 +12,34 @@ import sys
 from pathlib import Path
 from typing import Callable
 
-from ..cli import fraction, int_in, print_table
+from ..cli import Command, fraction, int_in, print_table
 from ..files import slug
-from .backends import MAX_WORKERS
-from .execute import MAX_RETRIES, run_sweep
 from ..launch import LateInterrupt
 from ..validate import InputError, printable
-from .files import SweepFile
-from .spec import DEFAULT_MAX_RUNS, MAX_RUNS
-from .plot import save_sweep_plot, summarize, summary_lines
 
 
-def add_sweep_parser(subparsers, package: str, what: str) -> argparse.ArgumentParser:
-    """Register ``<package> sweep``; the caller adds its own options and sets ``func``."""
-    p = subparsers.add_parser(
-        "sweep", help=f"run a parameter sweep of {what} (local cores or a Dask cluster)",
-        description=f"Run every run of a sweep file (a base plus axes, points and seeds) of {what}. Each run "
-                    "writes one record under DIR/runs/ as soon as it ends; running the sweep again skips "
-                    "finished runs. The table of all runs goes to DIR/table.csv (and table.parquet with "
-                    f"pyarrow). Exit status 1 if some run failed (its error is in the table). "
-                    f"Plot it with '{package} sweep-plot'.")
+def sweep_command(package: str, what: str, load: Callable[[Path], object], make_runner: Callable,
+                  quick_help: str) -> Command:
+    """``<package> sweep SWEEP.toml [--out DIR] [--workers N] [--scheduler ADDRESS] [--quick F]``.
+
+    ``load(path)`` reads the package's sweep files (a `labrig.sweeps.files.SweepFile`); ``make_runner(quick)``
+    makes its runner. Both are called only when the command runs.
+    """
+    description = (f"Run every run of a sweep file (a base plus axes, points and seeds) of {what}. Each run "
+                   "writes one record under DIR/runs/ as soon as it ends; running the sweep again skips "
+                   "finished runs. The table of all runs goes to DIR/table.csv (and table.parquet with "
+                   f"pyarrow). Exit status 1 if some run failed (its error is in the table). "
+                   f"Plot it with '{package} sweep-plot'.")
+    return Command("sweep", f"run a parameter sweep of {what} (local cores or a Dask cluster)",
+                   functools.partial(_run_command, load=load, make_runner=make_runner),
+                   functools.partial(_sweep_arguments, quick_help=quick_help), description)
+
+
+def _sweep_arguments(p: argparse.ArgumentParser, quick_help: str) -> None:
+    from .backends import MAX_WORKERS
+    from .execute import MAX_RETRIES
+    from .spec import DEFAULT_MAX_RUNS, MAX_RUNS
+
     p.add_argument("sweep", type=Path, metavar="SWEEP.toml", help="sweep file; the paths in it (base, output.dir) "
                    "are relative to the sweep file's folder")
     p.add_argument("--out", type=Path, default=None, metavar="DIR",
@@ -42,26 +54,17 @@ def add_sweep_parser(subparsers, package: str, what: str) -> argparse.ArgumentPa
                    help="run on this Dask scheduler (e.g. tcp://10.0.0.5:8786; needs nanodisorder[sweep])")
     p.add_argument("--retries", type=int_in(0, MAX_RETRIES), default=1, metavar="K",
                    help="extra attempts for a run that fails (default 1)")
-    return p
-
-
-def add_sweep_command(subparsers, package: str, what: str, load: Callable[[Path], SweepFile],
-                      make_runner: Callable, quick_help: str) -> None:
-    """Register ``<package> sweep SWEEP.toml [--out DIR] [--workers N] [--scheduler ADDRESS] [--quick F]``.
-
-    ``load(path)`` reads the package's sweep files; ``make_runner(quick)`` makes its runner.
-    """
-    p = add_sweep_parser(subparsers, package, what)
     p.add_argument("--quick", type=fraction, default=None, metavar="F", help=quick_help)
-    p.set_defaults(func=functools.partial(_run_command, load=load, make_runner=make_runner))
 
 
 def _run_command(args: argparse.Namespace, load, make_runner) -> int:
     return run_sweep_command(args, load(args.sweep), make_runner(args.quick))
 
 
-def run_sweep_command(args: argparse.Namespace, sweep_file: SweepFile, runner) -> int:
-    """Run a parsed sweep file with the command's options; print what happened."""
+def run_sweep_command(args: argparse.Namespace, sweep_file, runner) -> int:
+    """Run a parsed sweep file (`labrig.sweeps.files.SweepFile`) with the command's options; print what happened."""
+    from .execute import run_sweep
+
     out = sweep_file.out if args.out is None else args.out
     result = run_sweep(sweep_file.sweep, runner, out, workers=args.workers, scheduler=args.scheduler,
                        retries=args.retries, state=sweep_file.state, max_runs=args.max_runs)
@@ -71,7 +74,7 @@ def run_sweep_command(args: argparse.Namespace, sweep_file: SweepFile, runner) -
         raise LateInterrupt(f"every run's result was written ({result.table})") from None
 
 
-def _report(result, sweep_file: SweepFile, out) -> int:
+def _report(result, sweep_file, out) -> int:
     """Print what a finished sweep did; its exit status (1 if some run failed)."""
     rows = [("runs", str(len(result.rows))), ("ran now", str(result.ran)),
             ("already done", str(result.skipped)), ("failed", str(result.failed)), ("table", str(result.table))]
@@ -94,13 +97,16 @@ def _assignment(text: str) -> tuple[str, str]:
     return column, value
 
 
-def add_plot_parser(subparsers, package: str) -> argparse.ArgumentParser:
-    """Register ``<package> sweep-plot``."""
-    p = subparsers.add_parser(
-        "sweep-plot", help="plot mean +- standard error of a sweep metric against an axis",
-        description=f"Average a metric of a table written by '{package} sweep' over the runs that share the x "
-                    "value (and the group value): mean +- standard error over seeds, one curve per group. "
-                    "Prints the numbers and writes a PNG.")
+def plot_command(package: str) -> Command:
+    """``<package> sweep-plot TABLE --metric M --x AXIS [--group AXIS] [--where COLUMN=VALUE] ...``."""
+    return Command("sweep-plot", "plot mean +- standard error of a sweep metric against an axis", run_plot_command,
+                   _plot_arguments,
+                   f"Average a metric of a table written by '{package} sweep' over the runs that share the x "
+                   "value (and the group value): mean +- standard error over seeds, one curve per group. "
+                   "Prints the numbers and writes a PNG.")
+
+
+def _plot_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("table", type=Path, metavar="TABLE", help="table.csv or table.parquet of a sweep")
     p.add_argument("--metric", required=True, metavar="M", help="column to average, e.g. interior_fraction")
     p.add_argument("--x", required=True, metavar="AXIS", help="column on the x axis, e.g. deposition.sigma")
@@ -110,11 +116,12 @@ def add_plot_parser(subparsers, package: str) -> argparse.ArgumentParser:
     p.add_argument("--title", default=None, help="figure title")
     p.add_argument("--out", type=Path, default=None, metavar="FILE.png",
                    help="default: METRIC_vs_X[_by_GROUP].png beside the table")
-    p.set_defaults(func=run_plot_command)
-    return p
 
 
 def run_plot_command(args: argparse.Namespace) -> int:
+    """Plot a sweep's table (the ``sweep-plot`` subcommand)."""
+    from .plot import save_sweep_plot, summarize, summary_lines
+
     if args.out is not None and args.out.suffix.lower() != ".png":
         raise InputError(f"--out must name a .png file (the plot is a PNG), got {str(args.out)!r}")
     where = dict(args.where)

@@ -109,7 +109,7 @@ def sweep_from_dict(data: dict, *, base_dir: str | os.PathLike = ".", seed_key: 
     state = output.get("state", False)
     if not isinstance(state, bool):
         raise InputError(f"output.state must be true or false, got {state!r}")
-    sweep = Sweep(base=base, axes=_dotted(axes, keep=_is_range), points=[_dotted(p) for p in points],
+    sweep = Sweep(base=base, axes=_dotted(axes, keep=_is_range), points=tuple(_dotted(p) for p in points),
                   seeds=data.get("seeds"), seed_key=seed_key)
     return SweepFile(sweep, base_dir / out, state)
 

@@ -334,7 +334,8 @@ class Sweep:
             check(f"points[{k}]", self._apply(self.base, point.items()))
         for key, values in self.axes.items():
             check(f"axes.{key}", self._apply(self.base, [*self.points[0].items(), (key, values[0])]))
-        runs, seen = [], {}
+        runs: list[Run] = []
+        seen: dict[str, int] = {}
         grid = itertools.product(self.points, *self.axes.values(), seeds if seeds is not None else [None])
         for index, (point, *values) in enumerate(grid):
             seed = values.pop()

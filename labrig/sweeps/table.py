@@ -127,7 +127,7 @@ def read_table(path: str | os.PathLike) -> list[dict]:
             for row in reader:
                 if None in row or None in row.values():  # more or fewer cells than the header has columns
                     raise InputError(f"{path}: line {reader.line_num} has {len(row) - (None in row) + len(row.get(None, []))} "
-                                     f"cells, the header {len(reader.fieldnames)} (a truncated or edited table?)")
+                                     f"cells, the header {len(reader.fieldnames or ())} (a truncated or edited table?)")
                 rows.append({key: parse_cell(value) for key, value in row.items()})
     except (OSError, UnicodeDecodeError, csv.Error) as exc:
         raise InputError(f"{path}: not a readable CSV table ({exc})") from None

@@ -2,11 +2,12 @@
 
 ``planarize run SCENE.toml`` runs a scene file, ``planarize scene NAME``
 runs (or saves) a built-in scene and ``planarize import FILE`` runs a
-measured height map. Each subcommand is a ``_add_<name>`` function that
-registers its parser and the function that runs it (`labrig.cli.add_command`;
-the run function's docstring is the command's description); add a command by
-writing one and listing it in `COMMANDS`. `main` dispatches and turns bad input
-into a one-line error with exit code 2.
+measured height map. Each subcommand is a `labrig.cli.Command` in `COMMANDS`:
+its ``_add_<name>`` function adds its arguments when it is the command chosen,
+and the function that runs it has the command's description as its docstring.
+`main` dispatches and turns bad input into a one-line error with exit code 2.
+Nothing here imports the engines before a command's arguments are built, so
+``planarize --help`` answers at once.
 """
 
 from __future__ import annotations
@@ -16,17 +17,17 @@ import math
 import sys
 from pathlib import Path
 
-from labrig.cli import UsageError, add_command, command_line, float_in, fraction
-
-from ..engines import ENGINES
-from ..model import RULES
-from ..scene import SCENES
+from labrig.cli import Command, UsageError, command_line, float_in, fraction
+from labrig.sweeps.command import plot_command, sweep_command
 
 _positive = float_in(0.0, math.inf, low_open=True)
 
 
 def _add_outputs(p, out_default: str) -> None:
     """Options shared by the commands that run: output directory, engine, quick mode, movie."""
+    from ..engines import ENGINES
+    from ..model import RULES
+
     p.add_argument("--out", type=Path, default=Path(out_default), metavar="DIR",
                    help=f"output directory, created if missing (default ./{out_default})")
     p.add_argument("--engine", choices=list(ENGINES), default=None,
@@ -46,24 +47,23 @@ def _add_outputs(p, out_default: str) -> None:
                    help="also write an MP4 of the oxide growing (a frame every 1/40 of the thickness)")
 
 
-def _add_run(subparsers) -> None:
-    p = add_command(subparsers, "run", _run_file, "run a TOML scene file")
+def _add_run(p) -> None:
     p.add_argument("scene", type=Path, metavar="SCENE.toml", help="scene file")
     _add_outputs(p, "planarize-run")
 
 
-def _add_scene(subparsers) -> None:
-    p = add_command(subparsers, "scene", _run_named, "run or save a built-in scene",
-                    description="The built-in scenes: " + ", ".join(SCENES) + " (hill and depression: "
-                                "thesis Figs 3-8/3-9; ta: the Ta film of Figs 3-11/3-12).")
+def _add_scene(p) -> None:
+    from ..scene import SCENES
+
+    p.description = ("The built-in scenes: " + ", ".join(SCENES) + " (hill and depression: thesis Figs 3-8/3-9; "
+                     "ta: the Ta film of Figs 3-11/3-12).")
     p.add_argument("name", choices=list(SCENES), metavar="NAME", help=f"one of: {', '.join(SCENES)}")
     p.add_argument("--save", type=Path, default=None, metavar="FILE.toml",
                    help="only write the scene file to edit, do not run")
     _add_outputs(p, "planarize-run")
 
 
-def _add_import(subparsers) -> None:
-    p = add_command(subparsers, "import", _run_import, "anodize a measured height map (AFM)")
+def _add_import(p) -> None:
     p.add_argument("file", type=Path, metavar="FILE", help="height map")
     p.add_argument("--thickness", type=float_in(0.0, math.inf), required=True, metavar="NM",
                    help="oxide thickness to grow, nm")
@@ -83,21 +83,16 @@ def _add_import(subparsers) -> None:
     _add_outputs(p, "planarize-import")
 
 
-def _add_sweep(subparsers) -> None:
-    from .sweep import add_sweep_command
+def _load_sweep(path: Path):
+    from .sweep import load_sweep
 
-    add_sweep_command(subparsers)
-
-
-def _add_sweep_plot(subparsers) -> None:
-    from labrig.sweeps.command import add_plot_parser
-
-    add_plot_parser(subparsers, "planarize")
+    return load_sweep(path)
 
 
-#: The subcommands, in the order `--help` lists them.
-COMMANDS = [_add_run, _add_scene, _add_import, _add_sweep, _add_sweep_plot]
-build_parser, main = command_line("planarize", "Anodization planarization of rough metal surfaces.", COMMANDS)
+def _sweep_runner(quick: float | None):
+    from .sweep import AnodizeRunner
+
+    return AnodizeRunner(quick)
 
 
 def _prepare(scene, args):
@@ -157,6 +152,18 @@ def _run_import(args: argparse.Namespace) -> int:
         return 0
     run_scene(scene, args.out, movie=args.movie)
     return 0
+
+
+#: The subcommands, in the order `--help` lists them.
+COMMANDS = [
+    Command("run", "run a TOML scene file", _run_file, _add_run),
+    Command("scene", "run or save a built-in scene", _run_named, _add_scene),
+    Command("import", "anodize a measured height map (AFM)", _run_import, _add_import),
+    sweep_command("planarize", "planarize runs", _load_sweep, _sweep_runner,
+                  "a first look: steps 1/F times larger, refinement F times smaller"),
+    plot_command("planarize"),
+]
+build_parser, main = command_line("planarize", "Anodization planarization of rough metal surfaces.", COMMANDS)
 
 
 if __name__ == "__main__":

@@ -114,10 +114,3 @@ def load_sweep(path: str | os.PathLike) -> SweepFile:
     if isinstance(surface, dict) and isinstance(surface.get("path"), str):
         surface["path"] = str(path.parent / surface["path"])  # an absolute path stays as it is
     return sweep_file
-
-
-def add_sweep_command(subparsers) -> None:
-    """``planarize sweep SWEEP.toml [--out DIR] [--workers N] [--scheduler ADDRESS] [--quick F]``."""
-    from labrig.sweeps.command import add_sweep_command as add
-
-    add(subparsers, "planarize", "planarize runs", load_sweep, AnodizeRunner, "a first look: steps 1/F times larger, refinement F times smaller")

@@ -50,7 +50,7 @@ from scipy.spatial import cKDTree
 
 from labrig.validate import InputError, number
 
-from ..scene import MAX_LENGTH
+from ..limits import MAX_FORSTER_PX, MAX_FORSTER_RADII  # noqa: F401 (public here too)
 from ..units import THESIS_TEMPERATURE, PhysicalScale
 from .packing import state_arrays
 
@@ -66,12 +66,6 @@ CUTOFF_TOLERANCE = 1e-3
 #: diameters was most likely given as px (hops to a neighbour at one diameter would be < 1/4096 of
 #: the radiative rate). Such radii can still be asked for as ``forster_radii``.
 MIN_PX_FORSTER_RADII = 0.5
-#: Largest Förster radius, in mean radii (as ``forster_radii``, and for ``forster_radius`` in px): far
-#: beyond any dot film (the thesis uses 2).
-MAX_FORSTER_RADII = 1000.0
-#: Largest ``forster_radius`` on any board, px: `MAX_FORSTER_RADII` radii of the largest dot a scene may
-#: hold (`qdots.scene.MAX_LENGTH`). Its sixth power (1e54) is far within a float.
-MAX_FORSTER_PX = MAX_FORSTER_RADII * MAX_LENGTH
 #: Fastest hop rate the computation holds, 1/ns: rates are summed over a dot's partners and inverted, so
 #: they must stay far from the float limit (1.8e308). Real films: below 1e18 (R_F 1000x the closest gap).
 MAX_HOP_RATE = 1e200

@@ -34,6 +34,8 @@ from tqdm.auto import tqdm
 
 from labrig.validate import InputError, count
 
+from ..limits import MAX_DRAWS  # noqa: F401 (public here too)
+
 from .forster import KB_EV, TRAP_FRACTION, ExcitonNetwork, draw_traps, exciton_network
 from .lqe_thesis import check_dt, check_walks, drop_trapped, step_probabilities, thesis_walks
 
@@ -42,8 +44,6 @@ THESIS_DT_FRACTION = 0.01
 #: Most excitons of one Monte Carlo run: about 100 bytes each in the walk's arrays (1 GB), a standard
 #: error of 1.6e-4 at most (the tests take 2e5, the benchmark 1e6).
 MAX_EXCITONS = 10_000_000
-#: Most trap draws `film_lqe` averages (as ``qdots analyze --draws``).
-MAX_DRAWS = 10_000
 METHODS = ("gillespie", "thesis")
 SCHEMES = ("continuous", "thesis")
 

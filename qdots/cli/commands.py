@@ -15,7 +15,7 @@ measured, printed as a warning when large, and recorded in the summary.
 A new run replaces the folder of its name; an earlier ``<slug>.mp4`` or ``<slug>.gsd`` that it does
 not rewrite, and the ``<slug>.until-Ts.mp4`` / ``.gsd`` that in-place resumes kept, are removed with
 the rest (they showed the run whose state is gone), and the command says so. A resume writes a new
-folder beside its input (`RESUME_RULE`).
+folder beside its input (`qdots.cli.main.RESUME_RULE`).
 """
 
 from __future__ import annotations
@@ -42,15 +42,6 @@ FRAME_INTERVAL = 0.5
 OVERLAP_COLUMN = "max_overlap_pct_radius"
 #: The files a run records on request: suffix, what it is, its option.
 RECORDINGS = ((".mp4", "movie", "--movie"), (".gsd", "trajectory", "--gsd"))
-#: What `qdots resume` writes, in its --help and the README.
-RESUME_RULE = (
-    "A resume never changes its input: it writes the continuation as a new folder beside the state's own "
-    "(run NAME/NAME.npz resumed to T s: NAME-tTs/, with NAME-tTs.npz, .png, its summary.csv row and, with "
-    "--movie / --gsd, a movie or trajectory of the continuation), and prints its name. --out DIR writes that "
-    "folder into DIR instead. --in-place replaces the run's own folder instead, all at once when the "
-    "continuation has finished; an earlier NAME.mp4 or NAME.gsd is then kept as NAME.until-Ts.mp4 (.gsd), "
-    "T the time in s of the state resumed from (it shows the run up to T s), and a line says so. A folder "
-    "that another run is writing is refused.")
 
 
 def _recorders(files: OutputSet, sim: Simulation, stem: str, movie: bool, gsd: bool,
@@ -117,7 +108,7 @@ def _identity_of(state_path: Path, sim: Simulation, name: str) -> dict:
     """The identity of the run saved in ``state_path`` (`run_identity`, as `finish` saves it), renamed ``name``;
     for a state saved without one, its dots and engine."""
     saved = checkpoint.read_metadata(state_path).get("run")
-    saved = saved if isinstance(saved, dict) else {"dots": sim.n_dots, "engine": sim.settings.kind}
+    saved = saved if isinstance(saved, dict) else {"dots": sim.n_dots, "engine": sim.engine.kind}
     return {**saved, "name": name}
 
 
@@ -160,7 +151,7 @@ def finish(sim: Simulation, files: OutputSet, stem: str, wall: float, extra: dic
               file=sys.stderr)
     row = {
         **extra,
-        "engine": sim.settings.kind,
+        "engine": sim.engine.kind,
         "dots": summary["n_dots"],
         "time_s": round(state.time, 9),
         "steps": sim.steps_taken,
@@ -171,7 +162,7 @@ def finish(sim: Simulation, files: OutputSet, stem: str, wall: float, extra: dic
         OVERLAP_COLUMN: 100 * summary["max_overlap"],
         "escaped_dots": summary["escaped_dots"],
         # event engine: frames of this run that reached max_events (their rest unmoved, as the thesis's loop)
-        "capped_frames": getattr(sim.engine, "capped_frames", ""),
+        "capped_frames": sim.backend.diagnostics().get("capped_frames", ""),
         "kinetic_energy": summary["kinetic_energy"],
         "state_file": f"{stem}/{stem}.npz",
     }
@@ -334,7 +325,7 @@ def _earlier_row(state_path: Path) -> dict:
 def resume(state_path: Path, seconds: float, out: Path | None, *, movie: bool, gsd: bool,
            in_place: bool = False) -> dict:
     """Continue a saved run for ``seconds``, into a new folder beside it, or into ``out``, or with ``in_place`` in
-    its own folder (`RESUME_RULE`). The input is never changed, except by ``in_place``, and then only once the
+    its own folder (`qdots.cli.main.RESUME_RULE`). The input is never changed, except by ``in_place``, and then only once the
     continuation has finished and its files are written."""
     if not state_path.exists():  # before the output set makes ``out``
         raise FileNotFoundError(f"no such qdots state file: {state_path}")

@@ -2,10 +2,12 @@
 
 ``qdots demo`` runs a small deposition-like board (dots placed at random,
 then van der Waals attraction and thermal kicks) and writes a picture, a
-movie and a one-row CSV summary. Each subcommand is a ``_add_<name>``
-function that registers its parser and the function that runs it
-(`labrig.cli.add_command`; the run function's docstring is the command's
-description); `main` dispatches and turns bad input into a one-line error.
+movie and a one-row CSV summary. Each subcommand is a `labrig.cli.Command`
+in `COMMANDS`: its ``_<name>_arguments`` function adds its arguments when it
+is the command chosen, and its ``_run_<name>`` function (whose docstring is
+the command's description) runs it; `main` dispatches and turns bad input
+into a one-line error. Nothing here imports the simulators before a command
+runs, so ``qdots --help`` and argument errors answer at once.
 """
 
 from __future__ import annotations
@@ -17,10 +19,11 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
-
-from labrig.cli import add_command, command_line, float_in, fraction, int_in
+from labrig.cli import Command, command_line, float_in, fraction, int_in
+from labrig.sweeps.command import plot_command, sweep_command
 from labrig.validate import MAX_SEED
+
+from ..presets import NAMES as PRESET_NAMES  # the names only: the presets are made when first used
 
 #: Demo board, px, and mean dot diameter, px (the thesis's diameter on a quarter of its board).
 DEMO_BOX = (300.0, 300.0)
@@ -31,9 +34,18 @@ DEMO_FRAME_INTERVAL = 0.2
 DEMO_MAX_DOTS = 460
 
 
-def _add_demo(subparsers) -> None:
-    p = add_command(subparsers, "demo", _run_demo,
-                    "run a small demo board and write the folder demo/: demo.png, demo.mp4, summary.csv")
+#: What `qdots resume` writes, in its --help and the README.
+RESUME_RULE = (
+    "A resume never changes its input: it writes the continuation as a new folder beside the state's own "
+    "(run NAME/NAME.npz resumed to T s: NAME-tTs/, with NAME-tTs.npz, .png, its summary.csv row and, with "
+    "--movie / --gsd, a movie or trajectory of the continuation), and prints its name. --out DIR writes that "
+    "folder into DIR instead. --in-place replaces the run's own folder instead, all at once when the "
+    "continuation has finished; an earlier NAME.mp4 or NAME.gsd is then kept as NAME.until-Ts.mp4 (.gsd), "
+    "T the time in s of the state resumed from (it shows the run up to T s), and a line says so. A folder "
+    "that another run is writing is refused.")
+
+
+def _demo_arguments(p) -> None:
     p.add_argument("--out", type=Path, default=Path("qdots-demo"), metavar="DIR",
                    help="output directory, created if missing (default ./qdots-demo)")
     p.add_argument("--seed", type=int_in(0, MAX_SEED), default=1, help="random seed (default 1)")
@@ -55,7 +67,7 @@ def _add_outputs(p, out_default: str | None) -> None:
 
 
 def _add_engine(p) -> None:
-    from ..engine import ENGINES
+    from ..engine import ENGINES  # the engines' settings only: no simulator code
 
     p.add_argument("--engine", choices=list(ENGINES), default=None,
                    help="override the file's [engine] kind: chipmunk (pymunk, the default) or event (the thesis's "
@@ -67,15 +79,12 @@ def _with_engine(exp, engine: str | None):
     return exp if engine is None else exp.replace(engine=exp.engine.replace(kind=engine))
 
 
-def _add_state_command(subparsers, name: str, func, help: str, description: str | None = None):
-    """A subcommand whose argument is a state file (``STATE.npz``)."""
-    p = add_command(subparsers, name, func, help, description)
+def _add_state(p) -> None:
+    """The argument of a subcommand that reads a state file (``STATE.npz``)."""
     p.add_argument("state", type=Path, metavar="STATE.npz", help="state file")
-    return p
 
 
-def _add_run(subparsers) -> None:
-    p = add_command(subparsers, "run", _run_scene, "run the experiment described by a TOML experiment file")
+def _run_arguments(p) -> None:
     p.add_argument("experiment", type=Path, metavar="EXPERIMENT.toml", help="experiment file")
     _add_outputs(p, "qdots-run")
     _add_engine(p)
@@ -84,12 +93,8 @@ def _add_run(subparsers) -> None:
                    metavar="F", help="scale the run down by F (fewer dots, shorter times) for a first look")
 
 
-def _add_preset(subparsers) -> None:
-    from ..presets import PRESETS
-
-    p = add_command(subparsers, "preset", _run_preset, "run one of the thesis's experiments",
-                    description="Run the experiments that reproduce a thesis figure: " + ", ".join(PRESETS) + ".")
-    p.add_argument("name", choices=list(PRESETS), metavar="NAME", help=f"one of: {', '.join(PRESETS)}")
+def _preset_arguments(p) -> None:
+    p.add_argument("name", choices=list(PRESET_NAMES), metavar="NAME", help=f"one of: {', '.join(PRESET_NAMES)}")
     _add_outputs(p, "qdots-preset")
     _add_engine(p)
     p.add_argument("--quick", type=fraction, default=None,
@@ -98,11 +103,8 @@ def _add_preset(subparsers) -> None:
                    help="only write the preset's experiment files (TOML) into DIR, do not run")
 
 
-def _add_resume(subparsers) -> None:
-    from .commands import RESUME_RULE
-
-    p = _add_state_command(subparsers, "resume", _run_resume, "continue a saved run",
-                           description=f"{_run_resume.__doc__} {RESUME_RULE}")
+def _resume_arguments(p) -> None:
+    _add_state(p)
     p.add_argument("--seconds", type=float_in(0.0, math.inf, low_open=True), required=True, metavar="T",
                    help="simulated time to add, s")
     _add_outputs(p, None)
@@ -114,18 +116,17 @@ def _add_resume(subparsers) -> None:
                             "has finished)")
 
 
-def _add_render(subparsers) -> None:
-    p = _add_state_command(subparsers, "render", _run_render, "draw a saved state as PNG")
+def _render_arguments(p) -> None:
+    _add_state(p)
     p.add_argument("--out", type=Path, default=None, metavar="FILE.png",
                    help="default: STATE with .png, which replaces the run's own picture of that state "
                         "(the same drawing; the command says so)")
 
 
-def _add_analyze(subparsers) -> None:
-    from ..analysis.forster import MAX_FORSTER_PX, MAX_FORSTER_RADII
-    from ..analysis.lqe import MAX_DRAWS
+def _analyze_arguments(p) -> None:
+    from ..limits import MAX_DRAWS, MAX_FORSTER_PX, MAX_FORSTER_RADII
 
-    p = _add_state_command(subparsers, "analyze", _run_analyze, "packing table and LQE of a saved state")
+    _add_state(p)
     p.add_argument("--json", action="store_true", help="print one JSON object instead of the table")
     p.add_argument("--plot", nargs="?", type=Path, const=True, default=None, metavar="FILE.png",
                    help="also write the figure (default: STATE with _analysis.png)")
@@ -171,17 +172,15 @@ def _add_image_options(p, out_default: str) -> None:
     p.add_argument("--page", type=int_in(0, 100_000), default=0, help="page of a multi-page file (default 0)")
 
 
-def _add_measure(subparsers) -> None:
-    p = add_command(subparsers, "measure", _run_measure, "find the dots of a micrograph and measure the film")
+def _measure_arguments(p) -> None:
     _add_image_options(p, "qdots-measure")
     p.add_argument("--no-lqe", action="store_true", help="skip the film LQE (the slowest part on large films)")
 
 
-def _add_compare(subparsers) -> None:
+def _compare_arguments(p) -> None:
     from ..engine import ENGINES
     from ..micrograph.compare import MAX_COMPARE_DOTS, MAX_SEEDS
 
-    p = add_command(subparsers, "compare", _run_compare, "measure a micrograph and simulate the film beside it")
     _add_image_options(p, "qdots-compare")
     p.add_argument("--seeds", type=int_in(1, MAX_SEEDS), default=3, help="simulated films (default 3)")
     p.add_argument("--dots", type=int_in(2, MAX_COMPARE_DOTS), default=300,
@@ -235,16 +234,16 @@ def _run_compare(args: argparse.Namespace) -> int:
     return 0
 
 
-def _add_sweep(subparsers) -> None:
-    from .sweep import add_sweep_command
+def _load_sweep(path: Path):
+    from .sweep import load_sweep
 
-    add_sweep_command(subparsers)
+    return load_sweep(path)
 
 
-def _add_sweep_plot(subparsers) -> None:
-    from labrig.sweeps.command import add_plot_parser
+def _sweep_runner(quick: float | None):
+    from .sweep import ExperimentRunner
 
-    add_plot_parser(subparsers, "qdots")
+    return ExperimentRunner(quick)
 
 
 def _run_analyze(args: argparse.Namespace) -> int:
@@ -312,15 +311,13 @@ def _run_render(args: argparse.Namespace) -> int:
     return 0
 
 
-#: The subcommands, in the order `--help` lists them.
-COMMANDS = [_add_demo, _add_run, _add_preset, _add_resume, _add_render, _add_analyze, _add_measure, _add_compare,
-            _add_sweep, _add_sweep_plot]
-build_parser, main = command_line("qdots", "Quantum-dot monolayer packing simulator (pymunk).", COMMANDS)
 
 
 def _run_demo(args: argparse.Namespace) -> int:
     """Place dots at random on a 300 x 300 px board (mean diameter 15 px), let them attract (van der
     Waals) and jiggle (thermal kicks), and write the final picture, a movie and a summary."""
+    import numpy as np
+
     import qdots
     from labrig.cli import print_table
     from labrig.files import OutputSet, write_csv
@@ -340,7 +337,7 @@ def _run_demo(args: argparse.Namespace) -> int:
     scene = qdots.Scene(box=DEMO_BOX, positions=positions, radii=radii)
     sim = qdots.Simulation(scene, [qdots.VanDerWaals(), qdots.ThermalKicks()], seed=sim_seed)
     title = run_title({"name": "qdots demo", "dots": args.dots, "sigma": args.sigma, "mass_model": "equal",
-                       "engine": sim.settings.kind, "seed": args.seed})
+                       "engine": sim.engine.kind, "seed": args.seed})
     start = time.perf_counter()
     with OutputSet(out, "demo") as files:  # locks the set before the run
         if args.no_movie:
@@ -380,6 +377,26 @@ def _run_demo(args: argparse.Namespace) -> int:
         ("files", f"{files.path}{os.sep}: " + ", ".join(path.name for path in files.written)),
     ])
     return 0
+
+
+#: The subcommands, in the order `--help` lists them.
+COMMANDS = [
+    Command("demo", "run a small demo board and write the folder demo/: demo.png, demo.mp4, summary.csv",
+            _run_demo, _demo_arguments),
+    Command("run", "run the experiment described by a TOML experiment file", _run_scene, _run_arguments),
+    Command("preset", "run one of the thesis's experiments", _run_preset, _preset_arguments,
+            description="Run the experiments that reproduce a thesis figure: " + ", ".join(PRESET_NAMES) + "."),
+    Command("resume", "continue a saved run", _run_resume, _resume_arguments,
+            description=f"{_run_resume.__doc__} {RESUME_RULE}"),
+    Command("render", "draw a saved state as PNG", _run_render, _render_arguments),
+    Command("analyze", "packing table and LQE of a saved state", _run_analyze, _analyze_arguments),
+    Command("measure", "find the dots of a micrograph and measure the film", _run_measure, _measure_arguments),
+    Command("compare", "measure a micrograph and simulate the film beside it", _run_compare, _compare_arguments),
+    sweep_command("qdots", "qdots experiments", _load_sweep, _sweep_runner,
+                  "scale every run down by F (fewer dots, shorter times) for a first look"),
+    plot_command("qdots"),
+]
+build_parser, main = command_line("qdots", "Quantum-dot monolayer packing simulator (pymunk).", COMMANDS)
 
 
 if __name__ == "__main__":

@@ -39,7 +39,7 @@ from labrig.sweeps.files import SweepFile
 from labrig.validate import InputError
 
 from ..experiment import Experiment, run_experiment
-from ..io.experiment_file import TABLES, experiment_from_dict
+from ..io.experiment_file import TABLES, experiment_from_dict, table_params
 
 
 #: Wall seconds per time step and per dot and time step of a run, at the default engine settings (from fig2-2:
@@ -57,9 +57,9 @@ def experiment_to_dict(exp: Experiment) -> dict:
         return list(value) if isinstance(value, tuple) else value
 
     data = {key: getattr(exp, key) for key in Experiment.PARAMS}
-    for name, cls in TABLES.items():
+    for name in TABLES:
         table = getattr(exp, name)
-        data[name] = {key: plain(getattr(table, key)) for key in cls.PARAMS if getattr(table, key) is not None}
+        data[name] = {key: plain(getattr(table, key)) for key in table_params(table) if getattr(table, key) is not None}
     data["forces"] = [{key: plain(value) for key, value in spec.items() if value is not None} for spec in exp.forces]
     return data
 
@@ -123,10 +123,3 @@ class ExperimentRunner:
 def load_sweep(path: str | os.PathLike) -> SweepFile:
     """Read a qdots sweep file (`labrig.sweeps.files`); its seeds go to the experiment's ``seed``."""
     return load_sweep_file(path, seed_key="seed")
-
-
-def add_sweep_command(subparsers) -> None:
-    """``qdots sweep SWEEP.toml [--out DIR] [--workers N] [--scheduler ADDRESS] [--quick F]``."""
-    from labrig.sweeps.command import add_sweep_command as add
-
-    add(subparsers, "qdots", "qdots experiments", load_sweep, ExperimentRunner, "scale every run down by F (fewer dots, shorter times) for a first look")

@@ -1,24 +1,40 @@
-"""The engine layer: what a run needs while it runs, apart from the physics that says what acts.
+"""The engines: what moves the dots between the forces' velocity changes, each with its own settings class.
 
-* `qdots.engine.settings` -- `EngineSettings`, every numerical knob (time step, sub-steps, solver, the van der
-  Waals pair list and its multiple time stepping), none of them physics;
-* `qdots.engine.run` -- `ChipmunkEngine`: the space, the bodies, the collision record, the sub-step plan and
-  each force's per-run cache of one simulation;
-* `qdots.engine.event_run` -- `EventEngine`: the thesis's algorithm, exact hard discs event by event within
-  frames at whose start the forces act (`qdots.engine.events`: the compiled event loop);
-* `qdots.engine.stepping` -- one time step: the force phase and the sub-step plan;
-* `qdots.engine.chipmunk` -- the Chipmunk adapter, the only module that reaches into pymunk's internals
-  (tested pymunk versions, the public-API path otherwise);
-* `qdots.engine.bodies` -- bulk reads and writes of the dots' positions and velocities;
-* `qdots.engine.contacts` -- the collision rule run by Chipmunk as compiled callbacks, and its record;
-* `qdots.engine.allocator` -- the allocator tuning a simulation opts into.
+* `Chipmunk` (`qdots.engine.chipmunk`) -- Chipmunk's impulse solver (pymunk) in sub-steps planned for the
+  approach speeds: the default;
+* `Event` (`qdots.engine.event`) -- the thesis's own algorithm, exact hard discs event by event within frames
+  at whose start the forces act.
+
+An engine's settings are frozen and checked when made; each builds its engine for a simulation, a `Backend`
+(`qdots.engine.protocol`, the engine protocol): `qdots.engine.chipmunk_backend.ChipmunkBackend` (the space,
+the bodies, the sub-step plan of `qdots.engine.chipmunk_step`; `qdots.engine.pymunk_adapter` is the one
+module that reaches into pymunk, `qdots.engine.bodies` its bulk reads and writes, `qdots.engine.contacts` the
+collision rule as compiled callbacks and the collision record) or `qdots.engine.event_backend.EventBackend`
+(the compiled event loop of `qdots.engine.event_loop`). Both evaluate the pair forces with a `PairScheme`
+(`qdots.engine.pair_scheme`); `qdots.engine.allocator` is the allocator tuning a simulation opts into.
+
+This package imports no simulator code until an engine is built: the command line reads `ENGINES` at once.
 """
 
-from .event_run import EventEngine
-from .run import ChipmunkEngine
-from .settings import ENGINES, EngineSettings
+from labrig.params import Param
 
-#: The engine class of each `EngineSettings.kind`.
-ENGINE_CLASSES = {"chipmunk": ChipmunkEngine, "event": EventEngine}
+from .chipmunk import Chipmunk
+from .event import Event
+from .pair_scheme import PairScheme
+from .protocol import Backend
+from .settings import Settings, engine_class, engine_from_dict
 
-__all__ = ["ChipmunkEngine", "EventEngine", "EngineSettings", "ENGINES", "ENGINE_CLASSES"]
+#: The engines' settings classes by name (``[engine] kind`` in files, ``--engine`` on the command line).
+ENGINES: dict[str, type[Settings]] = {cls.kind: cls for cls in (Chipmunk, Event)}
+
+#: Declaration of ``kind``, the key of an ``[engine]`` table that says which engine its other keys set.
+KIND = Param("str", choices=tuple(ENGINES), doc="the engine: Chipmunk's solver or the thesis's events")
+
+
+def engine_params(settings: Settings) -> dict[str, Param]:
+    """The declarations of an ``[engine]`` table holding ``settings``: `KIND`, then its engine's fields."""
+    return {"kind": KIND, **type(settings).PARAMS}
+
+
+__all__ = ["Chipmunk", "Event", "Settings", "PairScheme", "Backend", "ENGINES", "KIND", "engine_class", "engine_from_dict",
+           "engine_params"]

@@ -1,11 +1,10 @@
 """Bulk reads and writes of dot positions and velocities.
 
-Reading or writing bodies one by one costs ~12 ms per direction at 3,000 dots. The step's own
-reads (positions and velocities) and writes (velocity changes) go straight to Chipmunk's body memory from
-compiled code, at the offsets `qdots.engine.chipmunk.internals` found: at 300 dots that is ~3 us a
-direction, against ~15 us for a `pymunk.batch` call and its Python wrapping (measured on this 2-core
-machine). Without them (an untested pymunk), the same reads and writes go through `pymunk.batch`, with
-the same numbers.
+Reading or writing bodies one by one is slow at thousands of dots. The step's own reads (positions and
+velocities) and writes (velocity changes) go straight to Chipmunk's body memory from compiled code, at the
+offsets `qdots.engine.pymunk_adapter.internals` found, several times faster than a `pymunk.batch` call and its
+Python wrapping (the measurements: docs/performance.md, "Design measurements"). Without them (an untested
+pymunk), the same reads and writes go through `pymunk.batch`, with the same numbers.
 
 Measured facts the `pymunk.batch` path relies on (pymunk 7.3, checked at construction):
 
@@ -26,14 +25,14 @@ from pymunk import batch
 
 from labrig.compiled import jit, pointer
 
-from .chipmunk import POSITION, VELOCITY, body_address, internals
+from .pymunk_adapter import POSITION, VELOCITY, body_address, internals
 
 _POS_VEL = batch.BodyFields.POSITION | batch.BodyFields.VELOCITY
 
 
 @jit
 def read_bodies(addresses, offsets, rows):
-    """Fill ``rows`` (N, 4) with ``(x, y, vx, vy)`` of the bodies at ``addresses`` (`qdots.engine.chipmunk.Internals.body_offsets`)."""
+    """Fill ``rows`` (N, 4) with ``(x, y, vx, vy)`` of the bodies at ``addresses`` (`qdots.engine.pymunk_adapter.Internals.body_offsets`)."""
     for a in range(addresses.size):
         p = carray(pointer(addresses[a] + offsets[POSITION]), 2, np.float64)
         v = carray(pointer(addresses[a] + offsets[VELOCITY]), 2, np.float64)
@@ -96,7 +95,7 @@ class BodyArrays:
 
     @property
     def direct(self) -> bool:
-        """True when reads and writes go straight to Chipmunk's memory (`qdots.engine.chipmunk.internals`)."""
+        """True when reads and writes go straight to Chipmunk's memory (`qdots.engine.pymunk_adapter.internals`)."""
         return self._offsets is not None
 
     def read_rows(self) -> np.ndarray:

@@ -1,291 +1,152 @@
-"""The Chipmunk adapter: building a `pymunk.Space` for a scene, and the one place that reaches into pymunk.
+"""`Chipmunk`: the settings of the Chipmunk engine (pymunk's impulse solver in planned sub-steps), the default.
 
-pymunk's public API (``Space``, ``Body``, ``Circle``, ``Segment``, ``pymunk.batch``, ``Space.on_collision``,
-``Space.step``) does everything a simulation needs. Four of pymunk's internals make it several times
-faster, and they are written for the pymunk versions in `TESTED_PYMUNK` (7.3, Chipmunk 2.0.1):
-
-* where Chipmunk keeps a body's position and velocity (`Internals.body_offsets`), so compiled code
-  reads and writes them directly (`qdots.engine.bodies`);
-* where it keeps an arbiter's restitution, normal and bodies (`Internals.arbiter`), so the collision rule
-  runs as a compiled C callback (`qdots.engine.contacts`, `add_pre_solve_callback`);
-* its C step without pymunk's Python bookkeeping (`advance`);
-* ``cpSpaceSetCurrentTimeStep``, which tells Chipmunk the length of the last sub-step when the sub-step
-  changes (`set_last_substep`).
-
-`internals` finds them once, when the first simulation is built (nothing is probed at import). On a
-pymunk outside `TESTED_PYMUNK`, or when the memory is not laid out as expected, it returns None and
-warns once: every engine module then runs on the public API alone, with the same numbers at a fixed
-sub-step and slower; when the sub-step changes between steps, Chipmunk re-applies its warm-start
-impulses scaled by the ratio of the sub-steps (an elastic gas then gains or loses a few per cent of
-its energy over many impacts).
+The engine itself is `qdots.engine.chipmunk_backend.ChipmunkBackend`, which `Chipmunk.build` makes. What each
+knob costs and changes, as measured: docs/engines.md and docs/performance.md.
 """
 
 from __future__ import annotations
 
-import functools
-import math
-import warnings
 from dataclasses import dataclass
+from typing import ClassVar
 
-import numpy as np
-import pymunk
+from labrig.params import Param
 
-from .settings import EngineSettings
+from ..limits import MAX_LENGTH
+from .pair_scheme import PairScheme
+from .settings import DT, THESIS_FRAME, TUNE_ALLOCATOR, Settings
 
-#: (major, minor) versions of pymunk whose internals this module was written for and tested with.
-TESTED_PYMUNK = ((7, 3),)
-#: pymunk collision types of the two kinds of shape.
-DOT = 1
-WALL = 2
-#: pymunk's records of work its ``Space.step`` does in Python after the C step (pymunk 7.3).
-_PYMUNK_PENDING = ("_bodies_to_check", "_add_later", "_remove_later", "_post_step_callbacks")
-#: The C type of a collision callback.
-_CALLBACK = "void(*)(struct cpArbiter *, struct cpSpace *, void *)"
+#: Fraction of an overlap corrected per sub-step by default (`Chipmunk.collision_bias`): 30 % leaves half the
+#: worst overlap of 10 % at the same cost; 50 % starts to jitter (docs/engines.md).
+OVERLAP_CORRECTION = 0.3
+#: Most Chipmunk sub-steps per time step and solver iterations per sub-step.
+MAX_SUBSTEPS = 1000
+MAX_ITERATIONS = 1000
+#: Range of `Chipmunk.overlap_tolerance`, radii.
+TOLERANCE_RANGE = (1e-6, 1.0)
+#: Largest collision slop, px.
+MAX_SLOP = 100.0
+#: Most cells of Chipmunk's spatial hash.
+MAX_HASH_CELLS = 10_000_000
+#: Smallest cell of Chipmunk's spatial hash, px: a dot of the thesis's 15 px then spans 150 x 150 cells (a smaller
+#: cell puts each dot in more cells than the hash can index).
+MIN_HASH_CELL = 0.1
+#: Where the Chipmunk engine resolves an impact (`Chipmunk.impacts`).
+IMPACTS = ("contact", "overlap")
 
 
 @dataclass(frozen=True)
-class Internals:
-    """Where Chipmunk keeps what compiled code reads and writes.
+class Chipmunk(Settings):
+    """The Chipmunk engine and its numerical knobs (none of them physics).
 
-    Attributes
+    Chipmunk's impulse solver (pymunk) moves the dots in sub-steps planned so that no dot travels more than
+    ``overlap_tolerance`` radii into a contact within one (`qdots.engine.chipmunk_step`), and the collision rule
+    runs in Chipmunk's contact callbacks (`qdots.engine.contacts`).
+
+    Parameters
     ----------
-    body_offsets : ndarray of uint64, shape (2,)
-        Byte offsets of a body's position and velocity vectors (`POSITION`, `VELOCITY`).
-    arbiter : dict
-        Word (8-byte) indices into a ``cpArbiter``: its size in words (``"words"``), the restitution
-        ``"e"``, the normal ``"normal"``, the two body pointers ``"body_a"``, ``"body_b"``.
+    dt : float
+        Time step, s, in `qdots.engine.settings.DT_RANGE`: the forces change the velocities once per step, at its
+        start, as the thesis's frame did. The default is the thesis's frame, 20 ms, and with it the thesis's model:
+        its van der Waals proxy is a velocity change per frame whose cap and impulses depend on the frame. A
+        shorter step approaches the proxy's continuous limit, a different model (docs/engines.md).
+    substeps : int
+        Fewest Chipmunk steps per time step, in [1, `MAX_SUBSTEPS`]. More sub-steps resolve contacts more finely
+        at proportional cost.
+    overlap_tolerance : float, optional
+        Largest overlap a contact may make before Chipmunk sees it, as a fraction of the smaller radius, in
+        `TOLERANCE_RANGE`. Chipmunk finds a contact only once two discs overlap, so a dot closing at ``u`` px/s
+        overlaps by up to ``u h`` in a sub-step ``h``: each step takes as many equal sub-steps as the fastest
+        approach that can touch within it needs (at least ``substeps``, at most ``max_substeps``). None: always
+        ``substeps``.
+    max_substeps : int
+        Most sub-steps a step may take for ``overlap_tolerance``, in [1, `MAX_SUBSTEPS`] (``substeps`` when that
+        is more): a bound on the cost of a step, reached only by very fast dots; the run warns when a capped
+        step leaves a dot moving more than `qdots.motion.SAFE_TRAVEL` radii per sub-step.
+    iterations : int
+        Solver iterations per sub-step, in [1, `MAX_ITERATIONS`] (pymunk's default is 10). Two-body impacts are
+        exact with any count; simultaneous impacts of three or more dots converge with more: set 10 or more
+        where energy must be conserved (the default 5 gives the thesis's films the metrics of 10, faster).
+    impacts : {"contact", "overlap"}
+        Where an impact is resolved. ``"contact"`` (default): where the discs met, as the thesis's model does:
+        each impact's pair is moved to where the impact at contact leaves it. ``"overlap"``: where Chipmunk finds
+        it, the sub-step's overlap into the contact, which leaves every bounced pair ``(1 + e)`` times that
+        overlap too close (the default until 0.3; it makes films hotter, docs/engines.md).
+    collision_slop : float
+        Overlap Chipmunk tolerates without correcting, px, in [0, `MAX_SLOP`] (pymunk's default 0.1 px is 1.3 %
+        of a mean radius, ours 0.01 px).
+    collision_bias : float, optional
+        Fraction of an overlap left uncorrected after one second (pymunk's meaning), in [0, 1); None: correct
+        `OVERLAP_CORRECTION` of the overlap per sub-step. The correction moves positions only (pseudo-velocities),
+        not the velocities that carry energy.
+    spatial_hash : (float, int), optional
+        ``(cell size px, cell count)`` for Chipmunk's spatial hash; None: its bounding-box tree.
+    threads : int
+        Chipmunk solver threads, 1 or 2.
+    pair_skin, near_gap, far_interval
+        The pair forces' scheme in time (`pairs`, `qdots.engine.PairScheme`): the pair list's skin, px; the gap
+        below which pairs are pulled every step, px; the seconds between passes over the far pairs (None,
+        the default: every pair every step, as the thesis).
+    tune_allocator : bool
+        Raise glibc's allocator thresholds when the simulation is built (`qdots.engine.allocator`): speed only,
+        never results.
     """
 
-    body_offsets: np.ndarray
-    arbiter: dict
+    dt: float = THESIS_FRAME
+    substeps: int = 1
+    overlap_tolerance: float | None = 0.005
+    max_substeps: int = 512
+    iterations: int = 5
+    impacts: str = "contact"
+    collision_slop: float = 0.01
+    collision_bias: float | None = None
+    spatial_hash: tuple[float, int] | None = None
+    threads: int = 1
+    pair_skin: float = 6.0
+    near_gap: float = 4.0
+    far_interval: float | None = None
+    tune_allocator: bool = True
 
+    kind: ClassVar[str] = "chipmunk"
+    PARAMS: ClassVar[dict[str, Param]] = {
+        "dt": DT,
+        "substeps": Param("int", 1, MAX_SUBSTEPS, doc="fewest Chipmunk steps per time step"),
+        "overlap_tolerance": Param("float", *TOLERANCE_RANGE, unit="radii", optional=True,
+                                   doc="how far a dot may travel into a contact in one Chipmunk step",
+                                   unset="always `substeps`"),
+        "max_substeps": Param("int", 1, MAX_SUBSTEPS, doc="most Chipmunk steps per time step for overlap_tolerance"),
+        "iterations": Param("int", 1, MAX_ITERATIONS, doc="solver iterations per sub-step"),
+        "impacts": Param("str", choices=IMPACTS, doc="where Chipmunk resolves an impact: at contact or overlapped"),
+        "collision_slop": Param("float", 0.0, MAX_SLOP, unit="px", doc="overlap left uncorrected"),
+        "collision_bias": Param("float", 0.0, 1.0, high_open=True, optional=True,
+                                doc="fraction of an overlap left after 1 s",
+                                unset=f"{OVERLAP_CORRECTION:.0%} of an overlap corrected per sub-step"),
+        "spatial_hash": Param("pair", optional=True, doc="Chipmunk's spatial hash", unset="Chipmunk's bounding-box tree",
+                              parts=(Param("float", MIN_HASH_CELL, MAX_LENGTH, unit="px", doc="cell size"),
+                                     Param("int", 1, MAX_HASH_CELLS, doc="count"))),
+        "threads": Param("int", choices=(1, 2), doc="Chipmunk solver threads"),
+        **PairScheme.PARAMS,
+        "tune_allocator": TUNE_ALLOCATOR,
+    }
+    SAVED: ClassVar[tuple[str, ...]] = ("dt", "substeps", "iterations", "collision_slop", "collision_bias",
+                                        "spatial_hash", "threads")
 
-#: Index of each field's byte offset in `Internals.body_offsets`.
-POSITION, VELOCITY = 0, 1
+    @property
+    def pairs(self) -> PairScheme:
+        """The pair forces' scheme: the pair list's skin and the multiple time stepping of the far pairs."""
+        return PairScheme(self.pair_skin, self.near_gap, self.far_interval)
 
+    @property
+    def bias(self) -> float:
+        """pymunk's collision_bias at ``substeps`` sub-steps per step (`bias_for`)."""
+        return self.bias_for(self.dt / self.substeps)
 
-def pymunk_tested(version: str | None = None) -> bool:
-    """Whether ``version`` (default: the installed pymunk's) is one of `TESTED_PYMUNK`."""
-    parts = (version or pymunk.version).split(".")
-    try:
-        return (int(parts[0]), int(parts[1])) in TESTED_PYMUNK
-    except (IndexError, ValueError):
-        return False
+    def bias_for(self, substep: float) -> float:
+        """pymunk's collision_bias for a sub-step of ``substep`` s: given, or `OVERLAP_CORRECTION` per sub-step."""
+        if self.collision_bias is not None:
+            return float(self.collision_bias)
+        return (1.0 - OVERLAP_CORRECTION) ** (1.0 / substep)
 
+    def build(self, walls, restitution, key, positions, velocities, radii, masses):
+        from .chipmunk_backend import ChipmunkBackend
 
-@functools.cache
-def internals() -> Internals | None:
-    """pymunk's internals the engine uses, found once per process; None (with one warning) when they cannot
-    be used: an untested pymunk, or memory not laid out as expected."""
-    why = None
-    found = None
-    if not pymunk_tested():
-        why = f"pymunk {pymunk.version} is not a tested version ({_tested_text()})"
-    else:
-        offsets = _body_offsets()
-        arbiter = _arbiter_layout() if offsets is not None else None
-        if offsets is None or arbiter is None:
-            why = f"pymunk {pymunk.version} does not lay out its bodies and arbiters as expected"
-        else:
-            found = Internals(offsets, arbiter)
-    if found is None:
-        warnings.warn(f"{why}: qdots runs on pymunk's public API alone (same results at a fixed sub-step, "
-                      "slower; sub-step changes are not rescaled). Install a tested pymunk for speed: "
-                      f"{_tested_text()}", RuntimeWarning, stacklevel=3)
-    return found
-
-
-def _tested_text() -> str:
-    return ", ".join(f"{major}.{minor}.x" for major, minor in TESTED_PYMUNK)
-
-
-def _ffi():
-    from pymunk._chipmunk import ffi
-
-    return ffi
-
-
-def _lib():
-    from pymunk._chipmunk import lib
-
-    return lib
-
-
-def body_address(body: pymunk.Body) -> int:
-    """The address of a body's Chipmunk struct (valid while the body lives)."""
-    return int(_ffi().cast("uintptr_t", body._body))
-
-
-def _body_offsets() -> np.ndarray | None:
-    """Byte offsets of a Chipmunk body's position and velocity vectors, or None when pymunk's memory is
-    not laid out as expected.
-
-    The body struct is opaque to pymunk's declarations, so each field is found by writing two
-    different known values through pymunk (a disc body: no rotation, centre of gravity at its
-    position) and reading them back from memory. The velocity must be found at exactly one
-    offset; the position is also the translation of the body's transform, further on, so the first
-    of its offsets (Chipmunk's ``cpBody.p``, which its integrator moves) is taken.
-    """
-    ffi = _ffi()
-    found = []
-    for field in ("position", "velocity"):
-        offsets = set()
-        for value in ((1.25e-3, -7.5e4), (-3.5e2, 6.0625)):
-            body = pymunk.Body(1.0, math.inf)
-            setattr(body, field, value)
-            memory = np.frombuffer(ffi.buffer(ffi.cast("char *", body._body), 256), dtype=np.float64)
-            offsets.add(tuple(8 * k for k in range(len(memory) - 1) if (memory[k], memory[k + 1]) == value))
-        if len(offsets) != 1 or not (at := offsets.pop()) or (len(at) > 1 and field != "position"):
-            return None
-        found.append(at[0])
-    return np.array(found, dtype=np.uint64)
-
-
-def _arbiter_layout() -> dict | None:
-    """Word indices of a ``cpArbiter``'s fields, from pymunk's own C declarations; None when not 8-byte aligned."""
-    ffi = _ffi()
-    arbiter = ffi.typeof("struct cpArbiter")
-    offsets = {name: ffi.offsetof(arbiter, name) for name in ("e", "n", "body_a", "body_b")}
-    if any(offset % 8 for offset in offsets.values()) or ffi.sizeof(arbiter) % 8:
-        return None
-    return {"words": ffi.sizeof(arbiter) // 8, "e": offsets["e"] // 8, "normal": offsets["n"] // 8,
-            "body_a": offsets["body_a"] // 8, "body_b": offsets["body_b"] // 8}
-
-
-@functools.cache
-def impact_layout() -> dict | None:
-    """Where Chipmunk keeps what a callback needs to move an impact's bodies to the instant of contact
-    (`qdots.engine.contacts`); None without `internals` or when the layout is not as expected.
-
-    Returns ``{"contacts": word index of the arbiter's contact array pointer, "r1", "r2": word indices of a
-    contact's two offsets from its bodies' centres, "inverse_mass": byte offset of a body's 1/m, "translation":
-    byte offset of the translation of a body's transform}``. Chipmunk's ``cpBodyGetPosition`` (pymunk's
-    ``Body.position``, ``pymunk.batch``) reads that translation, which its integrator sets from ``cpBody.p``
-    at the next step: a callback that moves ``p`` writes both.
-    """
-    if internals() is None:
-        return None
-    ffi = _ffi()
-    arbiter, contact = ffi.typeof("struct cpArbiter"), ffi.typeof("struct cpContact")
-    offsets = {"contacts": ffi.offsetof(arbiter, "contacts"), "r1": ffi.offsetof(contact, "r1"),
-               "r2": ffi.offsetof(contact, "r2")}
-    if any(offset % 8 for offset in offsets.values()):
-        return None
-    found = set()
-    for mass in (2.0, 8.0):  # 1/m written by pymunk, found in memory as the mass's inverse next to the mass
-        body = pymunk.Body(mass, math.inf)
-        memory = np.frombuffer(ffi.buffer(ffi.cast("char *", body._body), 256), dtype=np.float64)
-        found.add(tuple(8 * k for k in range(1, len(memory)) if (memory[k - 1], memory[k]) == (mass, 1.0 / mass)))
-    if len(found) != 1 or len(at := found.pop()) != 1:
-        return None
-    translation = _translation_offset(int(internals().body_offsets[POSITION]))
-    if translation is None:
-        return None
-    return {**{name: offset // 8 for name, offset in offsets.items()}, "inverse_mass": at[0], "translation": translation}
-
-
-def _translation_offset(position: int) -> int | None:
-    """Byte offset of the translation of a body's transform: the one other place a disc body's position is
-    found, after ``cpBody.p``, and the one ``Body.position`` reads (checked by writing there); None if not so."""
-    ffi = _ffi()
-    body = pymunk.Body(1.0, math.inf)
-    body.position = (3.25, -1.5e3)
-    memory = np.frombuffer(ffi.buffer(ffi.cast("char *", body._body), 256), dtype=np.float64)
-    at = [8 * k for k in range(len(memory) - 1) if (memory[k], memory[k + 1]) == (3.25, -1.5e3)]
-    if len(at) != 2 or at[0] != position:
-        return None
-    memory[at[1] // 8: at[1] // 8 + 2] = (7.75, 2.5)
-    return at[1] if tuple(body.position) == (7.75, 2.5) else None
-
-
-# -- the space -----------------------------------------------------------------------------------
-
-def tune_space(space: pymunk.Space, settings: EngineSettings) -> None:
-    """Apply the solver knobs that can change on a live space (iterations, slop, bias)."""
-    space.iterations = int(settings.iterations)
-    space.collision_slop = float(settings.collision_slop)
-    space.collision_bias = settings.bias
-
-
-def new_space(walls: np.ndarray, settings: EngineSettings) -> pymunk.Space:
-    """A space with ``settings``' solver, threads and spatial index, holding the static segments ``walls`` (M, 4).
-
-    Walls are static, frictionless, perfectly elastic segments of zero thickness.
-    """
-    space = pymunk.Space(threaded=settings.threads > 1)
-    if settings.threads > 1:
-        space.threads = settings.threads
-    tune_space(space, settings)
-    if settings.spatial_hash is not None:
-        cell, cells = settings.spatial_hash
-        space.use_spatial_hash(float(cell), int(cells))
-    for x0, y0, x1, y1 in walls:
-        wall = pymunk.Segment(space.static_body, (x0, y0), (x1, y1), 0.0)
-        wall.friction = 0.0
-        wall.elasticity = 1.0
-        wall.collision_type = WALL
-        space.add(wall)
-    return space
-
-
-def add_discs(space: pymunk.Space, positions, velocities, radii, masses) -> list[pymunk.Body]:
-    """Add one frictionless, non-rotating disc per dot (px, px/s, px, mean mass = 1); returns their bodies.
-
-    A disc's own elasticity is 0, so lasting contacts are inelastic; the restitution of each impact
-    is set by the collision callbacks (`qdots.engine.contacts`).
-    """
-    bodies = []
-    for (x, y), (vx, vy), r, m in zip(positions, velocities, radii, masses):
-        body = pymunk.Body(float(m), math.inf)
-        body.position = (float(x), float(y))
-        body.velocity = (float(vx), float(vy))
-        circle = pymunk.Circle(body, float(r))
-        circle.friction = 0.0
-        circle.elasticity = 0.0
-        circle.collision_type = DOT
-        space.add(body, circle)
-        bodies.append(body)
-    return bodies
-
-
-def advance(space: pymunk.Space, h: float, k: int) -> None:
-    """Advance ``space`` by ``k`` Chipmunk steps of ``h`` s.
-
-    pymunk's ``Space.step`` wraps each C step in Python bookkeeping for what Python callbacks may
-    have asked during it (bodies to check, additions and removals, post-step callbacks): about
-    20 us a step, against ~60 us for the C step of a settled 300-dot film without forces and
-    ~500 us with van der Waals pressing its ~700 contacts (measured on this 2-core machine). With
-    `internals`, the steps go straight to Chipmunk unless some of that is pending; the C step is the
-    same either way.
-    """
-    if internals() is None or any(getattr(space, name, True) for name in _PYMUNK_PENDING):
-        for _ in range(k):
-            space.step(h)
-        return
-    lib = _lib()
-    step = lib.cpHastySpaceStep if space.threaded else lib.cpSpaceStep
-    handle = space._space
-    for _ in range(k):
-        step(handle, h)
-
-
-def set_last_substep(space: pymunk.Space, h: float) -> None:
-    """Tell Chipmunk that its last step was ``h`` s long (nothing without `internals`).
-
-    Chipmunk re-applies the last sub-step's contact impulses scaled by ``h / (its h)`` but keeps
-    them unscaled as the total the solver may take back: a ratio other than 1 leaves an impact's
-    impulse partly applied twice or reversed (an elastic gas gained or lost 2-5 % of its energy).
-    Telling it the last sub-step was ``h`` makes the ratio 1, as at a fixed step.
-    """
-    if internals() is not None:
-        _lib().cpSpaceSetCurrentTimeStep(space._space, h)
-
-
-def add_pre_solve_callback(space: pymunk.Space, type_a: int, type_b: int, address: int, data_address: int) -> None:
-    """Make Chipmunk call the C function at ``address`` in every step a contact of shapes of collision types
-    ``type_a`` and ``type_b`` lasts (before it solves the contact), with ``data_address`` as its data. Needs
-    `internals`."""
-    ffi = _ffi()
-    handler = _lib().cpSpaceAddCollisionHandler(space._space, type_a, type_b)
-    handler.preSolveFunc = ffi.cast(_CALLBACK, address)
-    handler.userData = ffi.cast("void *", data_address)
+        return ChipmunkBackend(self, walls, restitution, key, positions, velocities, radii, masses)

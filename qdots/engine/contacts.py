@@ -9,15 +9,15 @@ step began with): when the dots approach, the rule gives the restitution (a draw
 sticking speed) and counts an impact; a resting or parting contact gets 0. (Until 0.3 the rule ran
 only in a contact's first step, and a lasting contact was perfectly inelastic: every kick into a
 touching neighbour was absorbed, one reason why films of unequal masses came out colder and more
-cohesive than the thesis's model; see `qdots.engine.stepping` for the other.)
+cohesive than the thesis's model; see `qdots.engine.chipmunk_step` for the other.)
 
-Speed. A film makes hundreds of contacts per Chipmunk step. A Python callback costs ~6 us per contact,
-so the rule is compiled (`impact_elasticity`) and Chipmunk calls it through a C function pointer
-(~0.1 us). The callback reads the two bodies' velocities and the contact normal from Chipmunk's memory
-(`qdots.engine.chipmunk.internals`); without them (an untested pymunk), the same compiled rule runs from
+Speed. A film makes hundreds of contacts per Chipmunk step, too many for a Python callback each, so the rule
+is compiled (`impact_elasticity`) and Chipmunk calls it through a C function pointer (docs/performance.md,
+"Design measurements"). The callback reads the two bodies' velocities and the contact normal from Chipmunk's memory
+(`qdots.engine.pymunk_adapter.internals`); without them (an untested pymunk), the same compiled rule runs from
 a Python callback (slower, same numbers).
 
-Impacts at the instant of contact (``EngineSettings.impacts = "contact"``, the default).
+Impacts at the instant of contact (``Chipmunk(impacts="contact")``, the default).
 Chipmunk sees a contact only once two discs overlap: positions move first in each sub-step, then the
 contacts are found, then the velocities solved. An impact at approach speed ``u`` is therefore found
 late, when the sub-step's motion has pushed the discs ``delta = min(overlap, u h)`` into each other
@@ -26,8 +26,8 @@ bounce would start from there. The thesis's model resolves it at contact (its st
 the sub-step the pair would have separated again by ``e delta``. So every impact would leave the pair
 ``(1 + e) delta`` closer than the model, and with the thesis's van der Waals proxy that is not a small
 error: the proxy acts only at gaps >= 0.1 px and is steepest just above that, so pairs that bounce from
-too close are pulled too hard in the next frame, which injected 11-14 % more energy than the model and
-left the films hotter and, with masses ~ d^3, more fragmented (docs/engines.md, "Energy budget"). The
+too close are pulled too hard in the next frame, which injected more energy than the model and left the
+films hotter and, with masses ~ d^3, more fragmented (the numbers: docs/engines.md, "Energy budget"). The
 callback therefore moves the two bodies of every impact apart along the normal by ``(1 + e) delta``,
 shared in inverse proportion to their masses (all of it on the dot at a wall), where the impact at
 contact would have left them; velocities are not touched. A lasting contact that a kick drives together
@@ -51,7 +51,7 @@ from labrig.compiled import c_callback, jit, pointer
 
 from ..restitution import Restitution, impact_normal
 from .allocator import tune_allocator
-from .chipmunk import DOT, POSITION, VELOCITY, WALL, add_pre_solve_callback, impact_layout, internals
+from .pymunk_adapter import DOT, POSITION, VELOCITY, WALL, add_pre_solve_callback, impact_layout, internals
 
 
 # -- the collision record: one float64 array the callbacks read and write ----------------------
@@ -228,8 +228,8 @@ class CollisionRecord:
 
     @property
     def compiled(self) -> bool:
-        """True when Chipmunk calls the compiled callbacks directly (`qdots.engine.chipmunk.internals` and
-        `qdots.engine.chipmunk.impact_layout`)."""
+        """True when Chipmunk calls the compiled callbacks directly (`qdots.engine.pymunk_adapter.internals` and
+        `qdots.engine.pymunk_adapter.impact_layout`)."""
         return internals() is not None and impact_layout() is not None
 
 
@@ -238,7 +238,7 @@ def install_handlers(space: pymunk.Space, rule: Restitution, record: CollisionRe
     """Make ``space`` apply ``rule`` to every dot-dot and dot-wall impact, counting them in ``record``.
 
     ``at_contact``: move each impact's bodies to where the impact at contact leaves them (the module's
-    docstring; `EngineSettings.impacts`). ``record`` must live as long as ``space`` (Chipmunk keeps its
+    docstring; `qdots.engine.Chipmunk.impacts`). ``record`` must live as long as ``space`` (Chipmunk keeps its
     address) and its `CollisionRecord.substep` must be the sub-step Chipmunk takes. ``compiled=False`` runs the
     same rule from Python callbacks (the fallback; tests compare the two).
     """

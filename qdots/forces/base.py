@@ -8,6 +8,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..engine.pair_scheme import PairScheme
+
 
 @dataclass
 class StepContext:
@@ -32,9 +34,9 @@ class StepContext:
         The simulation's generator; draw from it only, so runs repeat.
     dv : ndarray, shape (N, 2)
         Accumulator: each force *adds* its velocity change, px/s.
-    settings : qdots.EngineSettings
-        The engine's numerical knobs (a force's numerical method reads its own there, e.g. the van der
-        Waals pair list's skin).
+    pairs : qdots.engine.PairScheme
+        How the engine evaluates pair forces in time (its pair list and multiple time stepping): a pair force
+        states its law and leaves which pairs are pulled when to it (`PairScheme.pull`).
     restitution : qdots.Restitution
         The collision rule of the simulation (its sticking speed enters the thesis's van der Waals proxy).
     cache : dict
@@ -52,7 +54,7 @@ class StepContext:
     masses: np.ndarray
     rng: np.random.Generator
     dv: np.ndarray
-    settings: object = None
+    pairs: PairScheme = field(default_factory=PairScheme)
     restitution: object = None
     cache: dict = field(default_factory=dict)
 

@@ -11,8 +11,8 @@ from labrig.compiled import jit
 from labrig.params import Param
 from labrig.validate import InputError
 
-from ..geometry import VerletPairs, pair_separation, pairs_closer
-from .base import Force, StepContext, instants_in_step
+from ..geometry import pair_separation
+from .base import Force, StepContext
 
 MODELS = ("thesis", "hamaker")
 #: What the force does at gaps below ``min_gap``.
@@ -21,14 +21,6 @@ CONTACTS = ("zero", "hold")
 MAX_RANGE = 1000.0
 #: Largest Hamaker constant, mean-dot mass px^2/s^2 (the default is about 2e4).
 MAX_STRENGTH = 1e12
-#: Where the every-step pull starts to fade, as a fraction of `qdots.EngineSettings.near_gap`: a pair's pull moves smoothly
-#: (smoothstep in the gap) from the every-step pass at ``NEAR_FADE * near_gap`` to the far pass at
-#: ``near_gap``, so a pair that crosses between them is neither pulled twice nor missed. With a hard cut at
-#: ``near_gap`` two dots approaching from 4 px were 6.5x farther from the dt -> 0 path than with every
-#: pair every step; with the fade 10x closer (and the vdW impulse of a dense pack and of a loose film 3x
-#: and 7x closer to that of every pair every step): ``python -m benchmarks --only qdots_knobs``.
-NEAR_FADE = 0.5
-
 
 def thesis_offset(r0: float, min_gap: float, sticking_speed: float) -> float:
     """The offset ``b`` of the thesis proxy, px.
@@ -153,20 +145,14 @@ def add_pair_kicks(x, y, i, j, radii, inv_mass, model, r0, offset, strength, min
 
 
 class VanDerWaals(Force):
-    """Pairwise van der Waals attraction, applied as velocity changes.
+    """Pairwise van der Waals attraction, applied as velocity changes: physics only.
 
-    The numerical method is the engine's (`qdots.EngineSettings`): pairs closer than ``near_gap / 2`` (the
-    contacts and the pairs about to touch) are pulled every step; the far pairs, whose pull is small and
-    slow to change, get the pull of a whole ``far_interval`` at once, at the middle of each interval.
-    Between ``near_gap / 2`` and ``near_gap`` a pair's pull passes smoothly from one to the other
-    (`NEAR_FADE`), so pairs crossing over are neither pulled twice nor missed. That is position Verlet for
-    the far field: second order in the interval (two dots approaching from a 20 px gap stay within 1e-6
-    px of the dt -> 0 path at 20 ms, against 6e-4 px for a pull every 2.5 ms step, which lags by half a
-    step), and it cut the force phase of the thesis's 300-dot film by about a third on this 2-core
-    machine (the error and cost of both knobs: ``python -m benchmarks --only qdots_knobs``). The thesis
-    proxy's cap then applies to the interval's pull, as it did to the thesis's frame (it binds only for
-    dots lighter than ~1/400 of the mean mass). The far passes follow the clock
-    (`qdots.forces.base.instants_in_step`), so a resumed run keeps them.
+    The force states its law (`add_pair_kicks`): how hard a pair at a surface gap pulls over some seconds. Which
+    pairs are pulled in which step is the engine's numerical scheme, handed to the force in each step's context
+    (`qdots.engine.PairScheme`, ``ctx.pairs``): every pair in range every step by default, as the thesis pulled
+    every pair once per frame, or the far pairs once per interval (multiple time stepping). The thesis
+    proxy's cap applies to the pull of the time it is given, a step or an interval, as it did to the thesis's
+    frame (it binds only for dots lighter than ~1/400 of the mean mass).
 
     Parameters
     ----------
@@ -273,47 +259,20 @@ class VanDerWaals(Force):
         proxy = 0.5 * (self.r0 / (1.0 - offset)) ** 7
         return self.PARAMS["strength"].check("VanDerWaals.strength", proxy / hamaker_force(1.0, 7.5, 7.5, 1.0))
 
-    def split(self, settings) -> bool:
-        """True when the engine ``settings`` pull the far pairs every ``far_interval`` instead of every step."""
-        return settings.far_interval is not None and settings.near_gap < self.max_gap
-
     def kick(self, ctx: StepContext) -> None:
-        cache = ctx.cache
-        if not cache:  # first step with these dots: what this force derives from them and the settings
-            offset = self.proxy_offset(ctx.restitution.sticking_speed)
-            cache.update(radii=np.ascontiguousarray(ctx.radii, dtype=float),
-                         inv_mass=np.ascontiguousarray(1.0 / ctx.masses, dtype=float),
-                         cutoff=self.max_gap + 2.0 * float(ctx.radii.max(initial=0.0)),
-                         pairs=VerletPairs(ctx.settings.pair_skin), offset=offset,
-                         strength=self.hamaker_strength(offset), split=self.split(ctx.settings))
-            cache["near"] = cache["pairs"].i, cache["pairs"].j
-        pairs = cache["pairs"]
-        rebuilt = pairs.update(ctx.x, ctx.y, cache["cutoff"])
-        if not cache["split"]:
-            self._pull(ctx, pairs.i, pairs.j, self.max_gap, False, ctx.dt)
-            return
-        settings = ctx.settings
-        if rebuilt:  # every pair that can come within near_gap before the next rebuild
-            cache["near"] = pairs_closer(ctx.x, ctx.y, cache["radii"], pairs.i, pairs.j, settings.near_gap + pairs.skin)
-        self._pull(ctx, *cache["near"], settings.near_gap, False, ctx.dt)
-        # the far pass: at the start of the step that follows each interval's middle (the middles in
-        # (time - dt, time]), its pull over the interval, where the dots were at the (last) middle
-        interval = settings.far_interval
-        intervals = instants_in_step(ctx.time - ctx.dt + 0.5 * interval, ctx.dt, interval)
-        if intervals:
-            lag = ctx.time - (math.floor((ctx.time + 0.5 * interval) / interval + 1e-9) - 0.5) * interval
-            x = ctx.x - ctx.velocity[:, 0] * lag
-            y = ctx.y - ctx.velocity[:, 1] * lag
-            self._pull(ctx, pairs.i, pairs.j, self.max_gap, True, intervals * interval, x, y)
+        ctx.pairs.pull(self, ctx)
 
-    def _pull(self, ctx: StepContext, i, j, gap_to: float, far: bool, seconds: float, x=None, y=None) -> None:
-        """Add the pull over ``seconds`` of the pairs ``i, j`` closer than ``gap_to``: the part pulled every
-        step (``far`` False) or the far pass's part; at the dots' positions ``x, y`` (default: ``ctx``'s)."""
-        cache = ctx.cache
-        x = ctx.x if x is None else x
-        y = ctx.y if y is None else y
-        fade_to = ctx.settings.near_gap if cache["split"] else self.max_gap
-        fade_from = NEAR_FADE * fade_to if cache["split"] else fade_to
-        add_pair_kicks(x, y, i, j, cache["radii"], cache["inv_mass"],
-                       HAMAKER if self.model == "hamaker" else THESIS, self.r0, cache["offset"], cache["strength"],
-                       self.min_gap, gap_to, fade_from, fade_to, far, self.contact == "zero", seconds, ctx.dv)
+    def pair_constants(self, ctx: StepContext) -> dict:
+        """What the pull derives from the dots and the collision rule once per run: the inverse masses, the
+        proxy's offset and the Hamaker constant (`qdots.engine.pair_scheme.PairLaw`)."""
+        offset = self.proxy_offset(ctx.restitution.sticking_speed)
+        return {"inv_mass": np.ascontiguousarray(1.0 / ctx.masses, dtype=float), "offset": offset,
+                "strength": self.hamaker_strength(offset)}
+
+    def add_pair_kicks(self, constants: dict, x, y, i, j, radii, gap_to: float, fade_from: float, fade_to: float,
+                       far: bool, seconds: float, dv) -> None:
+        """Add the pull over ``seconds`` of the pairs ``(i, j)`` closer than the surface gap ``gap_to`` to ``dv``:
+        the near or the far part (`add_pair_kicks`, the module's compiled pass) at positions ``x, y`` (px)."""
+        add_pair_kicks(x, y, i, j, radii, constants["inv_mass"], HAMAKER if self.model == "hamaker" else THESIS,
+                       self.r0, constants["offset"], constants["strength"], self.min_gap, gap_to, fade_from, fade_to,
+                       far, self.contact == "zero", seconds, dv)

@@ -22,8 +22,8 @@ from scipy.spatial import cKDTree
 from labrig.compiled import jit
 from labrig.validate import InputError, real
 
-#: Largest Verlet skin, px.
-MAX_SKIN = 1000.0
+from ..limits import MAX_SKIN
+
 #: Most pairs of dots one pair search lists (the engine's Verlet lists; `pairs_with_distances`, by `pair_bound`,
 #: for the analysis and the scene checks): about 40 bytes a pair in indices, distances and offsets, 4 GB. The
 #: largest boards measured have far fewer: 4e6 pairs for g(r) to 5 mean diameters on 10^5 dots, about 1e7 within

@@ -30,7 +30,7 @@ from labrig.widgets import require_widgets, widget_figure
 
 from ..presets import GRATING_WIDTH
 from ..render import BoardArtists
-from ..engine.settings import ENGINES
+from ..engine import ENGINES
 from .live import GRAVITY_MODES, LiveRun
 
 #: Largest canvas, inches a side: 2,000 px at matplotlib's 100 dpi, wider than a notebook's page (every
@@ -109,7 +109,7 @@ class LiveBoard:
             "gravity": w.ToggleButtons(options=GRAVITY_MODES, value=knobs.gravity, description="gravity",
                                        style={"button_width": "auto"}),
             "gravity_magnitude": w.FloatText(knobs.gravity_magnitude, description="g (px/s²)", **text),
-            "engine": w.ToggleButtons(options=ENGINES, value=knobs.engine, description="engine",
+            "engine": w.ToggleButtons(options=tuple(ENGINES), value=knobs.engine, description="engine",
                                       style={"button_width": "auto"}),
             "frame_steps": w.IntSlider(self.live.frame_steps, min=1, max=500, description="steps/frame", **slider),
             **{name: w.FloatText(value, description=name[5:], **text) for name, value in

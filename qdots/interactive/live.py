@@ -4,8 +4,8 @@
 (`Knobs`: time step, elasticity, van der Waals, thermal kicks, drag, gravity).
 Everything goes through the public `Scene` / `Simulation` / forces API:
 
-* Turning a knob sets the running simulation's forces (``sim.forces``), engine settings
-  (``sim.settings``: the time step) or collision rule (``sim.restitution``); the board goes on
+* Turning a knob sets the running simulation's forces (``sim.forces``), engine (``sim.engine``: which
+  engine, its time step) or collision rule (``sim.restitution``); the board goes on
   as it is, exactly as a script that sets the same values at the same step.
 * Walls and gratings are added by rebuilding the simulation from the current board
   (`Simulation.current_scene`) with the new segments, after checking that no dot sits across
@@ -41,7 +41,8 @@ from ..io import checkpoint
 from ..protocols import deposit
 from ..geometry import worst_wall_overlap
 from ..scene import MAX_DOTS, Scene, grating_segments
-from ..engine.settings import DT_RANGE, ENGINES, EngineSettings
+from ..engine import ENGINES, Chipmunk, Settings
+from ..engine.settings import DT_RANGE
 from ..restitution import Restitution
 from ..simulation import Simulation
 from ..state import State
@@ -61,7 +62,7 @@ class Knobs:
     Parameters
     ----------
     dt : float
-        Time step, s (> 0; the engine's default, `qdots.EngineSettings`).
+        Time step, s, in `qdots.engine.settings.DT_RANGE` (default: the engines' default, the thesis's frame).
     elasticity : float
         Mean dot-dot restitution, in [0, 1] (`qdots.Restitution.mean`; thesis 0.8).
     vdw_r0 : float
@@ -79,18 +80,18 @@ class Knobs:
     gravity_magnitude : float
         Acceleration, px/s^2 (>= 0; thesis 750).
     engine : {"chipmunk", "event"}
-        The engine that moves the dots (`qdots.EngineSettings.kind`): Chipmunk's soft contacts or the
+        The engine that moves the dots (`qdots.engine.ENGINES`): Chipmunk's soft contacts or the
         thesis's event-driven exact hard discs. It can be switched while the board runs.
     """
 
-    dt: float = EngineSettings.dt
+    dt: float = Chipmunk.dt
     elasticity: float = 0.8
     vdw_r0: float = 15.0
     thermal: float = 1.0
     drag: float = 0.0
     gravity: str = "none"
     gravity_magnitude: float = THESIS_GRAVITY
-    engine: str = EngineSettings.kind
+    engine: str = Chipmunk.kind
 
     def __post_init__(self) -> None:
         for name, high, unit in (("dt", DT_RANGE[1], "s"), ("elasticity", 1.0, ""), ("vdw_r0", MAX_RANGE, "px"),
@@ -99,7 +100,7 @@ class Knobs:
             low = DT_RANGE[0] if name == "dt" else 0.0
             object.__setattr__(self, name, real(name, getattr(self, name), low, high, unit=unit))
         choice("gravity", self.gravity, GRAVITY_MODES)
-        choice("engine", self.engine, ENGINES)
+        choice("engine", self.engine, tuple(ENGINES))
 
     def forces(self, box: tuple[float, float]) -> list:
         """Fresh force objects for a board of size ``box`` (px); a knob at 0 adds no force."""
@@ -142,13 +143,13 @@ class LiveRun:
         Root seed: one child seeds the simulation, one the deposition.
     frame_steps : int
         Time steps per `advance`, in [1, `MAX_FRAME_STEPS`].
-    engine : qdots.EngineSettings, optional
-        The engine's other settings (``substeps``, ``iterations``, ...); the time step and the engine's
-        kind are the ``dt`` and ``engine`` knobs.
+    engine : qdots.Chipmunk or qdots.Event, optional
+        The engine's other settings (``substeps``, ``iterations``, ...); the time step and which engine are
+        the ``dt`` and ``engine`` knobs (switching engines keeps the settings the two share).
     """
 
     def __init__(self, scene: Scene | None = None, knobs: Knobs | None = None, *, seed=None,
-                 frame_steps: int = 50, engine: EngineSettings | None = None):
+                 frame_steps: int = 50, engine: Settings | None = None):
         if scene is None:
             scene = Scene(box=DEFAULT_BOX, positions=np.zeros((0, 2)), radii=np.zeros(0))
         if not isinstance(scene, Scene):
@@ -156,13 +157,15 @@ class LiveRun:
         self.knobs = Knobs() if knobs is None else knobs
         if not isinstance(self.knobs, Knobs):
             raise InputError(f"knobs must be a qdots.interactive.Knobs, got {type(self.knobs).__name__}")
-        engine = EngineSettings() if engine is None else engine
-        if not isinstance(engine, EngineSettings):
-            raise InputError(f"engine must be a qdots.EngineSettings, got {type(engine).__name__}")
+        engine = Chipmunk() if engine is None else engine
+        if not isinstance(engine, Settings):
+            raise InputError(f"engine must be a qdots.Chipmunk or qdots.Event, got {type(engine).__name__}")
         self.frame_steps = count("frame_steps", frame_steps, 1, MAX_FRAME_STEPS)
         sim_seed, drop_seed = np.random.SeedSequence(seed).spawn(2)
+        #: The settings of each engine the board has run on, by kind: a toggle back finds its own again.
+        self._engines = {engine.kind: engine}
         self.sim = Simulation(scene, self.knobs.forces(scene.box), restitution=Restitution(mean=self.knobs.elasticity),
-                              seed=sim_seed, engine=engine.replace(dt=self.knobs.dt, kind=self.knobs.engine))
+                              seed=sim_seed, engine=self._engine_for(self.knobs))
         self._drop_rng = np.random.default_rng(drop_seed)
         self._drops: collections.deque[_Drop] = collections.deque()
         self._next_drop = -np.inf
@@ -187,7 +190,8 @@ class LiveRun:
         knobs = dataclasses.replace(self.knobs, **changes)
         sim, old = self.sim, self.knobs
         if (knobs.dt, knobs.engine) != (old.dt, old.engine):
-            sim.settings = sim.settings.replace(dt=knobs.dt, kind=knobs.engine)
+            self._engines[sim.engine.kind] = sim.engine
+            sim.engine = self._engine_for(knobs)
         if knobs.elasticity != old.elasticity:
             sim.restitution = dataclasses.replace(sim.restitution, mean=knobs.elasticity)
         forces = knobs.forces(sim.scene.box)
@@ -195,10 +199,18 @@ class LiveRun:
             sim.forces = forces
         self.knobs = knobs
 
+    def _engine_for(self, knobs: Knobs) -> Settings:
+        """The settings of the engine ``knobs.engine`` at time step ``knobs.dt``: those it had on this board (or
+        was given), else the current engine's switched to it (`qdots.engine.Settings.replace`)."""
+        known = self._engines.get(knobs.engine)
+        if known is None:
+            known = next(iter(self._engines.values())).replace(kind=knobs.engine)
+        return known.replace(dt=knobs.dt)
+
     def _rebuild(self, board: Scene) -> None:
         """A new simulation of ``board`` that goes on with the old one's time, random stream, forces and writers."""
         old = self.sim
-        sim = Simulation(board, self.knobs.forces(board.box), restitution=old.restitution, seed=0, engine=old.settings)
+        sim = Simulation(board, self.knobs.forces(board.box), restitution=old.restitution, seed=0, engine=old.engine)
         sim.rng.bit_generator.state = old.rng.bit_generator.state
         sim.collisions.copy_from(old.collisions)
         sim.start_time = old.time

@@ -8,13 +8,16 @@ Format (``format = "qdots-state"``, ``version = 1``): a NumPy ``.npz`` archive
 * ``segments`` (M, 4) px: the extra walls (box edges are implied by ``closed``),
 * ``metadata``: one JSON string with ``format``, ``version``, the qdots and
   pymunk versions, ``time`` (s), ``start_time`` and ``steps_taken``, ``box``,
-  ``closed``, ``restitution``, ``engine`` (the `EngineSettings`), ``forces``
+  ``closed``, ``restitution``, ``engine`` (the engine's settings, with its ``kind``), ``forces``
   (each ``Force.to_dict()``), ``rng`` (the NumPy bit generator state) and the
   collision counters.
 
-Files written by 0.1 keep loading with the same meaning: a ``"CenterGravity"``
+Files written by 0.1 and 0.2 keep loading with the same meaning: a ``"CenterGravity"``
 force (key ``center``) in the metadata's ``forces`` is read as today's
-``"CentreGravity"`` (``centre``; `qdots.io.old_spellings`), without a warning.
+``"CentreGravity"`` (``centre``), the numerical knobs of 0.2's van der Waals
+tables as engine settings, and the settings of the engine a run did not use
+are dropped (`qdots.io.old_spellings`), without a warning. The ``qdots``
+version a file holds says which behaviour wrote it (CHANGELOG.md).
 
 Any NumPy can read it (``np.load(path)``; ``json.loads(str(f["metadata"]))``).
 Files are written atomically (temporary file, then rename), so a crash
@@ -45,10 +48,10 @@ from ..engine.contacts import stream_key
 from ..restitution import Restitution
 from ..forces import force_from_dict
 from ..scene import MAX_DOTS, MAX_LENGTH, MAX_SEGMENTS, Scene
-from ..engine.settings import EngineSettings
+from ..engine import ENGINES, engine_from_dict
 from ..simulation import Simulation
 from ..state import State
-from .old_spellings import current_force, current_numerics
+from .old_spellings import current_engine, current_force, current_numerics
 
 FORMAT = "qdots-state"
 VERSION = 1
@@ -57,8 +60,6 @@ ARRAYS = ("positions", "velocities", "radii", "masses", "segments")
 #: earlier have only the first three (their draws start from a key derived from the saved generator).
 COUNTERS = ("dot_dot", "dot_wall", "sticking", "draws", "key")
 OLD_COUNTERS = COUNTERS[:3]
-#: Engine settings that every version's state files hold (those added later take their defaults in older files).
-SAVED_ENGINE_KEYS = ("dt", "substeps", "iterations", "collision_slop", "collision_bias", "spatial_hash", "threads")
 #: Largest size of each saved array, bytes: float64 values of at most `qdots.scene.MAX_DOTS` dots and
 #: `qdots.scene.MAX_SEGMENTS` walls (`labrig.archive.read_archive` refuses a file that declares more).
 MAX_ARRAY_BYTES = {"positions": MAX_DOTS * 2 * 8, "velocities": MAX_DOTS * 2 * 8, "radii": MAX_DOTS * 8,
@@ -93,7 +94,7 @@ def save(sim: Simulation, path: str | os.PathLike, extra: dict | None = None) ->
         "closed": scene.closed,
         "restitution": {"mean": sim.restitution.mean, "wall": sim.restitution.wall,
                         "sticking_speed": sim.restitution.sticking_speed},
-        "engine": sim.settings.to_dict(),
+        "engine": sim.engine.to_dict(),
         "forces": [force.to_dict() for force in sim.forces],
         "rng": sim.rng.bit_generator.state,
         "collisions": sim.collisions.to_dict(),
@@ -133,15 +134,19 @@ def _field(metadata: dict, key: str):
 
 
 def _engine(metadata: dict) -> dict:
-    """The saved engine table, which holds at least the settings of `SAVED_ENGINE_KEYS` (a state resumes with the
-    settings of the run that saved it, never silently with defaults)."""
+    """The saved engine table in today's spelling (`qdots.io.old_spellings.current_engine`), which holds at least
+    the settings every version saved for its engine (``SAVED`` of `qdots.Chipmunk`, `qdots.Event`): a state
+    resumes with the settings of the run that saved it, never silently with defaults."""
     engine = _field(metadata, "engine")
     if not isinstance(engine, dict):
         raise InputError(f"engine must be a table of engine settings, got {engine!r:.80}")
-    missing = [key for key in SAVED_ENGINE_KEYS if key not in engine]
+    engine = current_engine(engine)
+    kind = engine.get("kind", "chipmunk")
+    saved = ENGINES[kind].SAVED if isinstance(kind, str) and kind in ENGINES else ()
+    missing = [key for key in saved if key not in engine]
     if missing:
         raise InputError(f"engine has no {', '.join(map(repr, missing))}: a state file holds the engine settings of "
-                         f"the run that saved it (every version wrote {', '.join(SAVED_ENGINE_KEYS)})")
+                         f"the run that saved it (every version wrote {', '.join(saved)} for the {kind} engine)")
     return engine
 
 
@@ -154,7 +159,7 @@ def _read(path: str | os.PathLike) -> tuple[dict, Scene, Restitution]:
         time = real("time", _field(metadata, "time"), unit="s")
         start = real("start_time", _field(metadata, "start_time"), unit="s")
         steps = count("steps_taken", _field(metadata, "steps_taken"), 0)
-        if not math.isclose(start + steps * EngineSettings.from_dict(_engine(metadata)).dt, time,
+        if not math.isclose(start + steps * engine_from_dict(_engine(metadata)).dt, time,
                             rel_tol=1e-9, abs_tol=1e-9):
             raise InputError(f"time {time!r} s is not start_time + steps_taken * dt")
         rule = _field(metadata, "restitution")
@@ -206,7 +211,7 @@ def load(path: str | os.PathLike) -> Simulation:
         forces, engine = current_numerics([current_force(spec) for spec in forces], metadata["engine"],
                                           restitution.sticking_speed)
         sim = Simulation(scene, [force_from_dict(spec) for spec in forces], restitution=restitution, seed=0,
-                         engine=EngineSettings.from_dict(engine))
+                         engine=engine_from_dict(current_engine(engine)))
         rng = _field(metadata, "rng")
         try:
             sim.rng.bit_generator.state = rng

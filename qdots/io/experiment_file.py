@@ -11,10 +11,15 @@ values with. Floats are written with
 == exp``. Unknown keys, wrong types and out-of-range values raise a
 ValueError naming the file and the full key (e.g. ``deposition.sigmaa``).
 
-Files written by 0.1 keep loading with the same meaning: their spellings
-(``deposition.protocol = "center"``, a ``"CenterGravity"`` force with its
-``center`` key) are read as today's (`qdots.io.old_spellings`), without a
-warning. The Python API takes today's spellings only.
+The ``[engine]`` table's ``kind`` says which engine runs (`qdots.engine.ENGINES`)
+and its other keys are that engine's settings; keys of another engine are
+checked and left unread, so that one key switches the engine (files of 0.2
+held both engines' settings). Files written by 0.1 and 0.2 keep loading with
+the same meaning: their spellings (``deposition.protocol = "center"``, a
+``"CenterGravity"`` force with its ``center`` key, the van der Waals pair
+list's knobs in its force table) are read as today's
+(`qdots.io.old_spellings`), without a warning. The Python API takes today's
+spellings only.
 """
 
 from __future__ import annotations
@@ -32,14 +37,20 @@ from labrig.validate import InputError, typed
 from ..restitution import Restitution
 from ..experiment import Board, Deposition, Experiment
 from ..forces import FORCE_TYPE, FORCE_TYPES
-from ..engine.settings import EngineSettings
+from ..engine import Settings, engine_class, engine_params
 from .old_spellings import current_experiment
 
 #: The tables of an experiment file and the classes they build. The keys of a table, their kinds, ranges and
 #: units, and the comments a saved file gives them are the class's declarations (``cls.PARAMS``,
-#: `labrig.params.Param`), as are the top-level keys (`Experiment.PARAMS`) and each force's parameters
+#: `labrig.params.Param`; for ``[engine]``, `qdots.engine.engine_params`: its ``kind`` and that engine's
+#: settings class), as are the top-level keys (`Experiment.PARAMS`) and each force's parameters
 #: (``FORCE_TYPES[type].PARAMS``).
-TABLES = {"board": Board, "deposition": Deposition, "restitution": Restitution, "engine": EngineSettings}
+TABLES = {"board": Board, "deposition": Deposition, "restitution": Restitution, "engine": Settings}
+
+
+def table_params(obj) -> dict:
+    """The declarations of the table that holds ``obj`` (one of an experiment's `TABLES`), in file order."""
+    return engine_params(obj) if isinstance(obj, Settings) else type(obj).PARAMS
 
 
 def experiment_to_toml(exp: Experiment) -> str:
@@ -52,11 +63,11 @@ def experiment_to_toml(exp: Experiment) -> str:
     lines += [toml_line(key, getattr(exp, key), param.comment()) for key, param in Experiment.PARAMS.items()]
     if not exp.forces:
         lines.append("forces = []  # no forces")
-    for table, cls in TABLES.items():
+    for table in TABLES:
         obj = getattr(exp, table)
         defaults = {f.name: f.default for f in dataclasses.fields(obj)}
         lines += ["", f"[{table}]"] + [toml_line(key, getattr(obj, key), param.comment(), defaults.get(key))
-                                       for key, param in cls.PARAMS.items()]
+                                       for key, param in table_params(obj).items()]
     for spec in exp.forces:
         declared = FORCE_TYPES[spec["type"]].PARAMS
         defaults = force_defaults(spec["type"])
@@ -91,8 +102,12 @@ def save_experiment(exp: Experiment, path: str | os.PathLike) -> Path:
 
 def _table(name: str, data) -> object:
     cls = TABLES[name]
-    check_keys(name, as_table(name, data), cls.PARAMS)
-    values = {key: typed(f"{name}.{key}", value, cls.PARAMS[key].file_kind) for key, value in data.items()}
+    params = cls.PARAMS
+    if name == "engine":
+        cls = engine_class(typed("engine.kind", as_table(name, data).get("kind", "chipmunk"), "str"))
+        params = engine_params(cls())
+    check_keys(name, as_table(name, data), params)
+    values = {key: typed(f"{name}.{key}", value, params[key].file_kind) for key, value in data.items() if key != "kind"}
     try:
         return cls(**values)
     except ValueError as exc:

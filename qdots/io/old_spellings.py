@@ -1,10 +1,11 @@
 """The spellings of files written by earlier versions, read as today's: old files keep loading.
 
-0.1 spelled "centre" the American way in the values and keys it wrote, and up to 0.2 the van der Waals
-force carried the numerical knobs of its pair list and its own sticking speed. The file readers
+0.1 spelled "centre" the American way in the values and keys it wrote, up to 0.2 the van der Waals
+force carried the numerical knobs of its pair list and its own sticking speed, and the ``[engine]`` table
+held the settings of both engines (the one chosen by its ``kind`` read its own). The file readers
 (`qdots.io.experiment_file` for experiment and sweep files, `qdots.io.checkpoint` for state files)
-pass what they read through `current_experiment`, or `current_force` and `current_numerics`, first, so
-an old file means what it meant:
+pass what they read through `current_experiment`, or `current_force`, `current_numerics` and
+`current_engine`, first, so an old file means what it meant:
 
 ==============================================  ============================================
 written by 0.1                                  read as
@@ -17,7 +18,13 @@ its key ``center = [x, y]``                     ``centre = [x, y]``
 ``VanDerWaals`` key ``sticking_speed`` (0.2)    nothing when it equals the collision rule's
                                                 (the one sticking speed); else the proxy
                                                 offset it gave, ``offset = b``
+``[engine]`` keys of an engine other than its   checked against their declaration, then
+``kind`` (0.2: ``max_events`` of a Chipmunk     dropped: that engine never read them
+run, ``substeps`` of an event run, ...)
 ==============================================  ============================================
+
+The last rule holds for every file, as one key switches a table to another engine (a sweep's
+``engine.kind`` axis, ``qdots run --engine``): the other engine's keys stay checked and unread.
 
 This is data translation only: the Python API takes today's names alone (``Deposition(protocol=
 "center")`` is an `labrig.validate.InputError` listing the allowed values).
@@ -25,7 +32,7 @@ This is data translation only: the Python API takes today's names alone (``Depos
 
 from __future__ import annotations
 
-from labrig.validate import InputError
+from labrig.validate import InputError, typed
 
 from ..forces.vdw import thesis_offset
 
@@ -33,7 +40,7 @@ from ..forces.vdw import thesis_offset
 PROTOCOLS = {"center": "centre"}
 #: Old force types -> (today's type, {old parameter key: today's}).
 FORCES = {"CenterGravity": ("CentreGravity", {"center": "centre"})}
-#: Numerical knobs a VanDerWaals table of 0.2 held -> their `qdots.EngineSettings` names.
+#: Numerical knobs a VanDerWaals table of 0.2 held -> their ``[engine]`` names (`qdots.engine.PairScheme`).
 VDW_NUMERICS = {"skin": "pair_skin", "near_gap": "near_gap", "far_interval": "far_interval"}
 
 
@@ -110,11 +117,36 @@ def _number(spec: dict, key: str, default: float) -> float:
     return float(value)
 
 
+def current_engine(table):
+    """An ``[engine]`` table in today's spelling: the keys that only engines other than its ``kind`` take are
+    checked against their declarations and dropped (a new copy when any is). A table that is not a dict, or of
+    an unknown kind, is returned as it is, for the engine reader to judge.
+
+    Raises
+    ------
+    labrig.validate.InputError
+        Naming ``engine.KEY`` when a dropped key's value is not one its engine allows.
+    """
+    from ..engine import ENGINES
+
+    kind = table.get("kind", "chipmunk") if isinstance(table, dict) else None
+    if not isinstance(kind, str) or kind not in ENGINES:
+        return table
+    own = ENGINES[kind].PARAMS
+    others = {key: cls.PARAMS[key] for cls in ENGINES.values() for key in cls.PARAMS if key not in own}
+    dropped = [key for key in table if key in others]
+    for key in dropped:
+        param = others[key]
+        param.check(f"engine.{key}", typed(f"engine.{key}", table[key], param.file_kind))
+    return {key: value for key, value in table.items() if key not in dropped} if dropped else table
+
+
 def current_experiment(data):
     """Parsed experiment-file data (nested dicts) in today's spelling: a new copy if anything was old.
 
-    Only values and keys of `PROTOCOLS` and `FORCES` change; anything else, including data of the
-    wrong shape, is returned as it is, for the experiment reader to judge.
+    Only values and keys of `PROTOCOLS` and `FORCES`, the moved knobs (`current_numerics`) and the keys of
+    other engines (`current_engine`) change; anything else, including data of the wrong shape, is returned as
+    it is, for the experiment reader to judge.
     """
     if not isinstance(data, dict):
         return data
@@ -131,4 +163,6 @@ def current_experiment(data):
         data["forces"] = forces
         if engine is not None:
             data["engine"] = engine
+    if "engine" in data:
+        data["engine"] = current_engine(data["engine"])
     return data

@@ -39,12 +39,12 @@ import numpy as np
 
 from labrig.validate import InputError, choice, count, real
 
-from .restitution import Restitution
-from .forces import CentreGravity, Drag, Gravity, ThermalKicks, VanDerWaals
-from .geometry import DiscTree, nested_pairs, worst_overlap, worst_wall_overlap
-from .scene import MAX_DOTS, Scene, grating_segments
-from .simulation import OVERLAP_WARNING, Simulation
-from .units import thesis_kick_speed
+from ..restitution import Restitution
+from ..forces import CentreGravity, Drag, Gravity, ThermalKicks, VanDerWaals
+from ..geometry import DiscTree, nested_pairs, worst_overlap, worst_wall_overlap
+from ..scene import MAX_DOTS, Scene, grating_segments
+from ..simulation import OVERLAP_WARNING, Simulation
+from ..units import thesis_kick_speed
 
 #: Simulated time between samples, s.
 SAMPLE = 0.05
@@ -253,8 +253,8 @@ def check(case: HardCase) -> dict:
             lost = lost or swallowed or bool(outside) or sim.n_dots != scene.n_dots
             crossed = crossed or not np.array_equal(_channels(s.positions, scene.segments), channels)
     settled = slice(int(0.6 * samples), None)
-    adaptive = sim.settings.overlap_tolerance is not None
-    step = 0.0 if adaptive else sim.dt / sim.settings.substeps
+    adaptive = sim.engine.overlap_tolerance is not None
+    step = 0.0 if adaptive else sim.dt / sim.engine.substeps
     return {"case": case.name, "dots": sim.n_dots, "steps": sim.steps_taken, "wall_s": wall_time,
             "finite": finite, "lost": lost, "crossed": crossed,
             "warned": any("per sub-step" in str(w.message) for w in caught),

@@ -29,7 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .forces.base import Force, StepContext
+from ..forces.base import Force, StepContext
 
 
 class _Probe(Force):

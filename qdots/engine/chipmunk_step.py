@@ -1,4 +1,4 @@
-"""One time step of the Chipmunk engine: the force phase, the sub-step plan, Chipmunk's steps.
+"""One time step of the Chipmunk engine (`qdots.engine.Chipmunk`): the force phase, the sub-step plan, Chipmunk's steps.
 
 Order within a step of length ``dt`` (the thesis's: "acceleration, either from attraction or thermal
 motion, is added only at the beginning of each time step as a change in velocity"):
@@ -8,11 +8,8 @@ motion, is added only at the beginning of each time step as a change in velocity
    velocities at once. A kick or a pull that drives a dot into a neighbour it touches is then an impact
    that Chipmunk resolves with the collision rule's restitution (`qdots.engine.contacts`). (Until 0.3 the
    change was handed to Chipmunk as a body force within the first sub-step, after its contacts had taken
-   their velocities: every such kick or pull was absorbed, perfectly inelastically; with the rule run
-   only in a contact's first step, that made the films of unequal masses colder and more cohesive than
-   the thesis's model: at the thesis's frame, interior fraction 0.57 against 0.44 and mean speed 15
-   against 26 px/s on fig2-6's d^3 film at sigma 15 %, seed 154, where the event-driven engine gives 0.45
-   and 27 px/s.)
+   their velocities: every such kick or pull was absorbed, perfectly inelastically, which made the films of
+   unequal masses colder and more cohesive than the thesis's model; the numbers: docs/engines.md.)
 3. Plan the sub-steps (`substep_count`): Chipmunk sees a contact only once two discs overlap, so a
    dot closing on another (or on a wall) at speed ``u`` can overlap by up to ``u h`` in a sub-step
    ``h``. The step is split into the fewest equal sub-steps that keep that below
@@ -37,8 +34,8 @@ from ..forces.base import StepContext
 from ..geometry import VerletPairs, pair_separation
 from ..restitution import Restitution
 from .bodies import BodyArrays
-from .chipmunk import advance, set_last_substep
-from .settings import EngineSettings
+from .chipmunk import Chipmunk
+from .pymunk_adapter import advance, set_last_substep
 
 #: Largest factor by which the sub-step may grow from one step to the next.
 SUBSTEP_GROWTH = 2
@@ -147,7 +144,7 @@ def add_velocity_change(vx, vy, dv):
         vy[a] += dv[a, 1]
 
 
-def substep_count(travel: float, settings: EngineSettings, previous: int) -> int:
+def substep_count(travel: float, settings: Chipmunk, previous: int) -> int:
     """The sub-steps of the next step: enough for ``travel`` (radii) to stay within the tolerance.
 
     At least ``settings.substeps`` and ``previous / SUBSTEP_GROWTH``; at most ``settings.max_substeps`` (or
@@ -182,11 +179,15 @@ class Stepper:
     radii, masses : ndarray, shape (N,)
     walls : ndarray, shape (M, 4)
         Static segments (box edges included when the board is closed), px.
+    settings : qdots.engine.Chipmunk
+        The engine's knobs (`settings` takes new ones between runs).
     record : qdots.engine.contacts.CollisionRecord, optional
         The collision callbacks' record, told each sub-step's length before Chipmunk steps.
     """
 
-    def __init__(self, space, bodies, radii: np.ndarray, masses: np.ndarray, walls: np.ndarray, record=None):
+    def __init__(self, space, bodies, radii: np.ndarray, masses: np.ndarray, walls: np.ndarray, settings: Chipmunk,
+                 record=None):
+        self.settings = settings
         self.space = space
         self.record = record
         self.io = BodyArrays(space, bodies)
@@ -196,7 +197,8 @@ class Stepper:
         self.x, self.y, self.vx, self.vy = (np.zeros(n) for _ in range(4))
         self.dv = np.zeros((n, 2))
         self._context = StepContext(time=0.0, dt=0.0, x=self.x, y=self.y, velocity=np.zeros((n, 2)), radii=radii,
-                                    masses=masses, rng=None, dv=self.dv, settings=None, restitution=None, cache={})
+                                    masses=masses, rng=None, dv=self.dv, pairs=settings.pairs, restitution=None,
+                                    cache={})
         #: Each force's per-run cache, by its place in the forces' sequence (`forget_forces` empties them).
         self.caches: dict[int, dict] = {}
         #: Largest radius, px: the plan's pairs are those closer than twice it plus `reach`.
@@ -213,18 +215,28 @@ class Stepper:
         self.capped_travel = 0.0
         self._bias_h = None
 
+    @property
+    def settings(self) -> Chipmunk:
+        """The engine's knobs; assign new ones between runs."""
+        return self._settings
+
+    @settings.setter
+    def settings(self, settings: Chipmunk) -> None:
+        self._settings = settings
+        self._pairs = settings.pairs
+
     def forget_forces(self) -> None:
         """Empty the forces' caches (the forces changed)."""
         self.caches = {}
 
-    def step(self, forces, settings: EngineSettings, restitution: Restitution, time: float, rng: np.random.Generator,
-             timings: dict) -> int:
+    def step(self, forces, restitution: Restitution, time: float, rng: np.random.Generator, timings: dict) -> int:
         """Advance one time step of ``settings.dt`` from ``time``; returns the Chipmunk sub-steps taken.
 
         Adds the wall time of the force phase and of Chipmunk's steps to ``timings["forces"]`` and
         ``timings["pymunk"]``.
         """
         start = perf_counter()
+        settings = self._settings
         dt = settings.dt
         adaptive = settings.overlap_tolerance is not None
         n = self.x.size
@@ -237,7 +249,7 @@ class Stepper:
             if forces:  # a velocity change at the step's start, where the dots are
                 ctx = self._context
                 ctx.time, ctx.dt, ctx.velocity, ctx.rng = time, dt, rows[:, 2:], rng
-                ctx.settings, ctx.restitution = settings, restitution
+                ctx.pairs, ctx.restitution = self._pairs, restitution
                 for index, force in enumerate(forces):
                     ctx.cache = self.caches.setdefault(index, {})
                     force.kick(ctx)
@@ -259,7 +271,7 @@ class Stepper:
         timings["pymunk"] += perf_counter() - middle
         return k
 
-    def _plan(self, settings: EngineSettings) -> int:
+    def _plan(self, settings: Chipmunk) -> int:
         """Sub-steps for the current velocities (the pair list follows the fastest dot)."""
         dt = settings.dt
         fastest = fastest_speed(self.vx, self.vy)

@@ -1,12 +1,13 @@
-"""`EventEngine`: the thesis's own algorithm as a qdots engine, beside `qdots.engine.ChipmunkEngine`.
+"""`EventBackend`: the event engine of one simulation (`qdots.engine.Backend`), built by `qdots.engine.Event`.
 
-Each frame of ``dt`` s (the thesis's 20 ms) does what section 2.2 lists: the forces change the velocities
-at the frame's start (thermal kicks when their interval has come, the van der Waals pull of every pair in
-range, `qdots.forces`), then every collision within the frame is found and resolved exactly, in time
-order (`qdots.engine.events`): hard discs kept a ``buffer`` apart, Eq 2.5 per impact with the restitution
-drawn per impact as the Java draws it, elastic walls. The same scene, forces, collision rule, random
-streams, checkpoints and writers as the Chipmunk engine; only how the dots move between the frames'
-velocity changes differs, so the two engines can be set side by side on one experiment.
+The thesis's own algorithm, beside `qdots.engine.chipmunk_backend.ChipmunkBackend`. Each frame of ``dt`` s (the
+thesis's 20 ms) does what section 2.2 lists: the forces change the velocities at the frame's start (thermal kicks
+when their interval has come, the van der Waals pull of every pair in range, `qdots.forces`), then every
+collision within the frame is found and resolved exactly, in time order (`qdots.engine.event_loop`): hard discs
+kept a ``buffer`` apart, Eq 2.5 per impact with the restitution drawn per impact as the Java draws it, elastic
+walls. The same scene, forces, collision rule, random streams, checkpoints and writers as the Chipmunk engine;
+only how the dots move between the frames' velocity changes differs, so the two engines can be set side by side
+on one experiment.
 """
 
 from __future__ import annotations
@@ -19,25 +20,32 @@ from ..forces.base import StepContext
 from ..geometry import pairs_within
 from ..restitution import Restitution
 from .contacts import start_run
-from .events import CAPPED, REBUILD, advance_events, fastest, neighbour_table
-from .settings import EngineSettings
+from .event import Event
+from .event_loop import CAPPED, REBUILD, advance_events, fastest, neighbour_table
 
 #: The candidates of a frame are the pairs that can touch at up to this many times the fastest speed at the
 #: frame's start (an impact can speed a light dot up to twice its partner's speed); a faster dot makes the
-#: frame build them again (`qdots.engine.events`).
+#: frame build them again (`qdots.engine.event_loop`).
 SPEED_MARGIN = 2.0
 #: Slowest speed the candidates are built for, px/s (a still board still lets the kicks move it).
 SLOWEST = 1.0
 
 
-class EventEngine:
+class EventBackend:
     """The event-driven side of one simulation: the dots' arrays, the collision record, each force's cache.
 
-    Parameters are those of `qdots.engine.ChipmunkEngine`.
+    Parameters
+    ----------
+    settings : qdots.engine.Event
+        The numerical knobs.
+    walls, restitution, key, positions, velocities, radii, masses
+        As `qdots.engine.settings.Settings.build` takes them.
     """
 
-    def __init__(self, walls: np.ndarray, restitution: Restitution, settings: EngineSettings, key: int,
+    def __init__(self, settings: Event, walls: np.ndarray, restitution: Restitution, key: int,
                  positions: np.ndarray, velocities: np.ndarray, radii: np.ndarray, masses: np.ndarray):
+        self.settings = settings
+        self._pairs = settings.pairs
         self.walls, self.collisions = start_run(walls, settings, key)
         #: ``collisions``: counts of impacts and the position in the elasticity draws
         #: (`qdots.engine.contacts.CollisionRecord`).
@@ -48,9 +56,9 @@ class EventEngine:
         self.events = 0
         self.capped_frames = 0
         self._restitution = restitution
-        self.build(settings, positions, velocities, radii, masses)
+        self.rebuild(positions, velocities, radii, masses)
 
-    def build(self, settings: EngineSettings, positions, velocities, radii, masses) -> None:
+    def rebuild(self, positions, velocities, radii, masses) -> None:
         """(Re)start from these dots (px, px/s, px, mean dot masses); the forces' caches are emptied."""
         self.x = np.zeros(0)
         self.y = np.zeros(0)
@@ -86,11 +94,15 @@ class EventEngine:
         self._restitution = rule
         self.collisions.set_rule(rule)
 
-    def tune(self, settings: EngineSettings) -> None:
-        """Nothing to tune: the event engine reads its settings at every frame."""
+    def retune(self, settings: Event) -> None:
+        """Take new knobs between runs; a different pair list skin empties the forces' caches."""
+        old, self.settings = self.settings, settings
+        self._pairs = settings.pairs
+        if self._pairs != old.pairs:
+            self.forget_forces()
 
     def forget_forces(self) -> None:
-        """Empty every force's cache (the forces, or the settings their numerics read, changed)."""
+        """Empty every force's cache (the forces, or the scheme their pairs are pulled with, changed)."""
         self._caches = {}
 
     def force_cache(self, k: int) -> dict:
@@ -99,16 +111,16 @@ class EventEngine:
 
     # -- running ------------------------------------------------------------------------------------
 
-    def step(self, forces, settings: EngineSettings, time: float, rng: np.random.Generator) -> int:
+    def step(self, forces, time: float, rng: np.random.Generator) -> int:
         """One frame of ``settings.dt`` from ``time`` s: the forces' velocity changes, then every collision."""
         start = perf_counter()
+        settings = self.settings
         n = self.n_dots
         if n and forces:
             dv = np.zeros((n, 2))
             ctx = StepContext(time=time, dt=settings.dt, x=self.x, y=self.y,
                               velocity=np.column_stack([self.vx, self.vy]), radii=self.radii, masses=self.masses,
-                              rng=rng, dv=dv, settings=self._force_settings(settings),
-                              restitution=self._restitution)
+                              rng=rng, dv=dv, pairs=self._pairs, restitution=self._restitution)
             for index, force in enumerate(forces):
                 ctx.cache = self._caches.setdefault(index, {})
                 force.kick(ctx)
@@ -121,14 +133,7 @@ class EventEngine:
         self.timings["events"] += perf_counter() - middle
         return 1
 
-    def _force_settings(self, settings: EngineSettings) -> EngineSettings:
-        """The settings the forces see: every van der Waals pair pulled once per frame, at its start (the same
-        object for the same settings, so the forces' caches stay valid)."""
-        if getattr(self, "_seen", (None, None))[0] is not settings:
-            self._seen = (settings, settings if settings.far_interval is None else settings.replace(far_interval=None))
-        return self._seen[1]
-
-    def _events(self, settings: EngineSettings) -> None:
+    def _events(self, settings: Event) -> None:
         """Resolve the frame's collisions, building the candidate pairs again whenever a dot outruns them."""
         n, dt = self.n_dots, settings.dt
         buffer = settings.buffer * float(self.radii.mean())
@@ -149,14 +154,18 @@ class EventEngine:
         if status == CAPPED:
             self.capped_frames += 1
 
-    @property
-    def last_substeps(self) -> int:
-        """1: a frame is one step (the runaway check's step)."""
-        return 1
+    def substep(self) -> float:
+        """The frame, s: a frame is one step (the runaway check's step)."""
+        return self.settings.dt
 
-    def take_capped_travel(self) -> float:
+    def take_unplanned_travel(self) -> float:
         """0: exact collisions never let a dot travel into another."""
         return 0.0
+
+    def diagnostics(self) -> dict[str, float]:
+        """``events``: the collisions resolved (dot-dot and dot-wall); ``capped_frames``: the frames that reached
+        ``max_events`` (their rest unmoved, as the thesis's loop), over all frames."""
+        return {"events": self.events, "capped_frames": self.capped_frames}
 
     def read(self) -> tuple[np.ndarray, np.ndarray]:
         """Positions and velocities of the dots, two new (N, 2) arrays (px, px/s)."""
