@@ -82,7 +82,7 @@ class Annotations:
             parts.append(f"a {colour} {'frame' if s.width <= 4 else 'data strip'} {s.width} px wide along the {s.side}")
         parts += [f"a label box at x {x0}-{x1}, y {y0}-{y1} px" for x0, y0, x1, y1 in self.boxes]
         if self.bar is not None:
-            parts.append(f"the scale bar and its label")
+            parts.append("the scale bar and its label")
         return ", ".join(parts) if parts else "nothing"
 
 

@@ -199,7 +199,8 @@ def settle_tiles(image, centres, radii, contrast, field, field_map, typical: flo
     """Uneven focus and contrast: the blur and ``k`` settled again (one pattern at a quarter of `FOCUS_STEP`,
     around the film's ``settled`` pair) on a sample near the middle of each of `TILES` x `TILES` tiles of the
     film, when the film holds `TILE_DOTS` whole dots a tile; a plane fitted to the tiles' blurs, and one to their
-    ``k``, lay them over the film (a focus or thickness that changes slowly, without each tile's own scatter). Returns the blur and the level at each dot, and the level map."""
+    ``k``, lay them over the film (a focus or thickness that changes slowly, without each tile's own scatter).
+    Returns the blur and the level at each dot, and the level map."""
     h, w = image.shape
     n_whole = len(whole) if len(whole) else len(centres)
     if n_whole < TILES * TILES * TILE_DOTS:
