@@ -58,7 +58,7 @@ def test_the_chapter_2_presets_are_bit_identical_to_0_2(reference, name, kind):
 @pytest.mark.parametrize("engine", ["fast", "continuum"])
 @pytest.mark.parametrize("name", ["hill", "depression", "tilted", "ta"])
 def test_the_planarize_scenes_are_bit_identical_to_0_2(reference, name, engine):
-    from planarize.io.scenefile import get_scene
+    from planarize.scene import get_scene
 
     run = get_scene(name).replace(run={"engine": engine}).quick(0.25).anodize()
     for grid in ("metal", "oxide", "distances"):
