@@ -2,13 +2,13 @@
 
 A continuum run (`planarize.engines.Continuum`) is computed at two resolutions: the grid it reports
 and the one twice as coarse. Their difference is Richardson's estimate of the reported run's
-discretization error,
+discretization error::
 
-    error = |R(h) - R(2h)| / (2^p - 1),
+    error = |R(h) - R(2h)| / (2^p - 1)
 
 for each of the RMS and z-range of both surfaces at every recorded thickness (history columns
 ``*_error_nm``). The order used, `ORDER` = 1.5, lies between the orders measured on the thesis's
-surfaces (about 1.2 where the piecewise-linear surface has creases, about 2 on smooth ones:
+surfaces (about 1.3 where the piecewise-linear surface has creases, 2 and more on smooth ones:
 docs/planarize_continuum.md); for any true order between 0.95 and 2.3 the estimate is within a factor
 2 of the true error. If the largest relative estimate exceeds the settings' ``rtol``, the grid is
 refined by 2 (the last run becomes the coarse one) until it does not, or until ``max_refine``.

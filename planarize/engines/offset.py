@@ -1,9 +1,10 @@
 """The oxide over a metal height field: its conformal coat, and the roughness of both (compiled).
 
 The oxide of the continuum limit (`planarize.engines.flow`) is, at thickness ``t``, the highest of
-the metal's conformal coats so far: at a point ``y``, ``max over s <= t`` of
+the metal's conformal coats so far: at a point ``y``, ``max over s <= t`` of the metal dilated by a
+ball of radius ``s``::
 
-    D_s[M](y) = max_x  M(x) + sqrt(s^2 - |x - y|^2)        (the metal dilated by a ball of radius s)
+    D_s[M](y) = max over x of  M(x) + sqrt(s^2 - |x - y|^2)
 
 (an oxide point rises only while it is some metal point's nearest, and then it lies at exactly the
 oxide thickness above that point; docs/planarize_continuum.md). `coat` evaluates ``D_t[M]`` on the
