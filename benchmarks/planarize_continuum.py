@@ -230,6 +230,9 @@ def convergence_figure(curves: dict) -> MplFigure:
     x = np.array([min(min(s) for s, _ in curves.values()), max(max(s) for s, _ in curves.values())])
     for order, style in ((1, ":"), (2, "--")):
         ax.loglog(x, 1.0 * (x / x[-1]) ** order, "k" + style, linewidth=0.8, label=f"order {order}")
+    ticks = [2.0 ** k for k in range(-4, 2)]
+    ax.set_xticks(ticks, [f"{t:g}" for t in ticks])
+    ax.minorticks_off()
     ax.set_xlabel("grid spacing / the surface's own")
     ax.set_ylabel("largest RMS error (%), metal and oxide")
     ax.set_title("Continuum engine: error against grid spacing")

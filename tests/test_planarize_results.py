@@ -35,6 +35,8 @@ def test_run_round_trips_exactly(run, tmp_path):
     assert_same_run(run, back)
     assert back.thickness == run.thickness and len(back.snapshots) == 3
     assert sorted(p.name for p in tmp_path.iterdir()) == ["run.npz"]
+    with np.load(tmp_path / "run.npz") as saved:  # the file says which version of planarize wrote it
+        assert json.loads(str(saved["metadata"]))["planarize"] == planarize.__version__
     periodic = planarize.anodize(planarize.surfaces.bump(4.5, points=5, refine=1, boundary="periodic"), 0.2, planarize.Model(step=0.05),
                                  snapshots=[])
     assert_same_run(periodic, load_run(save_run(periodic, tmp_path / "periodic.npz")))

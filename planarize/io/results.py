@@ -7,7 +7,8 @@ archives with the arrays
 * ``history_<column>`` for each history column (`planarize.metrics.HISTORY_COLUMNS`),
 * ``snapshot_target``, ``snapshot_thickness`` (S,) nm and ``snapshot_metal``,
   ``snapshot_oxide``, ``snapshot_distances`` (S, nx, ny) nm,
-* ``metadata``: one JSON string with ``format``, ``version``, the grid
+* ``metadata``: one JSON string with ``format``, ``version`` (of the file format), ``planarize`` (the
+  package version that wrote it, so that a file says which behaviour made it), the grid
   (``spacing``, ``boundary``), the history column order and the run's
   ``parameters``.
 
@@ -23,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from labrig import __version__
 from labrig.archive import MAX_ARCHIVE_BYTES, read_archive, write_archive
 from labrig.files import recover_beside, write_csv, write_text_atomic
 from labrig.validate import InputError, choice, reals
@@ -52,8 +54,9 @@ def save_run(run: Anodization, path: str | os.PathLike) -> Path:
     if not isinstance(run, Anodization):
         raise InputError(f"run must be a planarize.Anodization, got {type(run).__name__}")
     grid = run.initial
-    metadata = {"format": FORMAT, "version": VERSION, "spacing": list(grid.spacing), "boundary": grid.boundary,
-                "history_columns": list(run.history), "parameters": run.parameters, "complete": run.complete}
+    metadata = {"format": FORMAT, "version": VERSION, "planarize": __version__, "spacing": list(grid.spacing),
+                "boundary": grid.boundary, "history_columns": list(run.history), "parameters": run.parameters,
+                "complete": run.complete}
     shots = run.snapshots
     empty = np.zeros((0, *grid.shape))
     arrays = {
