@@ -28,7 +28,7 @@ from .report import Headline, Note, Table, print_results
 
 #: The commands timed: name -> (arguments of ``python -m``, the name pattern of a table it writes into its --out).
 COMMANDS = {
-    "qdots demo": (["qdots", "demo", "--no-movie"], "summary.csv"),
+    "qdots demo": (["qdots", "demo", "--no-movie"], "*/summary.csv"),  # (each run in its own folder)
     "planarize scene hill": (["planarize", "scene", "hill"], "*/*_history.csv"),  # (each run in its own folder)
 }
 #: Longest a command may take, s.
