@@ -290,7 +290,7 @@ def test_the_real_micrograph_matches_counts_and_sizes_taken_by_hand(tem_film):
 
 
 def test_the_real_micrograph_overlay_is_written(tem_film, tmp_path):
-    from qdots.micrograph.measure import save_overlay
+    from qdots.micrograph.overlay import save_overlay
 
     path = save_overlay(tem_film, tmp_path / "tem_detections.png")
     with Image.open(path) as picture:

@@ -14,7 +14,8 @@ from qdots.micrograph.annotations import find_annotations
 from qdots.micrograph.detect import detect_dots
 from qdots.micrograph.film import film_metrics, film_state, size_spread
 from qdots.micrograph.labelled import label_micrograph, not_a_film
-from qdots.micrograph.measure import measure_image, save_overlay, scale_check
+from qdots.micrograph.measure import measure_image, scale_check
+from qdots.micrograph.overlay import save_overlay
 from qdots.micrograph.scale import find_scale_bar
 from qdots.micrograph.synthetic import render_micrograph, superlattice_board
 

@@ -196,7 +196,8 @@ def _run_measure(args: argparse.Namespace) -> int:
     flagged; the neighbourhood metrics use only dots whose neighbourhood is inside the picture."""
     from labrig.cli import print_table
 
-    from ..micrograph.measure import measure, summary_rows
+    from ..micrograph.measure import summary_rows
+    from ..micrograph.write import measure
 
     film = measure(args.image, args.out, name=args.name, nm_per_px=args.nm_per_px, scale_bar=args.scale_bar,
                    polarity=args.polarity, profile=args.profile, page=args.page, lqe=not args.no_lqe)
@@ -219,7 +220,8 @@ def _run_compare(args: argparse.Namespace) -> int:
     simulation mean +- SE) and the experiment file it ran (edit it and run it with qdots run)."""
     from labrig.cli import print_table
 
-    from ..micrograph.compare import compare, table_rows
+    from ..micrograph.compare import table_rows
+    from ..micrograph.write import compare
 
     comparison = compare(args.image, args.out, name=args.name, nm_per_px=args.nm_per_px, scale_bar=args.scale_bar,
                          polarity=args.polarity, profile=args.profile, page=args.page, seeds=args.seeds,

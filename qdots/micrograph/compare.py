@@ -6,24 +6,26 @@ spread and coverage: ``n_dots`` dots of mean diameter 15 px (the thesis's) on a 
 side gives the film's coverage, ``L = sqrt(n pi d^2 (1 + sigma^2) / (4 coverage))``. One board px
 is then ``mean diameter (nm) / 15`` nm: the stated scale of the simulated film. `compare_film` runs
 it for several seeds and measures every film as the image was measured (`film_metrics`, the film
-LQE), so the table gives the image's value beside the simulation's mean +- standard error.
+LQE), so the table gives the image's value beside the simulation's mean +- standard error. It returns a
+`Comparison` and writes nothing: `qdots.micrograph.overlay` draws it, `qdots.micrograph.write` writes
+``qdots compare``'s files.
 """
 
 from __future__ import annotations
 
 import math
-import os
-from dataclasses import dataclass, replace
-from pathlib import Path
+from dataclasses import dataclass
 
 import numpy as np
 
 from labrig.validate import InputError, choice, count
 
+from ..analysis.lqe import film_lqe
+from ..engine import ENGINES
 from ..experiment import Board, Deposition, Experiment, default_forces, run_experiment
 from ..presets import MEAN_DIAMETER, THESIS_SEED
-from .film import film_metrics, film_state
-from .measure import MeasuredFilm, lqe_draws, measure_image, save_overlay_axes
+from .film import film_metrics
+from .measure import MeasuredFilm, lqe_draws
 
 #: Metrics of the comparison table: (key, label, digits).
 METRICS = (("coverage", "coverage", 3), ("size_spread", "size spread sigma", 3),
@@ -73,7 +75,6 @@ class Comparison:
 def matching_experiment(film: MeasuredFilm, n_dots: int = 300, engine: str = "chipmunk", seed: int = THESIS_SEED,
                         name: str | None = None) -> tuple[Experiment, float]:
     """The thesis's deposition with the film's size spread and coverage, and nm per board px (see the module)."""
-    from ..engine import ENGINES
 
     n_dots = count("dots", n_dots, 2, MAX_COMPARE_DOTS)
     engine = choice("engine", engine, tuple(ENGINES))
@@ -97,7 +98,6 @@ def matching_experiment(film: MeasuredFilm, n_dots: int = 300, engine: str = "ch
 
 def simulated_metrics(state) -> dict:
     """`film_metrics` of a simulated board, with its coverage (disc area over board area) and film LQE."""
-    from ..analysis.lqe import film_lqe
 
     out = film_metrics(state)
     out["coverage"] = float(np.sum(np.pi * np.asarray(state.radii) ** 2) / (state.box[0] * state.box[1]))
@@ -145,88 +145,3 @@ def table_rows(comparison: Comparison) -> list[tuple[str, str]]:
         given = "   (set to match)" if row["matched"] else ""
         rows.append((row["label"], f"image {row['image']:.{d}f}   simulation {row['simulation']:.{d}f}{se}{given}"))
     return rows
-
-
-def save_side_by_side(comparison: Comparison, path, dpi: int = 120) -> Path:
-    """`side_by_side_figure`, written atomically to ``path``."""
-    from labrig.figures import save_figure
-
-    return save_figure(side_by_side_figure(comparison), path, dpi=dpi)
-
-
-def side_by_side_figure(comparison: Comparison):
-    """The image with its detections beside the first simulated film, both at the same nm scale (a
-    matplotlib Figure)."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
-    from ..render import add_key, draw_state
-
-    film = comparison.film
-    h, w = film.image.shape
-    nm = film.nm_per_px if film.nm_per_px is not None else 1.0
-    unit = "nm" if film.nm_per_px is not None else "image px"
-    scale = comparison.nm_per_board_px if math.isfinite(comparison.nm_per_board_px) else film.summary[
-        "mean_diameter_px"] / MEAN_DIAMETER
-    state = comparison.states[0]
-    board = replace(state, positions=state.positions * scale, radii=state.radii * scale,
-                    box=(state.box[0] * scale, state.box[1] * scale), walls=state.walls * scale)
-    extent = max(w * nm, h * nm, *board.box)
-    fig = Figure(figsize=(14, 8.6))
-    FigureCanvasAgg(fig)
-    left, right = fig.subplots(1, 2)
-    save_overlay_axes(film, left, extent_nm=(w * nm, h * nm))
-    left.set_xlim(0, extent)
-    left.set_ylim(extent, 0)
-    left.set_title(f"{film.image.source}: {film.summary['dots']} dots measured", fontsize="medium")
-    draw_state(board, ax=right, show_time=False)
-    right.set_xlim(0, extent)
-    right.set_ylim(0, extent)
-    exp = comparison.experiment
-    right.set_title(f"simulated: {exp.deposition.n_dots} dots, sigma {exp.deposition.sigma:.3f}, masses ~ d^3, "
-                    f"{exp.engine.kind} engine, seed {exp.seed}", fontsize="medium")
-    for ax in (left, right):
-        ax.set_aspect("equal")
-        ax.set_xlabel(unit)
-        ax.set_ylabel(unit)
-    add_key(right, board, unit)
-    detected = film.detection
-    sized = film_state(detected.centres[~detected.cut] * nm, detected.diameters[~detected.cut] * nm, (h * nm, w * nm))
-    add_key(left, sized, unit)
-    fig.subplots_adjust(left=0.06, right=0.98, top=0.94, bottom=0.2, wspace=0.15)
-    return fig
-
-
-def compare(path: str | os.PathLike, out: str | os.PathLike | None = None, *, name: str | None = None,
-            nm_per_px=None, scale_bar: str | None = None, polarity: str = "auto", profile: str = "auto",
-            page: int = 0, seeds: int = 3, n_dots: int = 300, engine: str = "chipmunk",
-            progress: bool = False) -> Comparison:
-    """Measure an image, simulate it, and write as one set into ``out`` (default beside the image):
-    the measurement's files (`qdots.micrograph.measure.measure`), ``NAME_compare.toml`` (the experiment run,
-    to edit and run again with ``qdots run``), ``NAME_compare.png`` (side by side), ``NAME_compare.csv``
-    (the table) and ``NAME_sim-SEED.npz`` (each simulated board)."""
-    from labrig.files import OutputSet, slug, write_csv
-
-    from ..io import checkpoint
-    from ..io.experiment_file import save_experiment
-    from .measure import save_overlay, state_metadata
-
-    path = Path(path)
-    stem = slug(name if name is not None else path.stem)
-    count("seeds", seeds, 1, MAX_SEEDS)
-    count("dots", n_dots, 2, MAX_COMPARE_DOTS)
-    film = measure_image(path, nm_per_px=nm_per_px, scale_bar=scale_bar, polarity=polarity, profile=profile,
-                         page=page)
-    comparison = compare_film(film, seeds=seeds, n_dots=n_dots, engine=engine, progress=progress, name=stem)
-    out = path.parent if out is None else Path(out)
-    with OutputSet(out, f"{stem}_compare") as files:
-        checkpoint.save_board(film.state, files.stage(f"{stem}.npz"), state_metadata(film))
-        save_overlay(film, files.stage(f"{stem}_detections.png"))
-        write_csv(files.stage(f"{stem}_summary.csv"), [film.summary])
-        save_experiment(comparison.experiment, files.stage(f"{stem}_compare.toml"))
-        for k, sim in enumerate(comparison.simulations):
-            checkpoint.save(sim, files.stage(f"{stem}_sim-{comparison.experiment.seed + k}.npz"),
-                            {"simulated_film_of": film.image.source, "nm_per_board_px": comparison.nm_per_board_px})
-        save_side_by_side(comparison, files.stage(f"{stem}_compare.png"))
-        write_csv(files.stage(f"{stem}_compare.csv"), comparison.table)
-    return comparison

@@ -2,10 +2,10 @@
 
 `measure_image` reads the image (`read_micrograph`), settles its scale (the file's own, else the one
 given, else the scale bar's), finds the dots (`detect_dots`), and measures the film (`film_metrics`,
-with the film's LQE from the thesis's trap model). `measure` does that and writes, as one set
-(`labrig.files.OutputSet`: all files or none), ``NAME.npz`` (a qdots state file that ``qdots
-analyze`` and ``qdots render`` read), ``NAME_detections.png`` (the dots drawn on the image, coloured
-by size with the thesis's key, cut dots dashed, a scale bar in nm) and ``NAME_summary.csv``.
+with the film's LQE from the thesis's trap model), and returns a `MeasuredFilm`: it writes nothing.
+`qdots.micrograph.overlay` draws it and `qdots.micrograph.write` writes ``qdots measure``'s files
+(``NAME.npz``, a qdots state file that ``qdots analyze`` and ``qdots render`` read,
+``NAME_detections.png`` and ``NAME_summary.csv``).
 """
 
 from __future__ import annotations
@@ -13,12 +13,12 @@ from __future__ import annotations
 import math
 import os
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
 from labrig.validate import InputError
 
+from ..analysis.lqe import film_lqe
 from .detect import Detection, detect_dots
 from .film import complete_neighbourhood, film_metrics, film_state
 from .read import Micrograph, read_micrograph
@@ -138,7 +138,6 @@ def measure_image(path: str | os.PathLike, *, nm_per_px=None, scale_bar: str | N
         Bad file or scale (one line), no dot found in the image, or a picture that is not a film of round
         particles (`qdots.micrograph.admit`).
     """
-    from ..analysis.lqe import film_lqe
 
     if nm_per_px is not None:  # bad scales are refused before the image is read, even when the file has one
         check_nm_per_px(nm_per_px)
@@ -210,122 +209,6 @@ def summary_rows(summary: dict) -> list[tuple[str, str]]:
     return rows
 
 
-def draw_scale_bar(ax, nm_per_px: float | None, width_px: float, height_px: float, y_down: bool = True) -> None:
-    """A white-on-black scale bar of a round length (about a fifth of the width) in the lower left corner."""
-    from matplotlib.patches import Rectangle
-
-    from ..render import nice_length
-
-    if nm_per_px is None or not math.isfinite(nm_per_px):
-        return
-    length_nm = nice_length(0.2 * width_px * nm_per_px)
-    length = length_nm / nm_per_px
-    x = 0.04 * width_px
-    thick = max(2.0, 0.012 * height_px)
-    y = height_px - 0.05 * height_px if y_down else 0.05 * height_px
-    ax.add_patch(Rectangle((x - 0.01 * width_px, y - 3.5 * thick if y_down else y - thick),
-                           length + 0.02 * width_px, 4.5 * thick, color="black", alpha=0.6, lw=0))
-    ax.add_patch(Rectangle((x, y - thick if y_down else y), length, thick, color="white", lw=0))
-    label = f"{length_nm:g} nm" if length_nm < 1000 else f"{length_nm / 1000:g} µm"
-    ax.text(x + 0.5 * length, y - 1.4 * thick if y_down else y + 1.6 * thick, label, color="white",
-            ha="center", va="bottom", fontsize="small")
-
-
-def save_overlay_axes(film: MeasuredFilm, ax, extent_nm: tuple[float, float] | None = None) -> None:
-    """Draw the image and its detections on ``ax``: circles coloured by size (`qdots.render.size_colours`),
-    dashed white for dots cut by the edge, centres as yellow crosses, a scale bar. With ``extent_nm`` the
-    axes run in nm (row 0 at the top), else in image px."""
-    from matplotlib.collections import PatchCollection
-    from matplotlib.patches import Circle
-
-    from ..render import size_colours
-
-    h, w = film.image.shape
-    det = film.detection
-    k = 1.0 if extent_nm is None else extent_nm[0] / w
-    ax.imshow(film.image.pixels, cmap="gray", extent=(0, w * k, h * k, 0), interpolation="nearest")
-    whole = ~det.cut
-    colours = size_colours(0.5 * det.diameters[whole]) if whole.any() else np.zeros((0, 3))
-    ax.add_collection(PatchCollection([Circle(c * k, 0.5 * d * k) for c, d in zip(det.centres[whole],
-                                                                                 det.diameters[whole])],
-                                      facecolor="none", edgecolor=colours, linewidth=1.2))
-    ax.add_collection(PatchCollection([Circle(c * k, 0.5 * d * k) for c, d in zip(det.centres[det.cut],
-                                                                                 det.diameters[det.cut])],
-                                      facecolor="none", edgecolor="white", linewidth=0.9, linestyle="--"))
-    ax.plot(det.centres[:, 0] * k, det.centres[:, 1] * k, "+", color="yellow", markersize=3, markeredgewidth=0.6)
-    mark_annotations(ax, film, k)
-    draw_scale_bar(ax, film.nm_per_px / k if film.nm_per_px is not None else None, w * k, h * k)
-    ax.set_xlim(0, w * k)
-    ax.set_ylim(h * k, 0)
-
-
-def mark_annotations(ax, film: MeasuredFilm, k: float = 1.0) -> None:
-    """Shade what was left out (strips, label boxes) and outline the scale bar, with its length in px and, when
-    it gave the scale, in nm (``k``: axes units per image px)."""
-    from matplotlib.patches import Rectangle
-
-    found = film.annotations
-    if found is None:
-        return
-    h, w = film.image.shape
-    x0, y0, x1, y1 = found.window
-    shaded = [(0, 0, w, y0), (0, y1, w, h), (0, y0, x0, y1), (x1, y0, w, y1), *found.boxes]
-    for a, b, c, d in shaded:
-        if c > a and d > b:
-            ax.add_patch(Rectangle((a * k, b * k), (c - a) * k, (d - b) * k, facecolor="none", edgecolor="orange",
-                                   hatch="///", linewidth=0.6, alpha=0.8))
-    if film.bar is not None:
-        a, b, c, d = film.bar.box
-        pad = 3
-        ax.add_patch(Rectangle(((a - pad) * k, (b - pad) * k), (c - a + 2 * pad) * k, (d - b + 2 * pad) * k,
-                               facecolor="none", edgecolor="magenta", linewidth=1.5))
-        from_bar = film.nm_per_px is not None and "from the scale bar" in film.scale
-        used = f" = {film.bar.length_px * film.nm_per_px:.4g} nm" if from_bar else ""
-        ax.text((a + c) / 2 * k, (b - 2 * pad) * k, f"scale bar {film.bar.length_px} px{used}", color="magenta",
-                ha="center", va="bottom", fontsize="small",
-                bbox={"facecolor": "white", "edgecolor": "none", "alpha": 0.7, "pad": 1})
-
-
-def save_overlay(film: MeasuredFilm, path, dpi: int | None = None) -> Path:
-    """`overlay_figure`, written atomically at about the image's own resolution (or ``dpi``)."""
-    from labrig.figures import save_figure
-
-    w = film.image.shape[1]
-    if dpi is None:
-        dpi = int(min(300, max(100, round(w / 9.6))))
-    return save_figure(overlay_figure(film), path, dpi=dpi)
-
-
-def overlay_figure(film: MeasuredFilm):
-    """The detections drawn on the image (`save_overlay_axes`) with a title, the colour bar of the sizes and a
-    scale bar: a matplotlib Figure 10 in wide."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
-    from ..render import add_key
-
-    h, w = film.image.shape
-    det = film.detection
-    width_in = 10.0
-    image_in = 0.96 * width_in * h / w
-    total_in = image_in + 1.2  # 0.35 in for the title above, 0.85 in for the key below
-    fig = Figure(figsize=(width_in, total_in))
-    FigureCanvasAgg(fig)
-    ax = fig.add_axes((0.02, 0.85 / total_in, 0.96, image_in / total_in))
-    save_overlay_axes(film, ax)
-    ax.set_axis_off()
-    s = film.summary
-    size = (f"{s['mean_diameter_nm']:.1f} ± {s['sd_diameter_nm']:.1f} nm" if math.isfinite(s["nm_per_px"])
-            else f"{s['mean_diameter_px']:.1f} ± {s['sd_diameter_px']:.1f} px")
-    ax.set_title(f"{film.image.source}: {s['dots']} dots ({s['dots_cut_by_edge']} cut by the edge, dashed), "
-                 f"d = {size}, σ = {100 * s['size_spread']:.1f} %, interior fraction {s['interior_fraction']:.2f}",
-                 fontsize="medium")
-    k, unit = (film.nm_per_px, "nm") if film.nm_per_px is not None else (1.0, "image px")
-    sized = film_state(det.centres[~det.cut] * k, det.diameters[~det.cut] * k, (h * k, w * k))
-    add_key(ax, sized, unit, cax=fig.add_axes((0.3, 0.5 / total_in, 0.4, 0.12 / total_in)))
-    return fig
-
-
 def state_metadata(film: MeasuredFilm) -> dict:
     """What a measured board's state file records of its image (`qdots.io.checkpoint.save_board`'s ``extra``)."""
     return {"micrograph": {"image": film.image.source, "page": film.image.page, "nm_per_px": film.nm_per_px,
@@ -333,25 +216,3 @@ def state_metadata(film: MeasuredFilm) -> dict:
                            "profile": film.detection.profile,
                            "cut": np.flatnonzero(film.detection.cut).tolist(),
                            "window_px": list(film.detection.window)}}
-
-
-def measure(path: str | os.PathLike, out: str | os.PathLike | None = None, *, name: str | None = None,
-            nm_per_px=None, scale_bar: str | None = None, polarity: str = "auto", profile: str = "auto",
-            page: int = 0, lqe: bool = True) -> MeasuredFilm:
-    """`measure_image`, then write ``NAME.npz``, ``NAME_detections.png`` and ``NAME_summary.csv`` into ``out``
-    (default: beside the image) as one set. ``NAME`` defaults to the image's stem. Nothing is written when the
-    image is refused or holds no dot."""
-    from labrig.files import OutputSet, slug, write_csv
-
-    from ..io import checkpoint
-
-    path = Path(path)
-    film = measure_image(path, nm_per_px=nm_per_px, scale_bar=scale_bar, polarity=polarity, profile=profile,
-                         page=page, lqe=lqe)
-    stem = slug(name if name is not None else path.stem)
-    out = path.parent if out is None else Path(out)
-    with OutputSet(out, stem) as files:
-        checkpoint.save_board(film.state, files.stage(f"{stem}.npz"), state_metadata(film))
-        save_overlay(film, files.stage(f"{stem}_detections.png"))
-        write_csv(files.stage(f"{stem}_summary.csv"), [film.summary])
-    return film
