@@ -112,6 +112,8 @@ def converge(metal: Surface, thickness: float, model: Model, settings: Continuum
                        "steps": engine.iterations, "wall_s": round(time.perf_counter() - start, 3)})
         table["wall_s"] = table["wall_s"] + began  # (the run's wall time counts every resolution before it)
         runs[factor] = (engine, table, shots, complete)
+        if factor == order[0]:
+            best = runs[factor]  # (the reported grid, even if a time budget stopped it)
         if not complete:
             break
         if companion:
@@ -119,7 +121,6 @@ def converge(metal: Surface, thickness: float, model: Model, settings: Continuum
         elif factor != order[0]:
             coarse, fine = runs[factor / 2], runs[factor]
         else:
-            best = runs[factor]
             continue
         ratio = coarse[0].inner.dx / fine[0].inner.dx
         fine[1].update(error_columns(fine[1], coarse[1], ratio))

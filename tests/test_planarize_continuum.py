@@ -306,3 +306,9 @@ def test_the_stated_error_is_within_a_factor_2_of_the_true_error(name):
         for column in ("metal_rms_nm", "oxide_rms_nm"):
             error = np.abs(run.history[column] / truth[column] - 1)
             assert error[2:].max() < 0.005 and error.max() < 0.007, (column, error)
+
+
+def test_a_time_budget_stops_a_continuum_run_at_its_reported_grid():
+    run = anodize(surfaces.hill(), 1.0, max_seconds=1e-6)
+    assert not run.complete and run.thickness < 1.0 and run.metal.shape == (17, 17)
+    assert np.isnan(run.history["metal_rms_error_nm"]).all() and not run.parameters["rtol_met"]
