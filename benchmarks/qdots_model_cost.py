@@ -10,11 +10,13 @@ Chipmunk's ``space.step``. The run is about a second of simulated time (`ROUNDS`
 dots up as it goes, and with them the sub-steps a step takes.
 
 The absent rows check that what is not modelled costs nothing, with an exact error: a
-simulation with no forces at fixed sub-steps (``overlap_tolerance = None``) against Chipmunk's
-``space.step`` called directly, and an open board against a closed one (no dot reaches a wall in
+simulation with no forces at fixed sub-steps (``overlap_tolerance = None``) with impacts resolved where Chipmunk
+finds them (``impacts = "overlap"``: nothing of ours in the contacts) against Chipmunk's ``space.step`` called
+directly on the same settings, and an open board against a closed one (no dot reaches a wall in
 the timed steps), must give bit-identical boards (error = largest position difference, 0
 expected) at the same cost within noise. The default ``no forces`` row adapts its sub-steps to
-the approach speeds (`qdots.engine.chipmunk_step`): it is not bare Chipmunk but a more accurate integration,
+the approach speeds (`qdots.engine.chipmunk_step`) and moves each impact's pair to where the impact at contact
+leaves it (`qdots.engine.contacts`): it is not bare Chipmunk but a more accurate integration,
 so it is reported with its sub-steps per step and its worst overlap beside the direct steps'.
 ``bulk I/O only`` is a force that adds nothing: what any force pays for reading and writing the
 velocities.
@@ -87,8 +89,9 @@ def variants(scene: qdots.Scene) -> list[tuple[str, qdots.Simulation, bool]]:
             ("VanDerWaals", [qdots.VanDerWaals()], False, scene),
             ("VanDerWaals + ThermalKicks + Drag", [qdots.VanDerWaals(), qdots.ThermalKicks(), qdots.Drag()], False,
              scene)]
-    fixed = {"no forces, fixed sub-steps": {"overlap_tolerance": None}}
-    return [(label, qdots.Simulation(s, forces, seed=1, engine=pinned.chipmunk(**fixed.get(label, {}))), raw)
+    bare = {"Chipmunk space.step called directly": {"impacts": "overlap"},
+            "no forces, fixed sub-steps": {"overlap_tolerance": None, "impacts": "overlap"}}
+    return [(label, qdots.Simulation(s, forces, seed=1, engine=pinned.chipmunk(**bare.get(label, {}))), raw)
             for label, forces, raw, s in rows]
 
 
