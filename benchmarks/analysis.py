@@ -29,6 +29,10 @@ from qdots.placement import hexagonal_lattice
 
 from .report import Headline, Table, cli_with_options
 
+#: The code this benchmark measures (besides itself): a commit to it after a run marks the run's section as
+#: older than its code (`benchmarks.staleness`).
+MEASURED_CODE = ("qdots/analysis", "qdots/geometry")
+
 DIAMETER = 15.0
 
 

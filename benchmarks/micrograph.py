@@ -25,6 +25,10 @@ from qdots.micrograph.synthetic import dense_board, render_micrograph, score_det
 
 from .report import Figure, Headline, Table, cli
 
+#: The code this benchmark measures (besides itself): a commit to it after a run marks the run's section as
+#: older than its code (`benchmarks.staleness`).
+MEASURED_CODE = ("qdots/micrograph", "qdots/analysis")
+
 NOISES = (0.0, 0.02, 0.05, 0.1, 0.2, 0.3)
 #: The goals of the issue at moderate noise (0.05): recall, precision, diameter error, position error (px),
 #: interior-fraction error, seconds for 2048 x 2048.

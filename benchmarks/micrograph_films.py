@@ -35,6 +35,10 @@ from qdots.micrograph.synthetic import dense_board, render_micrograph, superlatt
 
 from .report import Headline, Note, Table, cli
 
+#: The code this benchmark measures (besides itself): a commit to it after a run marks the run's section as
+#: older than its code (`benchmarks.staleness`).
+MEASURED_CODE = ("qdots/micrograph", "qdots/analysis")
+
 #: 10 nm dots at 0.6 nm/px; the film types: (lattice, ligand gap in nm) or a random touching film.
 NM_PER_PX, DIAMETER_NM = 0.6, 10.0
 FILMS = {"square superlattice, 1 nm gaps": ("square", 1.0), "square superlattice, 2 nm gaps": ("square", 2.0),

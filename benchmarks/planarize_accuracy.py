@@ -31,6 +31,10 @@ from planarize.metrics import history_difference
 from . import pareto
 from .report import Figure, Headline, Note, Table, cli
 
+#: The code this benchmark measures (besides itself): a commit to it after a run marks the run's section as
+#: older than its code (`benchmarks.staleness`).
+MEASURED_CODE = ("planarize",)
+
 K_EXP = 2.3
 
 

@@ -40,6 +40,10 @@ from scipy.ndimage import gaussian_filter
 from planarize import Fast, Model, Surface, anodize, surfaces
 from planarize.metrics import history_difference
 
+#: The code this benchmark measures (besides itself): a commit to it after a run marks the run's section as
+#: older than its code (`benchmarks.staleness`).
+MEASURED_CODE = ("planarize",)
+
 
 def reference_time(surface: Surface, thickness: float, step: float, updates: int, budget: float) -> tuple[float, bool]:
     """Wall time of the reference engine to ``thickness`` (measured, or extrapolated after ``budget`` s)."""

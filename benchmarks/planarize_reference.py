@@ -36,6 +36,10 @@ from planarize import Model
 
 from .report import Headline, Table
 
+#: The code this benchmark measures (besides itself): a commit to it after a run marks the run's section as
+#: older than its code (`benchmarks.staleness`).
+MEASURED_CODE = ("planarize",)
+
 THICKNESS, STEP, K_EXP = 1.0, 0.01, 2.3
 #: Grid side -> grid points per side of the hill before the 4x refinement.
 SIZES = {17: 5, 33: 9, 65: 17}

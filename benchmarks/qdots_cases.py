@@ -1,8 +1,9 @@
 """Test problems of the qdots engine with exact or converged answers, each timed as it runs.
 
-Every case takes engine settings (`qdots.Chipmunk` keywords, the van der Waals pair list's
-``pair_skin``, ``near_gap`` and ``far_interval`` among them) and returns a `Measured`: the error against
-the exact answer and the wall time per simulated second of the same run.
+Every case takes changes to the Chipmunk settings the benchmarks measure (`benchmarks.pinned.CHIPMUNK`: the thesis's
+20 ms frame; `qdots.Chipmunk` keywords, the van der Waals pair list's ``pair_skin``, ``near_gap`` and
+``far_interval`` among them) and returns a `Measured`: the error against the exact answer and the wall time per
+simulated second of the same run.
 
 * `restitution`: an oblique impact (70 px/s, 9 px offset) from 6-12 start offsets; exact answer:
   the event-driven impact at the exact contact time with the drawn restitution along the exact
@@ -12,11 +13,12 @@ the exact answer and the wall time per simulated second of the same run.
   error (the loss comes from rare contacts that last more than one step, so it varies ~10x
   between seeds).
 * `vdw_pair`: two dots pulled together by the thesis's van der Waals proxy from an 8 px gap to
-  0.8 of the contact time; reference: `scipy.integrate.solve_ivp` (DOP853, rtol 1e-10) of the
-  dt -> 0 law. Error: largest position difference, px. `vdw_far`: the same from a 20 px gap, a
-  pair that stays beyond the engine's ``near_gap`` (its far pass alone).
+  0.8 of the frames before they come within 1 px; reference: the thesis's model of those frames (the pull a
+  velocity change at each frame's start, straight lines between; `vdw_frames`, a loop of its own). Error:
+  largest position difference, px. `vdw_far`: the same from a 20 px gap, a pair that stays beyond the
+  engine's ``near_gap`` (its far pass alone, when ``far_interval`` is set).
 * `dense_pack`: a polydisperse pack compressed by centre gravity (x1 or x10 the thesis's
-  750 px/s^2) with vdW, kicks and drag, settled once at the defaults and then run at the given
+  750 px/s^2) with vdW, kicks and drag, settled once at the pinned settings and then run at the given
   settings. Error: worst overlap (r_i + r_j - d) / mean radius of the pair (exact: 0).
 * `list_error`: the dense pack and a loose thermal film, the van der Waals velocity change from the
   Verlet pair list against a brute-force pair search at the same instants (exact: equal).
@@ -33,15 +35,13 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.integrate import solve_ivp
 
 import qdots
 from qdots.analysis import overlaps
 from qdots.forces import StepContext
 from qdots.diagnostics.hard_cases import loose_film
 
-#: The engine's defaults (the knob values marked on every plot).
-DEFAULTS = qdots.Chipmunk().to_dict()
+from . import pinned
 #: The collision rule of the elastic gas: elastic impacts and walls, no sticking.
 ELASTIC = qdots.Restitution(mean=1.0, wall=1.0, sticking_speed=0.0)
 
@@ -58,9 +58,9 @@ class Measured:
     error_se: float = 0.0
 
 
-def engine(settings: dict) -> dict:
-    """The `Simulation` keywords of ``settings``: the defaults with ``settings`` changed."""
-    return {**DEFAULTS, **settings}
+def engine(settings: dict) -> qdots.Chipmunk:
+    """The pinned Chipmunk settings (`benchmarks.pinned.CHIPMUNK`) with ``settings`` changed."""
+    return pinned.chipmunk(**settings)
 
 
 def timed_run(sim: qdots.Simulation, seconds: float) -> float:
@@ -88,7 +88,7 @@ def restitution(settings: dict, quick: bool) -> Measured:
     for shift in np.linspace(0.0, 1.0, 6 if quick else 12):
         scene = qdots.Scene(box=(400, 200), positions=[[170 + shift, 100], [230, 109]], radii=[7.5, 7.5],
                             velocities=[[60.0, 0.0], [-10.0, 0.0]])
-        sim = qdots.Simulation(scene, seed=seed, **engine(settings))
+        sim = qdots.Simulation(scene, seed=seed, engine=engine(settings))
         exact = exact_impact(scene.positions, scene.velocities, 15.0, sim.collisions.next_elasticity(), t_end)
         wall += timed_run(sim, t_end)
         simulated += sim.time
@@ -119,7 +119,7 @@ def gas_energy(settings: dict, quick: bool) -> Measured:
     for seed in seeds:
         scene = elastic_gas(n, seed)
         e0 = 0.5 * float(np.sum(scene.velocities**2))
-        sim = qdots.Simulation(scene, restitution=ELASTIC, seed=seed, **engine(settings))
+        sim = qdots.Simulation(scene, restitution=ELASTIC, seed=seed, engine=engine(settings))
         wall += timed_run(sim, seconds)
         errors.append(abs(sim.state().kinetic_energy() - e0) / e0)
     return Measured(float(np.mean(errors)), wall / (seconds * len(seeds)),
@@ -127,30 +127,41 @@ def gas_energy(settings: dict, quick: bool) -> Measured:
 
 
 # ---------------------------------------------------------------- two-body van der Waals
+def vdw_frames(gap0: float, dt: float, frames: int, mass: float = 1.0, r: float = 7.5) -> tuple[float, float, int]:
+    """Positions (px, along x, from 0 and ``2 r + gap0``) of two dots of ``mass`` and radius ``r`` after ``frames``
+    frames of ``dt`` s of the thesis's van der Waals proxy (default `qdots.VanDerWaals`): at each frame's start
+    each dot's velocity changes by ``min(a dt / 2, sqrt(g a) / 2)`` toward the other, ``a = (R0 / (g - b))^7 / m``,
+    for surface gaps ``min_gap <= g < max_gap``, then both move in straight lines. Also the first frame at whose
+    start they are within 1 px (``frames`` if none). Written out here, apart from the engine (the reference)."""
+    force = qdots.VanDerWaals()
+    b = force.proxy_offset(qdots.Restitution().sticking_speed)
+    x1, x2, v1, v2, touch = 0.0, 2 * r + gap0, 0.0, 0.0, frames
+    for k in range(frames):
+        gap = x2 - x1 - 2 * r
+        if gap < 1.0:
+            touch = min(touch, k)
+        if force.min_gap <= gap < force.max_gap:
+            a = (force.r0 / (gap - b)) ** 7 / mass
+            dv = min(0.5 * a * dt, 0.5 * math.sqrt(gap * a))
+            v1, v2 = v1 + dv, v2 - dv
+        x1, x2 = x1 + v1 * dt, x2 + v2 * dt
+    return x1, x2, touch
+
+
 @functools.lru_cache(maxsize=None)
-def vdw_reference(gap0: float = 8.0) -> tuple[float, float, float]:
-    """(t_end, x1, x2) of the dt -> 0 thesis-proxy approach from ``gap0``, by solve_ivp; t_end = 0.8 t_contact."""
-    force, r = qdots.VanDerWaals(), 7.5
-    offset = force.proxy_offset(qdots.Restitution().sticking_speed)
-
-    def rhs(t, y):
-        gap = max(y[1] - y[0] - 2 * r, force.min_gap)
-        pull = 0.5 * (force.r0 / (gap - offset)) ** 7
-        return [y[2], y[3], pull, -pull]
-
-    touch = lambda t, y: y[1] - y[0] - 2 * r - 1.0  # noqa: E731 - a gap of 1 px
-    touch.terminal = True
-    y0 = [0.0, 2 * r + gap0, 0.0, 0.0]
-    t_contact = solve_ivp(rhs, (0, 100), y0, events=touch, rtol=1e-10, atol=1e-12).t_events[0][0]
-    t_end = round(0.8 * t_contact / 0.02) * 0.02  # whole steps for every dt that divides 20 ms
-    x1, x2 = solve_ivp(rhs, (0, t_end), y0, rtol=1e-10, atol=1e-12, method="DOP853").y[:2, -1]
-    return t_end, float(x1), float(x2)
+def vdw_reference(gap0: float = 8.0, dt: float = 0.02) -> tuple[float, float, float]:
+    """(t_end, x1, x2): the frames' positions at 0.8 of the frames before the pair comes within 1 px (`vdw_frames`)."""
+    *_, touch = vdw_frames(gap0, dt, round(100.0 / dt))
+    frames = max(1, round(0.8 * touch))
+    x1, x2, _ = vdw_frames(gap0, dt, frames)
+    return frames * dt, x1, x2
 
 
 def vdw_pair(settings: dict, quick: bool, gap0: float = 8.0) -> Measured:
-    t_end, x1, x2 = vdw_reference(gap0)
+    settings_ = engine(settings)
+    t_end, x1, x2 = vdw_reference(gap0, settings_.dt)
     scene = qdots.Scene(box=(200, 100), positions=[[80, 50], [95 + gap0, 50]], radii=[7.5, 7.5], closed=False)
-    sim = qdots.Simulation(scene, [qdots.VanDerWaals()], seed=0, **engine(settings))
+    sim = qdots.Simulation(scene, [qdots.VanDerWaals()], seed=0, engine=settings_)
     wall = timed_run(sim, t_end)
     got = sim.state().positions[:, 0] - 80.0
     return Measured(max(abs(got[0] - x1), abs(got[1] - x2)), wall / t_end)
@@ -164,20 +175,21 @@ def pack_forces(centre: float, gravity: float) -> list[qdots.Force]:
 
 @functools.lru_cache(maxsize=None)
 def settled_pack(gravity: float, quick: bool) -> qdots.Scene:
-    """A polydisperse pack (radii N(7.5, 0.75) px) pulled together for 3 s (quick: 150 dots, 2 s) at the defaults."""
+    """A polydisperse pack (radii N(7.5, 0.75) px) pulled together for 3 s (quick: 150 dots, 2 s) at the pinned
+    settings."""
     n, side, settle = (150, 380, 2.0) if quick else (400, 600, 3.0)
     rng = np.random.default_rng(0)
     grid = np.array([(x, y) for x in range(20, side - 15, 25) for y in range(20, side - 15, 25)], float)
     grid = grid[rng.permutation(len(grid))[:n]]
     scene = qdots.Scene(box=(side, side), positions=grid, radii=rng.normal(7.5, 0.75, n).clip(5, 9.5))
-    sim = qdots.Simulation(scene, pack_forces(side / 2, gravity), seed=1)
+    sim = qdots.Simulation(scene, pack_forces(side / 2, gravity), seed=1, engine=pinned.CHIPMUNK)
     sim.run(settle)
     return sim.current_scene()
 
 
 def pack_simulation(settings: dict, gravity: float, quick: bool) -> qdots.Simulation:
     scene = settled_pack(gravity, quick)
-    return qdots.Simulation(scene, pack_forces(scene.box[0] / 2, gravity), seed=2, **engine(settings))
+    return qdots.Simulation(scene, pack_forces(scene.box[0] / 2, gravity), seed=2, engine=engine(settings))
 
 
 def dense_pack(settings: dict, quick: bool, gravity: float) -> Measured:
@@ -241,7 +253,7 @@ def many_body_run(settings: dict, quick: bool, scene: str) -> tuple[qdots.Simula
     else:
         sim = qdots.Simulation(loose_film(300 if quick else 2000),
                                [qdots.VanDerWaals(), qdots.ThermalKicks(), qdots.Drag()],
-                               seed=3, **engine(settings))
+                               seed=3, engine=engine(settings))
         seconds = 0.3 if quick else 1.0
     return sim, timed_run(sim, seconds) / seconds
 
@@ -266,8 +278,8 @@ def split_error(settings: dict, quick: bool, scene: str) -> Measured:
 CASES = {
     "restitution": ("isolated oblique impact", "|v - v_exact| / |v_rel|", 1e-12, restitution),
     "gas_energy": ("elastic gas, 50 % area fraction", "|dE| / E", 1e-12, gas_energy),
-    "vdw_pair": ("two-body vdW vs solve_ivp", "position error (px)", 1e-9, vdw_pair),
-    "vdw_far": ("two-body vdW from a 20 px gap vs solve_ivp", "position error (px)", 1e-9,
+    "vdw_pair": ("two-body vdW vs the thesis's frames", "position error (px)", 1e-9, vdw_pair),
+    "vdw_far": ("two-body vdW from a 20 px gap vs the thesis's frames", "position error (px)", 1e-9,
                 functools.partial(vdw_pair, gap0=20.0)),
     "pack_g1": ("dense pack, centre gravity x1", "worst overlap / r", 1e-6,
                 functools.partial(dense_pack, gravity=1.0)),

@@ -38,7 +38,13 @@ from qdots.analysis.structure import clusters
 from qdots.experiment import build_simulation, populate
 from qdots.presets import get_preset
 
+from . import pinned
 from .report import Figure, Headline, Note, Table, cli
+
+#: The code this benchmark measures (besides itself): a commit to it after a run marks the run's section as
+#: older than its code (`benchmarks.staleness`).
+MEASURED_CODE = ("qdots/engine", "qdots/forces", "qdots/simulation.py", "qdots/experiment.py",
+                 "qdots/diagnostics/energy_budget.py", "benchmarks/pinned.py")
 
 #: The films: (label, sigma, mass model).
 FILMS = (("masses ~ d^3, sigma 10 %", 0.10, "volume"), ("equal masses, sigma 0", 0.0, "equal"))
@@ -71,7 +77,7 @@ def build(sigma: float, model: str, seed: int, engine: tuple, quick: bool):
     base = next(exp for exp in get_preset("fig2-2", quick=0.1 if quick else False) if exp.deposition.sigma == 0.0)
     _, kind, changes = engine
     exp = base.replace(seed=seed, deposition=dataclasses.replace(base.deposition, sigma=sigma, mass_model=model),
-                       engine=base.engine.replace(kind=kind, **changes))
+                       engine=pinned.engine(kind, **changes))
     sim = build_simulation(exp)
     budget = EnergyBudget(mass_edges(sigma, model)).attach(sim)
     return exp, sim, budget
@@ -121,7 +127,7 @@ def paired(board, sigma: float, model: str, engine: tuple, seed: int) -> np.ndar
     scene = qdots.Scene(box=board.box, positions=board.positions, radii=board.radii, masses=board.masses,
                         velocities=board.velocities, from_engine=True)
     sim = qdots.Simulation(scene, [qdots.VanDerWaals(), qdots.ThermalKicks()], seed=seed,
-                           engine=qdots.engine.ENGINES[kind](**changes))
+                           engine=pinned.engine(kind, **changes))
     budget = EnergyBudget(mass_edges(sigma, model)).attach(sim)
     sim.run(PAIRED_FRAMES * sim.dt)
     budget.finish(sim)

@@ -1,20 +1,22 @@
 """qdots error against time, one curve per engine knob, defaults checked against the Pareto front.
 
-Knobs: time step ``dt``, the sub-steps' ``overlap_tolerance`` (and fixed sub-steps), Chipmunk
-``substeps`` and solver ``iterations``, ``collision_slop``,
-overlap correction per step (``collision_bias``), the van der Waals pair list's Verlet skin
-(``pair_skin``), the van der Waals split between pairs pulled every step (``near_gap``) and the far pass
-(``far_interval``), and Chipmunk's spatial hash against its default bounding-box tree. Each knob is swept over the
-test problems it can affect (`benchmarks.qdots_cases`: isolated restitution, elastic-gas energy,
-two-body vdW against solve_ivp, worst overlap in a dense pack, pair list against brute force, the
-split vdW impulse against every pair every step),
-every other setting at its default. Settings are run in turn, ``repeats`` times (cost: the
-fastest; a run shorter than `MIN_WALL` is repeated until that much wall time is spent), so drifts in
-machine speed hit them alike. Cost is wall seconds per simulated second
-of the same run that gave the error. The Pareto rule is `benchmarks.pareto`.
+Knobs of the Chipmunk engine: time step ``dt``, the sub-steps' ``overlap_tolerance`` (and fixed sub-steps),
+Chipmunk ``substeps`` and solver ``iterations``, ``collision_slop``, overlap correction per step
+(``collision_bias``), the van der Waals pair list's Verlet skin (``pair_skin``), the far pass of the van der
+Waals pull (``far_interval``, with the pairs closer than ``near_gap`` pulled every step), and Chipmunk's spatial
+hash against its default bounding-box tree. Each knob is swept over the test problems it can affect
+(`benchmarks.qdots_cases`: isolated restitution, elastic-gas energy, two-body vdW against the thesis's frames,
+worst overlap in a dense pack, pair list against brute force, the split vdW impulse against every pair every
+step), every other knob at the pinned settings (`benchmarks.pinned.CHIPMUNK`, the defaults of 0.3.0: the thesis's
+20 ms frame). The library's default of each knob is starred; a setting that is not the library's default any
+more is not starred, and the verdict says so. Settings are run in turn, ``repeats`` times (cost: the fastest; a
+run shorter than `MIN_WALL` is repeated until that much wall time is spent), so drifts in machine speed hit them
+alike. Cost is wall seconds per simulated second of the same run that gave the error. The Pareto rule is
+`benchmarks.pareto`.
 
-Last, the packing metrics of the ``fig2-2`` preset (scaled down) against dt: mean over seeds of
-the paired difference from the finest dt, with its standard error.
+``dt`` is swept on the cases without the van der Waals pull only, and on the packs' overlap: the thesis's proxy
+is a velocity change per frame, so another frame is another model of the pull (docs/engines.md), not a finer
+approximation of the same one. ``near_gap`` acts only with ``far_interval`` set, which the default is not.
 
 Run: ``python -m benchmarks.qdots_knobs [--quick] [--figures DIR]``
 """
@@ -25,30 +27,31 @@ import math
 import textwrap
 import time
 
-import numpy as np
 from matplotlib.figure import Figure as MplFigure
 
-from qdots.analysis import packing_summary
-from qdots.experiment import run_experiment
-from qdots.presets import get_preset
-
-from . import pareto
-from .fig2_2_realtime import paired_difference
-from .qdots_cases import CASES, DEFAULTS
+from . import pareto, pinned
+from .qdots_cases import CASES
+from .staleness import CHIPMUNK_ENGINE
 from .report import Figure, Headline, Note, Table, cli
+
+#: The code this benchmark measures (besides itself): a commit to it after a run marks the run's section as
+#: older than its code (`benchmarks.staleness`).
+MEASURED_CODE = (*CHIPMUNK_ENGINE,
+                 "qdots/forces", "qdots/geometry", "qdots/simulation.py", "benchmarks/qdots_cases.py",
+                 "benchmarks/pareto.py", "benchmarks/pinned.py")
 
 
 def _bias(fraction: float) -> float:
-    """pymunk's collision_bias that corrects ``fraction`` of an overlap per sub-step of the default dt."""
-    return (1.0 - fraction) ** (1.0 / DEFAULTS["dt"])
+    """pymunk's collision_bias that corrects ``fraction`` of an overlap per sub-step as long as the pinned dt."""
+    return (1.0 - fraction) ** (1.0 / pinned.CHIPMUNK.dt)
 
 
-#: knob -> (what it is, [(label, settings, full, quick)], cases). The default setting is marked by `is_default`.
+#: knob -> (what it is, [(label, settings changed from the pinned ones, full, quick)], cases).
 KNOBS = {
-    "dt": ("time step", [("10 ms", {"dt": 1e-2}, True, False), ("5 ms", {"dt": 5e-3}, True, True),
-                         ("2.5 ms", {}, True, True), ("1 ms", {"dt": 1e-3}, True, True),
-                         ("0.5 ms", {"dt": 5e-4}, True, False)],
-           ["restitution", "gas_energy", "vdw_pair", "pack_g1", "pack_g10"]),
+    "dt": ("time step (the frame)", [("20 ms", {}, True, True), ("10 ms", {"dt": 1e-2}, True, False),
+                                     ("5 ms", {"dt": 5e-3}, True, True), ("2.5 ms", {"dt": 2.5e-3}, True, True),
+                                     ("1 ms", {"dt": 1e-3}, True, False)],
+           ["restitution", "gas_energy", "pack_g1", "pack_g10"]),
     "overlap_tolerance": ("largest travel into a contact per Chipmunk sub-step (radii); fixed: never split", [
         ("fixed", {"overlap_tolerance": None}, True, True), ("0.02", {"overlap_tolerance": 0.02}, True, False),
         ("0.01", {"overlap_tolerance": 0.01}, True, True), ("0.005", {}, True, True),
@@ -65,7 +68,7 @@ KNOBS = {
         ("0.001", {"collision_slop": 0.001}, True, False), ("0.01", {}, True, True),
         ("0.1 (pymunk)", {"collision_slop": 0.1}, True, True), ("0.5", {"collision_slop": 0.5}, True, False)],
         ["gas_energy", "pack_g1", "pack_g10"]),
-    "collision_bias": ("overlap corrected per sub-step (collision_bias at the default dt)", [
+    "collision_bias": ("overlap corrected per sub-step (collision_bias for sub-steps of 20 ms)", [
         ("10 %", {"collision_bias": _bias(0.1)}, True, True), ("20 %", {"collision_bias": _bias(0.2)}, True, False),
         ("30 %", {}, True, True), ("50 %", {"collision_bias": _bias(0.5)}, True, True)],
         ["pack_g1", "pack_g10"]),
@@ -73,14 +76,10 @@ KNOBS = {
         ("0", {"pair_skin": 0.0}, True, True), ("1", {"pair_skin": 1.0}, True, False),
         ("3", {"pair_skin": 3.0}, True, True), ("6", {}, True, True), ("12", {"pair_skin": 12.0}, True, False)],
         ["list_pack", "list_film", "vdw_pair"]),
-    "near_gap": ("vdW pairs pulled every step: surface gap below (px)", [
-        ("1", {"near_gap": 1.0}, True, False), ("2", {"near_gap": 2.0}, True, True), ("4", {}, True, True),
-        ("8", {"near_gap": 8.0}, True, True), ("all", {"near_gap": 1000.0}, True, False)],
-        ["vdw_pair", "vdw_far", "split_pack", "split_film"]),
-    "far_interval": ("seconds between the vdW far passes", [
-        ("every step", {"far_interval": None}, True, True), ("10 ms", {"far_interval": 0.01}, True, False),
-        ("20 ms", {}, True, True), ("50 ms", {"far_interval": 0.05}, True, True),
-        ("100 ms", {"far_interval": 0.1}, True, False)],
+    "far_interval": ("seconds between the vdW far passes (pairs closer than near_gap = 4 px every step)", [
+        ("every step", {}, True, True), ("40 ms", {"far_interval": 0.04}, True, True),
+        ("100 ms", {"far_interval": 0.1}, True, False),
+        ("40 ms, near_gap 8 px", {"far_interval": 0.04, "near_gap": 8.0}, True, False)],
         ["vdw_pair", "vdw_far", "split_pack", "split_film"]),
     "spatial_index": ("Chipmunk's bounding-box tree against its spatial hash (cell px, count 10 N)", [
         ("tree", {}, True, True), ("hash 8", {"spatial_hash": (8.0, 10000)}, True, False),
@@ -95,7 +94,8 @@ MIN_WALL = 0.25
 
 
 def is_default(settings: dict) -> bool:
-    return all(DEFAULTS[k] == v for k, v in settings.items())
+    """True when the pinned settings with these changes are the library's defaults."""
+    return pinned.is_library_default(pinned.chipmunk(**settings))
 
 
 def sweep(knob: str, quick: bool, repeats: int) -> dict[str, list[pareto.Point]]:
@@ -128,7 +128,7 @@ def knob_figure(knob: str, points: dict[str, list[pareto.Point]], dt_points: dic
         ax = fig.add_subplot(rows, cols, k + 1)
         reference = dt_points.get(case, []) if knob == "substeps" else []
         pareto.plot(ax, points[case], title=textwrap.fill(title, 45), xlabel="wall s per simulated s",
-                    ylabel=ylabel, floor=floor, reference=reference, reference_label="dt 5 ... 0.5 ms")
+                    ylabel=ylabel, floor=floor, reference=reference, reference_label="dt 10 ... 1 ms")
     fig.suptitle(f"{knob}: {KNOBS[knob][0]}", fontsize=10)
     return fig
 
@@ -145,83 +145,32 @@ def knob_table(knob: str, points: dict[str, list[pareto.Point]]) -> Table:
                  ["case", "setting", "cost (ms wall per simulated s)", "error", "default vs the front"], rows)
 
 
-# ---------------------------------------------------------------- fig2-2 packing metrics against dt
-def packing_convergence(quick: bool) -> tuple[Table, MplFigure, dict]:
-    """Interior fraction and mean neighbours of the scaled fig2-2 film against dt, paired over seeds."""
-    factor, dts, seeds = (0.1, (5e-3, 2.5e-3, 1e-3), range(3)) if quick else (0.2, (5e-3, 2.5e-3, 1e-3, 5e-4), range(6))
-    base = get_preset("fig2-2", quick=factor)[0]
-    metrics = ("interior_fraction", "mean_neighbours_interior")
-    values = {dt: {m: [] for m in metrics} for dt in dts}
-    wall = {dt: [] for dt in dts}
-    for seed in seeds:
-        for dt in dts:
-            exp = base.replace(seed=154 + seed, engine=base.engine.replace(dt=dt))
-            start = time.perf_counter()
-            sim = run_experiment(exp)
-            wall[dt].append(time.perf_counter() - start)
-            summary = packing_summary(sim.state())
-            for m in metrics:
-                values[dt][m].append(summary[m])
-    finest = dts[-1]
-    rows, stats = [], {}
-    for dt in dts:
-        row = [dt * 1e3, float(np.mean(wall[dt]))]
-        for m in metrics:
-            v = np.array(values[dt][m])
-            diff, se = paired_difference(v, values[finest][m])
-            stats[(dt, m)] = (float(v.mean()), diff, se)
-            row += [f"{v.mean():.3f}", f"{diff:+.3f} +- {se:.3f}" if dt != finest else "(reference)"]
-        rows.append(row)
-    table = Table(
-        f"fig2-2 preset x{factor:g} ({base.deposition.n_dots} dots, {base.deposition.n_dots * base.deposition.interval + base.deposition.settle:g} s), "
-        f"{len(seeds)} seeds: packing metrics against dt, paired differences from dt = {finest * 1e3:g} ms (mean +- SE)",
-        ["dt (ms)", "wall per run (s)", "interior fraction", "difference", "mean neighbours (interior)", "difference"],
-        rows)
-    fig = MplFigure(figsize=(8.0, 3.2), layout="constrained")
-    for k, m in enumerate(metrics):
-        ax = fig.add_subplot(1, 2, k + 1)
-        coarse = [dt for dt in dts if dt != finest]
-        t = [np.mean(wall[dt]) for dt in coarse]
-        d = [stats[(dt, m)][1] for dt in coarse]
-        se = [stats[(dt, m)][2] for dt in coarse]
-        ax.errorbar(t, d, yerr=se, fmt="o-", ms=4, capsize=3)
-        for dt, x, y in zip(coarse, t, d):
-            ax.annotate(f"{dt * 1e3:g} ms", (x, y), textcoords="offset points", xytext=(4, 4), fontsize=7)
-            if dt == DEFAULTS["dt"]:
-                ax.plot([x], [y], "*", color="red", ms=13, label="default")
-        ax.axhline(0.0, color="0.6", lw=0.8)
-        ax.set_xscale("log")
-        ax.set_xlabel("wall s per run", fontsize=8)
-        ax.set_ylabel(f"{m} minus dt = {finest * 1e3:g} ms", fontsize=8)
-        ax.legend(fontsize=7)
-        ax.tick_params(labelsize=7)
-    fig.suptitle(f"fig2-2 x{factor:g}: packing metrics converge as dt shrinks? (mean +- SE over {len(seeds)} seeds)",
-                 fontsize=9)
-    return table, fig, stats
-
-
 def run(quick: bool) -> list:
     repeats = 1 if quick else 2
-    results, verdicts = [], []
+    results, verdicts, curves = [], [], []
     dt_points: dict = {}
     for knob in KNOBS:
         points = sweep(knob, quick, repeats)
         if knob == "dt":
-            dt_points = {case: [p for p in pts if p.label != "10 ms"] for case, pts in points.items()}
+            dt_points = {case: [p for p in pts if p.label != "20 ms"] for case, pts in points.items()}
         results.append(knob_table(knob, points))
         results.append(Figure(f"qdots_knob_{knob}", knob_figure(knob, points, dt_points),
                               f"{knob}: error against wall time per simulated second for each case; the red star "
                               f"is the default; each subplot's title says whether it is on the Pareto front."))
         for case, pts in points.items():
             verdicts.append((knob, case, pareto.verdict(pts, CASES[case][2])))
-    table, fig, _ = packing_convergence(quick)
-    results += [table, Figure("qdots_fig2_2_dt", fig, "fig2-2 (scaled) packing metrics against dt: paired "
-                                                      "difference from the finest dt, mean +- SE over seeds.")]
+            curves.append((knob, case, pts))
     off = [(k, c, v) for k, c, v in verdicts if v != "on the front"]
     summary = (f"Defaults on the Pareto front in {len(verdicts) - len(off)} of {len(verdicts)} (knob, case) curves."
                + ("" if not off else " Not on it: " + "; ".join(f"**{k}** / {CASES[c][0]}: {v}" for k, c, v in off)
                   + "."))
-    default = {case: next(p for p in pts if p.default) for case, pts in dt_points.items()}
+    dt_curves = {case: pts for knob, case, pts in curves if knob == "dt"}
+    default = {case: next((p for p in pts if p.default), pts[0]) for case, pts in dt_curves.items()}
+    vdw = next(p for knob, case, pts in curves if knob == "pair_skin" and case == "vdw_pair" for p in pts
+               if p.label == "6")
+    moved = pinned.moved_defaults()
+    if moved:
+        summary += " The library's defaults have moved from the settings measured here: " + "; ".join(moved) + "."
     return [
         Headline("qdots defaults, dense pack under centre gravity x1 / x10",
                  f"{default['pack_g1'].time:.2f} / {default['pack_g10'].time:.2f} s wall per simulated s",
@@ -229,7 +178,7 @@ def run(quick: bool) -> list:
         Headline("qdots defaults, isolated impact / elastic gas / two-body vdW",
                  f"{1e3 * default['gas_energy'].time:.0f} ms per simulated s (gas)",
                  f"velocity {default['restitution'].error:.1e} of v_rel; energy {default['gas_energy'].error:.1e}; "
-                 f"position {default['vdw_pair'].error:.1e} px"),
+                 f"position {vdw.error:.1e} px"),
         Headline(f"qdots defaults against the Pareto front of {len(KNOBS)} knobs",
                  f"{len(verdicts) - len(off)} of {len(verdicts)} curves on the front",
                  "; ".join(f"{k} on {CASES[c][0]}" for k, c, _ in off) or "none off"),

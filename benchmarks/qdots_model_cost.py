@@ -2,17 +2,21 @@
 
 One board (a jittered square lattice of 7.5 px dots at 17 px pitch, velocities N(0, 10) px/s,
 closed box 100 px away) is run by several simulations side by side, each with one force (or none), from the
-same start. They are stepped in turn, 10 steps at a time, so drifts in machine speed hit them
+same start, all on the pinned Chipmunk settings (`benchmarks.pinned.CHIPMUNK`: the defaults of 0.3.0, the
+thesis's 20 ms frame). They are stepped in turn, `CHUNK` steps at a time, so drifts in machine speed hit them
 alike; each row gives the median ms/step over the chunks and its noise (half the interquartile
 range), split into our force phase (bulk read, kicks, bulk write; `Simulation.timings`) and
-Chipmunk's ``space.step``.
+Chipmunk's ``space.step``. The run is about a second of simulated time (`ROUNDS`): the gravity rows speed the
+dots up as it goes, and with them the sub-steps a step takes.
 
 The absent rows check that what is not modelled costs nothing, with an exact error: a
-simulation with no forces at fixed sub-steps (``overlap_tolerance = None``) against Chipmunk's
-``space.step`` called directly, and an open board against a closed one (no dot reaches a wall in
+simulation with no forces at fixed sub-steps (``overlap_tolerance = None``) with impacts resolved where Chipmunk
+finds them (``impacts = "overlap"``: nothing of ours in the contacts) against Chipmunk's ``space.step`` called
+directly on the same settings, and an open board against a closed one (no dot reaches a wall in
 the timed steps), must give bit-identical boards (error = largest position difference, 0
 expected) at the same cost within noise. The default ``no forces`` row adapts its sub-steps to
-the approach speeds (`qdots.engine.chipmunk_step`): it is not bare Chipmunk but a more accurate integration,
+the approach speeds (`qdots.engine.chipmunk_step`) and moves each impact's pair to where the impact at contact
+leaves it (`qdots.engine.contacts`): it is not bare Chipmunk but a more accurate integration,
 so it is reported with its sub-steps per step and its worst overlap beside the direct steps'.
 ``bulk I/O only`` is a force that adds nothing: what any force pays for reading and writing the
 velocities.
@@ -31,7 +35,18 @@ import qdots
 from qdots.analysis import overlaps
 from qdots.forces import Force, StepContext
 
+from . import pinned
+from .staleness import CHIPMUNK_ENGINE
 from .report import Headline, Note, Table, cli
+
+#: The code this benchmark measures (besides itself): a commit to it after a run marks the run's section as
+#: older than its code (`benchmarks.staleness`).
+MEASURED_CODE = (*CHIPMUNK_ENGINE, "qdots/forces", "qdots/simulation.py", "benchmarks/pinned.py")
+
+#: Steps per chunk, and chunks (rounds) timed, by (quick, dots): about 1 s simulated at 3,000 dots (quick 0.4 s),
+#: 0.3 s at 30,000.
+CHUNK = 2
+ROUNDS = {(True, 3000): 10, (False, 3000): 25, (False, 30000): 8}
 
 
 class NoForce(Force):
@@ -74,11 +89,13 @@ def variants(scene: qdots.Scene) -> list[tuple[str, qdots.Simulation, bool]]:
             ("VanDerWaals", [qdots.VanDerWaals()], False, scene),
             ("VanDerWaals + ThermalKicks + Drag", [qdots.VanDerWaals(), qdots.ThermalKicks(), qdots.Drag()], False,
              scene)]
-    fixed = {"no forces, fixed sub-steps": {"overlap_tolerance": None}}
-    return [(label, qdots.Simulation(s, forces, seed=1, **fixed.get(label, {})), raw) for label, forces, raw, s in rows]
+    bare = {"Chipmunk space.step called directly": {"impacts": "overlap"},
+            "no forces, fixed sub-steps": {"overlap_tolerance": None, "impacts": "overlap"}}
+    return [(label, qdots.Simulation(s, forces, seed=1, engine=pinned.chipmunk(**bare.get(label, {}))), raw)
+            for label, forces, raw, s in rows]
 
 
-def measure(n: int, rounds: int, chunk: int = 10) -> list[dict]:
+def measure(n: int, rounds: int, chunk: int = CHUNK) -> list[dict]:
     sims = variants(board(n))
     total = {label: [] for label, _, _ in sims}
     split = {label: [] for label, _, _ in sims}
@@ -131,7 +148,7 @@ def table(rows: list[dict]) -> Table:
         out.append([r["N"], r["label"], r["ms"], f"+- {r['noise']:.2f}", f"{added:+.2f}",
                     f"{r['forces_ms']:.4f}", f"{r['substeps']:.2f}", f"{r['overlap']:.3f}",
                     r["difference"], r["wall_contacts"]])
-    return Table(f"ms per step (dt {1e3 * qdots.Chipmunk().dt:g} ms) of each force alone, from the same board",
+    return Table(f"ms per step (dt {1e3 * pinned.CHIPMUNK.dt:g} ms) of each force alone, from the same board",
                  ["N", "simulation", "ms/step (median)", "noise (IQR/2)", "vs no forces", "force phase ms/step",
                   "Chipmunk sub-steps per step", "worst overlap (% r)",
                   "error: max position difference (px)", "wall contacts"], out)
@@ -141,7 +158,7 @@ def run(quick: bool) -> list:
     sizes = (3000,) if quick else (3000, 30000)
     rows = []
     for n in sizes:
-        rows += measure(n, rounds=30 if quick else (60 if n <= 3000 else 15))
+        rows += measure(n, rounds=ROUNDS[quick, n])
     n0 = sizes[0]
     by = {r["label"]: r for r in rows if r["N"] == n0}
     none, raw = by["no forces"], by["Chipmunk space.step called directly"]
@@ -159,7 +176,7 @@ def run(quick: bool) -> list:
         Note(f"Each force's cost is its row minus `no forces`; at {n0:,} dots the bulk write of the body forces "
              f"that any force triggers costs {io['ms'] - none['ms']:.2f} ms/step, paid once however many forces "
              "there are (the adaptive sub-step plan reads the velocities with or without forces). "
-             "`ThermalKicks` acts every 20 ms but triggers the bulk I/O every step. Rows with different forces "
+             "Rows with different forces "
              "drift apart in configuration (gravity piles the dots up, vdW clusters them), so their Chipmunk time "
              "differs too; the force phase column is the forces' own work."),
     ]

@@ -3,8 +3,9 @@
 **Peer.** N = 3,000 and 30,000 discs of 7.5 px, mass 1, at 40 % and 70 % area fraction in a closed
 square box, Maxwell velocities at kT = 1.76 (one thesis kick rms speed), a Langevin thermostat
 (gamma = 1/s) and restitution 0.8. qdots: Chipmunk's hard contacts with the thesis's per-impact
-restitution N(0.8, 0.1) and `qdots.Langevin`, at its defaults (dt = 2.5 ms) and at the larger
-time steps `MATCH_DTS`. LAMMPS (`benchmarks.lammps_scene`): soft linear springs with the damping
+restitution N(0.8, 0.1) and `qdots.Langevin`, at the pinned settings (`benchmarks.pinned.CHIPMUNK`, the defaults of
+0.3.0: the 20 ms frame, sub-steps planned so that no dot travels more than 0.005 radii into a contact) and at the
+looser sub-step plans `MATCH_TOLERANCES`. LAMMPS (`benchmarks.lammps_scene`): soft linear springs with the damping
 that gives e = 0.8, ``fix langevin`` with the same gamma and kT. Its stiffness is chosen so that a
 head-on impact at 10 px/s (over 5x the rms relative speed) overlaps by 1 % of a radius, and its
 time step is the usual contact time / 50; a second LAMMPS row runs at dt = 1 ms (contact time /
@@ -13,9 +14,9 @@ measured in the same run: ms/step, ms per simulated second, worst overlap over t
 temperature against the target, and the restitution error of an isolated head-on impact at the
 same settings (qdots: against the drawn value; LAMMPS: against 0.8).
 
-**At equal overlap.** The two engines violate different things by default (qdots overlaps ~5x
-less than LAMMPS at contact time / 50), so the headline also compares them at equal overlap: qdots
-at the largest of its time steps whose worst overlap is at most LAMMPS's at contact time / 50.
+**At equal overlap.** The two engines violate different things by default (qdots overlaps less
+than LAMMPS at contact time / 50), so the headline also compares them at equal overlap: qdots
+at the loosest of its sub-step plans whose worst overlap is at most LAMMPS's at contact time / 50.
 
 **Vectorizing.** The thesis's forces (van der Waals + thermal kicks + drag) on a loose film, in
 our vectorized form and as a per-body Python loop (`benchmarks.python_loop`), timed alternately
@@ -38,15 +39,23 @@ from qdots.analysis import overlaps
 from qdots.forces import StepContext
 from qdots.diagnostics.hard_cases import loose_film
 
-from . import lammps_scene
+from . import lammps_scene, pinned
 from .python_loop import LoopForces
+from .staleness import CHIPMUNK_ENGINE
 from .report import Headline, Note, Table, cli
+
+#: The code this benchmark measures (besides itself): a commit to it after a run marks the run's section as
+#: older than its code (`benchmarks.staleness`).
+MEASURED_CODE = (*CHIPMUNK_ENGINE,
+                 "qdots/forces", "qdots/simulation.py", "benchmarks/lammps_scene.py", "benchmarks/python_loop.py",
+                 "benchmarks/pinned.py")
 
 RADIUS, KT, GAMMA, RESTITUTION = 7.5, 1.76, 1.0, 0.8
 #: Area fractions of the scene: a thermal gas and a dense liquid (square-lattice start, so < pi/4).
 AREA_FRACTIONS = (0.4, 0.7)
-#: qdots time steps beyond the default for the comparison at equal overlap, s.
-MATCH_DTS = (5e-3, 1e-2)
+#: qdots sub-step plans looser than the pinned one (`qdots.Chipmunk.overlap_tolerance`, radii) for the comparison
+#: at equal overlap.
+MATCH_TOLERANCES = (0.01, 0.02, 0.05)
 #: Label of qdots's rows.
 OURS = "qdots (Chipmunk + vectorized Langevin)"
 #: LAMMPS stiffness: a head-on impact at IMPACT_SPEED px/s overlaps by 1 % of a radius.
@@ -78,11 +87,11 @@ class Sampler:
         self.kT.append(float(np.mean(velocities**2)))  # m v^2 / 2 per degree of freedom, m = 1, 2 dof
 
 
-def ours(n: int, fraction: float, seconds: float, dt: float | None = None, warmup: float = 0.2) -> dict:
-    """qdots on the peer scene at its defaults, or at time step ``dt`` s."""
+def ours(n: int, fraction: float, seconds: float, tolerance: float | None = None, warmup: float = 0.2) -> dict:
+    """qdots on the peer scene at the pinned settings, or with the sub-step plan's ``tolerance`` (radii)."""
     positions, velocities, box = initial_board(n, fraction)
     scene = qdots.Scene(box=(box, box), positions=positions, radii=np.full(n, RADIUS), velocities=velocities)
-    settings = qdots.Chipmunk() if dt is None else qdots.Chipmunk(dt=dt)
+    settings = pinned.CHIPMUNK if tolerance is None else pinned.chipmunk(overlap_tolerance=tolerance)
     sim = qdots.Simulation(scene, [qdots.Langevin(GAMMA, KT)], restitution=qdots.Restitution(mean=RESTITUTION),
                            seed=1, engine=settings)
     sim.run(warmup)
@@ -94,12 +103,13 @@ def ours(n: int, fraction: float, seconds: float, dt: float | None = None, warmu
         state = sim.state()
         sampler.add(state.positions, state.velocities)
     steps = round(seconds / sim.dt)
-    label = OURS if dt is None else f"{OURS}, dt = {1e3 * dt:g} ms"
-    return {"engine": label, "N": n, "phi": fraction, "dt": sim.dt, "ms_step": 1e3 * wall / steps,
+    label = OURS if tolerance is None else f"{OURS}, overlap tolerance {tolerance:g}"
+    return {"engine": label, "N": n, "phi": fraction, "dt": sim.dt, "tolerance": settings.overlap_tolerance,
+            "ms_step": 1e3 * wall / steps,
             "overlap": sampler.worst, "kT": float(np.mean(sampler.kT)), "restitution": our_restitution_error(settings)}
 
 
-def our_restitution_error(settings: qdots.Chipmunk, seed: int = 3) -> float:
+def our_restitution_error(settings, seed: int = 3) -> float:
     scene = qdots.Scene(box=(300, 200), positions=[[100, 100], [117, 100]], radii=[RADIUS, RADIUS],
                         velocities=[[IMPACT_SPEED / 2, 0.0], [-IMPACT_SPEED / 2, 0.0]])
     sim = qdots.Simulation(scene, restitution=qdots.Restitution(mean=RESTITUTION), seed=seed, engine=settings)
@@ -131,16 +141,16 @@ def per_second(row: dict) -> float:
 
 
 def equal_overlap(rows: list[dict], n: int, fraction: float) -> Headline:
-    """LAMMPS (contact time / 50) against qdots at the largest time step that overlaps no more than it."""
+    """LAMMPS (contact time / 50) against qdots at the loosest sub-step plan that overlaps no more than it."""
     scene = [r for r in rows if (r["N"], r["phi"]) == (n, fraction)]
     lmp = next(r for r in scene if r["engine"].startswith("LAMMPS"))
     within = [r for r in scene if r["engine"].startswith(OURS) and r["overlap"] <= lmp["overlap"]]
     what = f"qdots vs LAMMPS at equal overlap, {n:,} discs at {100 * fraction:.0f} % area"
     if not within:
-        return Headline(what, "no qdots time step overlaps as little as LAMMPS", "")
-    q = max(within, key=lambda r: r["dt"])
-    return Headline(what, f"per simulated s {per_second(lmp) / per_second(q):.2f}x ours (qdots at dt = "
-                          f"{1e3 * q['dt']:g} ms)",
+        return Headline(what, "no qdots sub-step plan overlaps as little as LAMMPS", "")
+    q = max(within, key=lambda r: r["tolerance"])
+    return Headline(what, f"per simulated s {per_second(lmp) / per_second(q):.2f}x ours (qdots at overlap "
+                          f"tolerance {q['tolerance']:g})",
                     f"worst overlap {100 * q['overlap']:.2f} % (qdots) vs {100 * lmp['overlap']:.2f} % of r "
                     f"(LAMMPS); kT {q['kT'] / KT:.3f} vs {lmp['kT'] / KT:.3f} of the target")
 
@@ -165,8 +175,8 @@ def loop_row(n: int, rounds: int) -> dict:
     # every vdW pair every step on both sides: the loop writes out that model (the far-pair split is
     # an approximation of its own, measured in qdots_knobs)
     forces = [qdots.VanDerWaals(contact="hold"), qdots.ThermalKicks(), qdots.Drag()]  # the model the loop writes
-    vector = qdots.Simulation(scene, forces, seed=1, far_interval=None)
-    plain = qdots.Simulation(scene, [], seed=1, far_interval=None)
+    vector = qdots.Simulation(scene, forces, seed=1, engine=pinned.CHIPMUNK)
+    plain = qdots.Simulation(scene, [], seed=1, engine=pinned.CHIPMUNK)
     loop = LoopForces(plain.backend.space, *forces, plain.engine.pairs, plain.restitution)
     error = loop_error(plain, loop, forces)
     vector.step(5)  # first pair-list build
@@ -214,7 +224,7 @@ def run(quick: bool) -> list:
                 rows.append(lammps(make, n, fraction, seconds, T_CONTACT / 50,
                                    f"LAMMPS {make.version} granular, dt = t_c/50"))
                 rows.append(lammps(make, n, fraction, seconds, 1e-3, f"LAMMPS {make.version} granular, dt = 1 ms"))
-            rows += [ours(n, fraction, seconds, dt) for dt in MATCH_DTS]
+            rows += [ours(n, fraction, seconds, tolerance) for tolerance in MATCH_TOLERANCES]
     loops = [loop_row(n, 2 if quick else (4 if n <= 3000 else 1)) for n in sizes]
     q = rows[0]
     if isinstance(make, str):

@@ -1,7 +1,7 @@
 """Sweep throughput: 2 local workers (and a 2-worker Dask LocalCluster) against one process.
 
-The sweep: the Fig 2-2 preset scaled by ``--quick`` (0.3: 90 dots, 27 s of deposition, 30 s to
-settle; 5-6 s of wall time per run on an idle core here), at sigma 0 and 0.15, ``--seeds`` seeds
+The sweep: the Fig 2-2 preset on the pinned Chipmunk settings (`benchmarks.pinned.CHIPMUNK`) scaled by ``--quick``
+(0.3: 90 dots, 27 s of deposition, 30 s to settle; 5-6 s of wall time per run on an idle core here), at sigma 0 and 0.15, ``--seeds`` seeds
 each. Each executor runs the whole sweep into a fresh directory; sequential and 2-worker runs
 alternate ``--repeats`` times (the machine is shared: timings vary 20-40 %). Goal: >= 1.8x with
 2 workers.
@@ -31,6 +31,14 @@ from dataclasses import dataclass
 from labrig.sweeps import Sweep, run_sweep
 from qdots.cli.sweep import ExperimentRunner, experiment_to_dict
 from qdots.presets import PRESETS
+
+from . import pinned
+from .staleness import CHIPMUNK_ENGINE
+
+#: The code this benchmark measures (besides itself): a commit to it after a run marks the run's section as
+#: older than its code (`benchmarks.staleness`).
+MEASURED_CODE = (*CHIPMUNK_ENGINE,
+                 "labrig/sweeps", "qdots/cli/sweep.py", "qdots/forces", "qdots/experiment.py", "benchmarks/pinned.py")
 
 #: Columns that measure the machine, not the run: left out of the table comparison.
 TIMINGS = ("wall_s", "cpu_s")
@@ -82,7 +90,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--repeats", type=int, default=2, help="sequential / 2-worker alternations (2)")
     parser.add_argument("--no-dask", action="store_true", help="skip the Dask LocalCluster row")
     args = parser.parse_args(argv)
-    sweep = Sweep(base=experiment_to_dict(PRESETS["fig2-2"][0]), axes={"deposition.sigma": [0.0, 0.15]},
+    sweep = Sweep(base=experiment_to_dict(PRESETS["fig2-2"][0].replace(engine=pinned.CHIPMUNK)),
+                  axes={"deposition.sigma": [0.0, 0.15]},
                   seeds=args.seeds)
     runner = CpuTimedRunner(quick=args.quick)
     print(f"python {platform.python_version()}, {os.cpu_count()} cores, {len(sweep)} runs of the Fig 2-2 preset "

@@ -1,24 +1,33 @@
 """The benchmark harness keeps working: the report it writes, ``--only`` merging, the registration
-list, and the Pareto rule; under ``-m slow``, the whole ``python -m benchmarks --quick`` (~3 minutes).
+list, the settings every benchmark names, the marks of sections older than their code, and the Pareto rule; under
+``-m slow``, the whole ``python -m benchmarks --quick`` within `QUICK_LIMIT` (about 3 minutes measured on a 2-core
+machine), each benchmark within `QUICK_EACH`.
 """
 
+import ast
 import importlib
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
 
-from benchmarks import BENCHMARKS
+import qdots
+from benchmarks import BENCHMARKS, pinned
+from benchmarks.__main__ import render
 from benchmarks.pareto import Point, dominates, verdict
+from benchmarks.staleness import CHIPMUNK_ENGINE, EVENT_ENGINE, is_stale, last_change, measured_paths
 
 ROOT = Path(__file__).resolve().parent.parent
+#: Longest the whole quick run may take, and each benchmark's quick mode, s (measured: 172 s and at most 29 s).
+QUICK_LIMIT, QUICK_EACH = 600, 120
 
 
-def harness(*args, cwd=ROOT):
+def harness(*args, cwd=ROOT, timeout=900):
     return subprocess.run([sys.executable, "-m", "benchmarks", *args], cwd=cwd, capture_output=True, text=True,
-                          timeout=900)
+                          timeout=timeout)
 
 
 def check_report(tmp_path: Path, names: list[str]) -> dict:
@@ -56,10 +65,14 @@ def test_a_quick_run_writes_the_report_and_only_keeps_other_sections(tmp_path):
 
 
 @pytest.mark.slow
-def test_the_whole_quick_run_writes_every_section(tmp_path):
-    run = harness("--quick", "--out", str(tmp_path))
+def test_the_whole_quick_run_writes_every_section_in_time(tmp_path):
+    """Every benchmark's quick mode runs, within `QUICK_EACH` s each and `QUICK_LIMIT` s in all (a change of a default
+    that stretched a benchmark would fail here: each names its settings, `benchmarks.pinned`)."""
+    run = harness("--quick", "--out", str(tmp_path), timeout=QUICK_LIMIT)
     assert run.returncode == 0, run.stderr[-3000:]
-    check_report(tmp_path, BENCHMARKS)
+    store = check_report(tmp_path, BENCHMARKS)
+    slow = {name: s["seconds"] for name, s in store["sections"].items() if s["seconds"] > QUICK_EACH}
+    assert not slow, f"quick modes longer than {QUICK_EACH} s: {slow}"
 
 
 def test_unknown_benchmark_is_a_one_line_error(tmp_path):
@@ -110,3 +123,83 @@ def test_packing_differences_pair_runs_by_seed():
     setting = [record(seed, 10.0 * seed + offset) for seed, offset in [(3, 1.0), (1, 3.0), (2, 2.0)]]
     for mean, se in metric_differences(setting, reference):  # differences 3, 2, 1 after pairing by seed
         assert mean == pytest.approx(2.0) and se == pytest.approx(1.0 / 3.0 ** 0.5)
+
+
+def _calls(tree: ast.AST):
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Call):
+            func = node.func
+            yield node, func.attr if isinstance(func, ast.Attribute) else getattr(func, "id", "")
+
+
+@pytest.mark.parametrize("path", sorted((ROOT / "benchmarks").glob("*.py")), ids=lambda p: p.name)
+def test_every_benchmark_names_the_engine_settings_it_measures(path):
+    """No simulation of a benchmark takes the library's defaults: each is given its engine (`benchmarks.pinned`),
+    and only `benchmarks.pinned` makes engine settings from scratch."""
+    tree = ast.parse(path.read_text())
+    for call, name in _calls(tree):
+        where = f"{path.name}:{call.lineno}"
+        if name == "Simulation":
+            assert any(k.arg == "engine" for k in call.keywords), f"{where}: Simulation without engine="
+        if path.name != "pinned.py":
+            assert name not in ("Chipmunk", "Event", "EngineSettings"), f"{where}: settings made from the defaults"
+            if name == "replace" and any(k.arg == "kind" for k in call.keywords):
+                raise AssertionError(f"{where}: an engine switched keeping the defaults of the other (replace(kind=))")
+
+
+def test_pinned_settings_give_every_knob_and_say_which_defaults_moved(monkeypatch):
+    with pytest.raises(ValueError, match="missing: substeps"):
+        pinned.every_knob(qdots.Chipmunk, dt=0.02)
+    assert pinned.chipmunk(iterations=10).iterations == 10 and pinned.event(max_events=5).dt == pinned.EVENT.dt
+    monkeypatch.setitem(pinned.PINNED, "chipmunk", pinned.CHIPMUNK.replace(iterations=7))
+    moved = [m for m in pinned.moved_defaults() if m.startswith("chipmunk.")]
+    assert moved == [f"chipmunk.iterations = {qdots.Chipmunk().iterations!r} (7 measured)"]
+    assert not pinned.is_library_default(pinned.PINNED["chipmunk"])
+
+
+def git(repo: Path, *args, date: str = "2026-01-02T12:00:00+00:00"):
+    env = {**os.environ, "GIT_AUTHOR_DATE": date, "GIT_COMMITTER_DATE": date, "GIT_AUTHOR_NAME": "t",
+           "GIT_AUTHOR_EMAIL": "t@example.org", "GIT_COMMITTER_NAME": "t", "GIT_COMMITTER_EMAIL": "t@example.org"}
+    subprocess.run(["git", *args], cwd=repo, env=env, check=True, capture_output=True, timeout=60)
+
+
+def test_a_section_is_older_than_its_code_when_a_later_commit_touched_what_it_measures(tmp_path):
+    git(tmp_path, "init", "-q")
+    (tmp_path / "engine").mkdir()
+    (tmp_path / "engine" / "a.py").write_text("x = 1\n")
+    (tmp_path / "other.py").write_text("y = 1\n")
+    git(tmp_path, "add", ".")
+    git(tmp_path, "commit", "-q", "-m", "first", date="2026-01-02T12:00:00+01:00")
+    (tmp_path / "other.py").write_text("y = 2\n")
+    git(tmp_path, "commit", "-q", "-am", "other code", date="2026-01-05T12:00:00+00:00")
+    changed = last_change(["engine"], tmp_path)
+    assert changed == "2026-01-02T12:00:00+01:00"  # the engine's last commit, not the later one elsewhere
+    assert is_stale("2026-01-02T10:59:00+00:00", changed)  # run before it (offsets compared)
+    assert not is_stale("2026-01-02T11:01:00+00:00", changed)
+    outside = tmp_path.parent / f"{tmp_path.name}-no-repo"
+    outside.mkdir()
+    assert last_change(["engine"], outside) is None and not is_stale("2020-01-01T00:00:00+00:00", None)
+
+
+def test_every_benchmark_names_code_that_exists():
+    for name in BENCHMARKS:
+        paths = measured_paths(name)
+        assert paths[0] == f"benchmarks/{name}.py" and len(paths) > 1, name
+        assert all((ROOT / p).exists() for p in paths), (name, paths)
+    engine = {p.relative_to(ROOT).as_posix() for p in (ROOT / "qdots" / "engine").glob("*.py")}
+    assert engine == set(CHIPMUNK_ENGINE) | set(EVENT_ENGINE)  # a new engine module belongs to one or both
+
+
+def test_the_report_marks_the_sections_older_than_their_code():
+    section = {"title": "t", "mode": "full", "seconds": 1.0, "machine": {"date": "2026-01-01T00:00:00+00:00"},
+               "markdown": "body", "headlines": [], "figures": []}
+    store = {"machine": {"cpu": "c", "load": "0", "python": "3", "numpy": "1", "scipy": "1", "pymunk": "7",
+                         "date": "2026-01-01T00:00:00+00:00", "commit": "abc"},
+             "sections": {"analysis": dict(section), "lqe": dict(section)}}
+    text = render(store, freshness=lambda name, date: "older than its code (changed 2026-02-01)" if name == "lqe"
+                  else "")
+    assert "| [lqe](#lqe) | full | 1 | 2026-01-01T00:00:00+00:00 | **older than its code (changed 2026-02-01)** |" \
+        in text
+    assert "| [analysis](#analysis) | full | 1 | 2026-01-01T00:00:00+00:00 | unchanged since |" in text
+    assert "1 of 2 sections are older than the code they measure: lqe." in text
+    assert text.count("This section is older than its code") == 1

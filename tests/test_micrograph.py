@@ -226,15 +226,18 @@ def test_compare_runs_the_matching_experiment(tmp_path, capsys):
     centres, diameters = sparse_board(200, 200, 15.0, 0.1, coverage=0.3, seed=10)
     image = render_micrograph(centres, diameters, (200, 200), noise=0.03, seed=10)
     Image.fromarray((image * 220).clip(0, 255).astype(np.uint8)).save(tmp_path / "film.png")
+    args = [str(tmp_path / "film.png"), "--nm-per-px", "2", "--dots", "12", "--seeds", "2", "--engine", "event"]
+    assert main(["compare", *args, "--out", str(tmp_path / "one"), "--workers", "1"]) == 0
     out = tmp_path / "cmp"
-    assert main(["compare", str(tmp_path / "film.png"), "--out", str(out), "--nm-per-px", "2", "--dots", "12",
-                 "--seeds", "2", "--engine", "event"]) == 0
+    assert main(["compare", *args, "--out", str(out), "--workers", "2"]) == 0  # each seed in its own process
     printed = capsys.readouterr().out
     assert "image" in printed and "simulation" in printed and "+-" in printed
     out = out / "film_compare"  # the comparison's folder
     names = sorted(p.name for p in out.iterdir())
     assert names == ["film.npz", "film_compare.csv", "film_compare.png", "film_compare.toml", "film_detections.png",
                      "film_sim-154.npz", "film_sim-155.npz", "film_summary.csv"]
+    for name in names:  # the same files, byte for byte, whether the seeds ran in one process or two
+        assert (out / name).read_bytes() == (tmp_path / "one" / "film_compare" / name).read_bytes(), name
     exp = load_experiment(out / "film_compare.toml")
     assert exp.deposition.n_dots == 12 and exp.deposition.mass_model == "volume" and exp.engine.kind == "event"
     assert exp.deposition.sigma == pytest.approx(0.1, abs=0.03)

@@ -179,13 +179,15 @@ def _measure_arguments(p) -> None:
 
 def _compare_arguments(p) -> None:
     from ..engine import ENGINES
-    from ..micrograph.compare import MAX_COMPARE_DOTS, MAX_SEEDS
+    from ..micrograph.compare import MAX_COMPARE_DOTS, MAX_SEEDS, MAX_WORKERS
 
     _add_image_options(p, "qdots-compare")
     p.add_argument("--seeds", type=int_in(1, MAX_SEEDS), default=3, help="simulated films (default 3)")
     p.add_argument("--dots", type=int_in(2, MAX_COMPARE_DOTS), default=300,
                    help="dots of each simulated film (default 300, the thesis's)")
     p.add_argument("--engine", choices=list(ENGINES), default="chipmunk", help="engine of the simulation")
+    p.add_argument("--workers", type=int_in(1, MAX_WORKERS), default=None,
+                   help="processes the seeds run in (default: one per core, at most one per seed)")
 
 
 def _run_measure(args: argparse.Namespace) -> int:
@@ -225,7 +227,7 @@ def _run_compare(args: argparse.Namespace) -> int:
 
     comparison = compare(args.image, args.out, name=args.name, nm_per_px=args.nm_per_px, scale_bar=args.scale_bar,
                          polarity=args.polarity, profile=args.profile, page=args.page, seeds=args.seeds,
-                         n_dots=args.dots, engine=args.engine, progress=True)
+                         n_dots=args.dots, engine=args.engine, progress=True, workers=args.workers)
     exp = comparison.experiment
     print_table(f"{args.image} against {len(comparison.states)} simulated films ({exp.deposition.n_dots} dots, "
                 f"{exp.board.width:.0f} x {exp.board.height:.0f} px, {comparison.nm_per_board_px:.3g} nm per px, "

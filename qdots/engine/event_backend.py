@@ -55,6 +55,7 @@ class EventBackend:
         #: Collisions resolved (dot-dot and dot-wall) and frames that reached ``max_events``, over all frames.
         self.events = 0
         self.capped_frames = 0
+        self._candidates = 0
         self._restitution = restitution
         self.rebuild(positions, velocities, radii, masses)
 
@@ -143,7 +144,8 @@ class EventBackend:
         while True:
             bound = SPEED_MARGIN * max(fastest(self.vx, self.vy), SLOWEST)
             reach = 2.0 * (largest + buffer) + 2.0 * bound * (dt - now)
-            i, j = pairs_within(self.x, self.y, reach)
+            i, j = pairs_within(self.x, self.y, reach, expected=self._candidates)
+            self._candidates = i.size  # one pass over the grid next time (two when the count is not known)
             start, partners = neighbour_table(n, i, j)
             status, now, done = advance_events(self.x, self.y, self.vx, self.vy, stamp, now, dt, self.radii,
                                                self._inv_mass, buffer, start, partners, self.walls,

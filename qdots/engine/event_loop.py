@@ -2,10 +2,10 @@
 time order (section 2.2, steps 4-11).
 
 Within a frame the dots move in straight lines (the forces changed their velocities at the frame's start,
-steps 1-3). Each dot has a next event: the earliest contact with a candidate neighbour or a wall, its
+steps 1-3). Each dot has one next event: the earliest contact with a candidate neighbour or a wall, its
 discs widened by the buffer (the thesis adds a millionth of the mean radius to every radius, so dots
 resolved at contact stay that far apart and round-off never makes them overlap). The earliest event of
-all (a tournament tree over the dots) is resolved: the two discs are moved to its time (each dot keeps
+all (`qdots.engine.event_calendar`) is resolved: the two discs are moved to its time (each dot keeps
 its own time stamp; the others move only when needed, which is exact in straight lines, where the thesis
 moved every dot to each collision), their velocities change by Eq 2.5 (`impact_elasticity`) or by the
 wall's restitution, and their next events are found again. A dot whose scheduled partner has collided
@@ -14,9 +14,18 @@ have been missed). The frame ends when the next event lies beyond it, or after `
 (the thesis's cap: the rest of the frame is then not moved, as its loop did); every dot is then moved to
 the frame's end.
 
+Simultaneous events (equal times to the last bit, as when a dot rests against two neighbours at once) are
+resolved in the order of the dots' indices: a dot's earliest contact is with its partner of lowest index, and
+the earliest event of all is that of the dot of lowest index, so a frame's result does not depend on the order
+in which the candidates were found.
+
 Candidate neighbours are the pairs that can touch within the frame at the speeds they may reach
-(`candidate_reach`); a collision that makes some dot faster than that bound ends the pass early and the
-caller builds the candidates again from that moment, so no contact is missed.
+(`qdots.engine.event_backend`); a collision that makes some dot faster than that bound ends the pass early and
+the caller builds the candidates again from that moment, so no contact is missed. A dot tests the walls only when
+it starts the pass within reach of one at that speed (`near_walls`).
+
+During a pass the dots' state is kept as one row per dot (position, velocity, time stamp, radius, inverse mass,
+collisions in the pass: `STATE_COLUMNS`), so that a neighbour's test reads one cache line.
 """
 
 from __future__ import annotations
@@ -28,14 +37,18 @@ import numpy as np
 from labrig.compiled import jit
 
 from .contacts import DOT_WALL, RESTING, WALL_ELASTICITY, impact_elasticity
+from .event_calendar import earliest, new_calendar, put
 
 #: Why `advance_events` returned: the frame is done, the event cap was reached, or a dot got faster than
 #: the candidates were built for (the caller rebuilds them and goes on).
 DONE, CAPPED, REBUILD = 0, 1, 2
 #: No event.
 NEVER = math.inf
-
-
+#: Columns of a dot's row in a pass (`advance_events`).
+X, Y, VX, VY, STAMP, RADIUS, INV_MASS, COUNT = range(8)
+STATE_COLUMNS = 8
+#: Extra distance, px, at which a dot still tests a wall it cannot reach in a pass (round-off margin).
+WALL_MARGIN = 1.0
 
 
 @jit(inline=True)
@@ -45,7 +58,7 @@ def pair_time(dx, dy, dvx, dvy, sigma):
     already that close and approaching, inf when they never do (or close more slowly than
     `qdots.engine.contacts.RESTING`: within a frame they would close by far less than the buffer)."""
     b = dx * dvx + dy * dvy
-    if b >= -RESTING * math.sqrt(dx * dx + dy * dy):
+    if b >= 0.0 or b >= -RESTING * math.sqrt(dx * dx + dy * dy):  # parting pairs skip the square root
         return NEVER
     c = dx * dx + dy * dy - sigma * sigma
     if c <= 0.0:
@@ -95,57 +108,49 @@ def wall_time(x, y, vx, vy, reach, x0, y0, x1, y1):
 
 
 @jit
-def build_tree(times, tree):
-    """A tournament tree over ``times``: ``tree[k]`` is the index of the earliest among the leaves below node k
-    (leaves at ``size + i``; ``tree`` has ``2 size`` slots, ``size`` a power of two >= len(times))."""
-    size = tree.size // 2
-    for i in range(size):
-        tree[size + i] = i
-    for k in range(size - 1, 0, -1):
-        tree[k] = earlier(times, tree[2 * k], tree[2 * k + 1])
+def near_walls(x, y, radii, reach, walls):
+    """Which dots start within ``reach`` px (beyond their radius) of a wall's bounding box: the others cannot
+    touch a wall in a pass in which they move at most ``reach`` px (`WALL_MARGIN` included by the caller)."""
+    near = np.zeros(x.size, np.bool_)
+    for w in range(walls.shape[0]):
+        x0 = min(walls[w, 0], walls[w, 2])
+        x1 = max(walls[w, 0], walls[w, 2])
+        y0 = min(walls[w, 1], walls[w, 3])
+        y1 = max(walls[w, 1], walls[w, 3])
+        for i in range(x.size):
+            r = radii[i] + reach
+            if x0 - r < x[i] < x1 + r and y0 - r < y[i] < y1 + r:
+                near[i] = True
+    return near
 
 
 @jit(inline=True)
-def earlier(times, a, b):
-    n = times.size
-    if b >= n:
-        return a
-    if a >= n:
-        return b
-    return a if times[a] <= times[b] else b
-
-
-@jit(inline=True)
-def update_tree(times, tree, i):
-    """Re-rank leaf ``i`` after its time changed."""
-    k = (tree.size // 2 + i) // 2
-    while k >= 1:
-        tree[k] = earlier(times, tree[2 * k], tree[2 * k + 1])
-        k //= 2
-
-
-@jit
-def schedule(i, now, x, y, vx, vy, stamp, radii, buffer, start, partners, walls, counts, event_time, event_with,
-             event_count, event_end):
+def schedule(i, now, s, buffer, start, partners, walls, near, event_time, event_with, event_count, event_end):
     """Find dot ``i``'s next event after ``now`` (its position is at ``now``): the earliest contact with a
-    candidate neighbour (``partners[start[i]:start[i+1]]``) or a wall. ``event_with`` gets the partner (>= 0),
-    ``-1 - w`` for wall ``w``, or ``-(len(walls) + 1)`` for none; ``event_count`` the partner's collision count."""
+    candidate neighbour (``partners[start[i]:start[i+1]]``; of equal times, the partner of lowest index) or,
+    when it is ``near`` one, a wall. ``event_with`` gets the partner (>= 0), ``-1 - w`` for wall ``w``, or
+    ``-(len(walls) + 1)`` for none; ``event_count`` the partner's collisions so far in the pass."""
     best = NEVER
     with_ = -(walls.shape[0] + 1)
-    partner_count = 0
+    partner_count = 0.0
+    xi = s[i, X]
+    yi = s[i, Y]
+    vxi = s[i, VX]
+    vyi = s[i, VY]
+    ri = s[i, RADIUS]
     for k in range(start[i], start[i + 1]):
         j = partners[k]
-        lag = now - stamp[j]
-        dx = x[j] + vx[j] * lag - x[i]
-        dy = y[j] + vy[j] * lag - y[i]
-        t = pair_time(dx, dy, vx[j] - vx[i], vy[j] - vy[i], radii[i] + radii[j] + 2.0 * buffer)
+        lag = now - s[j, STAMP]
+        dx = s[j, X] + s[j, VX] * lag - xi
+        dy = s[j, Y] + s[j, VY] * lag - yi
+        t = pair_time(dx, dy, s[j, VX] - vxi, s[j, VY] - vyi, ri + s[j, RADIUS] + 2.0 * buffer)
         if t < best:
             best = t
             with_ = j
-            partner_count = counts[j]
-    for w in range(walls.shape[0]):
-        t, nx, ny, bx, by = wall_time(x[i], y[i], vx[i], vy[i], radii[i] + buffer, walls[w, 0], walls[w, 1],
-                                      walls[w, 2], walls[w, 3])
+            partner_count = s[j, COUNT]
+    for w in range(walls.shape[0] if near[i] else 0):
+        t, nx, ny, bx, by = wall_time(xi, yi, vxi, vyi, ri + buffer, walls[w, 0], walls[w, 1], walls[w, 2],
+                                      walls[w, 3])
         if t < best:
             best = t
             with_ = -1 - w
@@ -157,50 +162,68 @@ def schedule(i, now, x, y, vx, vy, stamp, radii, buffer, start, partners, walls,
 
 
 @jit(inline=True)
-def move_to(i, t, x, y, vx, vy, stamp):
-    lag = t - stamp[i]
-    x[i] += vx[i] * lag
-    y[i] += vy[i] * lag
-    stamp[i] = t
+def move_to(i, t, s):
+    lag = t - s[i, STAMP]
+    s[i, X] += s[i, VX] * lag
+    s[i, Y] += s[i, VY] * lag
+    s[i, STAMP] = t
 
 
 @jit
-def collide_dots(a, b, x, y, vx, vy, inv_mass, record, words):
+def collide_dots(a, b, s, record, words):
     """Eq 2.5 for dots ``a`` and ``b`` at contact: the normal velocities mix by a drawn restitution, the
     tangential ones stay."""
-    dx = x[b] - x[a]
-    dy = y[b] - y[a]
+    dx = s[b, X] - s[a, X]
+    dy = s[b, Y] - s[a, Y]
     d = math.sqrt(dx * dx + dy * dy)
     nx = dx / d
     ny = dy / d
-    approach = -((vx[b] - vx[a]) * dx + (vy[b] - vy[a]) * dy) / d  # as `pair_time` measures it
+    approach = -((s[b, VX] - s[a, VX]) * dx + (s[b, VY] - s[a, VY]) * dy) / d  # as `pair_time` measures it
     if approach <= RESTING:  # resting or parting (round-off at contact): nothing to resolve
         return
     eps = impact_elasticity(record, words, approach)
-    share = (1.0 + eps) * approach / (inv_mass[a] + inv_mass[b])
-    vx[a] -= share * inv_mass[a] * nx
-    vy[a] -= share * inv_mass[a] * ny
-    vx[b] += share * inv_mass[b] * nx
-    vy[b] += share * inv_mass[b] * ny
+    ia = s[a, INV_MASS]
+    ib = s[b, INV_MASS]
+    share = (1.0 + eps) * approach / (ia + ib)
+    s[a, VX] -= share * ia * nx
+    s[a, VY] -= share * ia * ny
+    s[b, VX] += share * ib * nx
+    s[b, VY] += share * ib * ny
 
 
 @jit
-def collide_wall(i, nx, ny, bx, by, x, y, vx, vy, record, words):
+def collide_wall(i, nx, ny, bx, by, s, record, words):
     """Reflect dot ``i`` off a wall (its line's normal ``(nx, ny)``, or its end ``(bx, by)``) with the wall's
     restitution."""
     if not math.isnan(bx):
-        nx = x[i] - bx
-        ny = y[i] - by
+        nx = s[i, X] - bx
+        ny = s[i, Y] - by
         d = math.sqrt(nx * nx + ny * ny)
         nx /= d
         ny /= d
-    vn = vx[i] * nx + vy[i] * ny
+    vn = s[i, VX] * nx + s[i, VY] * ny
     if vn >= 0.0:
         return
     words[DOT_WALL] += np.uint64(1)
     kick = (1.0 + record[WALL_ELASTICITY]) * vn
-    vx[i] -= kick * nx
-    vy[i] -= kick * ny
+    s[i, VX] -= kick * nx
+    s[i, VY] -= kick * ny
+
+
+@jit
+def pass_state(x, y, vx, vy, stamp, radii, inv_mass):
+    """The dots' rows for a pass (`STATE_COLUMNS`), no collisions counted yet."""
+    s = np.empty((x.size, STATE_COLUMNS))
+    for k in range(x.size):
+        s[k, X] = x[k]
+        s[k, Y] = y[k]
+        s[k, VX] = vx[k]
+        s[k, VY] = vy[k]
+        s[k, STAMP] = stamp[k]
+        s[k, RADIUS] = radii[k]
+        s[k, INV_MASS] = inv_mass[k]
+        s[k, COUNT] = 0.0
+    return s
 
 
 @jit
@@ -214,76 +237,77 @@ def advance_events(x, y, vx, vy, stamp, now, end, radii, inv_mass, buffer, start
     """
     words = record.view(np.uint64)
     n = x.size
-    counts = np.zeros(n, np.int64)
+    s = pass_state(x, y, vx, vy, stamp, radii, inv_mass)
     event_time = np.empty(n)
     event_with = np.empty(n, np.int64)
-    event_count = np.zeros(n, np.int64)
+    event_count = np.zeros(n)
     event_end = np.full((n, 2), math.nan)
+    near = near_walls(x, y, radii, buffer + speed_bound * (end - now) + WALL_MARGIN, walls)
+    calendar = new_calendar(n, now, end)
     for i in range(n):
-        schedule(i, now, x, y, vx, vy, stamp, radii, buffer, start, partners, walls, counts, event_time, event_with,
-                 event_count, event_end)
-    size = 1
-    while size < max(n, 1):
-        size *= 2
-    tree = np.zeros(2 * size, np.int64)
-    build_tree(event_time, tree)
+        schedule(i, now, s, buffer, start, partners, walls, near, event_time, event_with, event_count, event_end)
+        put(calendar, i, event_time[i], end)
     status = DONE
     events = events_done
     time = end
     bound2 = speed_bound * speed_bound
-    while n:
-        i = tree[1]
+    while True:
+        i = earliest(calendar, event_time)
+        if i < 0:  # no event left within the frame
+            break
         t = event_time[i]
-        if not t <= end:  # the next event lies beyond the frame (or there is none)
-            break
         j = event_with[i]
-        if j >= 0 and counts[j] != event_count[i]:  # the partner collided since: predict again from now
-            move_to(i, now, x, y, vx, vy, stamp)  # its own path did not change: moving it is exact
-            schedule(i, now, x, y, vx, vy, stamp, radii, buffer, start, partners, walls, counts, event_time,
-                     event_with, event_count, event_end)
-            update_tree(event_time, tree, i)
-            continue
-        if events >= max_events:
-            status = CAPPED
-            time = now
-            break
-        events += 1
-        now = t
-        move_to(i, t, x, y, vx, vy, stamp)
-        counts[i] += 1
-        if j >= 0:
-            move_to(j, t, x, y, vx, vy, stamp)
-            counts[j] += 1
-            collide_dots(i, j, x, y, vx, vy, inv_mass, record, words)
+        stale = j >= 0 and s[j, COUNT] != event_count[i]
+        fast = False
+        if stale:  # the partner collided since: predict again from now
+            move_to(i, now, s)  # its own path did not change: moving it is exact
+            j = -1
         else:
-            w = -1 - j
-            ex = event_end[i, 0]
-            ey = event_end[i, 1]
-            nx = 0.0
-            ny = 0.0
-            if math.isnan(ex):
-                t_, nx, ny, ex, ey = wall_time(x[i], y[i], 0.0, 0.0, radii[i] + buffer, walls[w, 0], walls[w, 1],
-                                              walls[w, 2], walls[w, 3])
-            collide_wall(i, nx, ny, ex, ey, x, y, vx, vy, record, words)
-        event_end[i, 0] = math.nan
-        event_end[i, 1] = math.nan
-        fast = vx[i] * vx[i] + vy[i] * vy[i] > bound2
-        schedule(i, t, x, y, vx, vy, stamp, radii, buffer, start, partners, walls, counts, event_time, event_with,
-                 event_count, event_end)
-        update_tree(event_time, tree, i)
-        if j >= 0:
-            fast = fast or vx[j] * vx[j] + vy[j] * vy[j] > bound2
-            event_end[j, 0] = math.nan
-            event_end[j, 1] = math.nan
-            schedule(j, t, x, y, vx, vy, stamp, radii, buffer, start, partners, walls, counts, event_time,
-                     event_with, event_count, event_end)
-            update_tree(event_time, tree, j)
+            if events >= max_events:
+                status = CAPPED
+                time = now
+                break
+            events += 1
+            now = t
+            move_to(i, t, s)
+            s[i, COUNT] += 1.0
+            if j >= 0:
+                move_to(j, t, s)
+                s[j, COUNT] += 1.0
+                collide_dots(i, j, s, record, words)
+            else:
+                w = -1 - j
+                ex = event_end[i, 0]
+                ey = event_end[i, 1]
+                nx = 0.0
+                ny = 0.0
+                if math.isnan(ex):
+                    t_, nx, ny, ex, ey = wall_time(s[i, X], s[i, Y], 0.0, 0.0, s[i, RADIUS] + buffer, walls[w, 0],
+                                                  walls[w, 1], walls[w, 2], walls[w, 3])
+                collide_wall(i, nx, ny, ex, ey, s, record, words)
+            event_end[i, 0] = math.nan
+            event_end[i, 1] = math.nan
+            fast = s[i, VX] * s[i, VX] + s[i, VY] * s[i, VY] > bound2
+            if j >= 0:
+                fast = fast or s[j, VX] * s[j, VX] + s[j, VY] * s[j, VY] > bound2
+                event_end[j, 0] = math.nan
+                event_end[j, 1] = math.nan
+        for k in (i, j):  # their next events, from now (one call site: the search is inlined here)
+            if k >= 0:
+                schedule(k, now, s, buffer, start, partners, walls, near, event_time, event_with, event_count,
+                         event_end)
+                put(calendar, k, event_time[k], end)
         if fast:
             status = REBUILD
-            time = t
+            time = now
             break
     for k in range(n):
-        move_to(k, time, x, y, vx, vy, stamp)
+        move_to(k, time, s)
+        x[k] = s[k, X]
+        y[k] = s[k, Y]
+        vx[k] = s[k, VX]
+        vy[k] = s[k, VY]
+        stamp[k] = s[k, STAMP]
     return status, time, events
 
 

@@ -8,13 +8,19 @@ is then ``mean diameter (nm) / 15`` nm: the stated scale of the simulated film. 
 it for several seeds and measures every film as the image was measured (`film_metrics`, the film
 LQE), so the table gives the image's value beside the simulation's mean +- standard error. It returns a
 `Comparison` and writes nothing: `qdots.micrograph.overlay` draws it, `qdots.micrograph.write` writes
-``qdots compare``'s files.
+``qdots compare``'s files. The seeds can run in parallel processes (``workers``): each process runs its seed and saves
+the simulation (`qdots.io.checkpoint`), which is loaded back here, so the films, the table and every file written
+are the same as one process gives (saving a loaded simulation writes the same bytes).
 """
 
 from __future__ import annotations
 
 import math
+import os
+import tempfile
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -35,8 +41,8 @@ METRICS = (("coverage", "coverage", 3), ("size_spread", "size spread sigma", 3),
            ("gr_peak_diameters", "g(r) first peak (mean diameters)", 2), ("lqe", "film LQE", 3))
 #: Metrics the simulation is given (not predictions): the board is built to match them.
 MATCHED = ("coverage", "size_spread")
-#: Most seeds and dots of one comparison.
-MAX_SEEDS, MAX_COMPARE_DOTS = 100, 5000
+#: Most seeds, dots and worker processes of one comparison.
+MAX_SEEDS, MAX_COMPARE_DOTS, MAX_WORKERS = 100, 5000, 64
 #: Largest coverage a simulated board is asked to take (random deposition jams near 0.55-0.6).
 MAX_COVERAGE = 0.55
 
@@ -110,19 +116,53 @@ def per_hundred(metrics: dict) -> dict:
     return {**metrics, "single_dots": 100.0 * metrics["single_dots"] / max(metrics["dots"], 1)}
 
 
+def default_workers(seeds: int) -> int:
+    """One process per core this process may use, at most one per seed."""
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    return max(1, min(seeds, cores, MAX_WORKERS))
+
+
+def seed_film(exp: Experiment, folder: str) -> tuple[str, dict]:
+    """Run ``exp`` (in a worker process), save its simulation into ``folder``; the file and the film's metrics."""
+    from ..io import checkpoint
+
+    sim = run_experiment(exp)
+    path = checkpoint.save(sim, Path(folder) / f"seed-{exp.seed}.npz")
+    return str(path), per_hundred(simulated_metrics(sim.state()))
+
+
+def run_seeds(exp: Experiment, seeds: int, workers: int, progress: bool) -> list[tuple]:
+    """``(simulation, state, metrics)`` of ``exp`` at its seed and the ``seeds - 1`` after it, in seed order: in this
+    process, or in ``workers`` processes (each simulation loaded back from the file its process saved)."""
+    experiments = [exp.replace(seed=exp.seed + k) for k in range(seeds)]
+    if workers <= 1 or seeds == 1:
+        out = []
+        for one in experiments:
+            sim = run_experiment(one, progress=progress)
+            state = sim.state()
+            out.append((sim, state, per_hundred(simulated_metrics(state))))
+        return out
+    from labrig.sweeps.backends import exit_with_parent
+
+    from ..io.checkpoint import load
+
+    with tempfile.TemporaryDirectory(prefix="qdots-compare-") as folder:
+        with ProcessPoolExecutor(max_workers=min(workers, seeds), initializer=exit_with_parent,
+                                 initargs=(os.getpid(),)) as pool:
+            done = list(pool.map(seed_film, experiments, [folder] * seeds))
+        sims = [load(path) for path, _ in done]
+    return [(sim, sim.state(), metrics) for sim, (_, metrics) in zip(sims, done)]
+
+
 def compare_film(film: MeasuredFilm, seeds: int = 3, n_dots: int = 300, engine: str = "chipmunk",
-                 progress: bool = False, name: str | None = None) -> Comparison:
+                 progress: bool = False, name: str | None = None, workers: int = 1) -> Comparison:
     """Run `matching_experiment` for ``seeds`` seeds (the thesis's 154, 155, ...) and tabulate image against
-    simulation (mean +- standard error over the seeds)."""
+    simulation (mean +- standard error over the seeds); ``workers`` > 1 runs the seeds in that many processes
+    (the same result; progress is shown only in one process)."""
     seeds = count("seeds", seeds, 1, MAX_SEEDS)
+    workers = count("workers", workers, 1, MAX_WORKERS)
     exp, scale = matching_experiment(film, n_dots, engine, name=name)
-    sims, states, runs = [], [], []
-    for k in range(seeds):
-        sim = run_experiment(exp.replace(seed=exp.seed + k), progress=progress)
-        state = sim.state()
-        sims.append(sim)
-        states.append(state)
-        runs.append(per_hundred(simulated_metrics(state)))
+    sims, states, runs = (list(column) for column in zip(*run_seeds(exp, seeds, workers, progress)))
     image = per_hundred(film.summary)
     table = []
     for key, label, _ in METRICS:

@@ -15,7 +15,7 @@ from labrig.validate import count
 
 from ..io import checkpoint
 from ..io.experiment_file import save_experiment
-from .compare import MAX_COMPARE_DOTS, MAX_SEEDS, Comparison, compare_film
+from .compare import MAX_COMPARE_DOTS, MAX_SEEDS, MAX_WORKERS, Comparison, compare_film, default_workers
 from .measure import MeasuredFilm, measure_image, state_metadata
 from .overlay import save_overlay, save_side_by_side
 
@@ -46,18 +46,21 @@ def measure(path: str | os.PathLike, out: str | os.PathLike | None = None, *, na
 def compare(path: str | os.PathLike, out: str | os.PathLike | None = None, *, name: str | None = None,
             nm_per_px=None, scale_bar: str | None = None, polarity: str = "auto", profile: str = "auto",
             page: int = 0, seeds: int = 3, n_dots: int = 300, engine: str = "chipmunk",
-            progress: bool = False) -> Comparison:
+            progress: bool = False, workers: int | None = None) -> Comparison:
     """Measure an image, simulate it, and write as one set into ``out`` (default beside the image):
     the measurement's files (`qdots.micrograph.measure.measure`), ``NAME_compare.toml`` (the experiment run,
     to edit and run again with ``qdots run``), ``NAME_compare.png`` (side by side), ``NAME_compare.csv``
-    (the table) and ``NAME_sim-SEED.npz`` (each simulated board)."""
+    (the table) and ``NAME_sim-SEED.npz`` (each simulated board). The seeds run in ``workers`` processes (default:
+    one per core, at most one per seed; `qdots.micrograph.compare.compare_film`)."""
     path = Path(path)
     stem = slug(name if name is not None else path.stem)
     count("seeds", seeds, 1, MAX_SEEDS)
     count("dots", n_dots, 2, MAX_COMPARE_DOTS)
+    workers = default_workers(seeds) if workers is None else count("workers", workers, 1, MAX_WORKERS)
     film = measure_image(path, nm_per_px=nm_per_px, scale_bar=scale_bar, polarity=polarity, profile=profile,
                          page=page)
-    comparison = compare_film(film, seeds=seeds, n_dots=n_dots, engine=engine, progress=progress, name=stem)
+    comparison = compare_film(film, seeds=seeds, n_dots=n_dots, engine=engine, progress=progress and workers == 1,
+                              name=stem, workers=workers)
     out = path.parent if out is None else Path(out)
     with OutputSet(out, f"{stem}_compare") as files:
         write_measurement(film, files, stem)
