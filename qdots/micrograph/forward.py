@@ -152,12 +152,17 @@ def film_measures(state, complete: np.ndarray | None = None) -> dict:
     Returns
     -------
     dict
-        The measures of `MEASURES`, and ``complete_dots`` (how many dots they are over).
+        The measures of `MEASURES`; ``complete_dots`` (how many dots they are over); ``film_sigma`` and
+        ``film_coverage``, the size spread (SD / mean of every diameter) and coverage (disc area over the box's)
+        the film has (a simulated film's differ from its point's by the draw of its diameters).
     """
     n = len(state.radii)
     complete = complete_neighbourhood(state) if complete is None else np.asarray(complete, dtype=bool)
     out = {key: math.nan for key in MEASURES}
     out["complete_dots"] = int(complete.sum())
+    d = 2.0 * np.asarray(state.radii, dtype=float)
+    out["film_sigma"] = float(d.std(ddof=1) / d.mean()) if n > 1 else math.nan
+    out["film_coverage"] = float(np.sum(np.pi * d**2 / 4.0) / (state.box[0] * state.box[1]))
     if n < 3 or not complete.any():
         return out
     radii = np.asarray(state.radii, dtype=float)

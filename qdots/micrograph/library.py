@@ -151,12 +151,13 @@ def _finished(sweep_folder: Path) -> int:
 
 
 def training_arrays(rows: list[dict]) -> tuple[np.ndarray, np.ndarray, list]:
-    """(theta, x, run ids) of the rows that finished with every summary finite."""
+    """(theta, x, run ids) of the rows that finished with every summary finite; x holds each film's own size
+    spread and coverage (``film_sigma``, ``film_coverage``), as a micrograph's are measured, not its point's."""
     theta, x, ids = [], [], []
     for row in rows:
         if row.get("status") != "ok":
             continue
-        summaries = [row.get(key) for key in SUMMARIES] + [row.get(key) for key in condition_keys()]
+        summaries = [row.get(key) for key in SUMMARIES] + [row.get(f"film_{key}") for key in condition_keys()]
         if any(v is None or not math.isfinite(v) for v in summaries):
             continue
         theta.append([row[key] for key in parameter_keys()])
