@@ -51,6 +51,28 @@ def require_sbi():
     return torch
 
 
+class NoTracking:
+    """An sbi tracker that keeps nothing: without one, sbi writes TensorBoard logs into ``./sbi-logs`` of
+    whatever folder the user is in."""
+
+    log_dir = None
+
+    def log_metric(self, name, value, step=None) -> None:
+        """Discard a training metric."""
+
+    def log_metrics(self, metrics, step=None) -> None:
+        """Discard training metrics."""
+
+    def log_params(self, params) -> None:
+        """Discard the training's parameters."""
+
+    def add_figure(self, name, figure, step=None) -> None:
+        """Discard a figure."""
+
+    def flush(self) -> None:
+        """Nothing to write."""
+
+
 def prior():
     """The prior of the parameters: uniform over the box of `PARAMETERS` (sbi's ``BoxUniform``)."""
     torch = require_sbi()
@@ -97,7 +119,7 @@ def train_posterior(theta: np.ndarray, x: np.ndarray, *, ensemble: int = ENSEMBL
     members = []
     for k in range(ensemble):
         torch.manual_seed(seed + k)
-        inference = NPE(prior=box, density_estimator=FLOW, show_progress_bars=False)
+        inference = NPE(prior=box, density_estimator=FLOW, show_progress_bars=False, tracker=NoTracking())
         inference.append_simulations(torch.from_numpy(theta), torch.from_numpy(x))
         with warnings.catch_warnings():  # shares that are 0 in most films have an IQR of 0: sbi calls them outliers
             warnings.filterwarnings("ignore", message="Data has extreme outliers")
