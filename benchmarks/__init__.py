@@ -21,6 +21,8 @@ BENCHMARKS = [
     "lqe",
     "micrograph",
     "micrograph_films",
+    "qdots_identifiability",
+    "qdots_infer",
     "planarize_reference",
     "planarize_fast",
     "planarize_accuracy",

@@ -25,7 +25,7 @@ from labrig.validate import MAX_SEED, InputError, real
 from .restitution import Restitution
 from .forces import Force, ThermalKicks, VanDerWaals, force_from_dict
 from .placement import MAX_TRIES
-from .protocols import GAP, MASS_MODELS, MAX_INTERVAL, deposit, deposit_around_centre, ring_radius
+from .protocols import GAP, MASS_MODELS, MAX_INTERVAL, MAX_MASS_EXPONENT, deposit, deposit_around_centre, ring_radius
 from .scene import MAX_DOTS, MAX_LENGTH, MAX_MASS, MIN_DIAMETER, Scene
 from .engine import Chipmunk, Settings
 from .simulation import MAX_STEPS, Simulation
@@ -84,10 +84,12 @@ class Deposition:
         Mean diameter, px (> 0; thesis 15).
     sigma : float
         Standard deviation of the diameter as a fraction of the mean, [0, 1).
-    mass_model : {"equal", "area", "volume", "bimodal"}
+    mass_model : {"equal", "area", "volume", "bimodal", "power"}
         See `qdots.protocols.dot_masses`; "equal" is the thesis's figure default.
     heavy_mass : float
         Mass of the heavy dots of the bimodal model (> 0; thesis 2).
+    mass_exponent : float, optional
+        ``p`` of the "power" model, masses ``(d / mean)^p``, in [0, 6] (needed by it, unused by the others).
     interval : float
         Simulated time between two dots, s (>= 0; thesis 1, centre runs 0.5).
     settle : float
@@ -102,6 +104,7 @@ class Deposition:
     sigma: float = 0.0
     mass_model: str = "equal"
     heavy_mass: float = 2.0
+    mass_exponent: float | None = None
     interval: float = 1.0
     settle: float = 100.0
     max_tries: int = 10_000
@@ -114,10 +117,12 @@ class Deposition:
         "mean_diameter": Param("float", MIN_DIAMETER, MAX_LENGTH, unit="px", doc="mean dot diameter"),
         "sigma": Param("float", 0.0, 1.0, high_open=True,
                        doc="standard deviation of the diameter as a fraction of the mean"),
-        "mass_model": Param("str", choices=MASS_MODELS, doc='dot masses ("equal", ~ d^2 "area", ~ d^3 "volume", or '
-                                                            'half the dots heavy_mass "bimodal")'),
+        "mass_model": Param("str", choices=MASS_MODELS, doc='dot masses ("equal", ~ d^2 "area", ~ d^3 "volume", '
+                                                            'half the dots heavy_mass "bimodal", ~ d^p "power")'),
         "heavy_mass": Param("float", 0.0, MAX_MASS, low_open=True, unit="mean-dot masses",
                             doc="mass of the heavy half of a bimodal board"),
+        "mass_exponent": Param("float", 0.0, MAX_MASS_EXPONENT, optional=True, doc="p of the power mass model",
+                               unset="none (mass_model 'power' needs it)"),
         "interval": Param("float", 0.0, MAX_INTERVAL, unit="s", doc="simulated time between two dots"),
         "settle": Param("float", 0.0, MAX_SETTLE, unit="s", doc="simulated time after the last dot",
                         rule=f"the whole run at most {MAX_STEPS:,} steps of engine.dt"),
@@ -126,6 +131,8 @@ class Deposition:
 
     def __post_init__(self) -> None:
         check_fields(self, self.PARAMS, "deposition.")
+        if self.mass_model == "power" and self.mass_exponent is None:
+            raise InputError("deposition.mass_exponent must be set (in [0, 6]) for mass_model 'power'")
 
 
 def default_forces() -> tuple[dict, ...]:
@@ -315,7 +322,8 @@ def populate(sim: Simulation, exp: Experiment, progress: bool = False) -> Simula
     dep = exp.deposition
     sim.check_run(dep.n_dots * dep.interval + dep.settle)  # the whole deposition, before the first dot
     common = dict(mean_diameter=dep.mean_diameter, sigma=dep.sigma, mass_model=dep.mass_model,
-                  heavy_mass=dep.heavy_mass, interval=dep.interval, max_tries=dep.max_tries,
+                  heavy_mass=dep.heavy_mass, mass_exponent=dep.mass_exponent, interval=dep.interval,
+                  max_tries=dep.max_tries,
                   rng=np.random.default_rng(deposit_seed), progress=progress)
     if dep.protocol == "centre":
         deposit_around_centre(sim, dep.n_dots, exp.centre(), **common)

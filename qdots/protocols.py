@@ -27,7 +27,9 @@ from .placement import MAX_TRIES, draw_candidates
 from .scene import MAX_DOTS, MAX_LENGTH, MAX_MASS, MIN_DIAMETER
 
 #: Mass models (see `dot_masses`).
-MASS_MODELS = ("equal", "area", "volume", "bimodal")
+MASS_MODELS = ("equal", "area", "volume", "bimodal", "power")
+#: Largest exponent of the "power" mass model (masses ~ d^p).
+MAX_MASS_EXPONENT = 6.0
 #: Area fraction of hexagonal close packing, ``pi sqrt(3) / 6`` (thesis ``packingInPlane``).
 HEX_PACKING = math.pi * math.sqrt(3.0) / 6.0
 #: Clearance between a new dot and other dots, walls and region edges, px (thesis ``2 epsilonSpace``).
@@ -67,7 +69,7 @@ def draw_diameters(n: int, mean_diameter: float, sigma: float, rng: np.random.Ge
 
 
 def dot_masses(diameters, mean_diameter: float, model: str = "equal", heavy_mass: float = 2.0,
-               rng: np.random.Generator | None = None) -> np.ndarray:
+               rng: np.random.Generator | None = None, exponent: float | None = None) -> np.ndarray:
     """Masses of dots of the given diameters, in units of a mean-size dot's mass.
 
     Parameters
@@ -83,11 +85,14 @@ def dot_masses(diameters, mean_diameter: float, model: str = "equal", heavy_mass
         mass with the surface area"). ``"volume"``: ``(d / mean)^3``, what the
         Java code does when masses scale (``baseMass (d/2)^3 / (mean/2)^3``).
         ``"bimodal"``: each dot independently ``heavy_mass`` with probability
-        1/2, else 1 (``runRandomAttractionBimodal``, Table 2.1).
+        1/2, else 1 (``runRandomAttractionBimodal``, Table 2.1). ``"power"``:
+        ``(d / mean)^exponent``, any exponent in [0, `MAX_MASS_EXPONENT`] (0 equal, 2 area, 3 volume).
     heavy_mass : float
         Mass of a heavy dot in the bimodal model (> 0; thesis 2.0).
     rng : numpy.random.Generator
         Needed by ``"bimodal"`` only.
+    exponent : float, optional
+        Needed by ``"power"`` only.
 
     Returns
     -------
@@ -106,6 +111,10 @@ def dot_masses(diameters, mean_diameter: float, model: str = "equal", heavy_mass
         if rng is None:
             raise InputError("mass model 'bimodal' needs an rng")
         return np.where(rng.random(len(d)) < 0.5, heavy_mass, 1.0)
+    if model == "power":
+        if exponent is None:
+            raise InputError("mass model 'power' needs an exponent (deposition.mass_exponent)")
+        return (d / mean_diameter) ** real("mass_exponent", exponent, 0.0, MAX_MASS_EXPONENT)
     raise InputError(f"mass model must be one of {MASS_MODELS}, got {model!r}")
 
 
@@ -125,7 +134,7 @@ def _clear(pos: np.ndarray, r: np.ndarray, board: DiscTree, segments: np.ndarray
 
 
 def _sequential(sim, n, mean_diameter, mass_model, heavy_mass, interval, max_tries, rng, progress,
-                draw, where, area) -> np.ndarray:
+                draw, where, area, mass_exponent=None) -> np.ndarray:
     """Place, add, advance, ``n`` times; ``draw(i, m)`` gives ``m`` candidates for dot ``i``.
 
     The whole deposition is checked first: at most `qdots.scene.MAX_DOTS` dots on the board at the end,
@@ -158,7 +167,7 @@ def _sequential(sim, n, mean_diameter, mass_model, heavy_mass, interval, max_tri
                                  f"for the next one overlapped a dot or wall or did not fit {where}; the "
                                  f"dots cover an area fraction {fraction:.3f} of it")
             diameters[i] = 2.0 * r[hit]
-            mass = dot_masses(diameters[i : i + 1], mean_diameter, mass_model, heavy_mass, rng)
+            mass = dot_masses(diameters[i : i + 1], mean_diameter, mass_model, heavy_mass, rng, mass_exponent)
             sim.add_dots(pos[hit][None, :], r[hit : hit + 1], masses=mass)
             sim.run(interval)
             bar.update(1)
@@ -181,7 +190,8 @@ def _check_region(region, box) -> tuple[float, float, float, float]:
 
 def deposit(sim, n_dots: int, mean_diameter: float = 15.0, sigma: float = 0.0, region=None,
             mass_model: str = "equal", heavy_mass: float = 2.0, interval: float = 1.0,
-            max_tries: int = 10_000, rng=None, progress: bool = False) -> np.ndarray:
+            max_tries: int = 10_000, rng=None, progress: bool = False,
+            mass_exponent: float | None = None) -> np.ndarray:
     """Deposit dots one at a time at random positions (thesis ``runRandomAttraction*``).
 
     For each dot: draw ``d = mean_diameter (1 + sigma N(0, 1))`` (`qdots.placement.draw_candidates`)
@@ -204,8 +214,8 @@ def deposit(sim, n_dots: int, mean_diameter: float = 15.0, sigma: float = 0.0, r
     region : (x0, y0, x1, y1), optional
         Rectangle the dots are dropped into, px; default the whole box. The
         thesis grating uses ``(0, 0, width, grating)``.
-    mass_model, heavy_mass
-        See `dot_masses`.
+    mass_model, heavy_mass, mass_exponent
+        See `dot_masses` (``mass_exponent`` is its ``exponent``).
     interval : float
         Simulated time between two dots, s (>= 0; thesis 1).
     max_tries : int
@@ -240,12 +250,13 @@ def deposit(sim, n_dots: int, mean_diameter: float = 15.0, sigma: float = 0.0, r
         return draw_candidates(gen, m, (x0, y0, x1, y1), mean_diameter, sigma, margin=GAP)
 
     return _sequential(sim, n_dots, mean_diameter, mass_model, heavy_mass, interval, max_tries, gen, progress,
-                       draw, f"in region ({x0:g}, {y0:g}, {x1:g}, {y1:g}) px", (x1 - x0) * (y1 - y0))
+                       draw, f"in region ({x0:g}, {y0:g}, {x1:g}, {y1:g}) px", (x1 - x0) * (y1 - y0), mass_exponent)
 
 
 def deposit_around_centre(sim, n_dots: int, centre, mean_diameter: float = 15.0, sigma: float = 0.0,
                           interval: float = 0.5, mass_model: str = "equal", heavy_mass: float = 2.0,
-                          max_tries: int = 10_000, rng=None, progress: bool = False) -> np.ndarray:
+                          max_tries: int = 10_000, rng=None, progress: bool = False,
+                          mass_exponent: float | None = None) -> np.ndarray:
     """Deposit dots on a growing ring around ``centre`` (thesis ``runRandomCenter``).
 
     The i-th dot (0-based) is dropped at distance `ring_radius` ``(i)`` from
@@ -260,7 +271,7 @@ def deposit_around_centre(sim, n_dots: int, centre, mean_diameter: float = 15.0,
         Centre of the ring, px.
     interval : float
         Simulated time between two dots, s (>= 0; thesis 0.5).
-    sim, n_dots, mean_diameter, sigma, mass_model, heavy_mass, max_tries, rng, progress
+    sim, n_dots, mean_diameter, sigma, mass_model, heavy_mass, max_tries, rng, progress, mass_exponent
         As in `deposit`.
 
     Returns
@@ -295,4 +306,4 @@ def deposit_around_centre(sim, n_dots: int, centre, mean_diameter: float = 15.0,
         return pos, r, inside
 
     return _sequential(sim, n, mean_diameter, mass_model, heavy_mass, interval, max_tries, gen, progress,
-                       draw, f"on the ring around ({cx:g}, {cy:g}) px inside the box", w * h)
+                       draw, f"on the ring around ({cx:g}, {cy:g}) px inside the box", w * h, mass_exponent)

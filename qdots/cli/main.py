@@ -190,6 +190,24 @@ def _compare_arguments(p) -> None:
                    help="processes the seeds run in (default: one per core, at most one per seed)")
 
 
+def _infer_arguments(p) -> None:
+    from .infer import add_arguments
+
+    _add_image_options(p, "qdots-infer")
+    add_arguments(p)
+
+
+def _run_infer(args: argparse.Namespace) -> int:
+    """Measure a micrograph (as qdots measure), then infer the deposition parameters that made the film
+    (thermal kicks against the van der Waals pull, the mass exponent, the restitution, the drag) by
+    neural posterior estimation on a library of simulated films at its size spread and coverage: the
+    posterior draws, 90 % credible intervals, a corner plot, the best-fitting film beside the micrograph
+    and a posterior-predictive check. Needs the infer extra (torch, sbi)."""
+    from .infer import run
+
+    return run(args, film_stem(args))
+
+
 def _run_measure(args: argparse.Namespace) -> int:
     """Read a micrograph, find every dot (touching ones included) with sub-pixel centres and fitted
     diameters, and write a state file (for qdots analyze and render), an overlay picture and a
@@ -396,6 +414,8 @@ COMMANDS = [
     Command("analyze", "packing table and LQE of a saved state", _run_analyze, _analyze_arguments),
     Command("measure", "find the dots of a micrograph and measure the film", _run_measure, _measure_arguments),
     Command("compare", "measure a micrograph and simulate the film beside it", _run_compare, _compare_arguments),
+    Command("infer", "infer the deposition parameters of a micrograph's film, with credible intervals", _run_infer,
+            _infer_arguments),
     sweep_command("qdots", "qdots experiments", _load_sweep, _sweep_runner,
                   "scale every run down by F (fewer dots, shorter times) for a first look"),
     plot_command("qdots"),

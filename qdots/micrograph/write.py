@@ -1,7 +1,8 @@
-"""The files of ``qdots measure`` and ``qdots compare``: a measured film, or its comparison, written as one set.
+"""The files of ``qdots measure``, ``qdots compare`` and ``qdots infer``: a measured film, its comparison or its
+inference, written as one set.
 
-The analysis is `qdots.micrograph.measure.measure_image` and `qdots.micrograph.compare.compare_film` (they
-return their results and write nothing); these functions run them and write the results into a run folder
+The analysis is `qdots.micrograph.measure.measure_image`, `qdots.micrograph.compare.compare_film` and
+`qdots.micrograph.infer.infer_image` (they return their results and write nothing); these functions run them and write the results into a run folder
 (`labrig.files.OutputSet`: all files or none), as the command line does.
 """
 
@@ -71,3 +72,39 @@ def compare(path: str | os.PathLike, out: str | os.PathLike | None = None, *, na
         save_side_by_side(comparison, files.stage(f"{stem}_compare.png"))
         write_csv(files.stage(f"{stem}_compare.csv"), comparison.table)
     return comparison
+
+
+def infer(path: str | os.PathLike, out: str | os.PathLike | None = None, *, library: str | os.PathLike,
+          name: str | None = None, nm_per_px=None, scale_bar: str | None = None, polarity: str = "auto",
+          profile: str = "auto", page: int = 0, **options):
+    """`qdots.micrograph.infer.infer_image`, then write as one set into ``out`` (default beside the image), folder
+    ``NAME_infer``: the measurement's files, ``NAME_posterior.csv`` (the draws), ``NAME_intervals.csv`` (median and
+    90 % interval per parameter), ``NAME_check.csv`` (each measure: micrograph, best film, predicted band),
+    ``NAME_corner.png``, ``NAME_best.png`` (the micrograph beside the best-fitting film, both measure tables),
+    ``NAME_check.png`` (the predictive check) and ``NAME_best-film.npz`` (that film's board). ``options`` are
+    `qdots.micrograph.infer.infer_film`'s keywords. The library is kept in ``library``."""
+    from .forward import parameter_keys
+    from .infer import infer_image
+    from .infer_plots import best_film_figure, check_figure, corner_figure
+    from labrig.figures import save_figure
+
+    path = Path(path)
+    stem = slug(name if name is not None else path.stem)
+    result = infer_image(path, library, nm_per_px=nm_per_px, scale_bar=scale_bar, polarity=polarity,
+                         profile=profile, page=page, **options)
+    out = path.parent if out is None else Path(out)
+    with OutputSet(out, f"{stem}_infer") as files:
+        write_measurement(result.film, files, stem)
+        write_csv(files.stage(f"{stem}_posterior.csv"),
+                  [dict(zip(parameter_keys(), (float(v) for v in row))) for row in result.samples])
+        write_csv(files.stage(f"{stem}_intervals.csv"), result.intervals)
+        best = result.best
+        write_csv(files.stage(f"{stem}_check.csv"),
+                  [{**row, "best_film": best.get(row["measure"])} for row in result.check])
+        save_figure(corner_figure(result), files.stage(f"{stem}_corner.png"), dpi=110)
+        save_figure(best_film_figure(result), files.stage(f"{stem}_best.png"), dpi=100)
+        save_figure(check_figure(result), files.stage(f"{stem}_check.png"), dpi=100)
+        checkpoint.save_board(best["state"], files.stage(f"{stem}_best-film.npz"),
+                              {"best_film_of": result.film.image.source,
+                               "point": {k: best[k] for k in (*parameter_keys(), "sigma", "coverage", "n_dots", "seed")}})
+    return result

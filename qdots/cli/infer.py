@@ -1,0 +1,58 @@
+"""``qdots infer``: its arguments beyond the image's, and what it prints (the command itself is in `qdots.cli.main`)."""
+
+from __future__ import annotations
+
+import argparse
+import os
+from pathlib import Path
+
+from labrig.cli import int_in, print_table
+from labrig.validate import MAX_SEED
+
+
+def add_arguments(p) -> None:
+    """The library, the films and where they run."""
+    from ..micrograph.forward import FILM_DOTS, MAX_FILM_DOTS
+    from ..micrograph.infer import CHECK_FILMS, MAX_CHECK_FILMS, SAMPLES
+    from ..micrograph.library import LIBRARY_FILMS, MAX_LIBRARY_FILMS
+    from ..micrograph.posterior import MAX_SAMPLES
+
+    p.add_argument("--library", type=Path, default=Path("qdots-infer-library"), metavar="DIR",
+                   help="the library of simulated films, kept and reused by later images (default "
+                        "./qdots-infer-library)")
+    p.add_argument("--films", type=int_in(20, MAX_LIBRARY_FILMS), default=LIBRARY_FILMS,
+                   help=f"training films (default {LIBRARY_FILMS}; the library runs only those it lacks)")
+    p.add_argument("--check-films", type=int_in(1, MAX_CHECK_FILMS), default=CHECK_FILMS,
+                   help=f"films of the posterior-predictive check (default {CHECK_FILMS})")
+    p.add_argument("--samples", type=int_in(100, MAX_SAMPLES), default=SAMPLES,
+                   help=f"posterior draws (default {SAMPLES})")
+    p.add_argument("--dots", type=int_in(10, MAX_FILM_DOTS), default=FILM_DOTS,
+                   help=f"dots of each simulated film (default {FILM_DOTS}; one size per library)")
+    where = p.add_mutually_exclusive_group()
+    where.add_argument("--workers", type=int_in(1, 256), default=None,
+                       help="local worker processes (default: every core)")
+    where.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                       help="run the films on this Dask cluster (tcp://host:8786) instead")
+    p.add_argument("--seed", type=int_in(0, MAX_SEED), default=0, help="seed of the training and the draws")
+
+
+def run(args: argparse.Namespace, stem: str) -> int:
+    """Infer, write the files, print the intervals, the check and the timings."""
+    from ..micrograph.infer import check_rows, interval_rows
+    from ..micrograph.write import infer
+
+    result = infer(args.image, args.out, library=args.library, name=args.name, nm_per_px=args.nm_per_px,
+                   scale_bar=args.scale_bar, polarity=args.polarity, profile=args.profile, page=args.page,
+                   films=args.films, check_films=args.check_films, samples=args.samples, n_dots=args.dots,
+                   workers=args.workers, scheduler=args.scheduler, seed=args.seed, progress=True)
+    c = result.conditions
+    print_table(f"{args.image}: sigma {c['sigma']:.3f}, coverage {c['coverage']:.3f}; posterior median and 90 % "
+                f"credible interval ({result.films} training films):", interval_rows(result))
+    print_table("posterior-predictive check (* the measures the posterior is conditioned on):", check_rows(result))
+    t = result.timings
+    training = "0 s (loaded)" if t["posterior_loaded"] else f"{t['train']:.0f} s"
+    print(f"time: measure {t['measure']:.0f} s, library {t['library']:.0f} s ({t['library_films_run']} films run), "
+          f"training {training}, check {t['check']:.0f} s")
+    print(f"wrote {args.out / f'{stem}_infer'}{os.sep}: {stem}_intervals.csv, {stem}_posterior.csv, {stem}_check.csv, "
+          f"{stem}_corner.png, {stem}_best.png, {stem}_check.png, {stem}_best-film.npz and the measurement's files")
+    return 0
