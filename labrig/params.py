@@ -25,7 +25,7 @@ import math
 from dataclasses import dataclass
 
 from .tomlfile import toml_value
-from .validate import InputError, choice, count, flag, interval, real, reals, text
+from .validate import InputError, choice, count, flag, interval, real, reals, text, typed
 
 __all__ = ["KINDS", "Param", "check_fields", "file_schema"]
 
@@ -38,6 +38,9 @@ KINDS = {
     "bool": "bool",  # true or false
     "float2": "float2",  # two finite numbers, each in [low, high]
     "pair": "pair",  # (number, integer), each checked by its declaration in ``parts``
+    "floats": "floats",  # a list of finite numbers, each in [low, high], at most ``most`` of them
+    "float2s": "float2s",  # a non-empty list of number pairs, each number in [low, high], at most ``most``
+    "either": "",  # one of the declarations in ``parts``, chosen by the value's kind (a count or a list)
 }
 
 
@@ -66,7 +69,10 @@ class Param:
     unset : str
         What None means (optional parameters), stated in the comment.
     parts : tuple of Param
-        The declarations of the two members of a ``"pair"`` (each with its ``doc``).
+        The declarations of the two members of a ``"pair"`` (each with its ``doc``), or the alternatives of an
+        ``"either"`` (of different kinds: the value's kind chooses).
+    most : int
+        Most items of a ``"floats"`` or ``"float2s"`` list (0: no limit beyond memory).
     """
 
     kind: str
@@ -81,12 +87,17 @@ class Param:
     rule: str = ""
     unset: str = ""
     parts: tuple = ()
+    most: int = 0
 
     def __post_init__(self) -> None:
         if self.kind not in KINDS:
             raise ValueError(f"Param kind must be one of {', '.join(KINDS)}, got {self.kind!r}")
-        if (self.kind == "pair") != (len(self.parts) == 2):
-            raise ValueError("a 'pair' Param takes two parts, no other kind takes parts")
+        if self.kind == "pair" and len(self.parts) != 2:
+            raise ValueError("a 'pair' Param takes two parts")
+        if self.kind == "either" and (len(self.parts) < 2 or len({p.kind for p in self.parts}) != len(self.parts)):
+            raise ValueError("an 'either' Param takes two or more parts of different kinds")
+        if self.kind not in ("pair", "either") and self.parts:
+            raise ValueError("only 'pair' and 'either' Params take parts")
         if self.kind == "str" and not self.choices and math.isinf(self.high):
             raise ValueError("a 'str' Param takes choices or a longest length (high)")
         if self.kind == "int" and not self.choices and not math.isfinite(self.low):
@@ -95,7 +106,8 @@ class Param:
     @property
     def file_kind(self) -> str:
         """The kind a parameter file holds (`labrig.validate.typed`): ``"float"``, ``"int?"`` (may be unset), ..."""
-        return KINDS[self.kind] + ("?" if self.optional else "")
+        plain = "|".join(KINDS[p.kind] for p in self.parts) if self.kind == "either" else KINDS[self.kind]
+        return plain + ("?" if self.optional else "")
 
     def check(self, key: str, value):
         """``value`` in its plain form if this declaration allows it (None if optional); `InputError` naming
@@ -115,11 +127,33 @@ class Param:
             return flag(key, value)
         if self.kind == "float2":
             return reals(key, value, 2, self.low, self.high, unit=self.unit)
+        if self.kind == "either":
+            for part in self.parts:
+                try:
+                    typed(key, value, part.file_kind.rstrip("?"))
+                except InputError:
+                    continue
+                return part.check(key, value)
+            raise InputError(f"{key} must be {self.bounds()}, got {value!r}")
+        if self.kind in ("floats", "float2s"):
+            return self._check_list(key, value)
         first, second = self.parts  # "pair"
         if isinstance(value, (str, bytes, dict)) or not hasattr(value, "__len__") or len(value) != 2:
             labels = ", ".join(f"{p.doc} {p.unit}".strip() for p in self.parts)
             raise InputError(f"{key} must be ({labels}), got {value!r}")
         return first.check(f"{key} {first.doc}", value[0]), second.check(f"{key} {second.doc}", value[1])
+
+    def _check_list(self, key: str, value) -> list:
+        """A ``"floats"`` or ``"float2s"`` value as a list (of lists)."""
+        pairs = self.kind == "float2s"
+        if isinstance(value, (str, bytes, dict)) or not hasattr(value, "__len__") or (pairs and not len(value)):
+            raise InputError(f"{key} must be {self.bounds()}, got {value!r}")
+        if self.most and len(value) > self.most:
+            raise InputError(f"{key} must hold at most {self.most:,} {'pairs' if pairs else 'numbers'}, "
+                             f"got {len(value):,}")
+        if not pairs:
+            return list(reals(key, value, None, self.low, self.high, unit=self.unit))
+        return [list(reals(f"{key}[{k}]", v, 2, self.low, self.high, unit=self.unit)) for k, v in enumerate(value)]
 
     def bounds(self) -> str:
         """The allowed values in words, as the messages of `check` say them: ``"in (0, 1e6]"``, ``"integer >= 1"``,
@@ -137,6 +171,12 @@ class Param:
             return "true or false"
         if self.kind == "float2":
             return f"2 numbers, each {interval(self.low, self.high)}"
+        if self.kind in ("floats", "float2s"):
+            items = "numbers" if self.kind == "floats" else "[number, number] pairs"
+            most = f"at most {self.most:,} " if self.most else ""
+            return f"a list of {most}{items}, each number {interval(self.low, self.high)}"
+        if self.kind == "either":
+            return " or ".join(f"{p.doc} ({p.bounds()})" for p in self.parts)
         return "; ".join(f"{p.unit or 'unitless'}, {p.bounds()}" for p in self.parts)
 
     def comment(self) -> str:
@@ -147,7 +187,7 @@ class Param:
         """
         if self.kind == "pair":
             head = f"{self.doc} [{', '.join(p.doc for p in self.parts)}]: {self.bounds()}"
-        elif self.kind in ("float", "int", "float2") and not self.choices:
+        elif self.kind in ("float", "int", "float2", "floats", "float2s") and not self.choices:
             head = f"{self.doc}: {self.unit or 'unitless'}, {self.bounds()}"
         else:
             head = f"{self.doc}: {self.bounds()}"

@@ -14,6 +14,7 @@ from typing import Callable
 
 import numpy as np
 
+from labrig.params import Param
 from labrig.validate import InputError, available_memory, count, flag, real, reals, within_memory
 
 from .engines import engine_settings
@@ -34,6 +35,18 @@ HISTORY_ROW_BYTES = 2048
 #: Memory an engine needs per grid point, bytes (measured: the fast engine 0.89 GB at 1025 x 1025;
 #: the reference engine's sets are Python objects, about twice that).
 ENGINE_BYTES_PER_POINT = 2000
+#: The run's own arguments (`labrig.params.Param`): `anodize` checks them with these (and the rules between
+#: them: `check_steps`, `thickness_targets`), and a scene file's ``[run]`` table takes them
+#: (`planarize.scene.RunSettings`).
+RUN_ARGUMENTS = {
+    "thickness": Param("float", 0.0, MAX_THICKNESS, unit="nm", doc="oxide thickness to grow"),
+    "record": Param("either", doc="history rows", rule="thicknesses in [0, thickness]",
+                    parts=(Param("int", 1, MAX_RECORD, doc="a count n (n + 1 evenly spaced rows)"),
+                           Param("floats", 0.0, MAX_THICKNESS, unit="nm", most=MAX_RECORD, doc="a list of thicknesses"))),
+    "snapshots": Param("floats", 0.0, MAX_THICKNESS, unit="nm", most=MAX_RECORD, optional=True,
+                       doc="thicknesses at which both surfaces are kept", rule="in [0, thickness]",
+                       unset="[0, thickness]"),
+}
 
 
 @dataclass(frozen=True)
@@ -190,7 +203,7 @@ def anodize(metal: Surface, thickness: float, model: Model | None = None, engine
     progress = flag("progress", progress)
     if observer is not None and not callable(observer):
         raise InputError(f"observer must be a function observer(engine) or None, got {type(observer).__name__}")
-    thickness = real("thickness", thickness, 0.0, MAX_THICKNESS, unit="nm")
+    thickness = RUN_ARGUMENTS["thickness"].check("thickness", thickness)
     check_steps(thickness, model.step)
     if max_seconds is not None:
         max_seconds = real("max_seconds", max_seconds, 0.0, low_open=True, unit="s")

@@ -10,8 +10,9 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
+from typing import ClassVar
 
-from labrig.validate import choice, real
+from labrig.params import Param, check_fields
 
 #: Distance kinds: the thesis's point/segment pairs, or the exact surface distance (`planarize.engines.features`).
 DISTANCES = ("thesis", "exact")
@@ -61,12 +62,19 @@ class Model:
     volume: str = "exact"
     rule: str = "thesis"
 
+    #: Each field's declaration (`labrig.params.Param`), also the scene file's ``[run]`` keys of the model.
+    PARAMS: ClassVar[dict[str, Param]] = {
+        "step": Param("float", 0.0, MAX_STEP, low_open=True, unit="nm", doc="metal height consumed per oxidation",
+                      rule="at most the thickness (thesis: 0.01 hill, 0.5 Ta; the thesis's engines only)"),
+        "k_exp": Param("float", *K_EXP_RANGE, doc="oxide volume per metal volume consumed (Ta 2.3, Al ~1.3)"),
+        "distance": Param("str", choices=DISTANCES, doc="distance between the thesis's points and segments, "
+                                                        "or between the triangulated surfaces"),
+        "volume": Param("str", choices=VOLUME_RULES, doc="volume accounting: exact, or the thesis's equal weights"),
+        "rule": Param("str", choices=RULES, doc='where the oxide grows ("conformal": continuum engine only)'),
+    }
+
     def __post_init__(self) -> None:
-        object.__setattr__(self, "k_exp", real("k_exp", self.k_exp, *K_EXP_RANGE))
-        object.__setattr__(self, "step", real("step", self.step, 0.0, MAX_STEP, low_open=True, unit="nm"))
-        choice("distance", self.distance, DISTANCES)
-        choice("volume", self.volume, VOLUME_RULES)
-        choice("rule", self.rule, RULES)
+        check_fields(self, self.PARAMS)
 
     def replace(self, **changes) -> "Model":
         """A copy with some fields changed, validated again."""

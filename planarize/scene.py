@@ -18,86 +18,57 @@ import dataclasses
 import inspect
 from dataclasses import dataclass, field
 
+from labrig.params import Param, check_fields, file_schema
 from labrig.tomlfile import check_keys
-from labrig.validate import MAX_SEED, InputError, number, real, seed, text, typed
+from labrig.validate import MAX_SEED, InputError, real
 
 from . import surfaces
-from .anodize import MAX_RECORD, MAX_THICKNESS, Anodization, anodize, check_steps, thickness_targets
+from .anodize import RUN_ARGUMENTS, Anodization, anodize, check_steps, thickness_targets
 from .engines import ENGINES, Continuum, Fast, engine_settings
 from .heightfield import Surface
-from .io.heights import FORMATS, load_heights
-from .io.units import LENGTH_UNITS
-from .model import K_EXP_RANGE, MAX_STEP, RULES, Model
+from .io.heights import LOAD_OPTIONS, load_heights
+from .model import Model
 
-#: The boundary key, as the surface kinds that take one have it.
-_BOUNDARY = {"boundary": ("str", '"open" | "periodic"')}
-_BUMP = {
-    "base": ("float", "nm, film thickness around the bump, >= 0"),
-    "points": ("int", "grid points per side before refinement, odd integer >= 3"),
-    "spacing": ("float", "nm, grid spacing before refinement, > 0"),
-    "refine": ("int", "refinement factor, integer >= 1 (thesis 4: 17 x 17 points)"),
-    "method": ("str", '"linear" (the thesis) | "cubic" refinement'),
-    **_BOUNDARY,
+#: Surface kinds: kind -> (builder, {parameter: `labrig.params.Param`}); the builders check their arguments
+#: with the same declarations.
+SURFACE_KINDS = {
+    "hill": (surfaces.hill, {k: p for k, p in surfaces.BUMP.items() if k != "height"}),
+    "depression": (surfaces.depression, {k: p for k, p in surfaces.BUMP.items() if k != "height"}),
+    "bump": (surfaces.bump, surfaces.BUMP),
+    "tilted_plane": (surfaces.tilted_plane, surfaces.TILTED_PLANE),
+    "random_roughness": (surfaces.random_roughness, surfaces.RANDOM_ROUGHNESS),
+    "file": (load_heights, LOAD_OPTIONS),
 }
-#: Surface kinds: kind -> (builder, {parameter: (type, comment)}).
-SURFACES = {
-    "hill": (surfaces.hill, _BUMP),
-    "depression": (surfaces.depression, _BUMP),
-    "bump": (surfaces.bump, {"height": ("float", "nm, height of the centre point before refinement, >= 0"),
-                           **_BUMP}),
-    "tilted_plane": (surfaces.tilted_plane, {
-        "slope": ("float2", "[dz/dx, dz/dy], finite"),
-        "base": ("float", "nm, height at x = y = 0, >= 0"),
-        "points": ("int", "grid points per side, integer >= 2"),
-        "spacing": ("float", "nm, > 0"),
-    }),
-    "random_roughness": (surfaces.random_roughness, {
-        "size": ("float", "nm, side of the square sample, a whole number of half the widest width"),
-        "thickness": ("float", "nm, mean metal thickness, >= 0"),
-        "scales": ("float2s", "[[width, height], ...] nm, widest first, each width dividing the previous"),
-        "refine": ("int", "final refinement factor, integer >= 1"),
-        "method": ("str", '"linear" | "cubic" final refinement'),
-        **_BOUNDARY,
-    }),
-    "file": (load_heights, {
-        "path": ("str", "height map: .xyz, .csv/.txt/.asc/.dat matrix, .npy or .gwy; relative to this file"),
-        "unit": ("str?", f"unit of lateral sizes (and heights), for files that do not state it: "
-                         f"{' | '.join(repr(u) for u in ('nm', 'um', 'm', 'A'))}"),
-        "z_unit": ("str?", "unit of the heights if different from unit"),
-        "spacing": ("float|float2?", "grid spacing in unit, number or [dx, dy]; .npy and plain matrices only"),
-        "level": ("bool", "remove the least-squares plane's tilt"),
-        "channel": ("int|str?", ".gwy channel number or title; unset: the first height channel"),
-        "format": ("str?", f"{' | '.join(repr(f) for f in FORMATS)}; unset: from the suffix"),
-        **_BOUNDARY,
-        "max_aspect": ("float", "largest pixel aspect ratio accepted, >= 1"),
-    }),
+#: Surface kinds as a scene file states them: kind -> (builder, {parameter: (file kind, comment)}).
+SURFACES = {kind: (builder, file_schema(params)) for kind, (builder, params) in SURFACE_KINDS.items()}
+#: The ``[run]`` keys (`labrig.params.Param`): the run's own arguments (`planarize.anodize.RUN_ARGUMENTS`), the
+#: `Model`'s fields and the engines' settings, each declared once where it is checked.
+RUN_PARAMS = {
+    "thickness": RUN_ARGUMENTS["thickness"],
+    "step": Model.PARAMS["step"],
+    "k_exp": Model.PARAMS["k_exp"],
+    "engine": Param("str", choices=tuple(ENGINES), doc='the engine ("continuum": the thesis rule\'s converged '
+                                                      'limit, with its error; "reference": the thesis algorithm, '
+                                                      'slow)'),
+    "rule": Model.PARAMS["rule"],
+    "rtol": dataclasses.replace(Continuum.PARAMS["rtol"], optional=True, unset=f"{Continuum().rtol:g}"),
+    "distance": Model.PARAMS["distance"],
+    "volume": Model.PARAMS["volume"],
+    "tolerance": Fast.PARAMS["tolerance"],
+    "interacting": Fast.PARAMS["interacting"],
+    "record": RUN_ARGUMENTS["record"],
+    "snapshots": RUN_ARGUMENTS["snapshots"],
 }
-#: Run settings: key -> (type, comment).
-RUN = {
-    "thickness": ("float", f"nm, oxide thickness to grow, in [0, {number(MAX_THICKNESS)}]"),
-    "step": ("float", f"nm, metal height consumed per oxidation, in (0, thickness] and at most {number(MAX_STEP)} "
-                      "(thesis: 0.01 hill, 0.5 Ta; the thesis's engines only)"),
-    "k_exp": ("float", f"oxide volume per metal volume consumed, in [{number(K_EXP_RANGE[0])}, "
-                       f"{number(K_EXP_RANGE[1])}] (Ta 2.3, Al ~1.3)"),
-    "engine": ("str", " | ".join(f'"{e}"' for e in ENGINES) + ' ("continuum": the thesis rule\'s converged limit, '
-                      'with its error; "reference": the thesis algorithm, slow)'),
-    "rule": ("str", " | ".join(f'"{r}"' for r in RULES) + ' (where the oxide grows; "conformal": continuum engine only)'),
-    "rtol": ("float?", "continuum engine: relative discretization error aimed at, in [0.0001, 1]; unset: 0.02"),
-    "distance": ("str", '"thesis" (points and segments) | "exact" (the triangulated surfaces)'),
-    "volume": ("str", '"exact" | "thesis" (equal point weights)'),
-    "tolerance": ("float?", "nm, fast engine batch tolerance, >= 0; unset: step / 10"),
-    "interacting": ("str", '"wait" | "together" (fast engine: interacting candidates of a batch; together is faster, '
-                           'changes the result by what the tolerance lets in)'),
-    "record": ("int|floats", f"history rows: a count n (n + 1 evenly spaced) or [thicknesses nm]; at most "
-                             f"{MAX_RECORD:,}"),
-    "snapshots": ("floats?", "[thicknesses nm] at which both surfaces are kept, in [0, thickness]; unset: [0, thickness]"),
-}
+#: Run settings as a scene file states them: key -> (file kind, comment).
+RUN = file_schema(RUN_PARAMS)
 #: Top-level keys.
-TOP = {"name": ("str", "label of the run"), "seed": ("int", f"integer in [0, {MAX_SEED}], seeds random_roughness")}
+TOP_PARAMS = {"name": Param("str", high=1000, doc="label of the run"),
+              "seed": Param("int", 0, MAX_SEED, doc="seeds random_roughness")}
+TOP = file_schema(TOP_PARAMS)
 
 
 def _defaults(kind: str) -> dict:
-    builder, schema = SURFACES[kind]
+    builder, schema = SURFACE_KINDS[kind]
     params = inspect.signature(builder).parameters
     if kind in ("hill", "depression"):
         params = inspect.signature(surfaces.bump).parameters
@@ -125,24 +96,17 @@ class SurfaceSpec:
     def __post_init__(self):
         if self.kind not in SURFACES:
             raise InputError(f"kind must be one of {', '.join(map(repr, SURFACES))}, got {self.kind!r}")
-        schema = SURFACES[self.kind][1]
+        schema = SURFACE_KINDS[self.kind][1]
         if not isinstance(self.params, dict):
             raise InputError(f"params must be a dict, got {type(self.params).__name__}")
         check_keys("surface", self.params, ["kind", *schema])
         if self.kind == "file" and "path" not in self.params:
             raise InputError("surface.path is required for kind = \"file\" (the height map to import)")
-        given = {key: typed(f"surface.{key}", value, schema[key][0]) for key, value in self.params.items()}
+        given = {key: schema[key].check(f"surface.{key}", value) for key, value in self.params.items()}
         full = {**_defaults(self.kind), **given}
-        object.__setattr__(self, "params", {key: full[key] for key in schema if key in full})
-        if self.kind == "file":
-            for key in ("unit", "z_unit"):
-                if full.get(key) is not None and full[key] not in LENGTH_UNITS:
-                    raise InputError(f"surface.{key} must be one of {', '.join(LENGTH_UNITS)}, got {full[key]!r}")
-            if full.get("format") is not None and full["format"] not in FORMATS:
-                raise InputError(f"surface.format must be one of {FORMATS}, got {full['format']!r}")
-            real("surface.max_aspect", full["max_aspect"], 1.0)
-        else:
-            self.build()  # the builders check every value
+        object.__setattr__(self, "params", {key: _plain(full[key]) for key in schema if key in full})
+        if self.kind != "file":
+            self.build()  # the rules between values (odd points, widths that divide) are the builders'
 
     def build(self, seed: int = 0) -> Surface:
         """The `Surface` (``seed`` is used by ``"random_roughness"``)."""
@@ -186,10 +150,7 @@ class RunSettings:
     snapshots: list | None = None
 
     def __post_init__(self):
-        for key, (kind, _) in RUN.items():
-            object.__setattr__(self, key, typed(key, getattr(self, key), kind))
-        real("thickness", self.thickness, 0.0, MAX_THICKNESS, unit="nm")
-        self.model()
+        check_fields(self, RUN_PARAMS)
         if self.engine != "fast" and (self.tolerance is not None or self.interacting != "wait"):
             raise InputError(f"tolerance and interacting are settings of the fast engine, not of engine "
                              f"{self.engine!r}: leave them out")
@@ -198,7 +159,6 @@ class RunSettings:
         if self.engine != "continuum" and self.rule != "thesis":
             raise InputError(f"rule {self.rule!r} is computed by the continuum engine only, not by engine "
                              f"{self.engine!r}")
-        self.engine_settings()
         check_steps(self.thickness, self.step)
         thickness_targets(self.record, self.thickness, "record")
         if self.snapshots is not None:
@@ -242,8 +202,7 @@ class PlanarizeScene:
     run: RunSettings = field(default_factory=RunSettings)
 
     def __post_init__(self):
-        text("name", self.name)
-        seed("seed", self.seed)
+        check_fields(self, TOP_PARAMS)
         if not isinstance(self.surface, SurfaceSpec) or not isinstance(self.run, RunSettings):
             raise InputError("surface must be a SurfaceSpec and run a RunSettings")
 
@@ -301,4 +260,5 @@ def get_scene(name: str) -> PlanarizeScene:
     return SCENES[name]
 
 
-__all__ = ["PlanarizeScene", "SurfaceSpec", "RunSettings", "SCENES", "SURFACES", "RUN", "TOP", "get_scene"]
+__all__ = ["PlanarizeScene", "SurfaceSpec", "RunSettings", "SCENES", "SURFACE_KINDS", "SURFACES", "RUN_PARAMS", "RUN",
+           "TOP_PARAMS", "TOP", "get_scene"]

@@ -8,9 +8,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from labrig.validate import InputError, count, generator, real, reals
+from labrig.params import Param
+from labrig.validate import InputError, generator
 
-from .heightfield import BOUNDARIES, MAX_HEIGHT, Surface
+from .heightfield import BOUNDARIES, MAX_HEIGHT, REFINE_METHODS, Surface
 
 #: Most grid points per side a builder lays out before refinement.
 MAX_SIDE = 4097
@@ -20,12 +21,38 @@ MAX_SIDE = 4097
 MAX_SCALES = 64
 
 
-def _check(name: str, value, low: float = 0.0, low_open: bool = True) -> float:
-    return real(name, value, low, MAX_HEIGHT, low_open=low_open, unit="nm")
+
+def _length(doc: str, low_open: bool = True, rule: str = "") -> Param:
+    """A length in nm, in (0, `MAX_HEIGHT`] (``low_open``) or [0, `MAX_HEIGHT`]."""
+    return Param("float", 0.0, MAX_HEIGHT, low_open=low_open, unit="nm", doc=doc, rule=rule)
 
 
-def _count(name: str, value, low: int) -> int:
-    return count(name, value, low, MAX_SIDE)
+_REFINE = Param("int", 1, MAX_SIDE, doc="refinement factor (thesis 4: the hill's 17 x 17 points)")
+_METHOD = Param("str", choices=REFINE_METHODS, doc='refinement ("linear": the thesis\'s)')
+_BOUNDARY = Param("str", choices=BOUNDARIES, doc="edges (\"periodic\": the sample tiles the plane)")
+#: The parameters of each builder (`labrig.params.Param`): the builders check their arguments with these, and
+#: scene files (`planarize.scene`) state them in their comments.
+BUMP = {
+    "height": _length("height of the centre point before refinement", low_open=False),
+    "base": _length("film thickness around the bump", low_open=False),
+    "points": Param("int", 3, MAX_SIDE, doc="grid points per side before refinement",
+                    rule="odd (the bump sits on the centre point)"),
+    "spacing": _length("grid spacing before refinement"),
+    "refine": _REFINE, "method": _METHOD, "boundary": _BOUNDARY,
+}
+TILTED_PLANE = {
+    "slope": Param("float2", -1e6, 1e6, doc="[dz/dx, dz/dy]"),
+    "base": _length("height at x = y = 0", low_open=False),
+    "points": Param("int", 2, MAX_SIDE, doc="grid points per side"),
+    "spacing": _length("grid spacing"),
+}
+RANDOM_ROUGHNESS = {
+    "size": _length("side of the square sample", rule="a whole number of half the widest width"),
+    "thickness": _length("mean metal thickness", low_open=False),
+    "scales": Param("float2s", 0.0, MAX_HEIGHT, unit="nm", most=MAX_SCALES, doc="[width, height] of each scale",
+                    rule="widest first, each width > 0 and dividing the previous one"),
+    "refine": _REFINE, "method": _METHOD, "boundary": _BOUNDARY,
+}
 
 
 def bump(height: float = 4.5, *, base: float = 4.0, points: int = 5, spacing: float = 1.0, refine: int = 4,
@@ -49,12 +76,13 @@ def bump(height: float = 4.5, *, base: float = 4.0, points: int = 5, spacing: fl
         Refinement (`Surface.refine`); linear turns the raised point into a
         pyramid ``2 spacing`` wide.
     """
-    points = _count("points", points, 3)
+    points = BUMP["points"].check("points", points)
     if points % 2 == 0:
         raise InputError(f"points must be odd (the bump sits on the centre point), got {points}")
-    z = np.full((points, points), _check("base", base, low_open=False))
-    z[points // 2, points // 2] = _check("height", height, low_open=False)
-    return Surface(z, _check("spacing", spacing), boundary).refine(_count("refine", refine, 1), method)
+    z = np.full((points, points), BUMP["base"].check("base", base))
+    z[points // 2, points // 2] = BUMP["height"].check("height", height)
+    surface = Surface(z, BUMP["spacing"].check("spacing", spacing), BUMP["boundary"].check("boundary", boundary))
+    return surface.refine(BUMP["refine"].check("refine", refine), BUMP["method"].check("method", method))
 
 
 def hill(**kwargs) -> Surface:
@@ -73,11 +101,11 @@ def tilted_plane(slope: tuple[float, float] = (0.2, 0.0), *, base: float = 4.0, 
 
     Open boundary only: a tilted plane is not periodic.
     """
-    sx, sy = reals("slope", slope, 2, -1e6, 1e6)
-    points = _count("points", points, 2)
-    spacing = _check("spacing", spacing)
+    sx, sy = TILTED_PLANE["slope"].check("slope", slope)
+    points = TILTED_PLANE["points"].check("points", points)
+    spacing = TILTED_PLANE["spacing"].check("spacing", spacing)
     x = np.arange(points) * spacing
-    return Surface(_check("base", base, low_open=False) + sx * x[:, None] + sy * x[None, :], spacing)
+    return Surface(TILTED_PLANE["base"].check("base", base) + sx * x[:, None] + sy * x[None, :], spacing)
 
 
 #: The thesis's tantalum roughness (section 3.4): (width, height) of each scale, nm, largest first.
@@ -113,19 +141,12 @@ def random_roughness(size: float = 500.0, *, thickness: float = 1000.0, scales=T
     seed : int
         Seed of the random heights.
     """
-    if boundary not in BOUNDARIES:
-        raise InputError(f"boundary must be one of {BOUNDARIES}, got {boundary!r}")
-    size = _check("size", size)
-    if isinstance(scales, (str, bytes, dict)) or not hasattr(scales, "__len__"):
-        raise InputError(f"scales must be a list of (width, height) pairs in nm, widest first, got {scales!r}")
-    if len(scales) == 0:
-        raise InputError("scales must hold at least one (width, height) pair")
-    if len(scales) > MAX_SCALES:
-        raise InputError(f"scales must hold at most {MAX_SCALES} (width, height) pairs, got {len(scales):,}")
-    try:
-        scales = [(_check("scale width", w), _check("scale height", h, low_open=False)) for w, h in scales]
-    except (TypeError, ValueError) as exc:
-        raise InputError(f"scales must be (width, height) pairs in nm, widest first: {exc}") from None
+    params = RANDOM_ROUGHNESS
+    boundary = params["boundary"].check("boundary", boundary)
+    size = params["size"].check("size", size)
+    scales = params["scales"].check("scales", scales)
+    if any(width <= 0 for width, _ in scales):
+        raise InputError(f"scales must have widths > 0 nm, got {scales!r}")
     rng = generator("seed", seed)
     spacing = scales[0][0] / 2.0
     cells = size / spacing
@@ -137,7 +158,7 @@ def random_roughness(size: float = 500.0, *, thickness: float = 1000.0, scales=T
     n = int(round(cells)) + (0 if boundary == "periodic" else 1)
     if n > MAX_SIDE:
         raise InputError(f"size / (widest width / 2) = {n} grid points per side, more than the {MAX_SIDE} allowed")
-    surface = Surface(np.full((n, n), _check("thickness", thickness, low_open=False)), spacing, boundary)
+    surface = Surface(np.full((n, n), params["thickness"].check("thickness", thickness)), spacing, boundary)
     for k, (width, height) in enumerate(scales):
         if k:
             factor = spacing / (width / 2.0)
@@ -147,4 +168,4 @@ def random_roughness(size: float = 500.0, *, thickness: float = 1000.0, scales=T
             surface = surface.refine(int(round(factor)), "linear")
             spacing = width / 2.0
         surface = surface.with_heights(surface.z + height / 2.0 * (2.0 * rng.random(surface.shape) - 1.0))
-    return surface.refine(_count("refine", refine, 1), method)
+    return surface.refine(params["refine"].check("refine", refine), params["method"].check("method", method))

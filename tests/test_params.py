@@ -20,6 +20,9 @@ POINT = Param("float2", -5.0, 5.0, unit="px", doc="point")
 HASH = Param("pair", optional=True, doc="hash", unset="a tree",
              parts=(Param("float", 0.0, 10.0, low_open=True, unit="px", doc="cell size"), Param("int", 1, 9, doc="count")))
 GAP = Param("float", 0.0, math.inf, low_open=True, unit="s", optional=True, doc="gap", rule="above min", unset="none")
+TIMES = Param("floats", 0.0, 10.0, unit="s", most=3, doc="times")
+SCALES = Param("float2s", 0.0, 100.0, unit="nm", most=2, doc="scales")
+RECORD = Param("either", doc="rows", parts=(Param("int", 1, 50, doc="a count"), Param("floats", 0.0, 10.0, doc="times")))
 
 
 @pytest.mark.parametrize("param, value, message", [
@@ -36,6 +39,17 @@ GAP = Param("float", 0.0, math.inf, low_open=True, unit="s", optional=True, doc=
     (HASH, (0.0, 3), r"^w cell size must be in \(0, 10\] px, got 0.0$"),
     (HASH, (1.0, 30), r"^w count must be an integer in \[1, 9\], got 30$"),
     (GAP, 0, r"^w must be > 0 s, got 0.0$"),
+    (TIMES, [1.0, 11.0], r"^w must hold numbers in \[0, 10\] s, got 11.0$"),
+    (TIMES, [1.0] * 4, r"^w must hold at most 3 numbers, got 4$"),
+    (TIMES, "1 2", r"^w must be a list of at most 3 numbers, each number in \[0, 10\], got '1 2'$"),
+    (SCALES, [], r"^w must be a list of at most 2 \[number, number\] pairs"),
+    (SCALES, [[1.0, 2.0], [3.0]], r"^w\[1\] must be 2 numbers \(nm\), got \[3.0\]$"),
+    (SCALES, [[1.0, 2.0]] * 3, r"^w must hold at most 2 pairs, got 3$"),
+    (RECORD, 0, r"^w must be an integer in \[1, 50\], got 0$"),
+    (RECORD, [20.0], r"^w must hold numbers in \[0, 10\], got 20.0$"),
+    (RECORD, "all", r"^w must be a count \(integer in \[1, 50\]\) or times \(a list of numbers, each number in "
+                    r"\[0, 10\]\), got 'all'$"),
+    (RECORD, True, r"^w must be a count"),
 ])
 def test_a_check_refuses_in_the_words_of_labrig_validate(param, value, message):
     with pytest.raises(InputError, match=message):
@@ -48,6 +62,9 @@ def test_a_check_returns_the_plain_value():
     assert HASH.check("w", None) is None and GAP.check("w", None) is None and CLOSED.check("w", True) is True
     with pytest.raises(InputError, match="w must be a number"):
         WIDTH.check("w", None)  # not optional
+    assert TIMES.check("w", [1, 2.5]) == [1.0, 2.5] and TIMES.check("w", []) == []
+    assert SCALES.check("w", ((1, 2), (3, 4))) == [[1.0, 2.0], [3.0, 4.0]]
+    assert RECORD.check("w", 7) == 7 and RECORD.check("w", [0, 1]) == [0.0, 1.0]  # the value's kind chooses
 
 
 def test_the_comment_states_what_the_unit_and_the_range():
@@ -61,6 +78,8 @@ def test_the_comment_states_what_the_unit_and_the_range():
     assert POINT.comment() == "point: px, 2 numbers, each in [-5, 5]"
     assert HASH.comment() == "hash [cell size, count]: px, in (0, 10]; unitless, integer in [1, 9]; unset: a tree"
     assert GAP.comment() == "gap: s, > 0; above min; unset: none"
+    assert TIMES.comment() == "times: s, a list of at most 3 numbers, each number in [0, 10]"
+    assert RECORD.comment() == "rows: a count (integer in [1, 50]) or times (a list of numbers, each number in [0, 10])"
 
 
 def test_the_file_kind_is_what_labrig_validate_typed_reads():
@@ -68,6 +87,8 @@ def test_the_file_kind_is_what_labrig_validate_typed_reads():
         ["float", "int", "str", "int", "bool", "float2", "pair?", "float?"]
     assert typed("k", [2.0, 3], HASH.file_kind) == (2.0, 3) and typed("k", False, GAP.file_kind) is None
     assert file_schema({"width": WIDTH}) == {"width": ("float", "board width: px, in (0, 1e6]")}
+    assert (TIMES.file_kind, SCALES.file_kind, RECORD.file_kind) == ("floats", "float2s", "int|floats")
+    assert typed("k", [[1, 2]], SCALES.file_kind) == [[1.0, 2.0]] and typed("k", 3, RECORD.file_kind) == 3
 
 
 def test_a_declaration_must_be_complete():
@@ -77,6 +98,10 @@ def test_a_declaration_must_be_complete():
         Param("pair")
     with pytest.raises(ValueError, match="choices or a longest length"):
         Param("str")
+    with pytest.raises(ValueError, match="two or more parts of different kinds"):
+        Param("either", parts=(DOTS, DOTS))
+    with pytest.raises(ValueError, match="only 'pair' and 'either' Params take parts"):
+        Param("floats", parts=(DOTS, WIDTH))
 
 
 @dataclass(frozen=True)

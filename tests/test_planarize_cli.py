@@ -99,7 +99,7 @@ def test_an_empty_snapshot_list_runs_and_writes_its_files(tmp_path, capsys):
     (["import", "{csv}"], "the following arguments are required: --thickness"),
     (["import", "{csv}", "--thickness", "1"], "does not state the unit"),
     (["import", "{csv}", "--thickness", "1", "--unit", "nm"], "does not state its grid spacing"),
-    (["import", "{csv}", "--thickness", "1", "--unit", "parsec", "--spacing", "1"], "unit must be one of nm"),
+    (["import", "{csv}", "--thickness", "1", "--unit", "parsec", "--spacing", "1"], "unit must be one of 'nm'"),
     (["import", "{csv}", "--thickness", "1", "--unit", "nm", "--spacing", "1", "2", "3"], "--spacing takes DX or DX DY"),
     (["import", "{csv}", "--thickness", "-1", "--unit", "nm", "--spacing", "1"], r"must be >= 0"),
     ([], "the following arguments are required: COMMAND"),

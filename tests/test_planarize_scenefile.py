@@ -45,7 +45,7 @@ def test_defaults_come_from_the_scene_functions_and_build_the_thesis_surfaces():
     assert (ta.thickness, ta.step, ta.snapshots) == (200.0, 0.5, [0.0, 50.0, 100.0, 150.0, 200.0])
     assert scene_from_toml("") == PlanarizeScene()  # every key optional
     text = scene_to_toml(SCENES["hill"])
-    for line in ('kind = "hill"', "refine = 4", "# tolerance (unset)", "# nm, metal height consumed per oxidation",
+    for line in ('kind = "hill"', "refine = 4", "# tolerance (unset)", "# metal height consumed per oxidation: nm, in (0, 1000]",
                  "[surface]", "[run]"):
         assert line in text
 
@@ -90,17 +90,17 @@ def test_scene_runs_with_overrides():
     ("surface = 3", r"surface must be a table"),
     ("[surface]\nkind = 'blob'", r"surface.kind must be one of 'hill'"),
     ("[surface]\npoints = 4", r"surface.points must be odd"),
-    ("[surface]\npoints = 2.0", r"surface.points must be an integer, got 2.0"),
+    ("[surface]\npoints = 2.0", r"surface.points must be an integer in \[3, 4,097\], got 2.0"),
     ("[surface]\nrefine = 0", r"surface.refine must be an integer in \[1, 4,097\], got 0"),
     ("[surface]\nspacing = -1", r"surface.spacing must be in \(0, "),
-    ("[surface]\nmethod = 'quad'", r"surface.method must be one of \('linear', 'cubic'\)"),
+    ("[surface]\nmethod = 'quad'", r"surface.method must be one of 'linear', 'cubic', got 'quad'"),
     ("[surface]\nslope = [1, 2]", r"unknown key 'surface.slope' \(allowed in \[surface\]: kind, base"),
-    ("[surface]\nkind = 'tilted_plane'\nslope = [1]", r"surface.slope must be a list of two numbers"),
+    ("[surface]\nkind = 'tilted_plane'\nslope = [1]", r"surface.slope must be 2 numbers, got \[1\]"),
     ("[surface]\nkind = 'random_roughness'\nsize = 450", r"surface.size \(450 nm\) must be a whole number"),
-    ("[surface]\nkind = 'random_roughness'\nscales = [1, 2]", r"surface.scales must be a non-empty list of \[number, number\] pairs"),
+    ("[surface]\nkind = 'random_roughness'\nscales = [1, 2]", r"surface.scales\[0\] must be 2 numbers \(nm\), got 1"),
     ("[surface]\nkind = 'file'", r"surface.path is required"),
-    ("[surface]\nkind = 'file'\npath = 'x.npy'\nunit = 'furlong'", r"surface.unit must be one of nm"),
-    ("[surface]\nkind = 'file'\npath = 'x.npy'\nchannel = 1.5", r"surface.channel must be an integer or a string"),
+    ("[surface]\nkind = 'file'\npath = 'x.npy'\nunit = 'furlong'", r"surface.unit must be one of 'nm', 'um'"),
+    ("[surface]\nkind = 'file'\npath = 'x.npy'\nchannel = 1.5", r"surface.channel must be a channel number \(integer >= 0\) or a channel title"),
     ("[surface]\nkind = 'file'\npath = 'x.npy'\nmax_aspect = 0.5", r"surface.max_aspect must be >= 1"),
     ("[run]\nstep = -1", r"run.step must be in \(0, 1000\] nm, got -1.0"),
     ("[run]\nthickness = 'thick'", r"run.thickness must be a number"),
@@ -116,7 +116,7 @@ def test_scene_runs_with_overrides():
     ("[run]\nrule = 'uniform'", r"run.rule must be one of 'thesis', 'conformal'"),
     ("[run]\nengine = 'reference'\nrule = 'conformal'", r"run.rule 'conformal' is computed by the continuum engine only"),
     ("[run]\nrecord = 0", r"run.record must be an integer in \[1, 100,000\]"),
-    ("[run]\nrecord = 'all'", r"run.record must be an integer or a list of numbers"),
+    ("[run]\nrecord = 'all'", r"run.record must be a count n .* or a list of thicknesses .*, got \'all\'"),
     ("[run]\nsnapshots = [0, 5]", r"run.snapshots must hold numbers in \[0, 1\] nm"),
     ("[run]\nstpe = 1", r"unknown key 'run.stpe'"),
     ("[run\n", r"invalid TOML"),
@@ -131,3 +131,28 @@ def test_missing_and_unreadable_scene_files(tmp_path):
     refused_file(load_scene, tmp_path / "binary.toml", b"\xff\xfe", "cannot read the scene file")
     with pytest.raises(ValueError, match="unknown scene 'mountain'; built-in scenes: hill, depression, ta, tilted"):
         get_scene("mountain")
+
+
+def test_each_run_key_is_declared_once_where_it_is_checked():
+    """The [run] keys are the declarations `Model`, the engines and `anodize` check with, so a scene file, a
+    `RunSettings` and a direct call refuse a value in the same words, and the file's comment states that bound."""
+    from labrig.validate import InputError
+    from planarize import anodize, surfaces
+    from planarize.anodize import RUN_ARGUMENTS
+    from planarize.engines import Continuum, Fast
+    from planarize.scene import RUN, RUN_PARAMS, SURFACE_KINDS
+
+    assert RUN_PARAMS["k_exp"] is Model.PARAMS["k_exp"] and RUN_PARAMS["thickness"] is RUN_ARGUMENTS["thickness"]
+    assert RUN_PARAMS["interacting"] is Fast.PARAMS["interacting"] and SURFACE_KINDS["bump"][1] is surfaces.BUMP
+    assert RUN["rtol"] == ("float?", Continuum.PARAMS["rtol"].comment() + "; unset: 0.02")
+    for make in (lambda: Model(k_exp=9), lambda: RunSettings(k_exp=9), lambda: scene_from_toml("[run]\nk_exp = 9")):
+        with pytest.raises(InputError, match=r"k_exp must be in \[1, 5\], got 9.0$"):
+            make()
+    with pytest.raises(InputError, match=r"^thickness must be in \[0, 1e6\] nm, got -1.0$"):
+        anodize(surfaces.hill(), -1.0)
+    with pytest.raises(InputError, match=r"^thickness must be in \[0, 1e6\] nm, got -1.0$"):
+        RunSettings(thickness=-1.0)
+    with pytest.raises(InputError, match=r"^points must be an integer in \[3, 4,097\], got 2$"):
+        surfaces.bump(points=2)
+    with pytest.raises(InputError, match=r"surface.points must be an integer in \[3, 4,097\], got 2$"):
+        scene_from_toml("[surface]\npoints = 2")

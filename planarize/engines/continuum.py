@@ -17,9 +17,11 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 
+from labrig.params import Param
 from labrig.validate import InputError, count, real
 
 from ..model import Model
@@ -69,9 +71,13 @@ class Continuum:
     threads: int | None = None
 
     name = "continuum"
+    #: The declarations of the settings a scene file takes (`labrig.params.Param`).
+    PARAMS: ClassVar[dict[str, Param]] = {
+        "rtol": Param("float", 1e-4, 1.0, doc="relative discretization error aimed at (continuum engine)"),
+    }
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "rtol", real("rtol", self.rtol, 1e-4, 1.0))
+        object.__setattr__(self, "rtol", self.PARAMS["rtol"].check("rtol", self.rtol))
         for key in ("refine", "max_refine"):
             value = getattr(self, key)
             if value is None:

@@ -29,10 +29,12 @@ import dataclasses
 import functools
 import math
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 
-from labrig.validate import InputError, choice, count, real
+from labrig.params import Param
+from labrig.validate import InputError, count
 
 from .base import Engine
 from .closer import TreeSearch, below_raised
@@ -88,11 +90,17 @@ class Fast:
     threads: int | None = None
 
     name = "fast"
+    #: The declarations of the settings a scene file takes (`labrig.params.Param`).
+    PARAMS: ClassVar[dict[str, Param]] = {
+        "tolerance": Param("float", 0.0, 1e6, unit="nm", optional=True, doc="batch tolerance (fast engine)",
+                           unset="step / 10"),
+        "interacting": Param("str", choices=INTERACTING, doc='interacting candidates of a batch (fast engine; '
+                                                             '"together" is faster, within the tolerance)'),
+    }
 
     def __post_init__(self) -> None:
-        if self.tolerance is not None:
-            object.__setattr__(self, "tolerance", real("tolerance", self.tolerance, 0.0, 1e6, unit="nm"))
-        choice("interacting", self.interacting, INTERACTING)
+        for key, param in self.PARAMS.items():
+            object.__setattr__(self, key, param.check(key, getattr(self, key)))
         if self.threads is not None:
             object.__setattr__(self, "threads", count("threads", self.threads, 1, MAX_THREADS))
 

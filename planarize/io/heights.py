@@ -51,13 +51,14 @@ from pathlib import Path
 import numpy as np
 
 from labrig.files import atomic_path
-from labrig.validate import InputError, array, choice, flag, real
+from labrig.params import Param
+from labrig.validate import InputError, array, real
 
 from ..heightfield import BOUNDARIES, MAX_POINTS, Surface, check_heights
 from .gwy import read_gwy, write_gwy
 from .limits import checked_file
 from .texttable import is_number, read_table
-from .units import MAX_COORDINATE, file_unit, given_spacing, spacing_pair, unit_scale, unit_scales
+from .units import LENGTH_UNITS, MAX_COORDINATE, file_unit, given_spacing, spacing_pair, unit_scales
 
 #: Formats by file suffix.
 SUFFIXES = {".xyz": "xyz", ".csv": "matrix", ".txt": "matrix", ".asc": "matrix", ".dat": "matrix",
@@ -67,6 +68,27 @@ FORMATS = ("xyz", "matrix", "npy", "gwy")
 HEADER_KEYS = ("xy units", "value units", "width", "height")
 #: Most elongated pixel (longer / shorter side) accepted by default.
 MAX_PIXEL_ASPECT = 8.0
+#: The options of `load_heights` (`labrig.params.Param`), which it checks with these; a scene file's
+#: ``[surface]`` keys for ``kind = "file"`` (`planarize.scene`).
+LOAD_OPTIONS = {
+    "path": Param("str", high=4096, doc="height map: .xyz, .csv/.txt/.asc/.dat matrix, .npy or .gwy",
+                  rule="relative to the scene file"),
+    "unit": Param("str", choices=tuple(LENGTH_UNITS), optional=True,
+                  doc="unit of lateral sizes (and heights), for files that do not state it", unset="the file's"),
+    "z_unit": Param("str", choices=tuple(LENGTH_UNITS), optional=True, doc="unit of the heights",
+                    unset="unit"),
+    "spacing": Param("either", optional=True, doc="grid spacing in unit (.npy and plain matrices only)",
+                     parts=(Param("float", 0.0, low_open=True, doc="a number"),
+                            Param("float2", 0.0, doc="[dx, dy]", rule="each > 0")),
+                     unset="the file's"),
+    "level": Param("bool", doc="remove the least-squares plane's tilt"),
+    "channel": Param("either", optional=True, doc=".gwy channel",
+                     parts=(Param("int", 0, doc="a channel number"), Param("str", high=1000, doc="a channel title")),
+                     unset="the first height channel"),
+    "format": Param("str", choices=FORMATS, optional=True, doc="format", unset="from the suffix"),
+    "boundary": Param("str", choices=BOUNDARIES, doc="edges (\"periodic\": the map tiles the plane)"),
+    "max_aspect": Param("float", 1.0, doc="largest pixel aspect ratio accepted"),
+}
 
 
 # -- checks ------------------------------------------------------------------------------------
@@ -142,7 +164,7 @@ def load_heights(path, *, unit: str | None = None, z_unit: str | None = None, sp
             raise InputError(f"{path}: unknown height-map suffix {path.suffix!r}; use one of "
                              f"{', '.join(SUFFIXES)} or pass format= ({', '.join(FORMATS)})")
     else:
-        choice("format", format, FORMATS)
+        LOAD_OPTIONS["format"].check("format", format)
     try:
         _check_options(unit, z_unit, spacing, level, channel, boundary, max_aspect)
         checked_file(path, format)  # a regular file within the format's size cap: nothing read yet
@@ -159,16 +181,12 @@ def load_heights(path, *, unit: str | None = None, z_unit: str | None = None, sp
 
 def _check_options(unit, z_unit, spacing, level, channel, boundary, max_aspect) -> None:
     """`InputError` naming the first bad argument of `load_heights` (before the file is opened)."""
-    for name, value in (("unit", unit), ("z_unit", z_unit)):
-        if value is not None:
-            unit_scale(value, name)
+    options = {"unit": unit, "z_unit": z_unit, "level": level, "channel": channel, "boundary": boundary,
+               "max_aspect": max_aspect}
+    for name, value in options.items():
+        LOAD_OPTIONS[name].check(name, value)
     if spacing is not None:
-        spacing_pair(spacing)
-    flag("level", level)
-    if not (channel is None or isinstance(channel, str) or isinstance(channel, int) and not isinstance(channel, bool)):
-        raise InputError(f"channel must be a channel number or title, got {channel!r}")
-    choice("boundary", boundary, BOUNDARIES)
-    real("max_aspect", max_aspect, 1.0)
+        spacing_pair(spacing)  # a number, a pair or an array of two
 
 
 def _text_table(path: Path, columns: int) -> tuple[dict, np.ndarray]:
