@@ -31,6 +31,11 @@ from qdots.micrograph.library import run_points
 
 from .report import Headline, Note, Table, cli
 
+#: The code this benchmark measures (besides itself): a commit to it after a run marks the run's section as
+#: older than its code (`benchmarks.staleness`).
+MEASURED_CODE = ("qdots/micrograph", "qdots/engine", "qdots/forces", "qdots/experiment.py", "qdots/protocols.py",
+                 "qdots/analysis")
+
 #: The base point: the thesis's values at the shared micrograph's size spread and coverage.
 BASE = {"kick": 0.0, "mass_exponent": 0.0, "restitution": 0.8, "drag": -3.0, "sigma": 0.15, "coverage": 0.336}
 #: The steps: (key, values tried besides the base).
