@@ -139,7 +139,7 @@ def main(argv: list[str] | None = None) -> int:
     start, figures, failed = time.perf_counter(), [], []
     for name in names:
         print(f"[{name}] running ({'quick' if args.quick else 'full'})...", flush=True)
-        t0 = time.perf_counter()
+        t0, started = time.perf_counter(), machine_info()  # each section's own start: date, load and commit
         try:
             results = run_module(name, args.quick)
         except Exception:  # a failing benchmark keeps its old section; the others still report
@@ -147,7 +147,7 @@ def main(argv: list[str] | None = None) -> int:
             failed.append(name)
             continue
         seconds = time.perf_counter() - t0
-        store["sections"][name] = section(name, results, args.quick, seconds, info)
+        store["sections"][name] = section(name, results, args.quick, seconds, started)
         figures += [f for f in results if isinstance(f, Figure)]
         print(f"[{name}] done in {seconds:.1f} s", flush=True)
     store["machine"] = info

@@ -67,6 +67,21 @@ def test_points_are_checked_and_build_the_thesis_deposition():
     refused(lambda: check_point({k: v for k, v in point().items() if k != "drag"}), "'drag'")
 
 
+def test_a_film_past_its_wall_time_budget_stops_and_one_within_it_is_unchanged():
+    """The budget stops a film (one point must not stall a library) and, attached, changes nothing of a film."""
+    from qdots.experiment import run_experiment
+    from qdots.micrograph.forward import FilmTooSlow, simulate_film
+
+    small = point(n_dots=12, seed=5)
+    plain = run_experiment(film_experiment(small)).state()
+    budgeted = simulate_film(small).state()
+    assert np.array_equal(plain.positions, budgeted.positions) and np.array_equal(plain.velocities,
+                                                                                  budgeted.velocities)
+    with pytest.raises(FilmTooSlow, match="ran past its budget of 1e-06 wall s at t = 0 s"):
+        simulate_film(small, max_seconds=1e-6)
+    refused(lambda: simulate_film(small, max_seconds=0), "max_seconds")
+
+
 def test_measures_of_a_hexagonal_film_and_of_scattered_dots():
     centres, diameters = superlattice_board(400, 400, 15.0, 0.0, 1.0, "hexagonal", seed=1, jitter=0.0)
     state = film_state(centres, diameters, (400, 400))

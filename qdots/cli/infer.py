@@ -51,8 +51,8 @@ def run(args: argparse.Namespace, stem: str) -> int:
     print_table("posterior-predictive check (* the measures the posterior is conditioned on):", check_rows(result))
     t = result.timings
     training = "0 s (loaded)" if t["posterior_loaded"] else f"{t['train']:.0f} s"
-    print(f"time: measure {t['measure']:.0f} s, library {t['library']:.0f} s ({t['library_films_run']} films run), "
-          f"training {training}, check {t['check']:.0f} s")
+    print(f"time: measure {t['measure']:.0f} s, library {t['library']:.0f} s ({t['library_films_run']} films run, "
+          f"{t['library_films_failed']} left out), training {training}, check {t['check']:.0f} s")
     print(f"wrote {args.out / f'{stem}_infer'}{os.sep}: {stem}_intervals.csv, {stem}_posterior.csv, {stem}_check.csv, "
           f"{stem}_corner.png, {stem}_best.png, {stem}_check.png, {stem}_best-film.npz and the measurement's files")
     return 0

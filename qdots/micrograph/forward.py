@@ -28,6 +28,7 @@ The parameters, each sampled uniformly between its bounds by the prior of the in
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -38,7 +39,7 @@ from labrig.validate import InputError, count, real
 from ..analysis.packing import INTERIOR_MIN_NEIGHBOURS, neighbour_counts
 from ..analysis.structure import clusters, hexatic_order, radial_distribution
 from ..engine import Event
-from ..experiment import Board, Deposition, Experiment, run_experiment
+from ..experiment import Board, Deposition, Experiment, build_simulation, populate
 from ..forces import Drag, ThermalKicks, VanDerWaals
 from ..presets import MEAN_DIAMETER
 from ..restitution import Restitution
@@ -221,9 +222,38 @@ def image_measures(film) -> dict:
     return film_measures(film.state, film.complete)
 
 
-def simulate_film(point: dict):
-    """Run the film of ``point``; returns the `qdots.Simulation` at its end."""
-    return run_experiment(film_experiment(point))
+#: Most wall seconds a film may take (checked every simulated second). A typical film of 150 dots takes about
+#: 1.5 s; weak kicks with dissipative impacts can bring a cluster to inelastic collapse, and one such film took more
+#: than 5 minutes (2-core machine). A film over budget is stopped and recorded as failed, so that one point cannot
+#: stall a library; failed films are left out of the training and counted (`qdots.micrograph.library.Library`).
+MAX_FILM_SECONDS = 60.0
+
+
+class FilmTooSlow(RuntimeError):
+    """A film ran past its wall-time budget (`MAX_FILM_SECONDS`)."""
+
+
+class WallBudget:
+    """A run writer that stops the run, raising `FilmTooSlow`, once ``seconds`` of wall time have passed."""
+
+    def __init__(self, seconds: float):
+        self.seconds = seconds
+        self.deadline = time.perf_counter() + seconds
+
+    def write(self, state) -> None:
+        if time.perf_counter() > self.deadline:
+            raise FilmTooSlow(f"the film ran past its budget of {self.seconds:g} wall s at t = {state.time:.0f} s "
+                              "(inelastic collapse is the usual cause: weak kicks, dissipative impacts)")
+
+
+def simulate_film(point: dict, max_seconds: float | None = None):
+    """Run the film of ``point``; returns the `qdots.Simulation` at its end. `FilmTooSlow` past ``max_seconds`` of
+    wall time (default `MAX_FILM_SECONDS`)."""
+    exp = film_experiment(point)
+    sim = build_simulation(exp)
+    budget = MAX_FILM_SECONDS if max_seconds is None else real("max_seconds", max_seconds, 0.0, low_open=True, unit="s")
+    sim.attach(WallBudget(budget), seconds=1.0)
+    return populate(sim, exp)
 
 
 @dataclass(frozen=True)

@@ -64,7 +64,8 @@ class Inference:
         Training films the posterior learnt from.
     timings : dict
         Wall seconds: ``measure``, ``library`` (films run for it), ``train`` (0 when loaded), ``sample``,
-        ``check``, and ``library_films_run``, ``posterior_loaded``.
+        ``check``, and ``library_films_run``, ``library_films_failed`` (left out of the training: over their wall-time
+        budget, or a summary not measured), ``posterior_loaded``.
     """
 
     film: MeasuredFilm
@@ -172,7 +173,7 @@ def infer_film(film: MeasuredFilm, library: str | os.PathLike, *, films: int = L
     best = dict(closest_film(measures, rows))
     best["state"] = checkpoint.read_state(Path(library) / "checks" / best["state_file"])
     times["check"] = time.perf_counter() - start
-    times.update(library_films_run=lib.ran, posterior_loaded=loaded)
+    times.update(library_films_run=lib.ran, library_films_failed=lib.failed, posterior_loaded=loaded)
     return Inference(film, conditions, measures, draws, credible_intervals(draws, LEVEL),
                      predictive_check(measures, rows), rows, best, Path(library), len(lib.ids), times)
 

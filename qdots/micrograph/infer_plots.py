@@ -11,6 +11,7 @@ from dataclasses import replace
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from matplotlib.ticker import MaxNLocator
 
 from ..presets import MEAN_DIAMETER
 from ..render import add_key, draw_state
@@ -48,6 +49,8 @@ def corner_figure(inference: Inference, bins: int = 30):
             ax.set_xlim(pj.low, pj.high)
             if i == k - 1:
                 ax.set_xlabel(pj.label, fontsize="small")
+                if j < k - 1:  # the last tick would touch the next panel's first
+                    ax.xaxis.set_major_locator(MaxNLocator(4, prune="upper"))
             else:
                 ax.set_xticklabels([])
             if j == 0 and i > 0:
@@ -56,9 +59,9 @@ def corner_figure(inference: Inference, bins: int = 30):
                 ax.set_yticklabels([])
     c = inference.conditions
     fig.suptitle(f"{inference.film.image.source}: posterior of the deposition parameters (sigma {c['sigma']:.3f}, "
-                 f"coverage {c['coverage']:.3f}; {len(samples):,} draws, {inference.films:,} training films). "
+                 f"coverage {c['coverage']:.3f};\n{len(samples):,} draws, {inference.films:,} training films). "
                  "Dashed: 90 % interval; dotted red: the thesis's value", fontsize="medium")
-    fig.subplots_adjust(left=0.08, right=0.98, bottom=0.08, top=0.93, wspace=0.08, hspace=0.12)
+    fig.subplots_adjust(left=0.08, right=0.98, bottom=0.08, top=0.9, wspace=0.08, hspace=0.12)
     return fig
 
 
@@ -99,6 +102,7 @@ def best_film_figure(inference: Inference):
     for ax in (left, right):
         ax.set_aspect("equal")
         ax.set_xlabel(unit)
+        ax.set_ylabel(unit)
     add_key(right, board, unit)
     table_ax = fig.add_axes((0.1, 0.02, 0.8, 0.27))
     table_ax.set_axis_off()

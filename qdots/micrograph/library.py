@@ -58,7 +58,8 @@ def run_points(points: list[dict], folder: str | os.PathLike, *, workers: int | 
     if not points:
         return []
     sweep = Sweep(base=dict(points[0]), points=tuple(dict(p) for p in points))
-    result = run_sweep(sweep, FilmRunner(), folder, workers=workers, scheduler=scheduler, state=state,
+    # retries=0: a film is deterministic, so a film that failed (one over its wall-time budget) would fail again
+    result = run_sweep(sweep, FilmRunner(), folder, workers=workers, scheduler=scheduler, state=state, retries=0,
                        progress=progress, max_runs=len(points))
     return result.rows
 
