@@ -207,7 +207,7 @@ def test_rectangular_pixels_up_to_the_limit(tmp_path):
     ("bad.npy", b"not numpy", {}, r"cannot read the file as a \.npy array"),
     ("line.npy", npy_bytes(np.arange(5.0)), {}, r"2-D array.*1 dimension"),
     ("ok.npy", npy_bytes(np.ones((3, 3))), {"spacing": None}, "does not state its grid spacing"),
-    ("ok.npy", npy_bytes(np.ones((3, 3))), {"unit": "furlong"}, r"unit must be a length unit.*got 'furlong'"),
+    ("ok.npy", npy_bytes(np.ones((3, 3))), {"unit": "furlong"}, r"unit must be one of 'nm'.*got 'furlong'"),
     ("ok.npy", npy_bytes(np.ones((3, 3))), {"spacing": -1}, r"spacing must be finite and > 0"),
     ("ok.npy", npy_bytes(np.ones((3, 3))), {"channel": 0}, "channel applies to .gwy files only"),
 ])

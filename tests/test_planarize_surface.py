@@ -141,7 +141,7 @@ def test_thesis_scenes():
     (lambda: surfaces.bump(spacing=-1), "spacing"),
     (lambda: surfaces.random_roughness(size=250), "whole number"),
     (lambda: surfaces.random_roughness(scales=[(200, 30), (30, 5)]), "divide"),
-    (lambda: surfaces.random_roughness(scales=[]), "at least one"),
+    (lambda: surfaces.random_roughness(scales=[]), r"scales must be a list of at most 64 \[number, number\] pairs, .*got \[\]"),
     (lambda: surfaces.random_roughness(size=100, boundary="periodic"), "at least two"),
     (lambda: surfaces.tilted_plane(slope=(np.nan, 0)), "slope must be 2 numbers"),
 ])

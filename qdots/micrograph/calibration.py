@@ -21,6 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
+from labrig.validate import InputError
+
 from ..io import checkpoint
 from .forward import PARAMETERS, film_measures, image_measures, parameter_keys
 from .library import observation, prior_point, run_points
@@ -64,8 +66,9 @@ class CalibrationFilm:
 def calibration_films(posterior, films: int, folder: str | os.PathLike, *, n_dots: int = 150,
                       workers: int | None = None, scheduler=None, samples: int = 2000, progress: bool = False,
                       start: int = 0) -> list[CalibrationFilm]:
-    """Simulate held-out films ``start .. start + films - 1`` (kept in ``folder``), draw and measure their
-    micrographs, and take the posterior's 90 % intervals from each micrograph and each board."""
+    """Simulate held-out films ``start`` to ``start + films - 1`` (kept in ``folder``), draw and measure their
+    micrographs, and take the posterior's 90 % intervals from each micrograph and each board. A film that did not
+    finish, or whose micrograph `measure_image` refuses, is left out (the list is shorter)."""
     points = [prior_point(k, "calibration", n_dots) for k in range(start, start + films)]
     rows = run_points(points, folder, workers=workers, scheduler=scheduler, state=True, progress=progress)
     out = []
@@ -77,7 +80,10 @@ def calibration_films(posterior, films: int, folder: str | os.PathLike, *, n_dot
             board_x = observation(film_measures(state), {"sigma": row["film_sigma"],
                                                           "coverage": row["film_coverage"]})
             path = write_png(board_micrograph(state, seed=k), Path(scratch) / f"film{k}.png")
-            film = measure_image(path, lqe=False)
+            try:
+                film = measure_image(path, lqe=False)
+            except InputError:  # refused as a user's image would be (a wide spread can look like a drawing): left out
+                continue
             image_x = observation(image_measures(film), {"sigma": film.summary["size_spread"],
                                                          "coverage": film.summary["coverage"]})
             out.append(CalibrationFilm(point, credible_intervals(sample_posterior(posterior, image_x, samples, k)),

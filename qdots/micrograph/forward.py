@@ -181,11 +181,13 @@ def film_measures(state, complete: np.ndarray | None = None) -> dict:
     if inner.any():
         out.update(psi6_local=float(np.abs(hexatic.psi[inner]).mean()),
                    psi6_global=float(abs(hexatic.psi[inner].mean())))
-    from scipy.spatial import cKDTree  # nearest centres (the pair search of qdots.geometry finds pairs in range)
+    from scipy.spatial import cKDTree  # a nearest-neighbour query, not a pair search (tests/test_geometry.py)
 
     positions = np.asarray(state.positions, dtype=float)
-    distance, nearest = cKDTree(positions).query(positions[complete], k=2)
-    gaps = distance[:, 1] - radii[complete] - radii[nearest[:, 1]]
+    chosen = np.flatnonzero(complete)
+    distance, nearest = cKDTree(positions).query(positions[chosen], k=2)
+    other = np.where(nearest[:, 1] == chosen, nearest[:, 0], nearest[:, 1])  # a twin at the same centre comes first
+    gaps = distance[:, 1] - radii[chosen] - radii[other]
     out["mean_gap"] = float(np.mean(np.maximum(gaps, 0.0))) / mean_d
     rdf = radial_distribution(state, r_max=min(3.0 * mean_d, *state.box), bins=120)
     g = np.where(np.isfinite(rdf.g), rdf.g, -np.inf)

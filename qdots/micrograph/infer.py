@@ -159,10 +159,10 @@ def infer_film(film: MeasuredFilm, library: str | os.PathLike, *, films: int = L
     x_obs = observation(measures, conditions)
     times = {}
     start = time.perf_counter()
-    lib = build_library(library, films, workers=workers, scheduler=scheduler, progress=progress, n_dots=n_dots)
+    training = build_library(library, films, workers=workers, scheduler=scheduler, progress=progress, n_dots=n_dots)
     times["library"] = time.perf_counter() - start
     start = time.perf_counter()
-    posterior, loaded = load_or_train(library, lib.theta, lib.x, lib.ids, ensemble=ensemble, seed=seed)
+    posterior, loaded = load_or_train(library, training.theta, training.x, training.ids, ensemble=ensemble, seed=seed)
     times["train"] = 0.0 if loaded else time.perf_counter() - start
     start = time.perf_counter()
     draws = sample_posterior(posterior, x_obs, samples, seed)
@@ -173,9 +173,9 @@ def infer_film(film: MeasuredFilm, library: str | os.PathLike, *, films: int = L
     best = dict(closest_film(measures, rows))
     best["state"] = checkpoint.read_state(Path(library) / "checks" / best["state_file"])
     times["check"] = time.perf_counter() - start
-    times.update(library_films_run=lib.ran, library_films_failed=lib.failed, posterior_loaded=loaded)
+    times.update(library_films_run=training.ran, library_films_failed=training.failed, posterior_loaded=loaded)
     return Inference(film, conditions, measures, draws, credible_intervals(draws, LEVEL),
-                     predictive_check(measures, rows), rows, best, Path(library), len(lib.ids), times)
+                     predictive_check(measures, rows), rows, best, Path(library), len(training.ids), times)
 
 
 def build_checks(points: list[dict], library: str | os.PathLike, **where) -> list[dict]:
