@@ -7,8 +7,9 @@ credible intervals on held-out synthetic micrographs, and the films' speed-up on
   the posterior loads). The library is kept in the system's temporary folder (``qdots-infer-library``) for
   notebook 06, which loads it.
 * **Calibration**: ``FILMS`` held-out films (`qdots.micrograph.calibration`: drawn from the prior, none in the
-  training), drawn as micrographs, measured, and the posterior's 90 % intervals counted against the truth,
-  per parameter; beside it the same from each film's board (no picture).
+  training, nor among the library films that calibrated the intervals), drawn as micrographs, measured, and the
+  posterior's 90 % intervals counted against the truth, per parameter; beside it the same from each film's
+  board (no picture), and the networks' own intervals before their calibration.
 * **Dask**: ``DASK_FILMS`` films on a LocalCluster of 1 and of 2 worker processes (one thread each), after one
   warm-up film per worker (the compiled kernels load).
 
@@ -25,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from qdots.micrograph.calibration import calibration_films, coverage_table
+from qdots.micrograph.conformal import describe_factor
 from qdots.micrograph.forward import PARAMETERS
 from qdots.micrograph.infer import infer_image
 from qdots.micrograph.library import build_library, prior_point, run_points
@@ -107,11 +109,15 @@ def run(quick: bool) -> list:
     calibration = Table(f"Calibration: share of {len(films)} held-out films whose 90 % interval holds the truth "
                         "(binomial SE beside it; the goal 80-97 % for an identifiable parameter)",
                         ["parameter", "from the micrograph", "mean width (share of prior)", "from the board",
-                         "mean width (board)"],
+                         "mean width (board)", "networks' own, from the micrograph", "their width",
+                         "spread"],
                         [[r["label"], f"{100 * r['coverage_image']:.0f} % +- {100 * r['coverage_image_se']:.0f}",
                           f"{100 * r['width_image']:.0f} %",
                           f"{100 * r['coverage_board']:.0f} % +- {100 * r['coverage_board_se']:.0f}",
-                          f"{100 * r['width_board']:.0f} %"] for r in cal])
+                          f"{100 * r['width_board']:.0f} %",
+                          f"{100 * r['coverage_image_raw']:.0f} % +- {100 * r['coverage_image_raw_se']:.0f}",
+                          f"{100 * r['width_image_raw']:.0f} %", describe_factor(factor)]
+                         for r, factor in zip(cal, posterior.calibration.factors)])
     calibration.note = f"{calibration_wall:.0f} s for the films, their micrographs and their posteriors."
     dask_films = QUICK_DASK_FILMS if quick else DASK_FILMS
     (_, one, ok1), (_, two, ok2) = dask_speedup(dask_films, n_dots)

@@ -28,12 +28,11 @@ from ..io import checkpoint
 from .forward import FILM_DOTS, MEASURES, PARAMETERS, SUMMARIES, image_measures, image_point, parameter_keys
 from .library import LIBRARY_FILMS, build_library, observation
 from .measure import MeasuredFilm, measure_image
-from .posterior import ENSEMBLE, credible_intervals, load_or_train, sample_posterior
+from .conformal import IntervalCalibration, describe_factor
+from .posterior import ENSEMBLE, LEVEL, credible_intervals, load_or_train
 
 #: Posterior draws by default, and the films of the predictive check (and the most of those).
 SAMPLES, CHECK_FILMS, MAX_CHECK_FILMS = 4000, 24, 1000
-#: Credible level of the intervals.
-LEVEL = 0.9
 
 
 @dataclass(frozen=True)
@@ -48,9 +47,13 @@ class Inference:
     measures : dict
         The film's measures (`qdots.micrograph.forward.MEASURES`).
     samples : ndarray (n, 4)
-        Posterior draws of the parameters (`qdots.micrograph.forward.PARAMETERS` order).
+        Posterior draws of the parameters (`qdots.micrograph.forward.PARAMETERS` order), spread by the calibration.
     intervals : list of dict
-        Per parameter: median and the central 90 % credible interval (`credible_intervals`).
+        Per parameter: median and the central 90 % credible interval (`credible_intervals`) of those draws, and
+        ``calibration_spread``, the factor the networks' interval was spread by.
+    calibration : IntervalCalibration
+        How much the networks' intervals were spread to hold the truth in 90 % of held-out library films
+        (`qdots.micrograph.conformal`).
     check : list of dict
         The predictive check, one row per measure: ``measure``, ``label``, ``image``, ``median``, ``low``,
         ``high`` (5 % and 95 % of the predicted films), ``quantile`` (share of predicted films below the image),
@@ -61,7 +64,7 @@ class Inference:
         The predicted film closest to the image (its row), and ``state``: its board.
     library : Path
     films : int
-        Training films the posterior learnt from.
+        Training films the networks learnt from (the library's films less those kept for calibration).
     timings : dict
         Wall seconds: ``measure``, ``library`` (films run for it), ``train`` (0 when loaded), ``sample``,
         ``check``, and ``library_films_run``, ``library_films_failed`` (left out of the training: over their wall-time
@@ -73,6 +76,7 @@ class Inference:
     measures: dict
     samples: np.ndarray
     intervals: list
+    calibration: IntervalCalibration
     check: list
     predictive: list
     best: dict
@@ -165,7 +169,7 @@ def infer_film(film: MeasuredFilm, library: str | os.PathLike, *, films: int = L
     posterior, loaded = load_or_train(library, training.theta, training.x, training.ids, ensemble=ensemble, seed=seed)
     times["train"] = 0.0 if loaded else time.perf_counter() - start
     start = time.perf_counter()
-    draws = sample_posterior(posterior, x_obs, samples, seed)
+    draws = posterior.sample(x_obs, samples, seed)
     times["sample"] = time.perf_counter() - start
     start = time.perf_counter()
     points = predictive_points(draws, conditions, check_films, n_dots, seed)
@@ -174,8 +178,10 @@ def infer_film(film: MeasuredFilm, library: str | os.PathLike, *, films: int = L
     best["state"] = checkpoint.read_state(Path(library) / "checks" / best["state_file"])
     times["check"] = time.perf_counter() - start
     times.update(library_films_run=training.ran, library_films_failed=training.failed, posterior_loaded=loaded)
-    return Inference(film, conditions, measures, draws, credible_intervals(draws, LEVEL),
-                     predictive_check(measures, rows), rows, best, Path(library), len(training.ids), times)
+    intervals = [dict(row, calibration_spread=float(f)) for row, f in
+                 zip(credible_intervals(draws, LEVEL), posterior.calibration.factors)]
+    return Inference(film, conditions, measures, draws, intervals, posterior.calibration,
+                     predictive_check(measures, rows), rows, best, Path(library), posterior.training_films, times)
 
 
 def build_checks(points: list[dict], library: str | os.PathLike, **where) -> list[dict]:
@@ -202,7 +208,8 @@ def interval_rows(inference: Inference) -> list[tuple[str, str]]:
     rows = []
     for row, p in zip(inference.intervals, PARAMETERS):
         rows.append((p.label, f"{row['median']:.3g}   90 % interval [{row['low']:.3g}, {row['high']:.3g}]   "
-                              f"({100 * row['width_share']:.0f} % of the prior's [{p.low:g}, {p.high:g}])"))
+                              f"({100 * row['width_share']:.0f} % of the prior's [{p.low:g}, {p.high:g}]; "
+                              f"the networks' interval spread {describe_factor(row['calibration_spread'])})"))
     return rows
 
 

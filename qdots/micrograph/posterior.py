@@ -12,9 +12,11 @@ The network: a masked autoregressive flow (sbi's ``"maf"``, 50 hidden features, 
 measures and parameters z-scored, trained with sbi's defaults (10 % of the films held out for early
 stopping); the prior is the box of `qdots.micrograph.forward.PARAMETERS`. `ENSEMBLE` networks trained
 from different seeds are averaged (sbi's ``EnsemblePosterior``): one network trained on a thousand films
-is overconfident, which the calibration measures. A trained posterior is saved in the library
-(``posteriors/<key>.pt``), keyed by the films it learnt from and these settings, and loaded when asked for
-again. torch and sbi are the optional extra ``infer``: ``pip install torch==2.13.0 'nanodisorder[infer]'``.
+is overconfident, which the calibration measures, and averaging more networks does not cure it. So a
+fifth of the films is kept out of the training and calibrates the intervals' widths
+(`qdots.micrograph.conformal`): a `Posterior` is the networks and that calibration. A trained posterior is
+saved in the library (``posteriors/<key>.pt``), keyed by the films it learnt from and these settings, and
+loaded when asked for again. torch and sbi are the optional extra ``infer``: ``pip install torch==2.13.0 'nanodisorder[infer]'``.
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ import hashlib
 import json
 import os
 import warnings
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -30,13 +33,15 @@ import numpy as np
 from labrig.files import atomic_path
 from labrig.validate import InputError, count
 
+from .conformal import (CALIBRATION_SHARE, IntervalCalibration, central_quantiles, fit_calibration,
+                        is_calibration_film)
 from .forward import PARAMETERS
 
 #: Networks averaged in one posterior, their flow, and the threads torch may use (one: on a busy 2-core machine
 #: two threads made a training 10-30x slower, measured).
 ENSEMBLE, FLOW, THREADS = 3, "maf", 1
-#: Most posterior samples drawn at once.
-MAX_SAMPLES = 1_000_000
+#: Most posterior samples drawn at once; draws per calibration film; the credible level of the intervals.
+MAX_SAMPLES, CALIBRATION_SAMPLES, LEVEL = 1_000_000, 1000, 0.9
 
 
 def require_sbi():
@@ -86,8 +91,8 @@ def posterior_key(ids: list, ensemble: int = ENSEMBLE, seed: int = 0) -> str:
     """16 hex digits naming a posterior: the films it learnt from, the network and the training seed."""
     import sbi
 
-    text = json.dumps({"films": list(ids), "flow": FLOW, "ensemble": ensemble, "seed": seed,
-                       "sbi": sbi.__version__}, sort_keys=True)
+    text = json.dumps({"films": list(ids), "flow": FLOW, "ensemble": ensemble, "seed": seed, "sbi": sbi.__version__,
+                       "calibration": [CALIBRATION_SHARE, CALIBRATION_SAMPLES, LEVEL]}, sort_keys=True)
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
@@ -128,18 +133,64 @@ def train_posterior(theta: np.ndarray, x: np.ndarray, *, ensemble: int = ENSEMBL
     return members[0] if ensemble == 1 else EnsemblePosterior(members)
 
 
+@dataclass(frozen=True)
+class Posterior:
+    """The amortized posterior of ``qdots infer``: the trained networks and the calibration of their intervals.
+
+    Attributes
+    ----------
+    network : sbi posterior
+        The networks (`train_posterior`), trained on the films not kept for calibration.
+    calibration : IntervalCalibration
+        The interval widths' factors, from the films kept out (`qdots.micrograph.conformal`).
+    training_films : int
+        Films the networks learnt from.
+    """
+
+    network: object
+    calibration: IntervalCalibration
+    training_films: int
+
+    def sample(self, x_obs: np.ndarray, n: int = 4000, seed: int = 0, calibrated: bool = True) -> np.ndarray:
+        """``n`` draws (n, 4) at the observation ``x_obs``: the networks' own, spread by the calibration unless
+        ``calibrated`` is False."""
+        draws = sample_posterior(self.network, x_obs, n, seed)
+        return self.calibrate(draws) if calibrated else draws
+
+    def calibrate(self, draws: np.ndarray) -> np.ndarray:
+        """The networks' ``draws`` (n, 4) spread by the calibration, inside the prior's box."""
+        return self.calibration.apply(draws, np.array([p.low for p in PARAMETERS]),
+                                      np.array([p.high for p in PARAMETERS]))
+
+
+def calibrated_posterior(theta: np.ndarray, x: np.ndarray, ids: list, *, ensemble: int = ENSEMBLE,
+                         seed: int = 0) -> Posterior:
+    """Train on the films ``ids`` not kept for calibration (`is_calibration_film`), and fit the intervals'
+    factors on those kept (`qdots.micrograph.conformal.fit_calibration`)."""
+    theta = np.asarray(theta, dtype=float)
+    x = np.asarray(x, dtype=float)
+    if len(ids) != len(theta) or len(x) != len(theta):
+        raise InputError(f"theta, x and ids must have one row per film, got {len(theta)}, {len(x)} and {len(ids)}")
+    kept = np.array([is_calibration_film(i) for i in ids], dtype=bool)
+    network = train_posterior(theta[~kept], x[~kept], ensemble=ensemble, seed=seed)
+    draws = [sample_posterior(network, row, CALIBRATION_SAMPLES, seed + k) for k, row in enumerate(x[kept])]
+    return Posterior(network, fit_calibration(theta[kept], draws, LEVEL), int((~kept).sum()))
+
+
 def load_or_train(folder: str | os.PathLike, theta: np.ndarray, x: np.ndarray, ids: list, *,
-                  ensemble: int = ENSEMBLE, seed: int = 0):
-    """The posterior learnt from the films ``ids``: loaded from ``folder/posteriors`` when trained before, else
-    trained (`train_posterior`) and saved there (atomically). Returns (posterior, whether it was loaded)."""
+                  ensemble: int = ENSEMBLE, seed: int = 0) -> tuple[Posterior, bool]:
+    """The `Posterior` learnt from the films ``ids``: loaded from ``folder/posteriors`` when trained before, else
+    made (`calibrated_posterior`) and saved there (atomically). Returns (posterior, whether it was loaded)."""
     torch = require_sbi()
     path = Path(folder) / "posteriors" / f"{posterior_key(ids, ensemble, seed)}.pt"
     if path.is_file():
         try:
-            return torch.load(path, weights_only=False), True
+            saved = torch.load(path, weights_only=False)
+            if isinstance(saved, Posterior):
+                return saved, True
         except Exception:  # a damaged cache file is trained again and replaced
             pass
-    posterior = train_posterior(theta, x, ensemble=ensemble, seed=seed)
+    posterior = calibrated_posterior(theta, x, ids, ensemble=ensemble, seed=seed)
     path.parent.mkdir(parents=True, exist_ok=True)
     with atomic_path(path) as tmp:
         torch.save(posterior, tmp)
@@ -155,13 +206,11 @@ def sample_posterior(posterior, x_obs: np.ndarray, n: int = 4000, seed: int = 0)
     return posterior.sample((n,), x=x, show_progress_bars=False).numpy().astype(float)
 
 
-def credible_intervals(samples: np.ndarray, level: float = 0.9) -> list[dict]:
+def credible_intervals(samples: np.ndarray, level: float = LEVEL) -> list[dict]:
     """Per parameter: ``key``, ``label``, ``median``, ``low`` and ``high`` of the central ``level`` interval, and
     the prior's bounds ``prior_low``, ``prior_high`` and the interval's share of them (``width_share``)."""
-    tail = 50.0 * (1.0 - level)
     rows = []
-    for k, p in enumerate(PARAMETERS):
-        low, median, high = np.percentile(samples[:, k], [tail, 50.0, 100.0 - tail])
+    for p, low, median, high in zip(PARAMETERS, *central_quantiles(samples, level)):
         rows.append({"key": p.key, "label": p.label, "median": float(median), "low": float(low), "high": float(high),
                      "prior_low": p.low, "prior_high": p.high, "width_share": float((high - low) / (p.high - p.low))})
     return rows
