@@ -58,10 +58,13 @@ def corner_figure(inference: Inference, bins: int = 30):
             elif j > 0:
                 ax.set_yticklabels([])
     c = inference.conditions
+    factors = inference.calibration.factors
+    spread = (f"spread x{factors.min():.2f}-{factors.max():.2f} by the calibration, clipped to the prior's box"
+              if np.isfinite(factors).all() else "no calibration fitted: intervals are the prior's")
     fig.suptitle(f"{inference.film.image.source}: posterior of the deposition parameters (sigma {c['sigma']:.3f}, "
-                 f"coverage {c['coverage']:.3f};\n{len(samples):,} draws, {inference.films:,} training films). "
-                 "Dashed: 90 % interval; dotted red: the thesis's value", fontsize="medium")
-    fig.subplots_adjust(left=0.08, right=0.98, bottom=0.08, top=0.9, wspace=0.08, hspace=0.12)
+                 f"coverage {c['coverage']:.3f};\n{len(samples):,} draws, {inference.films:,} training films; "
+                 f"{spread}).\nDashed: 90 % interval; dotted red: the thesis's value", fontsize="medium")
+    fig.subplots_adjust(left=0.08, right=0.98, bottom=0.08, top=0.88, wspace=0.08, hspace=0.12)
     return fig
 
 
