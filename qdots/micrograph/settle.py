@@ -79,7 +79,8 @@ class Sample:
         ``start`` (a `Refined` state: then every pass starts near its radii)."""
         radii, contrast = (self.radii, self.contrast) if start is None else (start.radius, start.contrast)
         return refine_dots(self.image, self.where, radii, contrast, self.typical, shape, blur, k * self.part,
-                           passes=passes, reach=self.reach, wide=start is None, keep_profiles=keep_profiles)
+                           passes=passes, reach=self.reach, wide=start is None, keep_profiles=keep_profiles,
+                           move=True)
 
     def misfit(self, state, k) -> float:
         """Sum of squares of image minus (background minus model) over the patch's area."""
