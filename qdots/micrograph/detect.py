@@ -279,7 +279,7 @@ def _detect(image: np.ndarray, polarity: str, profile: str, ignore: np.ndarray) 
                                                               whole, profile)
     refined = refine_dots(target, centres, first[0], first[2], typical, shape, blur, level, move=True)
     noise = pixel_noise(unit, ignore)
-    extra = missed_dots(target, level_map, refined.model, refined.centres, refined.contrast, typical, noise)
+    extra = missed_dots(target, refined, level_map, typical, shape, blur, noise)
     if len(extra):  # dots the threshold missed: fitted, and the film settled again with them
         more = len(extra)
         centres = np.vstack([centres, extra])

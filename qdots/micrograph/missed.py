@@ -16,53 +16,72 @@ import math
 import numpy as np
 from scipy import ndimage
 
+from .refine import refine_dots
 from .segment import spaced_maxima
 
 #: The residual is averaged over a Gaussian of SMOOTH typical radii, less its average over one of BROAD ones.
 SMOOTH, BROAD = 0.4, 3.0
 #: A missed dot's smoothed residual reaches at least DEPTH times the film's median contrast, and its centre
-#: lies at least CLEAR typical radii from every dot found (a neighbour's centre is two radii away when they
-#: touch; a dot found off its centre leaves a crescent, nearer).
-DEPTH, CLEAR = 0.2, 1.5
+#: lies at least CLEAR[0] typical radii from every dot found and CLEAR[1] outside its fitted disc (a touching
+#: neighbour's centre is about two radii away; a dot that is not quite round, or found off its centre, leaves
+#: a crescent along its edge, nearer).
+DEPTH, CLEAR = 0.2, (1.5, 0.3)
 #: At most this share of the dots found is added (a film the model misfits everywhere is not mended here).
 MOST = 0.25
+#: A missed dot fits with a radius of at least ROUND typical radii.
+ROUND = 0.8
 
 
-def missed_dots(image, level_map, model, centres, contrast, typical: float, noise: float) -> np.ndarray:
-    """Centres (x, y), px, of the dark discs the model leaves unexplained (see the module docstring).
+def missed_dots(image, refined, level_map, typical: float, shape: float, blur, noise: float) -> np.ndarray:
+    """Centres (x, y), px, of the dark discs the model leaves unexplained (see the module docstring), each fitted
+    on the image with every dot's model added back and kept when it fits as a dot: a radius of at least `ROUND`
+    typical radii (a crescent or a neck between two particles that are not quite round fits as a small disc).
 
     Parameters
     ----------
     image : ndarray (H, W)
         The image the dots were fitted on (dots dark; NaN where left out).
-    level_map, model : ndarray (H, W)
-        The background and the darkening of all dots fitted (`qdots.micrograph.refine.Refined.model`).
-    centres : ndarray (N, 2)
-        The dots found, px.
-    contrast : ndarray (N,)
-        Their fitted contrast ``C`` (in the image's units).
+    refined : qdots.micrograph.refine.Refined
+        The dots found, fitted with their neighbours taken out.
+    level_map : ndarray (H, W)
+        The background.
     typical : float
         The film's typical radius, px.
+    shape : float
+        The profile shape ``p``.
+    blur : float or ndarray (N,)
+        The blur, px: one for the film or one for each dot found.
     noise : float
         The pixel noise's standard deviation, in the image's units.
     """
-    ok = np.isfinite(contrast) & (contrast > 0)
+    from .detect import paint_discs  # (the detector imports this module)
+
+    ok = np.isfinite(refined.contrast) & (refined.contrast > 0)
     if not ok.any() or typical <= 0:
         return np.zeros((0, 2))
-    residual = np.nan_to_num(level_map - model - image)
+    residual = np.nan_to_num(level_map - refined.model - image)
     smooth = ndimage.gaussian_filter(residual, SMOOTH * typical) - ndimage.gaussian_filter(residual,
                                                                                          BROAD * typical)
     # the smoothed noise: white noise averaged over a Gaussian of width w keeps 1 / (2 sqrt(pi) w) of its deviation
-    floor = max(DEPTH * float(np.median(contrast[ok])), 6.0 * noise / (2.0 * math.sqrt(math.pi) * SMOOTH * typical))
-    h, w = image.shape
-    found = np.ones((h, w), dtype=bool)
-    where = np.round(centres - 0.5).astype(int)
-    inside = (where[:, 0] >= 0) & (where[:, 0] < w) & (where[:, 1] >= 0) & (where[:, 1] < h)
-    found[where[inside, 1], where[inside, 0]] = False
-    clear = ndimage.distance_transform_edt(found) >= CLEAR * typical
+    floor = max(DEPTH * float(np.median(refined.contrast[ok])),
+                6.0 * noise / (2.0 * math.sqrt(math.pi) * SMOOTH * typical))
+    clear = np.zeros(image.shape, dtype=np.bool_)
+    paint_discs(clear, np.ascontiguousarray(refined.centres, dtype=float),
+                np.maximum(np.nan_to_num(refined.radius) + CLEAR[1] * typical, CLEAR[0] * typical))
+    clear = ~clear
     margin = int(math.ceil(typical))  # a dot the edge cuts is left to the segmentation
     clear[:margin], clear[-margin:], clear[:, :margin], clear[:, -margin:] = False, False, False, False
     peaks = spaced_maxima(np.where(clear, smooth, -np.inf), max(2, round(1.5 * typical)), floor)
-    peaks = peaks[: int(MOST * len(centres)) + 1]
-    return peaks[:, ::-1] + 0.5 if len(peaks) else np.zeros((0, 2))
-
+    peaks = peaks[: int(MOST * len(refined.radius)) + 1]
+    if not len(peaks):
+        return np.zeros((0, 2))
+    extra = peaks[:, ::-1] + 0.5
+    n, more = len(refined.radius), len(extra)
+    rows, cols = (np.clip(extra[:, i].astype(int), 0, image.shape[1 - i] - 1) for i in (1, 0))
+    blurs = np.broadcast_to(np.asarray(blur, dtype=float), (n,))
+    trial = refine_dots(image, np.vstack([refined.centres, extra]), np.concatenate([refined.radius, np.full(more, np.nan)]),
+                        np.concatenate([refined.contrast, np.zeros(more)]), typical, shape,
+                        np.concatenate([blurs, np.full(more, float(np.median(blurs)))]),
+                        np.concatenate([refined.background, level_map[rows, cols]]), passes=2, keep_profiles=False,
+                        active=np.arange(n + more) >= n)
+    return extra[trial.radius[n:] >= ROUND * typical]
