@@ -24,7 +24,9 @@ Five stages, each a maintained library's tool except the profile fits:
    `fit_profiles`) starts the fit with its neighbours taken out (`qdots.micrograph.refine`): every dot
    is modelled and refitted on the image plus its neighbours' model, and its centre moved to where its
    darkness balances. The background ``B`` (a smooth field), the blur and the shape ``p`` are settled
-   once per image on a sample of the film (`qdots.micrograph.settle`), or ``p`` is given. Each
+   once per image on a sample of the film (`qdots.micrograph.settle`), or ``p`` is given; faint dots the
+   threshold missed are found in the residual of the model of all dots, and the film settled again with
+   them (`qdots.micrograph.missed`). Each
    diameter's measurement error comes from measuring the film again with another draw of its own
    noise (`qdots.micrograph.refine.repeat_errors`).
 5. **Noise.** A dot must stand out of the noise (`signal_to_noise`), and an image's dots must have a
