@@ -188,12 +188,22 @@ def test_the_refusal_names_its_reason():
     refused(lambda: check_picture(flat, find_annotations(flat), "square.png"), "square.png", "flat colour")
 
 
+def test_a_touching_superlattice_without_vacancies_is_measured_to_two_percent():
+    """No background shows anywhere but between three touching dots: the faint dots the threshold misses
+    (`qdots.micrograph.missed`) and a background field that followed each dot's neighbours pulled the mean
+    diameter 6.3 % low on this film before."""
+    from benchmarks.micrograph_films import dense_case
+
+    row = dense_case("touching superlattice, no vacancies", 0.05, 512)
+    assert abs(row["d"]) <= 0.02, row
+    assert abs(row["measured"] - row["sigma"]) <= 0.015, row
+
+
 @pytest.mark.slow
 def test_dense_and_ordered_films_meet_the_goals_of_issue_52():
     from benchmarks.micrograph_films import FILMS, SPREADS, dense_table
 
-    names = [name for name in FILMS if "no vacancies" not in name]  # a perfect touching crystal hides its background
-    _, rows = dense_table(512, names, SPREADS)
+    _, rows = dense_table(512, list(FILMS), SPREADS)
     for row in rows:
         assert abs(row["measured"] - row["sigma"]) <= 0.015, row
         assert abs(row["d"]) <= 0.02, row

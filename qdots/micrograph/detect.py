@@ -27,7 +27,9 @@ Five stages, each a maintained library's tool except the profile fits:
    `fit_profiles`) starts the fit with its neighbours taken out (`qdots.micrograph.refine`): every dot
    is modelled and refitted on the image plus its neighbours' model, and its centre moved to where its
    darkness balances. The background ``B`` (a smooth field), the blur and the shape ``p`` are settled
-   once per image on a sample of the film (`qdots.micrograph.settle`), or ``p`` is given. Each
+   once per image on a sample of the film (`qdots.micrograph.settle`), or ``p`` is given; faint dots the
+   threshold missed are found in the residual of the model of all dots, and the film settled again with
+   them (`qdots.micrograph.missed`). Each
    diameter's measurement error comes from measuring the film again with another draw of its own
    noise (`qdots.micrograph.refine.repeat_errors`).
 5. **Noise.** A dot must stand out of the noise: its darkness over the noise of its mean (`signal_to_noise`, a
@@ -51,6 +53,7 @@ from labrig.validate import InputError, choice
 
 from .annotations import find_strips
 from .profiles import BIN, FIT_HIGH, FIT_LOW, FIT_STEP, PROFILES, fit_profiles, profile_table, radial_profiles
+from .missed import missed_dots
 from .refine import refine_dots, repeat_errors
 from .settle import FIRST_BLUR, settle_profile
 from .segment import (MIN_INSCRIBED, MIN_SIGNAL, POLARITIES, background_level, blob_seeds,
@@ -301,9 +304,22 @@ def _detect(image: np.ndarray, polarity: str, profile: str, ignore: np.ndarray) 
     typical = float(np.median(first[0][sure])) if sure.any() else radius
     shape, blur, level, level_map, how_shape = settle_profile(target, centres, first[0], first[2], first[1], typical,
                                                               whole, profile)
+    refined = refine_dots(target, centres, first[0], first[2], typical, shape, blur, level, move=True)
+    noise = pixel_noise(unit, ignore)
+    extra = missed_dots(target, refined, level_map, typical, shape, blur, noise)
+    if len(extra):  # dots the threshold missed: fitted, and the film settled again with them
+        more = len(extra)
+        centres = np.vstack([centres, extra])
+        touches = np.concatenate([touches, np.zeros(more, dtype=bool)])
+        whole = np.flatnonzero(~touches)
+        first = (np.concatenate([first[0], np.full(more, typical)]), np.concatenate([first[1], np.full(more, np.nan)]),
+                 np.concatenate([first[2], np.full(more, float(np.median(first[2][sure])) if sure.any() else 0.0)]))
+        shape, blur, level, level_map, how_shape = settle_profile(target, centres, first[0], first[2], first[1],
+                                                                  typical, whole, profile)
+        how_shape += f"; {more} faint dots the threshold missed found in the fit's residual"
+        refined = refine_dots(target, centres, first[0], first[2], typical, shape, blur, level, move=True)
     if np.ptp(blur) > 0.05:
         how_shape += f"; the blur {np.min(blur):.2f}-{np.max(blur):.2f} px across the film (uneven focus)"
-    refined = refine_dots(target, centres, first[0], first[2], typical, shape, blur, level, move=True)
     centres = np.where(touches[:, None], centres, refined.centres)  # a cut dot keeps the centre of its visible part
     fitted, background = refined.radius, refined.background
     contrast = refined.contrast / np.maximum(background, 1e-12)  # in units of the background, as Detection has it

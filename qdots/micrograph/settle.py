@@ -2,7 +2,7 @@
 
 On a dense film the background ``B`` cannot be left free dot by dot: raising every dot's background,
 contrast and radius together fits almost as well, and fits dot by dot drift along that direction. So
-``B`` is a field: the lone fits' backgrounds smoothed over several dots (`smooth_level`), times a factor
+``B`` is a field: a quadratic surface through the lone fits' backgrounds (`smooth_level`), times a factor
 ``k``. The factor, the blur and the profile shape are those that leave the least squared difference
 between the image and the model of all dots over a patch of the film, its gaps and holes included
 (`Sample`, `settle_profile`), where the true film has its minimum. Uneven focus and contrast: the blur and
@@ -18,10 +18,10 @@ import numpy as np
 from .profiles import PROFILES, central_curvature, predicted_curvature
 from .refine import PASSES, REACH, REACH_PAD, WIDE, profile_reach, refine_dots
 
-#: The background field: the lone fits' backgrounds averaged over LEVEL_WIDTH typical radii (`smooth_level`),
-#: times a factor searched in LEVEL_RANGE, first at LEVEL_SCAN (on a dense film the lone fits see the narrow
-#: gaps as background, far darker than it).
-LEVEL_WIDTH, LEVEL_RANGE = 6.0, (0.8, 2.5)
+#: The background field: a quadratic surface through the lone fits' backgrounds (`smooth_level`; their median
+#: when fewer than LEVEL_DOTS), times a factor searched in LEVEL_RANGE, first at LEVEL_SCAN (on a dense film
+#: the lone fits see the narrow gaps as background, far darker than it).
+LEVEL_DOTS, LEVEL_RANGE = 12, (0.8, 2.5)
 LEVEL_SCAN = (0.9, 1.0, 1.1, 1.25, 1.45, 1.7, 2.0)
 #: Shapes ``p`` tried by ``profile="auto"`` (0 a flat disc, 0.5 a projected sphere); another than the sphere is
 #: taken only when its predicted central curvature matches the measured one by CURVATURE_MARGIN more.
@@ -79,7 +79,8 @@ class Sample:
         ``start`` (a `Refined` state: then every pass starts near its radii)."""
         radii, contrast = (self.radii, self.contrast) if start is None else (start.radius, start.contrast)
         return refine_dots(self.image, self.where, radii, contrast, self.typical, shape, blur, k * self.part,
-                           passes=passes, reach=self.reach, wide=start is None, keep_profiles=keep_profiles)
+                           passes=passes, reach=self.reach, wide=start is None, keep_profiles=keep_profiles,
+                           move=True)
 
     def misfit(self, state, k) -> float:
         """Sum of squares of image minus (background minus model) over the patch's area."""
@@ -104,29 +105,32 @@ def total_residual(residual) -> float:
     return float(np.sum(residual[finite])) if finite.any() else math.inf
 
 
-def smooth_level(centres, background, typical: float, shape) -> tuple[np.ndarray, np.ndarray]:
-    """The dots' backgrounds averaged over their neighbourhood (a Gaussian of `LEVEL_WIDTH` typical radii, on a
-    grid of one typical radius): its value at each centre, and the map of it over an image of ``shape``."""
-    from scipy import ndimage
+def surface_terms(x, y, shape) -> np.ndarray:
+    """The terms of a quadratic surface over an image of ``shape`` at points (``x``, ``y``), px: 1, x, y, x^2,
+    y^2, xy, with x and y scaled to [-1/2, 1/2] over the image."""
+    u = np.asarray(x, dtype=float) / shape[1] - 0.5
+    v = np.asarray(y, dtype=float) / shape[0] - 0.5
+    return np.column_stack([np.ones_like(u), u, v, u * u, v * v, u * v])
 
-    cell = max(typical, 1.0)
-    grid = (int(shape[0] / cell) + 1, int(shape[1] / cell) + 1)
-    rows = np.clip((centres[:, 1] / cell).astype(int), 0, grid[0] - 1)
-    cols = np.clip((centres[:, 0] / cell).astype(int), 0, grid[1] - 1)
+
+def smooth_level(centres, background, shape) -> tuple[np.ndarray, np.ndarray]:
+    """The dots' backgrounds as a slowly varying illumination: the quadratic surface (`surface_terms`) fitted to
+    them by least squares (their median where fewer than `LEVEL_DOTS` are finite): its value at each centre, and
+    its map over an image of ``shape``. A lone fit's background follows its neighbours' darkness and contrast
+    (on a film without gaps, most of its profile is its neighbours' edges); averaged over a few dots it still
+    wanders by several percent, which the settling would pay for with the radii."""
+    centres = np.asarray(centres, dtype=float).reshape(-1, 2)
     ok = np.isfinite(background)
-    total, weight = np.zeros(grid), np.zeros(grid)
-    np.add.at(total, (rows[ok], cols[ok]), background[ok])
-    np.add.at(weight, (rows[ok], cols[ok]), 1.0)
-    total = ndimage.gaussian_filter(total, LEVEL_WIDTH, mode="nearest")
-    weight = ndimage.gaussian_filter(weight, LEVEL_WIDTH, mode="nearest")
-    fallback = float(np.median(background[ok])) if ok.any() else 1.0
-    with np.errstate(invalid="ignore", divide="ignore"):
-        level = np.where(weight > 1e-6, total / weight, fallback)
-    y = np.clip((np.arange(shape[0]) + 0.5) / cell - 0.5, 0, grid[0] - 1)
-    x = np.clip((np.arange(shape[1]) + 0.5) / cell - 0.5, 0, grid[1] - 1)
-    full = ndimage.map_coordinates(level, np.meshgrid(y, x, indexing="ij"), order=1, mode="nearest")
-    return full[np.clip(centres[:, 1].astype(int), 0, shape[0] - 1), np.clip(centres[:, 0].astype(int), 0,
-                                                                             shape[1] - 1)], full
+    if ok.any():  # a failed fit's background far off the others' is left out
+        q1, q3 = np.percentile(background[ok], [25, 75])
+        ok &= np.abs(background - 0.5 * (q1 + q3)) <= 0.5 * (q3 - q1) + 3.0 * (q3 - q1)
+    if ok.sum() < LEVEL_DOTS:
+        level = float(np.median(background[ok])) if ok.any() else 1.0
+        return np.full(len(centres), level), np.full(shape, level)
+    coef = np.linalg.lstsq(surface_terms(centres[ok, 0], centres[ok, 1], shape), background[ok], rcond=None)[0]
+    rows, cols = np.mgrid[0:shape[0], 0:shape[1]]
+    full = (surface_terms(cols.ravel() + 0.5, rows.ravel() + 0.5, shape) @ coef).reshape(shape)
+    return surface_terms(centres[:, 0], centres[:, 1], shape) @ coef, full
 
 
 def quadratic_minimum(points: np.ndarray, values: np.ndarray, low, high) -> tuple[np.ndarray, float]:
@@ -149,8 +153,8 @@ def settle_profile(image, centres, radii, contrast, background, typical: float, 
     film: those that leave the least squared difference between the image and the model of all dots
     (`refine_dots`, every dot fitted with the background fixed) over the sample's pixels.
 
-    The background is ``k`` times the lone fits' ``background`` smoothed (`smooth_level`). Each candidate shape
-    (`SHAPES` for ``profile="auto"``, else the one given) is fitted at 3 x 3 blurs and ``k`` `FOCUS_STEP` apart
+    The background is ``k`` times a quadratic surface through the lone fits' ``background`` (`smooth_level`).
+    Each candidate shape (`SHAPES` for ``profile="auto"``, else the one given) is fitted at 3 x 3 blurs and ``k`` `FOCUS_STEP` apart
     around `FIRST_BLUR` and the best ``k`` of `LEVEL_SCAN`, from a state fitted at the middle one, and again
     around the minimum of the quadratic surface through the nine residuals (`quadratic_minimum`) at half the
     steps. For ``profile="auto"`` the shape is then the one whose predicted central curvature
@@ -162,7 +166,7 @@ def settle_profile(image, centres, radii, contrast, background, typical: float, 
     level at each dot, the level map, how p was chosen).
     """
     centres = np.asarray(centres, dtype=float)
-    field, whole_map = smooth_level(centres, background, typical, image.shape)
+    field, whole_map = smooth_level(centres, background, image.shape)
     patch = Sample(image, centres, radii, contrast, field, whole_map, typical, whole)
     shapes = SHAPES if profile == "auto" else (PROFILES[profile],)
     step = np.array(FOCUS_STEP)

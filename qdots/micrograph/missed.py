@@ -1,0 +1,87 @@
+"""Dots the segmentation missed, found where the fitted model of all dots leaves a dot's worth of darkness.
+
+On a film without gaps the threshold has almost no background to learn from: faint dots (thin, or at the
+low end of a contrast spread) fall on the bright side of it, and their pixels belong to no region. The
+model of every other dot fitted (`qdots.micrograph.refine.refine_dots`) leaves each of them as a dark disc
+in the residual ``level - model - image``. Missing from the model, such a dot also pulls the background the
+film is settled on (`qdots.micrograph.settle`) down: lowering the level is the cheapest way for the least
+squares to pay for a dark disc it cannot explain. `missed_dots` finds these discs; the detector fits them
+and settles the film again.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy import ndimage
+
+from .refine import refine_dots
+from .segment import spaced_maxima
+
+#: The residual is averaged over a Gaussian of SMOOTH typical radii, less its average over one of BROAD ones.
+SMOOTH, BROAD = 0.4, 3.0
+#: A missed dot's smoothed residual reaches at least DEPTH times the film's median contrast, and its centre
+#: lies at least CLEAR[0] typical radii from every dot found and CLEAR[1] outside its fitted disc (a touching
+#: neighbour's centre is about two radii away; a dot that is not quite round, or found off its centre, leaves
+#: a crescent along its edge, nearer).
+DEPTH, CLEAR = 0.2, (1.5, 0.3)
+#: At most this share of the dots found is added (a film the model misfits everywhere is not mended here).
+MOST = 0.25
+#: A missed dot fits with a radius of at least ROUND typical radii.
+ROUND = 0.8
+
+
+def missed_dots(image, refined, level_map, typical: float, shape: float, blur, noise: float) -> np.ndarray:
+    """Centres (x, y), px, of the dark discs the model leaves unexplained (see the module docstring), each fitted
+    on the image with every dot's model added back and kept when it fits as a dot: a radius of at least `ROUND`
+    typical radii (a crescent or a neck between two particles that are not quite round fits as a small disc).
+
+    Parameters
+    ----------
+    image : ndarray (H, W)
+        The image the dots were fitted on (dots dark; NaN where left out).
+    refined : qdots.micrograph.refine.Refined
+        The dots found, fitted with their neighbours taken out.
+    level_map : ndarray (H, W)
+        The background.
+    typical : float
+        The film's typical radius, px.
+    shape : float
+        The profile shape ``p``.
+    blur : float or ndarray (N,)
+        The blur, px: one for the film or one for each dot found.
+    noise : float
+        The pixel noise's standard deviation, in the image's units.
+    """
+    from .detect import paint_discs  # (the detector imports this module)
+
+    ok = np.isfinite(refined.contrast) & (refined.contrast > 0)
+    if not ok.any() or typical <= 0:
+        return np.zeros((0, 2))
+    residual = np.nan_to_num(level_map - refined.model - image)
+    smooth = ndimage.gaussian_filter(residual, SMOOTH * typical) - ndimage.gaussian_filter(residual,
+                                                                                         BROAD * typical)
+    # the smoothed noise: white noise averaged over a Gaussian of width w keeps 1 / (2 sqrt(pi) w) of its deviation
+    floor = max(DEPTH * float(np.median(refined.contrast[ok])),
+                6.0 * noise / (2.0 * math.sqrt(math.pi) * SMOOTH * typical))
+    clear = np.zeros(image.shape, dtype=np.bool_)
+    paint_discs(clear, np.ascontiguousarray(refined.centres, dtype=float),
+                np.maximum(np.nan_to_num(refined.radius) + CLEAR[1] * typical, CLEAR[0] * typical))
+    clear = ~clear
+    margin = int(math.ceil(typical))  # a dot the edge cuts is left to the segmentation
+    clear[:margin], clear[-margin:], clear[:, :margin], clear[:, -margin:] = False, False, False, False
+    peaks = spaced_maxima(np.where(clear, smooth, -np.inf), max(2, round(1.5 * typical)), floor)
+    peaks = peaks[: int(MOST * len(refined.radius)) + 1]
+    if not len(peaks):
+        return np.zeros((0, 2))
+    extra = peaks[:, ::-1] + 0.5
+    n, more = len(refined.radius), len(extra)
+    rows, cols = (np.clip(extra[:, i].astype(int), 0, image.shape[1 - i] - 1) for i in (1, 0))
+    blurs = np.broadcast_to(np.asarray(blur, dtype=float), (n,))
+    trial = refine_dots(image, np.vstack([refined.centres, extra]), np.concatenate([refined.radius, np.full(more, np.nan)]),
+                        np.concatenate([refined.contrast, np.zeros(more)]), typical, shape,
+                        np.concatenate([blurs, np.full(more, float(np.median(blurs)))]),
+                        np.concatenate([refined.background, level_map[rows, cols]]), passes=2, keep_profiles=False,
+                        active=np.arange(n + more) >= n)
+    return extra[trial.radius[n:] >= ROUND * typical]
