@@ -305,7 +305,6 @@ def _detect(image: np.ndarray, polarity: str, profile: str, ignore: np.ndarray) 
     shape, blur, level, level_map, how_shape = settle_profile(target, centres, first[0], first[2], first[1], typical,
                                                               whole, profile)
     refined = refine_dots(target, centres, first[0], first[2], typical, shape, blur, level, move=True)
-    noise = pixel_noise(unit, ignore)
     extra = missed_dots(target, refined, level_map, typical, shape, blur, noise)
     if len(extra):  # dots the threshold missed: fitted, and the film settled again with them
         more = len(extra)
@@ -330,7 +329,8 @@ def _detect(image: np.ndarray, polarity: str, profile: str, ignore: np.ndarray) 
     if not good.any():
         best = float(np.max(score)) if score.size else 0.0
         return _empty(image.shape, f"{how}; no dot stands out of the noise: the clearest scores {best:.1f} noise "
-                                   f"deviations of its mean, under the {MIN_SIGNAL:g} a dot needs: noise alone", len(start))
+                                   f"deviations of its mean, under the {MIN_SIGNAL:g} a dot needs: noise alone",
+                      len(start))
     rejected += int(np.count_nonzero(~good))
     errors = 2.0 * repeat_errors(target, centres, refined, typical, shape, blur, level, level_map)
     centres, fitted, contrast, touches, errors = (part[good] for part in (centres, fitted, contrast, touches, errors))
