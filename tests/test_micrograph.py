@@ -60,7 +60,7 @@ def test_dense_films_of_small_dots_get_their_polarity_from_the_dots_not_the_vaca
     # 7.5 px dots touching, 30 % of the sites empty: the dot phase is one network touching the edge and the vacancies
     # are the only objects away from it, which made dark dots light (and light ones dark), recall 0.00 either way. The
     # Laplacian of Gaussian at the blobs' scale is skewed toward the dots, its sign flipping with the image's; measured
-    # recall 0.91 (dark) and 0.93 (light), precision 0.96
+    # recall 0.97 (dark and light), precision 1.00
     centres, diameters = dense_board(160, 160, 7.5, 0.05, seed=2, vacancies=0.3)
     image = render_micrograph(centres, diameters, (160, 160), noise=0.05, blur=0.8, contrast=0.55, dark=dark, seed=1)
     detection = detect_dots(image)
@@ -71,8 +71,8 @@ def test_dense_films_of_small_dots_get_their_polarity_from_the_dots_not_the_vaca
 
 def test_a_noisy_film_saved_as_8_bit_is_measured_and_clipped_noise_alone_is_not():
     # 16 px dots at noise 0.3 of the background, clipped to [0, 1] and rounded to 8 bits (half the background pixels
-    # flattened at white): each dot scores 11-18 noise deviations of its mean (noise alone: about 1, at most 6.4 of
-    # 63,706 candidates), but the old median-contrast gate (2.5 pixel-noise deviations) read 2.4 and found no dots
+    # flattened at white): each dot scores 11-18 noise deviations of its mean (noise alone: about 1, at most 5.0 of
+    # 63,696 candidates), but the old median-contrast gate (2.5 pixel-noise deviations) read 2.4 and found no dots
     def eight_bit(image):
         return np.round(np.clip(image, 0.0, 1.0) * 255.0)
 

@@ -71,9 +71,9 @@ MIN_DIAMETER = 4.0
 BLOB_RADIUS = 5.0
 #: Where the dot phase's objects are more than MERGED times as wide (typical inscribed radius) as the dark blobs of the
 #: image's Laplacian of Gaussian at its blobs' scale (`blob_skewness`), they are touching small dots merged into one
-#: network (the threshold split the film from its vacancies), and the blobs give the radius. Measured ratios: merged
-#: films of 6-7.5 px dots at 10-30 % vacancies 2.1-2.5; every other film of 6-24 px dots (sparse, touching, and
-#: superlattices) 0.9-1.3.
+#: network (the threshold split the film from its vacancies), and the blobs give the radius. Measured ratios (noise
+#: 0.05): merged films of 6-7.5 px dots at 10-30 % vacancies 2.1-2.5; every other film of 6-24 px dots (sparse,
+#: touching, superlattices with 1-2 px gaps) 1.0-1.4.
 MERGED = 1.5
 
 

@@ -19,10 +19,10 @@ from .profiles import BIN
 #: Polarity choices: dots darker than the background (bright-field TEM), lighter, or decided from the image.
 POLARITIES = ("auto", "dark", "light")
 #: A dot must stand this clearly out of the noise (`signal_to_noise`: its darkness over the noise of its mean, which
-#: falls as the square root of its pixels). Noise alone, measured over 63,706 candidate dots that the detection finds
-#: in 24 images of white, clipped 8-bit and Poisson noise (64-400 px): median 1.2, 99th percentile 3.4, 99.9th 4.2,
-#: largest 6.4; the tail falls tenfold per 0.85, so about one noise candidate in 3e7 scores 8. Films of 10-24 px dots
-#: at noise 0.3 of the background score 8-23 (median), clipped 8-bit or not.
+#: falls as the square root of its pixels). Noise alone, measured over 63,696 candidate dots that the detection finds
+#: in 24 images of white, clipped 8-bit and Poisson noise (64-400 px): median 1.3, 99th percentile 3.4, 99.9th 4.1,
+#: largest 5.0; the tail falls tenfold per about 0.8, so about one noise candidate in 1e8 scores 8. Films of 10-24 px
+#: dots at noise 0.3 of the background score 8-23 (median), clipped 8-bit or not.
 MIN_SIGNAL = 8.0
 #: Image-wide statistics (percentiles, noise) use every SUBSAMPLE-th pixel.
 SUBSAMPLE = 3
