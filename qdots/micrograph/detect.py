@@ -55,7 +55,7 @@ from .annotations import find_strips
 from .profiles import BIN, FIT_HIGH, FIT_LOW, FIT_STEP, PROFILES, fit_profiles, profile_table, radial_profiles
 from .missed import missed_dots
 from .refine import refine_dots, repeat_errors
-from .settle import FIRST_BLUR, settle_profile
+from .settle import FIRST_BLUR, samples_hold, settle_profile
 from .segment import (MIN_INSCRIBED, MIN_SIGNAL, POLARITIES, background_level, blob_seeds,
                       blob_skewness,
                       decide_polarity, fill_small_holes, label_maxima, pixel_noise, region_properties, scaled,
@@ -306,15 +306,21 @@ def _detect(image: np.ndarray, polarity: str, profile: str, ignore: np.ndarray) 
                                                               whole, profile)
     refined = refine_dots(target, centres, first[0], first[2], typical, shape, blur, level, move=True)
     extra = missed_dots(target, refined, level_map, typical, shape, blur, noise)
-    if len(extra):  # dots the threshold missed: fitted, and the film settled again with them
-        more = len(extra)
+    if len(extra):  # dots the threshold missed: fitted, and the film settled again with them if they are in its samples
+        more, n = len(extra), len(centres)
         centres = np.vstack([centres, extra])
         touches = np.concatenate([touches, np.zeros(more, dtype=bool)])
         whole = np.flatnonzero(~touches)
         first = (np.concatenate([first[0], np.full(more, typical)]), np.concatenate([first[1], np.full(more, np.nan)]),
                  np.concatenate([first[2], np.full(more, float(np.median(first[2][sure])) if sure.any() else 0.0)]))
-        shape, blur, level, level_map, how_shape = settle_profile(target, centres, first[0], first[2], first[1],
-                                                                  typical, whole, profile)
+        if samples_hold(target.shape, centres, whole, typical, np.arange(n, n + more)):
+            shape, blur, level, level_map, how_shape = settle_profile(target, centres, first[0], first[2], first[1],
+                                                                      typical, whole, profile)
+        else:  # the settling is the same without them: the new dots take the level and blur where they lie
+            nearest = np.argmin(np.hypot(*(extra[:, None, :] - centres[None, :n, :]).T), axis=0)
+            at = np.clip(extra.astype(int), 0, [target.shape[1] - 1, target.shape[0] - 1])
+            level = np.concatenate([level, level_map[at[:, 1], at[:, 0]]])
+            blur = blur if np.ndim(blur) == 0 else np.concatenate([blur, np.asarray(blur)[nearest]])
         how_shape += f"; {more} faint dots the threshold missed found in the fit's residual"
         refined = refine_dots(target, centres, first[0], first[2], typical, shape, blur, level, move=True)
     if np.ptp(blur) > 0.05:

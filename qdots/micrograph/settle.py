@@ -74,20 +74,24 @@ class Sample:
         rows, cols = np.ogrid[:self.image.shape[0], :self.image.shape[1]]
         self.area = (cols + 0.5 - middle[0]) ** 2 + (rows + 0.5 - middle[1]) ** 2 <= extent**2
 
-    def fit(self, shape, blur, k, start=None, passes: int = PASSES, keep_profiles: bool = False):
+    def fit(self, shape, blur, k, start=None, passes: int = PASSES, keep_profiles: bool = False, move: bool = True):
         """`refine_dots` of the patch's dots at (shape, blur, ``k`` times the field), from their first fits or
-        ``start`` (a `Refined` state: then every pass starts near its radii)."""
-        radii, contrast = (self.radii, self.contrast) if start is None else (start.radius, start.contrast)
-        return refine_dots(self.image, self.where, radii, contrast, self.typical, shape, blur, k * self.part,
-                           passes=passes, reach=self.reach, wide=start is None, keep_profiles=keep_profiles,
-                           move=True)
+        ``start`` (a `Refined` state: then every pass starts near its radii, and from its centres unless ``move``,
+        which moves them from the first ones)."""
+        if start is None:
+            return refine_dots(self.image, self.where, self.radii, self.contrast, self.typical, shape, blur,
+                               k * self.part, passes=passes, reach=self.reach, wide=True, keep_profiles=keep_profiles,
+                               move=move)
+        return refine_dots(self.image, self.where if move else start.centres, start.radius, start.contrast,
+                           self.typical, shape, blur, k * self.part, passes=passes, reach=self.reach, wide=False,
+                           keep_profiles=keep_profiles, move=move)
 
     def misfit(self, state, k) -> float:
         """Sum of squares of image minus (background minus model) over the patch's area."""
         area = self.area
         return float(np.nansum((self.image[area] - k * self.field_map[area] + state.model[area]) ** 2))
 
-    def pattern(self, shape, centre, step) -> tuple[np.ndarray, float]:
+    def pattern(self, shape, centre, step, move: bool = True) -> tuple[np.ndarray, float]:
         """The 3 x 3 blurs and ``k`` ``step`` apart around ``centre``, each fitted from a state fitted at ``centre``:
         the minimum of the quadratic surface through their residuals (`quadratic_minimum`, within two steps of
         ``centre``), and the least residual."""
@@ -95,7 +99,7 @@ class Sample:
         high = np.minimum([BLURS[1], LEVEL_RANGE[1]], centre + 2.0 * step)
         anchor = self.fit(shape, centre[0], centre[1])
         points = np.clip(centre + step * np.array([(i, j) for i in (-1, 0, 1) for j in (-1, 0, 1)]), low, high)
-        values = np.array([self.misfit(self.fit(shape, b, k, anchor, SAMPLE_PASSES), k) for b, k in points])
+        values = np.array([self.misfit(self.fit(shape, b, k, anchor, SAMPLE_PASSES, move=move), k) for b, k in points])
         return quadratic_minimum(points, values, low, high)[0], float(values.min())
 
 
@@ -198,6 +202,25 @@ def settle_profile(image, centres, radii, contrast, background, typical: float, 
     return float(shape), blurs, levels, level_map, how
 
 
+def tile_points(shape, centres, whole) -> list[tuple[float, float]]:
+    """The middles (x, y), px, of the `TILES` x `TILES` tiles `settle_tiles` settles on an image of ``shape``, or
+    none when the film holds fewer than `TILE_DOTS` whole dots a tile."""
+    h, w = shape
+    n_whole = len(whole) if len(whole) else len(centres)
+    if n_whole < TILES * TILES * TILE_DOTS:
+        return []
+    return [((j + 0.5) * w / TILES, (i + 0.5) * h / TILES) for i in range(TILES) for j in range(TILES)]
+
+
+def samples_hold(shape, centres, whole, typical: float, dots) -> bool:
+    """Whether any of the dots ``dots`` (indices into ``centres``) is among the dots of a patch the film is settled
+    on (the middle sample and the tiles' of `settle_profile`): only then can adding them change the settling."""
+    for point in [None, *tile_points(shape, centres, whole)]:
+        if np.isin(dots, choice_sample(centres, whole, typical, point)[1]).any():
+            return True
+    return False
+
+
 def settle_tiles(image, centres, radii, contrast, field, field_map, typical: float, whole, shape: float, settled
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Uneven focus and contrast: the blur and ``k`` settled again (one pattern at a quarter of `FOCUS_STEP`,
@@ -206,17 +229,15 @@ def settle_tiles(image, centres, radii, contrast, field, field_map, typical: flo
     ``k``, lay them over the film (a focus or thickness that changes slowly, without each tile's own scatter).
     Returns the blur and the level at each dot, and the level map."""
     h, w = image.shape
-    n_whole = len(whole) if len(whole) else len(centres)
-    if n_whole < TILES * TILES * TILE_DOTS:
+    points = tile_points(image.shape, centres, whole)
+    if not points:
         blur, k = settled
         return np.full(len(centres), blur), k * field, k * field_map
     middles, values = [], []
-    for i in range(TILES):
-        for j in range(TILES):
-            point = ((j + 0.5) * w / TILES, (i + 0.5) * h / TILES)
-            patch = Sample(image, centres, radii, contrast, field, field_map, typical, whole, point)
-            middles.append(np.median(patch.where[patch.inner] + patch.offset, axis=0))
-            values.append(patch.pattern(shape, settled, 0.25 * np.array(FOCUS_STEP))[0])
+    for point in points:
+        patch = Sample(image, centres, radii, contrast, field, field_map, typical, whole, point)
+        middles.append(np.median(patch.where[patch.inner] + patch.offset, axis=0))
+        values.append(patch.pattern(shape, settled, 0.25 * np.array(FOCUS_STEP), move=False)[0])
     middles, values = np.array(middles), np.array(values)
     design = np.column_stack([np.ones(len(middles)), middles / [w, h]])
     planes = np.linalg.lstsq(design, values, rcond=None)[0]  # blur and k, each a plane over the film
