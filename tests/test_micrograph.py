@@ -362,3 +362,20 @@ def test_coverage_is_the_union_of_the_discs_on_the_pixel_grid():
     twice = replace(base, centres=np.array([[50.0, 50.0], [50.0, 50.0], [0.0, 0.0]]),
                     diameters=np.array([20.0, 20.0, 20.0]))  # a repeat adds nothing; a corner disc a quarter
     assert twice.coverage() == pytest.approx(1.25 * np.pi * 100 / 10_000, rel=0.02)
+
+
+def test_huge_spacings_and_radii_allocate_nothing_past_the_image():
+    """Regression (a calibration film in the slow suite): a typical radius far past the image asked
+    `spaced_maxima` for a footprint of billions of pixels (MemoryError). The spacing is now bounded by the image,
+    and `missed_dots` does not search when the dots are that big."""
+    from types import SimpleNamespace
+
+    from qdots.micrograph.missed import missed_dots
+    from qdots.micrograph.segment import spaced_maxima
+
+    values = np.zeros((40, 50))
+    values[10, 20] = 1.0
+    assert spaced_maxima(values, 10**9, 0.5).tolist() == [[10, 20]]
+    refined = SimpleNamespace(contrast=np.array([0.5]), radius=np.array([1e6]), centres=np.array([[20.0, 20.0]]),
+                              model=np.zeros((40, 50)))
+    assert missed_dots(np.ones((40, 50)), refined, np.ones((40, 50)), 1e6, 0.5, 1.0, 0.01).shape == (0, 2)

@@ -28,8 +28,9 @@ SMOOTH, BROAD = 0.4, 3.0
 DEPTH, CLEAR = 0.2, (1.5, 0.3)
 #: At most this share of the dots found is added (a film the model misfits everywhere is not mended here).
 MOST = 0.25
-#: A missed dot fits with a radius of at least ROUND typical radii.
-ROUND = 0.8
+#: A missed dot fits with a radius of at least ROUND typical radii; none is sought when the typical radius is over
+#: LARGEST of the image's shorter side (a handful of dots at most, and the search's footprint would be the image).
+ROUND, LARGEST = 0.8, 0.125
 
 
 def missed_dots(image, refined, level_map, typical: float, shape: float, blur, noise: float) -> np.ndarray:
@@ -57,7 +58,7 @@ def missed_dots(image, refined, level_map, typical: float, shape: float, blur, n
     from .detect import paint_discs  # (the detector imports this module)
 
     ok = np.isfinite(refined.contrast) & (refined.contrast > 0)
-    if not ok.any() or typical <= 0:
+    if not ok.any() or not 0 < typical <= LARGEST * min(image.shape):  # dots that big leave no room to search
         return np.zeros((0, 2))
     residual = np.nan_to_num(level_map - refined.model - image)
     smooth = ndimage.gaussian_filter(residual, SMOOTH * typical) - ndimage.gaussian_filter(residual,

@@ -218,7 +218,9 @@ def label_maxima(labels, values, n):
 
 def spaced_maxima(values: np.ndarray, spacing: int, floor: float) -> np.ndarray:
     """Local maxima of ``values`` above ``floor``, at least ``spacing`` px apart: (row, col) of each, highest
-    kept first (as `skimage.feature.peak_local_max` with ``min_distance``; a plateau gives one point)."""
+    kept first (as `skimage.feature.peak_local_max` with ``min_distance``; a plateau gives one point). A spacing over
+    the image's longer side is taken as that side (the footprint is bounded by the image, not by the caller)."""
+    spacing = int(min(spacing, max(values.shape)))
     y, x = np.ogrid[-spacing:spacing + 1, -spacing:spacing + 1]
     top = (values > floor) & (values == ndimage.maximum_filter(values, footprint=x * x + y * y <= spacing * spacing))
     rows, cols = np.nonzero(top)
