@@ -98,14 +98,11 @@ class IntervalCalibration:
         Per parameter, the spread applied to the posterior's draws about their median.
     films : int
         Calibration films the factors come from.
-    raw_coverage : ndarray (k,)
-        Share of the calibration films whose uncalibrated interval held the truth.
     """
 
     level: float
     factors: np.ndarray
     films: int
-    raw_coverage: np.ndarray
 
     def apply(self, samples: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.ndarray:
         """The draws `spread_draws` makes of ``samples`` in the box [low, high]."""
@@ -117,8 +114,8 @@ def fit_calibration(truth: np.ndarray, draws: list[np.ndarray], level: float) ->
     truth = np.asarray(truth, dtype=float)
     if not draws:
         k = truth.shape[-1] if truth.ndim == 2 else 0
-        return IntervalCalibration(level, np.full(k, np.inf), 0, np.full(k, np.nan))
+        return IntervalCalibration(level, np.full(k, np.inf), 0)
     truth = truth.reshape(len(draws), -1)
     bounds = np.array([central_quantiles(d, level) for d in draws])  # (films, 3, k)
     scores = conformal_scores(truth, bounds[:, 0], bounds[:, 1], bounds[:, 2])
-    return IntervalCalibration(level, conformal_factor(scores, level), len(draws), np.mean(scores <= 1.0, axis=0))
+    return IntervalCalibration(level, conformal_factor(scores, level), len(draws))

@@ -56,8 +56,7 @@ from .profiles import BIN, FIT_HIGH, FIT_LOW, FIT_STEP, PROFILES, fit_profiles, 
 from .missed import missed_dots
 from .refine import refine_dots, repeat_errors
 from .settle import FIRST_BLUR, samples_hold, settle_profile
-from .segment import (MIN_INSCRIBED, MIN_SIGNAL, POLARITIES, background_level, blob_seeds,
-                      blob_skewness,
+from .segment import (MIN_INSCRIBED, MIN_SIGNAL, POLARITIES, background_level, blob_seeds, blob_skewness,
                       decide_polarity, fill_small_holes, label_maxima, pixel_noise, region_properties, scaled,
                       signal_to_noise, spaced_maxima, split_fused, typical_radius)
 
