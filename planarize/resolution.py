@@ -123,6 +123,8 @@ def converge(metal: Surface, thickness: float, model: Model, settings: Continuum
         else:
             continue
         ratio = coarse[0].inner.dx / fine[0].inner.dx
+        if ratio <= 1.0:  # a grid of 2 points a side has no coarser companion: estimate from the next level
+            continue
         fine[1].update(error_columns(fine[1], coarse[1], ratio))
         best = fine
         error, balance = relative_error(fine[1]), volume_error(fine[1])

@@ -248,6 +248,18 @@ def test_rtol_chooses_the_resolution():
                                np.abs(fixed.history["metal_rms_nm"] - coarse.history["metal_rms_nm"]) / factor)
 
 
+
+def test_a_grid_with_no_coarser_companion_estimates_its_error_from_the_next_refinement():
+    # Found by the height-map fuzz test: on 2 x 2 points the half-resolution grid is the grid itself,
+    # and the estimate divided 0 by 0. It now comes from the 2x grid against the surface's own.
+    spike = Surface(np.array([[4.0, 0.0], [0.0, 0.0]]), spacing=1.0)
+    with np.errstate(all="raise"):
+        run = anodize(spike, 0.5, engine=Continuum())
+    assert run.parameters["refine"] >= 2 and "estimated_error" not in run.parameters["levels"][1]
+    assert np.isfinite(run.parameters["estimated_error"]) and np.isfinite(run.oxide.z).all()
+    pinned = anodize(spike, 0.5, engine=Continuum(refine=1))  # no finer level allowed: no estimate, said so
+    assert np.isnan(pinned.parameters["estimated_error"]) and not pinned.parameters["rtol_met"]
+
 # -- the conformal rule -----------------------------------------------------------------------
 
 def test_the_conformal_rule_equals_the_thesis_rule_on_a_flat_film_and_planarizes_less():

@@ -6,8 +6,8 @@ Five stages, each a maintained library's tool except the profile fits:
    1 px), and split by Otsu's threshold (scikit-image). The illumination is then flattened: the
    background level is estimated away from the dots (at half resolution) by a normalised Gaussian
    convolution four typical radii wide, the image divided by it and thresholded again. Dark or light
-   dots: given, or the sign of the skewness of the image's Laplacian of Gaussian at its blobs' scale
-   (`blob_skewness`): dots, round and alike, respond more strongly than the gaps and vacancies between them.
+   dots: given, or the way the image's strongest edges bend (`edge_curvature`): around the dots, in dense films
+   around the vacancies and gaps too, whose edges are the dots' arcs.
 2. **Split touching dots.** One seed per dot starts a watershed that cuts each aggregate between its dots. Dots
    of a typical inscribed radius of `BLOB_RADIUS` px or more are seeded at the maxima of the distance transform of
    the dot pixels (scipy.ndimage), smoothed by 1 px, at least 0.6 typical radii apart (`spaced_maxima`), and the
@@ -57,8 +57,8 @@ from .missed import missed_dots
 from .refine import refine_dots, repeat_errors
 from .settle import FIRST_BLUR, samples_hold, settle_profile
 from .segment import (MIN_INSCRIBED, MIN_SIGNAL, POLARITIES, background_level, blob_seeds, blob_skewness,
-                      decide_polarity, fill_small_holes, label_maxima, pixel_noise, region_properties, scaled,
-                      signal_to_noise, spaced_maxima, split_fused, typical_radius)
+                      decide_polarity, edge_curvature, fill_small_holes, label_maxima, pixel_noise,
+                      region_properties, scaled, signal_to_noise, spaced_maxima, split_fused, typical_radius)
 
 
 #: Smallest typical dot diameter, px, that can be measured.
@@ -234,7 +234,7 @@ def _detect(image: np.ndarray, polarity: str, profile: str, ignore: np.ndarray) 
     threshold = threshold_otsu(first[~ignore[half]])
     noise = pixel_noise(unit, ignore)
     skew, sigma = blob_skewness(unit, ignore, noise)
-    dark, how = decide_polarity(skew, sigma, polarity)
+    dark, how = decide_polarity(*edge_curvature(unit, ignore, noise, sigma), skew, sigma, polarity)
     # the dots are measured on the unclipped image (clipping would flatten the darkest cores and the noise), the
     # pixels to ignore left out (NaN)
     target = ndimage.gaussian_filter(scaled(image, ignore, clip=False), 1.0)
