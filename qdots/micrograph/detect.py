@@ -57,8 +57,9 @@ from .missed import missed_dots
 from .refine import refine_dots, repeat_errors
 from .settle import FIRST_BLUR, samples_hold, settle_profile
 from .segment import (MIN_INSCRIBED, MIN_SIGNAL, POLARITIES, background_level, blob_seeds, blob_skewness,
-                      decide_polarity, edge_curvature, fill_small_holes, label_maxima, pixel_noise,
-                      region_properties, scaled, signal_to_noise, spaced_maxima, split_fused, typical_radius)
+                      decide_polarity, edge_curvature, fill_small_holes, label_maxima, middle_window,
+                      pixel_noise, region_properties, scaled, signal_to_noise, spaced_maxima, split_fused,
+                      typical_radius)
 
 
 #: Smallest typical dot diameter, px, that can be measured.
@@ -233,8 +234,9 @@ def _detect(image: np.ndarray, polarity: str, profile: str, ignore: np.ndarray) 
     first += float(np.mean(smooth[half]))
     threshold = threshold_otsu(first[~ignore[half]])
     noise = pixel_noise(unit, ignore)
-    skew, sigma = blob_skewness(unit, ignore, noise)
-    dark, how = decide_polarity(*edge_curvature(unit, ignore, noise, sigma), skew, sigma, polarity)
+    look = middle_window(unit.shape) if not ignore[middle_window(unit.shape)].all() else (slice(None),) * 2
+    skew, sigma = blob_skewness(unit[look], ignore[look], noise)
+    dark, how = decide_polarity(*edge_curvature(unit[look], ignore[look], noise, sigma), skew, sigma, polarity)
     # the dots are measured on the unclipped image (clipping would flatten the darkest cores and the noise), the
     # pixels to ignore left out (NaN)
     target = ndimage.gaussian_filter(scaled(image, ignore, clip=False), 1.0)

@@ -27,6 +27,9 @@ MIN_SIGNAL = 8.0
 #: `edge_curvature` counts edges whose gradient is at least EDGE_NOISE times the noise's (its standard deviation)
 #: and decides the polarity only from at least MIN_EDGES of them.
 EDGE_NOISE, MIN_EDGES = 3.0, 50
+#: The polarity (`edge_curvature`, `blob_skewness`) is read on the middle LOOK_SIDE x LOOK_SIDE px of a larger
+#: picture: a million pixels hold thousands of dots' edges, and the filters cost in proportion to the pixels.
+LOOK_SIDE = 1024
 #: Image-wide statistics (percentiles, noise) use every SUBSAMPLE-th pixel.
 SUBSAMPLE = 3
 #: An object is a dot when its inscribed radius is at least this share of the typical radius.
@@ -191,6 +194,11 @@ def blob_skewness(image: np.ndarray, ignore: np.ndarray, noise: float) -> tuple[
         sigma *= 1.25
     excess, variance, third = best
     return (third / variance**1.5 if excess > 0 else 0.0), chosen
+
+
+def middle_window(shape, side: int = LOOK_SIDE) -> tuple[slice, slice]:
+    """The middle ``side`` x ``side`` px of an image of ``shape`` (all of a side shorter than ``side``)."""
+    return tuple(slice(max(0, (n - side) // 2), max(0, (n - side) // 2) + min(n, side)) for n in shape)
 
 
 def edge_curvature(image: np.ndarray, ignore: np.ndarray, noise: float, scale: float) -> tuple[float, int]:

@@ -132,8 +132,9 @@ def smooth_level(centres, background, shape) -> tuple[np.ndarray, np.ndarray]:
         level = float(np.median(background[ok])) if ok.any() else 1.0
         return np.full(len(centres), level), np.full(shape, level)
     coef = np.linalg.lstsq(surface_terms(centres[ok, 0], centres[ok, 1], shape), background[ok], rcond=None)[0]
-    rows, cols = np.mgrid[0:shape[0], 0:shape[1]]
-    full = (surface_terms(cols.ravel() + 0.5, rows.ravel() + 0.5, shape) @ coef).reshape(shape)
+    u = ((np.arange(shape[1]) + 0.5) / shape[1] - 0.5)[None, :]  # the surface over every pixel, by broadcasting
+    v = ((np.arange(shape[0]) + 0.5) / shape[0] - 0.5)[:, None]
+    full = coef[0] + coef[1] * u + coef[2] * v + coef[3] * u * u + coef[4] * v * v + coef[5] * u * v
     return surface_terms(centres[:, 0], centres[:, 1], shape) @ coef, full
 
 
@@ -246,8 +247,8 @@ def settle_tiles(image, centres, radii, contrast, field, field_map, typical: flo
         return np.column_stack([np.ones(np.size(x)), np.ravel(x) / w, np.ravel(y) / h]) @ planes
 
     at_dots = lay(centres[:, 0], centres[:, 1])
-    rows, cols = np.mgrid[0:h, 0:w]
-    k_map = lay(cols + 0.5, rows + 0.5)[:, 1].reshape(h, w)
+    k_map = (planes[0, 1] + planes[1, 1] * ((np.arange(w) + 0.5) / w)[None, :]
+             + planes[2, 1] * ((np.arange(h) + 0.5) / h)[:, None])
     blurs = np.clip(at_dots[:, 0], *BLURS)
     return blurs, at_dots[:, 1] * field, k_map * field_map
 
