@@ -392,3 +392,34 @@ def test_huge_spacings_and_radii_allocate_nothing_past_the_image():
     refined = SimpleNamespace(contrast=np.array([0.5]), radius=np.array([1e6]), centres=np.array([[20.0, 20.0]]),
                               model=np.zeros((40, 50)))
     assert missed_dots(np.ones((40, 50)), refined, np.ones((40, 50)), 1e6, 0.5, 1.0, 0.01).shape == (0, 2)
+
+
+@pytest.mark.parametrize("shape", [(50, 70), (13, 17), (300, 5), (1, 9)])
+def test_disc_maximum_is_the_footprint_maximum_filter(shape):
+    from scipy import ndimage
+
+    from qdots.micrograph.segment import disc_maximum
+
+    rng = np.random.default_rng(sum(shape))
+    for radius in (1, 2, 3, 5, 11, 22, 40):
+        if radius >= min(shape):
+            continue
+        values = rng.normal(size=shape)
+        values[rng.random(shape) < 0.1] = -np.inf
+        y, x = np.ogrid[-radius:radius + 1, -radius:radius + 1]
+        oracle = ndimage.maximum_filter(values, footprint=x * x + y * y <= radius * radius)
+        np.testing.assert_array_equal(disc_maximum(values, radius), oracle)
+
+
+def test_spaced_maxima_of_big_objects_need_no_footprint_memory():
+    """Regression: a noisy drawing enlarged 5x (1200 x 1600 px, objects ~100 px across) made `missed_dots` ask
+    for maxima 150 px apart, and scipy's footprint filter for gigabytes (MemoryError; a radius of 120 px over that
+    image takes 116 s and 20 GB). `disc_maximum` needs memory for the pixels alone."""
+    from qdots.micrograph.segment import spaced_maxima
+
+    values = np.random.default_rng(3).normal(size=(600, 800))
+    values[300, 400] = 10.0
+    peaks = spaced_maxima(values, 150, 0.0)
+    assert [300, 400] in peaks.tolist()
+    gaps = np.hypot(*(peaks[:, None, :] - peaks[None, :, :]).T)
+    assert gaps[np.triu_indices(len(peaks), 1)].min() > 150

@@ -262,13 +262,27 @@ def label_maxima(labels, values, n):
     return best, where
 
 
+def disc_maximum(values: np.ndarray, radius: int) -> np.ndarray:
+    """The largest of ``values`` within ``radius`` px (a disc, ``dx^2 + dy^2 <= radius^2``) of each pixel, pixels
+    past the edge left out: the disc's rows, each a running maximum along x (van Herk's, linear in the pixels), in
+    time proportional to ``radius`` times the pixels and memory to the pixels. The same as
+    ``scipy.ndimage.maximum_filter`` with that footprint for a radius under the image's shorter side (its
+    "reflect" edges then add no value the disc does not hold), whose time grows with the footprint's area and
+    memory with its square (a radius of 120 px over 1200 x 1600 px: 116 s and 20 GB)."""
+    out = ndimage.maximum_filter1d(values, 2 * radius + 1, axis=1)
+    for dy in range(1, min(radius, values.shape[0] - 1) + 1):
+        row = ndimage.maximum_filter1d(values, 2 * math.isqrt(radius * radius - dy * dy) + 1, axis=1)
+        np.maximum(out[:-dy], row[dy:], out=out[:-dy])
+        np.maximum(out[dy:], row[:-dy], out=out[dy:])
+    return out
+
+
 def spaced_maxima(values: np.ndarray, spacing: int, floor: float) -> np.ndarray:
     """Local maxima of ``values`` above ``floor``, at least ``spacing`` px apart: (row, col) of each, highest
     kept first (as `skimage.feature.peak_local_max` with ``min_distance``; a plateau gives one point). A spacing over
     the image's longer side is taken as that side (the footprint is bounded by the image, not by the caller)."""
     spacing = int(min(spacing, max(values.shape)))
-    y, x = np.ogrid[-spacing:spacing + 1, -spacing:spacing + 1]
-    top = (values > floor) & (values == ndimage.maximum_filter(values, footprint=x * x + y * y <= spacing * spacing))
+    top = (values > floor) & (values == disc_maximum(values, spacing))
     rows, cols = np.nonzero(top)
     if rows.size == 0:
         return np.zeros((0, 2), dtype=np.intp)
