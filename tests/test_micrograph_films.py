@@ -180,6 +180,32 @@ def test_pictures_that_are_not_films_are_refused_in_one_line(kind, tmp_path, cap
     assert not out.exists()
 
 
+def test_enlarged_scanned_text_is_refused_as_lines_of_text(tmp_path, capsys):
+    """Regression: text drawn at 3x with noise passed every other look (its letters fitted as 6 px discs, alike
+    within 20-30 %, measured the same twice within 1.6 %). Its objects lie in lines: a third of the bands between
+    its rows are empty, none of its columns' (films: at most 4 %)."""
+    from scipy import ndimage
+
+    drawn = ndimage.zoom(not_a_film("text", (240, 320), seed=1), 3, order=1)
+    drawn = np.clip(drawn + 0.05 * np.random.default_rng(2).standard_normal(drawn.shape), 0, 1)
+    path = tmp_path / "page.png"
+    Image.fromarray((255 * drawn).astype(np.uint8)).save(path)
+    assert main(["measure", str(path), "--out", str(tmp_path / "out"), "--no-lqe"]) == 2
+    assert "lie in lines, as text does" in one_line_error(capsys)
+    assert not (tmp_path / "out").exists()
+
+
+def test_films_in_rows_are_not_text():
+    from qdots.micrograph.admit import LINE_FILLED, LINE_GAPS, text_lines
+
+    for lattice in ("hexagonal", "square"):  # rows and columns aligned with the picture
+        centres, diameters = superlattice_board(300, 300, 10.0, 0.05, 3.0, lattice, seed=1)
+        lines, across = text_lines(centres, float(np.median(diameters)))
+        assert not (lines >= LINE_GAPS and across <= LINE_FILLED), (lattice, lines, across)
+    rows = np.column_stack([np.tile(np.arange(10.0, 300, 8), 8), np.repeat(np.arange(8) * 36.0 + 10, 37)])
+    lines, across = text_lines(rows, 8.0)  # lines of 8 px objects 36 px apart: text's layout
+    assert lines >= LINE_GAPS and across <= LINE_FILLED
+
 def test_the_refusal_names_its_reason():
     flat = np.zeros((200, 200))
     flat[50:150, 50:150] = 1.0
