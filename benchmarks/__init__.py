@@ -21,6 +21,7 @@ BENCHMARKS = [
     "lqe",
     "micrograph",
     "micrograph_films",
+    "micrograph_real",
     "qdots_identifiability",
     "qdots_infer",
     "planarize_reference",

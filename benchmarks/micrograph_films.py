@@ -69,26 +69,33 @@ def whole(centres, diameters, shape) -> np.ndarray:
     return (centres[:, 0] >= r) & (centres[:, 1] >= r) & (centres[:, 0] + r <= w) & (centres[:, 1] + r <= h)
 
 
-def threshold_tool(image: np.ndarray) -> np.ndarray:
+def threshold_tool(image: np.ndarray, flatten: bool = True) -> np.ndarray:
     """Diameters (px) of the dots as a threshold-based tool measures them: the image flattened by a broad
-    Gaussian (an eighth of its side), smoothed by 1 px, cut at Otsu's threshold; the distance transform's maxima
-    at least 0.6 typical radii apart seed a watershed; each region not touching the edge gives the diameter of
-    the disc of its area."""
+    Gaussian (an eighth of its side; or, with ``flatten`` False, as it is, with the regions' holes filled, as
+    ImageJ's particle analysis is used on real pictures), smoothed by 1 px, cut at Otsu's threshold; the distance
+    transform's maxima at least 0.6 typical radii apart seed a watershed; each region not touching the edge, of 10
+    px or more, gives the diameter of the disc of its area."""
     from skimage.feature import peak_local_max
     from skimage.filters import threshold_otsu
     from skimage.segmentation import watershed
 
-    flat = ndimage.gaussian_filter(image, 1.0) / ndimage.gaussian_filter(image, max(image.shape) / 8.0)
+    smooth = ndimage.gaussian_filter(image, 1.0)
+    flat = smooth / ndimage.gaussian_filter(image, max(image.shape) / 8.0) if flatten else smooth
     mask = flat < threshold_otsu(flat)
+    if not flatten:
+        mask = ndimage.binary_fill_holes(mask)
     distance = ndimage.distance_transform_edt(mask)
-    radius = float(np.median(distance[(distance == ndimage.maximum_filter(distance, 5)) & (distance >= 2)]))
+    tops = (distance == ndimage.maximum_filter(distance, 5)) & (distance >= 2)
+    if not tops.any():
+        return np.zeros(0)
+    radius = float(np.median(distance[tops]))
     peaks = peak_local_max(distance, min_distance=max(2, int(0.6 * radius)), labels=ndimage.label(mask)[0])
     markers = np.zeros(image.shape, dtype=int)
     markers[tuple(peaks.T)] = np.arange(1, len(peaks) + 1)
     labels = watershed(-distance, markers, mask=mask)
     area = np.bincount(labels.ravel())[1:]
     edge = np.unique(np.concatenate([labels[0], labels[-1], labels[:, 0], labels[:, -1]]))
-    keep = ~np.isin(np.arange(1, len(area) + 1), edge) & (area > 0)
+    keep = ~np.isin(np.arange(1, len(area) + 1), edge) & (area >= 10)
     return 2.0 * np.sqrt(area[keep] / np.pi)
 
 

@@ -165,7 +165,7 @@ def test_a_scale_bar_is_found_measured_and_left_out():
     assert recall >= 0.98
 
 
-@pytest.mark.parametrize("text", ["200", "nm", "-5nm", "0nm", "200 parsec", "1e999nm"])
+@pytest.mark.parametrize("text", ["200", "nm", "-5nm", "0nm", "200 parsec", "1e999nm", "1e-300nm", "1e300 um"])
 def test_bad_scale_bar_lengths_are_refused(text):
     refused(lambda: parse_length(text), "scale_bar")
 
@@ -188,6 +188,18 @@ def test_tiff_pages_depths_and_imagej_scale_are_read(tmp_path):
     film = measure_image(path, nm_per_px=2.0, lqe=False)  # the file's own scale wins, and the table says so
     assert film.nm_per_px == pytest.approx(0.8) and "not used" in film.summary["scale"]
     refused(lambda: measure_image(path, nm_per_px=-1.0, lqe=False), "nm_per_px")
+
+
+@pytest.mark.parametrize("tag, text, words", [
+    (34682, "[User]\nDate=01/01/2020\n[Scan]\nPixelWidth=4.466e-09\nPixelHeight=4.466e-09\n", "FEI/Thermo tag"),
+    (34118, "0\n1\nAP_IMAGE_PIXEL_SIZE\nImage Pixel Size = 4.466 nm\nDP_DETECTOR_TYPE\nDetector = SE2\n",
+     "Zeiss SEM tag (Image Pixel Size 4.466 nm)")])
+def test_the_pixel_size_an_instrument_writes_in_its_tiff_tag_is_read_and_named(tmp_path, tag, text, words):
+    tifffile = pytest.importorskip("tifffile")
+    pixels = (np.random.default_rng(0).random((40, 40)) * 255).astype(np.uint8)
+    tifffile.imwrite(tmp_path / "sem.tif", pixels, extratags=[(tag, "s", 0, text, True)])
+    m = read_micrograph(tmp_path / "sem.tif")
+    assert m.nm_per_px == pytest.approx(4.466) and words in m.scale_source
 
 
 def test_a_microscope_file_is_read_with_its_calibration(tmp_path):
@@ -230,7 +242,9 @@ def test_bad_images_are_refused_in_one_line(tmp_path):
     (tmp_path / "zero.png").write_bytes(png_declaring(0, 0))
     refused(lambda: read_micrograph(tmp_path / "zero.png"), "not a readable image")
     Image.fromarray(np.zeros((1, 30), dtype=np.uint8)).save(tmp_path / "line.png")
-    refused(lambda: read_micrograph(tmp_path / "line.png"), "30 x 1 px", "at least 2 x 2")
+    refused(lambda: read_micrograph(tmp_path / "line.png"), "30 x 1 px", "at least 16 x 16")
+    Image.fromarray(np.array([[0, 255], [128, 30]], dtype=np.uint8)).save(tmp_path / "two.png")
+    refused(lambda: read_micrograph(tmp_path / "two.png"), "2 x 2 px", "at least 16 x 16")
     Image.fromarray(np.full((20, 20), 7, dtype=np.uint8)).save(tmp_path / "flat.png")
     refused(lambda: read_micrograph(tmp_path / "flat.png"), "every pixel has the value 7")
     for side, words in ((100_000, ("more than",)), (9000, ("9000 x 9000",))):
@@ -238,13 +252,13 @@ def test_bad_images_are_refused_in_one_line(tmp_path):
         refused(lambda: read_micrograph(tmp_path / "huge.png"), *words)
     assert 9000 * 9000 > MAX_PIXELS
     tifffile = pytest.importorskip("tifffile")
-    tifffile.imwrite(tmp_path / "nan.tif", np.full((8, 8), np.nan, dtype=np.float32))
+    tifffile.imwrite(tmp_path / "nan.tif", np.full((20, 20), np.nan, dtype=np.float32))
     refused(lambda: read_micrograph(tmp_path / "nan.tif"), "every pixel is NaN")
     with pytest.raises(FileNotFoundError, match="missing.png"):
         read_micrograph(tmp_path / "missing.png")
 
 
-@pytest.mark.parametrize("scale", [0.0, -1.0, float("nan"), float("inf")])
+@pytest.mark.parametrize("scale", [0.0, -1.0, float("nan"), float("inf"), 1e-300, 1e300])
 def test_bad_scales_are_refused(tmp_path, scale):
     centres, diameters = sparse_board(100, 100, 12.0, 0.05, seed=1)
     path = tmp_path / "f.png"

@@ -149,7 +149,7 @@ def _add_image_options(p, out_default: str) -> None:
     ``./out_default`` by default."""
     from ..micrograph.profiles import PROFILES
     from ..micrograph.segment import POLARITIES
-    from ..micrograph.scale import MAX_NM_PER_PX
+    from ..micrograph.scale import MAX_NM_PER_PX, MIN_NM_PER_PX
 
     p.add_argument("image", type=Path, metavar="IMAGE",
                    help="micrograph: .tif/.tiff, .png, .jpg, .bmp, .gif, or .dm3/.dm4/.emd/.ser (qdots[microscope])")
@@ -157,7 +157,7 @@ def _add_image_options(p, out_default: str) -> None:
                    help=f"output directory, created if missing (default ./{out_default})")
     p.add_argument("--name", default=None, help="stem of the files written (default: IMAGE's stem)")
     scale = p.add_mutually_exclusive_group()
-    scale.add_argument("--nm-per-px", type=float_in(0.0, MAX_NM_PER_PX, low_open=True, high_open=False), default=None,
+    scale.add_argument("--nm-per-px", type=float_in(MIN_NM_PER_PX, MAX_NM_PER_PX, high_open=False), default=None,
                        metavar="S", help="scale, nm per pixel, when the file's metadata has none")
     scale.add_argument("--scale-bar", default=None, metavar="LENGTH",
                        help="length of the scale bar drawn on the image, such as 200nm or 0.5um: the scale is read "

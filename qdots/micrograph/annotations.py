@@ -110,7 +110,7 @@ def find_strips(image: np.ndarray) -> tuple[tuple[int, int, int, int], tuple[Str
         extent = h if side in ("top", "bottom") else w
         outer = {"top": image[0], "bottom": image[-1], "left": image[:, 0], "right": image[:, -1]}[side]
         value = low if np.mean(outer <= low + EXTREME * span) >= np.mean(outer >= high - EXTREME * span) else high
-        depth = int(MAX_STRIP * extent)
+        depth = max(1, int(MAX_STRIP * extent))
         frame_shares = line_shares(np.abs(image - float(np.median(outer))) <= FLAT * span, side, depth)
         frame = int(np.argmin(frame_shares >= FRAME_SHARE)) if frame_shares[-1] < FRAME_SHARE else 0
         shares = line_shares(drawn, side, depth + FILM_LINES)

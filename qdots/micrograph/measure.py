@@ -79,7 +79,8 @@ def settle_scale(image: Micrograph, bar: ScaleBar | None, nm_per_px=None, scale_
     px or None, where it came from in words: the bar's length in px, where it is and what kind)."""
     if image.nm_per_px is not None:
         given = "" if nm_per_px is None and scale_bar is None else " (the scale given is not used: the file has one)"
-        return image.nm_per_px, f"{image.nm_per_px:.4g} nm/px from the file's metadata{given}"
+        where = image.scale_source or "the file's metadata"
+        return image.nm_per_px, f"{image.nm_per_px:.4g} nm/px from {where}{given}"
     if nm_per_px is not None:
         value = check_nm_per_px(nm_per_px)
         return value, f"{value:.4g} nm/px (given)"

@@ -3,8 +3,9 @@
 Formats and readers (none hand-written):
 
 =====================================  ===========================================================
-``.tif``, ``.tiff`` (8/16/32-bit,      tifffile; the scale from ImageJ metadata (``unit`` nm or
-multi-page)                            micron, with the X resolution in pixels per unit)
+``.tif``, ``.tiff`` (8/16/32-bit,      tifffile; the scale from the instrument's own tag (FEI/Thermo
+multi-page)                            ``PixelWidth``, Zeiss SEM ``Image Pixel Size``, Olympus SIS),
+                                       else ImageJ metadata (``unit`` with the X resolution)
 ``.png``, ``.jpg``, ``.jpeg``,         Pillow (through which imageio reads these); no scale
 ``.bmp``, ``.gif``
 ``.dm3``, ``.dm4`` (Gatan), ``.emd``,  rosettasciio (``pip install "qdots[microscope]"``); the
@@ -13,7 +14,8 @@ multi-page)                            micron, with the X resolution in pixels p
 
 Each reader is asked for the image's declared size first; an image of more than `MAX_PIXELS`
 pixels (or a side of more than `MAX_SIDE`) is refused before its pixels are read. Colour is
-turned into grey as the mean of the channels; the result is float64.
+turned into grey as the mean of the channels; the result is float64. `Micrograph.scale_source` says
+where the file's scale was read (`tiff_scale`).
 """
 
 from __future__ import annotations
@@ -28,12 +30,13 @@ import numpy as np
 from labrig.files import existing_file
 from labrig.validate import InputError, count
 
-#: Largest image side, px, and largest number of pixels (a 8192 x 8192 image; float64: 512 MiB).
-MAX_SIDE = 65_536
+#: Smallest and largest image side, px (a particle and its background need more than a few pixels), and largest
+#: number of pixels (a 8192 x 8192 image; float64: 512 MiB).
+MIN_SIDE, MAX_SIDE = 16, 65_536
 MAX_PIXELS = 8192 * 8192
 #: nm in one unit of a file's scale.
 UNIT_NM = {"nm": 1.0, "nanometer": 1.0, "nanometre": 1.0, "um": 1e3, "µm": 1e3, "micron": 1e3,
-           "microns": 1e3, "micrometer": 1e3, "micrometre": 1e3, "mm": 1e6, "pm": 1e-3, "a": 0.1, "å": 0.1,
+           "microns": 1e3, "micrometer": 1e3, "micrometre": 1e3, "mm": 1e6, "m": 1e9, "pm": 1e-3, "a": 0.1, "å": 0.1,
            "angstrom": 0.1}
 TIFF = (".tif", ".tiff")
 PILLOW = (".png", ".jpg", ".jpeg", ".bmp", ".gif")
@@ -58,6 +61,9 @@ class Micrograph:
         Which page (or image) of the file this is.
     pages : int
         How many the file holds.
+    scale_source : str
+        Where in the file ``nm_per_px`` was read (such as ``"the Zeiss SEM tag (Image Pixel Size 4.466 nm)"``),
+        or ``""``.
     """
 
     pixels: np.ndarray
@@ -65,6 +71,7 @@ class Micrograph:
     source: str
     page: int = 0
     pages: int = 1
+    scale_source: str = ""
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -72,15 +79,17 @@ class Micrograph:
 
 
 def check_size(height: int, width: int, path) -> None:
-    """Refuse an image of `MAX_PIXELS` pixels or more, or of a side outside [2, `MAX_SIDE`], before reading it."""
-    if height < 2 or width < 2:
-        raise InputError(f"{path}: the image is {width} x {height} px; a micrograph needs at least 2 x 2 px")
+    """Refuse an image of `MAX_PIXELS` pixels or more, or of a side outside [`MIN_SIDE`, `MAX_SIDE`], before reading
+    it."""
+    if height < MIN_SIDE or width < MIN_SIDE:
+        raise InputError(f"{path}: the image is {width} x {height} px; a micrograph needs at least "
+                         f"{MIN_SIDE} x {MIN_SIDE} px")
     if height > MAX_SIDE or width > MAX_SIDE or height * width > MAX_PIXELS:
         raise InputError(f"{path}: the image declares {width} x {height} px, more than the {MAX_PIXELS:,} pixels "
                          f"(sides <= {MAX_SIDE:,}) allowed; crop or bin it first")
 
 
-def nm_per_unit(unit, path) -> float | None:
+def nm_per_unit(unit) -> float | None:
     """nm in one ``unit`` (a length unit's name as files write it), or None when it is not a length."""
     if not isinstance(unit, str):
         return None
@@ -99,7 +108,50 @@ def grey(pixels: np.ndarray, path) -> np.ndarray:
     return a.astype(float)
 
 
-def _read_tiff(path: Path, page: int) -> tuple[np.ndarray, float | None, int]:
+def scale_in(value, unit) -> float | None:
+    """``value`` ``unit`` (a length unit's name) in nm, or None when either is not a positive finite length."""
+    per_unit = nm_per_unit(unit)
+    try:
+        value = float(value)
+    except (TypeError, ValueError):
+        return None
+    if per_unit is None or not (math.isfinite(value) and value > 0):
+        return None
+    return value * per_unit
+
+
+def tiff_scale(tif, page) -> tuple[float | None, str]:
+    """The scale a TIFF states (nm per px) and where: the instrument's own tag first (FEI/Thermo ``[Scan]
+    PixelWidth``, m; Zeiss SEM ``Image Pixel Size`` or ``Pixel Size``; Olympus SIS ``pixelsizex``, m), then ImageJ
+    metadata (``unit`` and the X resolution, pixels per unit). ``(None, "")`` when it states none."""
+    fei = tif.fei_metadata or {}
+    for section in ("Scan", "EScan"):
+        value = scale_in((fei.get(section) or {}).get("PixelWidth"), "m")
+        if value is not None:
+            return value, f"the FEI/Thermo tag ([{section}] PixelWidth {value:.4g} nm)"
+    zeiss = tif.sem_metadata or {}
+    for key in ("ap_image_pixel_size", "ap_pixel_size"):
+        entry = zeiss.get(key)
+        if isinstance(entry, tuple) and len(entry) == 3:
+            value = scale_in(entry[1], entry[2])
+            if value is not None:
+                return value, f"the Zeiss SEM tag ({entry[0]} {entry[1]} {entry[2]})"
+    sis = tif.sis_metadata or {}
+    value = scale_in(sis.get("pixelsizex"), "m")
+    if value is not None:
+        return value, f"the Olympus SIS tag (pixel size {value:.4g} nm)"
+    imagej = tif.imagej_metadata or {}
+    per_unit = nm_per_unit(imagej.get("unit"))
+    resolution = page.tags.get("XResolution")
+    if per_unit is not None and resolution is not None:
+        numerator, denominator = resolution.value
+        if numerator > 0 and denominator > 0:
+            value = per_unit * denominator / numerator  # the tag is pixels per unit
+            return value, f"ImageJ metadata ({numerator / denominator:.6g} px per {imagej.get('unit')})"
+    return None, ""
+
+
+def _read_tiff(path: Path, page: int) -> tuple[np.ndarray, float | None, int, str]:
     import tifffile
 
     with tifffile.TiffFile(path) as tif:
@@ -114,18 +166,11 @@ def _read_tiff(path: Path, page: int) -> tuple[np.ndarray, float | None, int]:
         pixels = tiff_page.asarray()
         if pixels.ndim == 3 and pixels.shape[0] in (3, 4) and pixels.shape[-1] not in (3, 4):
             pixels = np.moveaxis(pixels, 0, -1)
-        scale = None
-        imagej = tif.imagej_metadata or {}
-        per_unit = nm_per_unit(imagej.get("unit"), path)
-        resolution = tiff_page.tags.get("XResolution")
-        if per_unit is not None and resolution is not None:
-            numerator, denominator = resolution.value
-            if numerator > 0 and denominator > 0:
-                scale = per_unit * denominator / numerator  # the tag is pixels per unit
-    return pixels, scale, pages
+        scale, where = tiff_scale(tif, tiff_page)
+    return pixels, scale, pages, where
 
 
-def _read_pillow(path: Path, page: int) -> tuple[np.ndarray, None, int]:
+def _read_pillow(path: Path, page: int) -> tuple[np.ndarray, None, int, str]:
     from PIL import Image
 
     try:
@@ -142,10 +187,10 @@ def _read_pillow(path: Path, page: int) -> tuple[np.ndarray, None, int]:
         if image.mode == "P":
             image = image.convert("RGB")
         pixels = np.asarray(image)
-    return pixels, None, pages
+    return pixels, None, pages, ""
 
 
-def _read_microscope(path: Path, page: int) -> tuple[np.ndarray, float | None, int]:
+def _read_microscope(path: Path, page: int) -> tuple[np.ndarray, float | None, int, str]:
     import importlib
 
     try:
@@ -166,11 +211,10 @@ def _read_microscope(path: Path, page: int) -> tuple[np.ndarray, float | None, i
     axes = signal.get("axes", [])
     scale = None
     if len(axes) >= 2:
-        per_unit = nm_per_unit(axes[-1].get("units"), path)
         step = axes[-1].get("scale")
-        if per_unit is not None and isinstance(step, (int, float)) and math.isfinite(step) and step > 0:
-            scale = per_unit * float(step)
-    return pixels, scale, len(signals)
+        scale = scale_in(step, axes[-1].get("units")) if isinstance(step, (int, float)) else None
+    where = f"the file's calibrated axes ({axes[-1].get('units')})" if scale is not None else ""
+    return pixels, scale, len(signals), where
 
 
 def read_micrograph(path: str | os.PathLike, page: int = 0) -> Micrograph:
@@ -197,11 +241,11 @@ def read_micrograph(path: str | os.PathLike, page: int = 0) -> Micrograph:
     suffix = path.suffix.lower()
     try:
         if suffix in TIFF:
-            pixels, scale, pages = _read_tiff(path, page)
+            pixels, scale, pages, where = _read_tiff(path, page)
         elif suffix in MICROSCOPE:
-            pixels, scale, pages = _read_microscope(path, page)
+            pixels, scale, pages, where = _read_microscope(path, page)
         else:
-            pixels, scale, pages = _read_pillow(path, page)
+            pixels, scale, pages, where = _read_pillow(path, page)
     except InputError:
         raise
     except (OSError, ValueError, SyntaxError, EOFError, KeyError, IndexError, TypeError) as exc:
@@ -218,4 +262,4 @@ def read_micrograph(path: str | os.PathLike, page: int = 0) -> Micrograph:
                          "fill or crop them out first")
     if float(image.max()) == float(image.min()):
         raise InputError(f"{path}: every pixel has the value {float(image.min()):g}: there is nothing to measure")
-    return Micrograph(image, scale, path.name, int(page), int(pages))
+    return Micrograph(image, scale, path.name, int(page), int(pages), where)

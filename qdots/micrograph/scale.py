@@ -21,8 +21,10 @@ BAR_GAP, MIN_HOLE = 3, 4
 MIN_BAR = 10
 #: Pixels within this share of the image's range of its darkest (or lightest) value are bar colour.
 BAR_TOLERANCE = 0.05
-#: Largest scale, nm per px (1 mm per pixel).
-MAX_NM_PER_PX = 1e6
+#: Scales, nm per px: from 1 pm per pixel (finer than any electron microscope's pixel) to 1 mm per pixel.
+MIN_NM_PER_PX, MAX_NM_PER_PX = 1e-3, 1e6
+#: Lengths a scale bar can state, nm: 0.01 nm to 1 cm.
+MIN_BAR_NM, MAX_BAR_NM = 1e-2, 1e7
 
 
 @dataclass(frozen=True)
@@ -58,12 +60,12 @@ class ScaleBar:
 
 
 def check_nm_per_px(value, name: str = "nm_per_px") -> float:
-    """A scale in nm per pixel: a finite number in (0, `MAX_NM_PER_PX`]."""
-    return real(name, value, 0.0, MAX_NM_PER_PX, low_open=True, unit="nm per px")
+    """A scale in nm per pixel: a finite number in [`MIN_NM_PER_PX`, `MAX_NM_PER_PX`]."""
+    return real(name, value, MIN_NM_PER_PX, MAX_NM_PER_PX, unit="nm per px")
 
 
 def parse_length(text: str, name: str = "scale_bar") -> float:
-    """A length such as ``"200nm"``, ``"0.5 um"`` or ``"2 µm"``, in nm."""
+    """A length such as ``"200nm"``, ``"0.5 um"`` or ``"2 µm"``, in nm, within [`MIN_BAR_NM`, `MAX_BAR_NM`]."""
     match = re.fullmatch(r"\s*([0-9]*\.?[0-9]+(?:[eE][-+]?[0-9]+)?)\s*([A-Za-z\u00b5\u03bc\u00c5]+)\s*", str(text))
     if not match:
         raise InputError(f"{name} must be a length with its unit, such as 200nm or 0.5um, got {text!r}")
@@ -71,9 +73,10 @@ def parse_length(text: str, name: str = "scale_bar") -> float:
     per_unit = UNIT_NM.get(unit.lower())
     if per_unit is None:
         raise InputError(f"{name}: unknown length unit {unit!r} (use nm, um, µm, mm, pm or A)")
-    if not (math.isfinite(value) and value > 0):
-        raise InputError(f"{name} must be a length > 0, got {text!r}")
-    return value * per_unit
+    nm = value * per_unit
+    if not (math.isfinite(nm) and MIN_BAR_NM <= nm <= MAX_BAR_NM):
+        raise InputError(f"{name} must be a length in [{MIN_BAR_NM:g} nm, {MAX_BAR_NM / 1e6:g} mm], got {text!r}")
+    return nm
 
 
 def spine(component: np.ndarray) -> tuple[int, int, int] | None:
