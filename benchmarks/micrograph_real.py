@@ -85,7 +85,13 @@ def measure_entry(entry: dict, folder: Path, overlays: Path | None = None) -> di
            "source_mean": ref.source_mean_px if ref else math.nan}
     start = time.perf_counter()
     try:
-        film = measure_image(path, scale_bar=bar, lqe=False)
+        try:
+            film = measure_image(path, scale_bar=bar, lqe=False)
+        except InputError as exc:  # as a user would: measured again without the bar's length, sizes in px
+            if not str(exc).startswith("scale_bar: no scale bar found"):
+                raise
+            row["scale_note"] = "bar not found"
+            film = measure_image(path, lqe=False)
     except InputError as exc:
         row.update(verdict="refused", why=str(exc).split(": ", 1)[-1], seconds=time.perf_counter() - start)
         return row
@@ -93,15 +99,24 @@ def measure_entry(entry: dict, folder: Path, overlays: Path | None = None) -> di
     det, s = film.detection, film.summary
     whole = ~det.cut
     row.update(verdict="measured", dots=int(whole.sum()), mean=float(np.mean(det.diameters[whole])),
+               half_width=float(np.mean(det.half_widths()[whole])),
                spread=s["size_spread"], robust=s["size_spread_robust"], scale=film.nm_per_px,
                how_scale=s["scale"], profile=s["profile_p"])
     truth_scale = entry.get("scale_nm_per_px")
     row["scale_error"] = (film.nm_per_px / truth_scale - 1.0) if film.nm_per_px and truth_scale else math.nan
     row["overlap"], row["spacing"] = overlap_share(det.centres[whole], det.diameters[whole])
     if ref is not None:
-        row["d_error"] = row["mean"] / ref.mean_px - 1.0
+        row["d_error"] = row["half_width"] / ref.mean_px - 1.0
         row["source_error"] = row["mean"] / ref.source_mean_px - 1.0
         row["sigma_pp"] = 100.0 * (row["spread"] - ref.spread)
+        if ref.widths is not None:  # the same particles: our half-depth width where the hand profile measured one
+            from scipy.spatial import cKDTree
+
+            ok = np.isfinite(ref.widths)
+            distance, index = cKDTree(det.centres).query(ref.width_centres[ok])
+            near = distance <= 0.5 * ref.widths[ok]
+            if near.any():
+                row["same_particles"] = float(np.median(det.half_widths()[index[near]] / ref.widths[ok][near])) - 1.0
         if ref.centres is not None and ref.diameters is not None:
             row["recall"] = float(match(det.centres, ref.centres, 0.5 * ref.diameters).mean())
             hit = match(ref.centres, det.centres[whole], 0.5 * det.diameters[whole])
@@ -144,22 +159,29 @@ def table(rows: list[dict], half: str) -> Table:
     body = []
     for r in rows:
         found = r["verdict"] if r["verdict"] == "measured" else f"refused: {r.get('why', '')[:90]}"
-        body.append([r["id"], r["kind"], found, pct(r.get("scale_error", math.nan)), r.get("dots", ""),
+        scale = r.get("scale_note") or pct(r.get("scale_error", math.nan))
+        body.append([r["id"], r["kind"], found, scale, r.get("dots", ""),
                      "" if "recall" not in r else f"{r['recall']:.2f} / {r['precision']:.2f}",
-                     "" if not math.isfinite(r.get("mean", math.nan)) else f"{r['mean']:.1f}",
+                     "" if not math.isfinite(r.get("mean", math.nan)) else f"{r['mean']:.1f} / {r['half_width']:.1f}",
                      "" if not math.isfinite(r["ref_mean"]) else f"{r['ref_mean']:.1f}", pct(r.get("d_error", math.nan)),
+                     pct(r.get("same_particles", math.nan)),
                      pct(r.get("source_error", math.nan)),
                      pct(r.get("spread", math.nan), False), pct(r["ref_spread"], False),
                      pct(r.get("robust", math.nan), False), pct(r.get("overlap", math.nan), False),
                      pct(r.get("tool_error", math.nan)), f"{r['seconds']:.1f}", passed(r)])
     return Table(f"Real micrographs, {half} half: qdots measure against each source's reference",
-                 ["picture", "kind", "verdict", "scale error", "dots", "recall / precision", "mean d (px)",
-                  "reference d (px)", "d error", "d against the source's own sizes", "sigma", "reference sigma", "sigma (IQR)", "overlapping pairs",
+                 ["picture", "kind", "verdict", "scale error", "dots", "recall / precision",
+                  "mean d / half-depth width (px)", "reference (px)", "half-depth width error",
+                  "on the same particles (median)",
+                  "d against the source's own sizes", "sigma", "reference sigma", "sigma (IQR)", "overlapping pairs",
                   "threshold tool's d error", "time (s)", "goal"], body,
                  note="Scale error: the scale qdots measure read (from the file, or the bar with its written length) "
-                      "against the file's or the bar measured by hand. Reference d: the size the source states, else the full width at "
-                      "half depth of hand line profiles through its own particles (hand-drawn outlines sit 5-17 % "
-                      "outside that edge: the next column). Recall / precision: reference particles with a "
+                      "against the file's or the bar measured by hand. Mean d: the diameter qdots measure reports (the fitted "
+                      "profile's, a flat disc's or a projected sphere's); half-depth width: where that profile has lost "
+                      "half its contrast, what line profiles and thresholds measure. Reference: the size the source "
+                      "states (a threshold tool's), else the full width at half depth of hand line profiles through its "
+                      "own particles, scored against the half-depth width; the source's own outlines or boxes sit "
+                      "5-17 % outside that edge, and are set against d in the next column. Recall / precision: reference particles with a "
                       "dot within half their diameter, and whole dots within half theirs of a reference particle. "
                       "Overlapping pairs: neighbours (within 1.3 mean diameters) closer than 0.95 of their mean "
                       "diameter. Goals (issue 61): every film of round particles measured, every other picture "

@@ -116,7 +116,9 @@ class Reference:
     spread (SD / mean): the source's stated one, else that of its own particles' sizes, else of the hand widths.
     ``source_mean_px`` is the mean of the source's own per-particle sizes (its outlines' area-equivalent
     diameters, its boxes' sides), NaN without them; ``centres`` and ``diameters`` (the source's) are None without
-    them; ``count`` is how many particles the reference holds and ``how`` says all this in words."""
+    them; ``widths`` are the hand widths of the particles at ``width_centres`` (NaN where no line served), for a
+    comparison particle by particle; ``count`` is how many particles the reference holds and ``how`` says all this
+    in words."""
 
     mean_px: float
     spread: float
@@ -125,6 +127,8 @@ class Reference:
     source_mean_px: float = float("nan")
     diameters: np.ndarray | None = None
     centres: np.ndarray | None = None
+    widths: np.ndarray | None = None
+    width_centres: np.ndarray | None = None
 
 
 def whole_labels(labels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -187,7 +191,8 @@ def reference(entry: dict, folder: Path | None = None) -> Reference | None:
         widths = half_depth_widths(image, centres, dark, entry["profile_reach"])
         d = widths[np.isfinite(widths)]
         return Reference(float(d.mean()), float(d.std(ddof=1) / d.mean()), len(d),
-                         f"hand line profiles of {len(d)} particles picked by eye")
+                         f"hand line profiles of {len(d)} particles picked by eye", widths=widths,
+                         width_centres=centres)
     diameters, centres, what = source_particles(entry, folder)
     if entry.get("reference_measure") == "source":
         return Reference(float(diameters.mean()), float(diameters.std(ddof=1) / diameters.mean()), len(diameters),
@@ -196,7 +201,7 @@ def reference(entry: dict, folder: Path | None = None) -> Reference | None:
     ok = np.isfinite(widths)
     return Reference(float(widths[ok].mean()), float(diameters.std(ddof=1) / diameters.mean()), len(diameters),
                      f"hand line profiles of {int(ok.sum())} of its particles; sigma of its {what}",
-                     float(diameters.mean()), diameters, centres)
+                     float(diameters.mean()), diameters, centres, widths, centres)
 
 
 def half_depth_widths(image: np.ndarray, centres: np.ndarray, dark: bool, reach: float) -> np.ndarray:

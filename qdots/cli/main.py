@@ -175,6 +175,9 @@ def _add_image_options(p, out_default: str) -> None:
 def _measure_arguments(p) -> None:
     _add_image_options(p, "qdots-measure")
     p.add_argument("--no-lqe", action="store_true", help="skip the film LQE (the slowest part on large films)")
+    p.add_argument("--force", action="store_true",
+                   help="measure a picture that does not look like a film of round particles anyway (the table "
+                        "says why it would have been refused)")
 
 
 def _compare_arguments(p) -> None:
@@ -220,7 +223,8 @@ def _run_measure(args: argparse.Namespace) -> int:
     from ..micrograph.write import measure
 
     film = measure(args.image, args.out, name=args.name, nm_per_px=args.nm_per_px, scale_bar=args.scale_bar,
-                   polarity=args.polarity, profile=args.profile, page=args.page, lqe=not args.no_lqe)
+                   polarity=args.polarity, profile=args.profile, page=args.page, lqe=not args.no_lqe,
+                   force=args.force)
     print_table(f"{args.image}:", summary_rows(film.summary))
     stem = film_stem(args)
     print(f"wrote {args.out / stem}{os.sep}: {stem}.npz, {stem}_detections.png, {stem}_summary.csv")

@@ -1,16 +1,19 @@
 """Whether a picture is a micrograph of a film of round particles, or something else that must be refused
-in one line: a plot, text, a drawing, a rendered board.
+in one line: a plot, text, a drawing, a rendered board, rods, cubes, plates, cells.
 
 Two looks. Before the dots are sought (`check_picture`): a micrograph has noise in every pixel, while
 drawn pictures are mostly flat colour (`FLAT_SHARE` of the picture with 3 x 3 neighbourhoods of one value;
-micrographs: under 2 %; plots, text, drawings and qdots' own board pictures: 65-95 %). After (`check_film`),
-for noisy pictures of the same (a scan, a photo of a screen): a film has many dots the picture's edge does not cut
-(`MIN_FILM_DOTS`: its sizes and spread are measured on them), big
-enough to be particles rather than strokes of text or lines (`MIN_FILM_DIAMETER`), alike in size (their
-spread from the interquartile range under `MAX_FILM_SPREAD`), and measured the same twice
-(`MAX_REPEAT_ERROR`: the repeated measurement of `qdots.micrograph.refine.repeat_errors`; letters and
-lines fitted as discs do not repeat), and not set in lines of text (`text_lines`: enlarged text passes every
-other look).
+micrographs: under 2 %; plots, text, drawings and qdots' own board pictures: 65-95 %). After (`film_verdict`), what
+was found: a film has many dots the picture's edge does not cut (`MIN_FILM_DOTS`), big enough to be particles rather
+than strokes of text or lines (`MIN_FILM_DIAMETER`), not set in lines of text (`text_lines`), round (the outlines they
+show the background do not wander far from one radius, `MAX_OUTLINE`; they are not elongated, `MAX_ELONGATION`) and
+whole (a rod or a plate that the detection cut into pieces leaves dots far closer than a diameter to their nearest
+neighbour, `PIECES`; the region shapes are `qdots.micrograph.shapes`'). What is refused is said with its numbers.
+
+Other signs make a measurement doubtful without making the picture something else: sizes that vary over
+`MAX_FILM_SPREAD` (two populations, or false detections), diameters that repeat worse than `MAX_REPEAT_ERROR` (a noisy
+or textured picture), discs that overlap their neighbours (`OVERLAP`: the diameters may be too large). They are
+reported beside the measurement (`film_verdict`'s doubts).
 """
 
 from __future__ import annotations
@@ -21,16 +24,14 @@ from labrig.validate import InputError
 
 from .annotations import Annotations, flatness
 from .film import size_spread
+from .shapes import OVERLAP, OVERLAP_SHARE, STACKED, nearest_ratio, overlap_share
 
 #: Share of the picture (within 0.2 % of its range) in flat 3 x 3 neighbourhoods above which it is drawn.
 FLAT_SHARE, FLAT_TOLERANCE = 0.3, 0.002
 #: A film: at least MIN_FILM_DOTS dots the edge does not cut (with fewer, the spread is uncertain by over a fifth of
-#: itself; a noisy drawing of 14 filled and outlined shapes of 17-83 px has 8, which vary 33 % in size), a median
-#: diameter of MIN_FILM_DIAMETER px, a spread (interquartile range over 1.349, over the median) under MAX_FILM_SPREAD,
-#: and a median repeat error under MAX_REPEAT_ERROR of the diameter (measured: synthetic films and the shared TEM
-#: image 0.1-1.0 %, noisy text, plots and drawings 2.4-4 %).
-#: The spread's bound, measured on noisy plots, text and drawings drawn at 1-5x: 0.18-0.48, and every one under
-#: 0.35 is refused by another check; a film's own spread reaches 0.3 at the simulations' widest sigma (0.25).
+#: itself) and a median diameter of MIN_FILM_DIAMETER px. Doubtful: a spread (interquartile range over 1.349, over the
+#: median) over MAX_FILM_SPREAD, or a median repeat error over MAX_REPEAT_ERROR of the diameter (synthetic films and
+#: clean real ones 0.1-1.2 %; real films on a grainy support or with pores 2-5 %).
 MIN_FILM_DOTS, MIN_FILM_DIAMETER, MAX_FILM_SPREAD, MAX_REPEAT_ERROR = 10, 5.0, 0.35, 0.02
 #: Text: at least LINE_DOTS whole objects, whose rows, in bands LINE_BAND median diameters high, leave at least
 #: LINE_GAPS of the bands between the outermost (2nd and 98th percentiles) empty, while their columns leave at most
@@ -39,6 +40,16 @@ MIN_FILM_DOTS, MIN_FILM_DIAMETER, MAX_FILM_SPREAD, MAX_REPEAT_ERROR = 10, 5.0, 0
 #: the shared TEM image) at most 0.04 of either, but for sparse films of 16-41 dots (under LINE_DOTS), which
 #: leave 0.16-0.42 of both empty by chance.
 LINE_DOTS, LINE_BAND, LINE_GAPS, LINE_FILLED = 50, 1.6, 0.2, 0.05
+#: Round: the median outline (`qdots.micrograph.shapes`: the spread of the free boundary's distances to the centroid
+#: over their mean) at most MAX_OUTLINE, over at least MIN_FILM_DOTS dots that show one; the median elongation at most
+#: MAX_ELONGATION where the outlines are not round either (over ROUND_OUTLINE). Measured on the development half of the
+#: real micrographs: films of round and faceted particles 0.02-0.10 and 1.02-1.22; triangular plates, blood cells 0.19-
+#: 0.20 and 1.33-1.41; rods cut into pieces 0.11 and 1.36 (a square's outline is 0.11, a hexagon's 0.06, a disc's on
+#: the pixel grid 0.02-0.08).
+MAX_OUTLINE, MAX_ELONGATION, ROUND_OUTLINE = 0.13, 1.3, 0.1
+#: Pieces: at least PIECES of the whole dots are stacked on a neighbour (`qdots.micrograph.shapes.STACKED`: its centre
+#: closer than 0.7 of their mean diameter). Measured on the development half: films 0-0.35, rods 0.65.
+PIECES = 0.5
 
 
 def empty_bands(positions: np.ndarray, band: float) -> float:
@@ -67,35 +78,66 @@ def check_picture(image: np.ndarray, found: Annotations, source: str) -> None:
     span = float(picture.max() - picture.min())
     share = float(flatness(picture, FLAT_TOLERANCE * span)[keep].mean()) if keep.any() else 1.0
     if share > FLAT_SHARE:
-        raise InputError(f"{source}: not a micrograph: {100 * share:.0f} % of the picture is flat colour, as in a "
-                         f"plot, text, a drawing or a rendered board (a micrograph has noise everywhere, under "
-                         f"{100 * FLAT_SHARE:.0f} %); nothing written")
+        reason = (f"{100 * share:.0f} % of the picture is flat colour, as in a plot, text, a drawing or a rendered "
+                  f"board (a micrograph has noise everywhere, under {100 * FLAT_SHARE:.0f} %)")
+        raise NotAFilm(f"{source}: not a micrograph: {reason}", [reason])
 
 
-def check_film(detection, source: str) -> None:
-    """Refuse, in one line, a detection that is not a film of round particles (see the module)."""
+def film_verdict(detection) -> tuple[list[str], list[str]]:
+    """Why the dots found are not a film of round particles (empty when they are), and what makes their measurement
+    doubtful (see the module), each in words with its numbers."""
     whole = ~detection.cut
     n = int(np.count_nonzero(whole))
     if n < MIN_FILM_DOTS:
-        raise InputError(f"{source}: not a film of particles: {n} round objects found whole (the edge cuts "
-                         f"{int(detection.n_dots) - n} more), fewer than {MIN_FILM_DOTS}; nothing written")
+        return [f"{n} round objects found whole (the edge cuts {int(detection.n_dots) - n} more), fewer than "
+                f"{MIN_FILM_DOTS}"], []
     d = float(np.median(detection.diameters))
     if d < MIN_FILM_DIAMETER:
-        raise InputError(f"{source}: not a film of particles: the round objects found are {d:.1f} px across, "
-                         f"under {MIN_FILM_DIAMETER:g} px (strokes of text or lines?); nothing written")
-    spread = size_spread(detection.diameters[whole] if whole.sum() > 1 else detection.diameters)["size_spread_robust"]
-    if spread > MAX_FILM_SPREAD:
-        raise InputError(f"{source}: not a film of particles: the round objects found vary {100 * spread:.0f} % in "
-                         f"size (interquartile range), over {100 * MAX_FILM_SPREAD:.0f} % (text, lines or a "
-                         "drawing?); nothing written")
+        return [f"the round objects found are {d:.1f} px across, under {MIN_FILM_DIAMETER:g} px (strokes of text or "
+                "lines?)"], []
+    refusals, doubts = [], []
     if n >= LINE_DOTS:
         lines, across = text_lines(detection.centres[whole], d)
         if lines >= LINE_GAPS and across <= LINE_FILLED:
-            raise InputError(f"{source}: not a film of particles: the round objects found lie in lines, as text does "
-                             f"({100 * lines:.0f} % of the bands between them empty, {100 * across:.0f} % across; a "
-                             f"film leaves under {100 * LINE_GAPS:.0f} % empty); nothing written")
+            refusals.append(f"the round objects found lie in lines, as text does ({100 * lines:.0f} % of the bands "
+                            f"between them empty, {100 * across:.0f} % across; a film leaves under "
+                            f"{100 * LINE_GAPS:.0f} % empty)")
+    shapes = detection.shapes[whole]
+    outline = shapes[np.isfinite(shapes[:, 1]), 1]
+    if outline.size >= MIN_FILM_DOTS:
+        wander, elongation = float(np.median(outline)), float(np.nanmedian(shapes[:, 0]))
+        if wander > MAX_OUTLINE:
+            refusals.append(f"the objects are not round: their outlines wander {100 * wander:.0f} % from one radius "
+                            f"(median; round and faceted particles: under {100 * MAX_OUTLINE:.0f} %; a square's is 11 %, "
+                            "a triangle's 17 %): plates, cubes, cells?")
+        elif elongation > MAX_ELONGATION and wander > ROUND_OUTLINE:
+            refusals.append(f"the objects are elongated: their long axis is {elongation:.2f} times the short one "
+                            f"(median; round particles: under {MAX_ELONGATION:g}): rods, wires, cells?")
+    ratio = nearest_ratio(detection.centres[whole], detection.diameters[whole])
+    pieces = float(np.mean(ratio < STACKED))
+    if pieces >= PIECES:
+        refusals.append(f"{100 * pieces:.0f} % of the dots found lie closer than {STACKED:g} diameters to their "
+                        "nearest neighbour: larger objects cut into pieces (rods, plates, wires?), not particles")
+    spread = size_spread(detection.diameters[whole])["size_spread_robust"]
+    if spread > MAX_FILM_SPREAD:
+        doubts.append(f"the sizes vary {100 * spread:.0f} % (interquartile range): two populations, or false "
+                      "detections? (see the size populations)")
     repeat = float(np.nanmedian(detection.errors / detection.diameters))
     if repeat > MAX_REPEAT_ERROR:
-        raise InputError(f"{source}: not a film of round particles: the objects found measure {100 * repeat:.1f} % "
-                         f"differently each time (round particles: under {100 * MAX_REPEAT_ERROR:.0f} %); "
-                         "nothing written")
+        doubts.append(f"the diameters measure {100 * repeat:.1f} % differently each time (clean films: under "
+                      f"{100 * MAX_REPEAT_ERROR:.0f} %): a noisy or textured picture")
+    overlapping = overlap_share(ratio)
+    if overlapping > OVERLAP_SHARE:
+        doubts.append(f"{100 * overlapping:.0f} % of the dots with a close neighbour overlap it (centres closer than "
+                      f"{OVERLAP:g} of their mean diameter): hard particles in one layer do not")
+    return refusals, doubts
+
+
+class NotAFilm(InputError):
+    """A picture that is not a film of round particles; ``reasons`` say why and ``found`` holds what was found (a
+    `qdots.micrograph.measure.MeasuredFilm`, or None when nothing was), for an overlay that shows it."""
+
+    def __init__(self, message: str, reasons: list[str], found=None):
+        super().__init__(message)
+        self.reasons = reasons
+        self.found = found

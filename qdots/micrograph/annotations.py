@@ -16,6 +16,7 @@ film without a box (thin strokes of the bar's colour around it, `label_strokes`)
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -161,7 +162,7 @@ def label_strokes(image: np.ndarray, bar: ScaleBar) -> np.ndarray:
     image = np.asarray(image, dtype=float)
     low, high = float(image.min()), float(image.max())
     x0, y0, x1, y1 = bar.box
-    length = bar.length_px
+    length = int(math.ceil(bar.length_px))
     near = np.zeros(image.shape, dtype=bool)
     near[max(0, y0 - length):y1 + length, max(0, x0 - length):x1 + length] = True
     ink = (image <= low + 0.3 * (high - low)) if bar.dark else (image >= high - 0.3 * (high - low))

@@ -52,10 +52,12 @@ from labrig.compiled import jit
 from labrig.validate import InputError, choice
 
 from .annotations import find_strips
-from .profiles import BIN, FIT_HIGH, FIT_LOW, FIT_STEP, PROFILES, fit_profiles, profile_table, radial_profiles
+from .profiles import (BIN, FIT_HIGH, FIT_LOW, FIT_STEP, PROFILES, fit_profiles, half_depth_radius, profile_table,
+                       radial_profiles)
 from .missed import missed_dots
 from .refine import refine_dots, repeat_errors
 from .settle import FIRST_BLUR, samples_hold, settle_profile
+from .shapes import OVERLAP_SHARE, nearest_ratio, overlap_share, region_shapes
 from .segment import (MIN_INSCRIBED, MIN_SIGNAL, POLARITIES, background_level, blob_seeds, blob_skewness,
                       decide_polarity, edge_curvature, fill_small_holes, label_maxima, middle_window,
                       pixel_noise, region_properties, scaled, signal_to_noise, spaced_maxima, split_fused,
@@ -75,6 +77,12 @@ BLOB_RADIUS = 5.0
 #: 0.05): merged films of 6-7.5 px dots at 10-30 % vacancies 2.1-2.5; every other film of 6-24 px dots (sparse,
 #: touching, superlattices with 1-2 px gaps) 1.0-1.4.
 MERGED = 1.5
+#: A first look whose objects grow TEXTURE_GROWTH times or more when the picture is smoothed by COARSE_SMOOTH px, while
+#: their pixels grow at most TEXTURE_AREA times, found a support's grain or the particles' inner texture (pores)
+#: rather than dots: the picture is smoothed more (`first_look`). Measured: on four real films with grain or pores the
+#: objects grow 2.7-12 times and their pixels 0.1-1.1 times; on 13 other real films 0.6-1.25 times; synthetic touching
+#: films of 6-10 px dots without vacancies merge when smoothed (objects 1.3-6 times larger, pixels 1.1-1.9 times).
+TEXTURE_GROWTH, TEXTURE_AREA, COARSE_SMOOTH = 2.0, 1.15, 3.0
 
 
 @dataclass(frozen=True)
@@ -112,6 +120,9 @@ class Detection:
     errors : ndarray, shape (N,)
         Each diameter's measurement error, px, from measuring the film again with another draw of its own noise
         (`qdots.micrograph.refine.repeat_errors`).
+    shapes : ndarray, shape (N, 3)
+        The elongation, outline and neck of the region each dot was found in (`qdots.micrograph.shapes`; NaN for
+        the faint dots found in the fit's residual).
     """
 
     centres: np.ndarray
@@ -127,10 +138,21 @@ class Detection:
     image_shape: tuple[int, int]
     window: tuple[int, int, int, int]
     errors: np.ndarray
+    shapes: np.ndarray
 
     @property
     def n_dots(self) -> int:
         return len(self.diameters)
+
+    def half_widths(self) -> np.ndarray:
+        """Each dot's full width at half depth, px: where its fitted profile (`shape`, blurred by `blur`) has lost half
+        its central contrast, what a line profile by hand or a threshold halfway between the dot and its background
+        measures (`qdots.micrograph.profiles.half_depth_radius`; a flat disc's is its diameter, a projected sphere's
+        0.87 of it unblurred)."""
+        if not np.isfinite(self.shape):
+            return self.diameters.copy()
+        radii = 0.5 * self.diameters
+        return self.diameters * half_depth_radius(self.shape, self.blur / np.maximum(radii, 1e-9))
 
     def coverage(self) -> float:
         """Fraction of the image inside the fitted discs (their union, on the pixel grid)."""
@@ -177,7 +199,7 @@ def detect_dots(image, polarity: str = "auto", profile: str = "auto", ignore: np
     profile : {"auto", "sphere", "disc"}
         The dots' contrast profile: a projected sphere (``p = 1/2``), a flat disc (``p = 0``), or
         (``"auto"``) the shape of `SHAPES` whose central curvature matches the dots' (`central_curvature`,
-        `predicted_curvature`), the sphere unless another matches clearly better (`CURVATURE_MARGIN`);
+        `predicted_curvature`), the flat disc unless the sphere matches clearly (`qdots.micrograph.settle.SPHERE_MATCH`);
         `Detection.profile` says which and why.
     ignore : ndarray of bool, shape (H, W), optional
         Pixels to leave out (a scale bar and its label).
@@ -219,35 +241,53 @@ def detect_dots(image, polarity: str = "auto", profile: str = "auto", ignore: np
     return replace(found, centres=centres, cut=cut, image_shape=(h, w), window=(x0, y0, x1, y1))
 
 
+def first_look(unit: np.ndarray, ignore: np.ndarray, smoothing: float):
+    """The dot pixels at a first look at half resolution (dots dark in ``unit``): the picture smoothed by
+    ``smoothing`` px, the broad fall of the light (over a sixth of the image) taken out, cut at Otsu's threshold.
+    Returns the smoothed picture (full resolution), the half-resolution look, its dot pixels and their typical
+    radius, px at full resolution."""
+    from skimage.filters import threshold_otsu
+
+    smooth = ndimage.gaussian_filter(unit, smoothing)
+    half = (slice(None, None, 2), slice(None, None, 2))
+    first = smooth[half] - ndimage.gaussian_filter(smooth[half], max(unit.shape) / 12.0, mode="nearest")
+    first += float(np.mean(smooth[half]))
+    mask = (first < threshold_otsu(first[~ignore[half]])) & ~ignore[half]
+    return smooth, first, mask, 2.0 * typical_radius(ndimage.distance_transform_edt(mask))
+
+
 def _detect(image: np.ndarray, polarity: str, profile: str, ignore: np.ndarray) -> Detection:
     """`detect_dots` on an image without a frame; ``cut`` marks the dots whose watershed region touches its edge."""
     from skimage.filters import threshold_otsu
     from skimage.segmentation import expand_labels, watershed
 
     unit = scaled(image, ignore)
-    smooth = ndimage.gaussian_filter(unit, 1.0)
-    if float(smooth[~ignore].max() - smooth[~ignore].min()) < 1e-6:
+    if float(np.ptp(unit[~ignore])) < 1e-6:
         return _empty(image.shape, polarity, 0)
-    # a first look at half resolution, the broad fall of the light (over a sixth of the image) taken out
-    half = (slice(None, None, 2), slice(None, None, 2))
-    first = smooth[half] - ndimage.gaussian_filter(smooth[half], max(image.shape) / 12.0, mode="nearest")
-    first += float(np.mean(smooth[half]))
-    threshold = threshold_otsu(first[~ignore[half]])
     noise = pixel_noise(unit, ignore)
     look = middle_window(unit.shape) if not ignore[middle_window(unit.shape)].all() else (slice(None),) * 2
     skew, sigma = blob_skewness(unit[look], ignore[look], noise)
     dark, how = decide_polarity(*edge_curvature(unit[look], ignore[look], noise, sigma), skew, sigma, polarity)
     # the dots are measured on the unclipped image (clipping would flatten the darkest cores and the noise), the
-    # pixels to ignore left out (NaN)
+    # pixels to ignore left out (NaN); dots are dark in every image below
     target = ndimage.gaussian_filter(scaled(image, ignore, clip=False), 1.0)
     target[ignore] = np.nan
     if not dark:
-        smooth, first, threshold, target = 1.0 - smooth, 1.0 - first, 1.0 - threshold, 1.0 - target
-    # flatten the illumination (its level away from the dots, found at half resolution), then threshold again
-    mask = (first < threshold) & ~ignore[half]
-    radius = 2.0 * typical_radius(ndimage.distance_transform_edt(mask))
+        unit, target = 1.0 - unit, 1.0 - target
+    # a first look at half resolution, smoothed by 1 px; where it finds grain or texture (smoothed by `COARSE_SMOOTH` px,
+    # the objects grow `TEXTURE_GROWTH` times or more while their pixels do not: fragments rejoin the particles they
+    # belong to, where touching dots would merge and gain area), the picture is smoothed at a third of the coarser
+    # look's radius instead
+    smoothing = 1.0
+    smooth, first, mask, radius = first_look(unit, ignore, smoothing)
+    coarse = first_look(unit, ignore, COARSE_SMOOTH)
+    if coarse[3] >= TEXTURE_GROWTH * radius and coarse[2].mean() <= TEXTURE_AREA * mask.mean():
+        smoothing = float(np.clip(coarse[3] / 3.0, COARSE_SMOOTH / 2.0, 2.0 * COARSE_SMOOTH))
+        smooth, first, mask, radius = first_look(unit, ignore, smoothing)
+        how += f"; smoothed by {smoothing:.1f} px (the picture's grain or texture is finer than its dots)"
     if radius < 0.5 * MIN_DIAMETER:
         return _empty(image.shape, how, 0)
+    half = (slice(None, None, 2), slice(None, None, 2))
     away = ~ndimage.binary_dilation(mask, iterations=max(1, int(0.15 * radius))) & ~ignore[half]
     if away.any():
         coarse = background_level(smooth[half], away, 4.0 * radius)
@@ -261,7 +301,7 @@ def _detect(image: np.ndarray, polarity: str, profile: str, ignore: np.ndarray) 
     mask = fill_small_holes((flat < threshold) & ~ignore, 0.03 * math.pi * radius**2)
     distance = ndimage.distance_transform_edt(mask)
     radius = typical_radius(distance)
-    if sigma > 0:  # touching small dots merged into one network: the blobs at the image's scale give their radius
+    if sigma > 0 and smoothing == 1.0:  # touching small dots merged into one network: the blobs give their radius
         blobs = typical_radius(ndimage.distance_transform_edt(mask & (ndimage.gaussian_laplace(flat, sigma) > 0)))
         radius = blobs if radius > MERGED * blobs else radius
     if radius < 0.5 * MIN_DIAMETER:
@@ -269,7 +309,7 @@ def _detect(image: np.ndarray, polarity: str, profile: str, ignore: np.ndarray) 
     # split touching dots: a watershed from one seed per dot; small dots' seeds from their intensity (`blob_seeds`),
     # larger ones' from the distance transform's maxima (smoothed by 1 px) at least 0.6 radii apart
     if radius < BLOB_RADIUS:
-        peaks, response = blob_seeds((unit if dark else 1.0 - unit) / np.maximum(level, 1e-6), mask, radius)
+        peaks, response = blob_seeds(unit / np.maximum(level, 1e-6), mask, radius)
     else:
         peaks = spaced_maxima(ndimage.gaussian_filter(distance, 1.0), max(2, round(0.6 * radius)), 0.5)
         response = distance
@@ -283,6 +323,7 @@ def _detect(image: np.ndarray, polarity: str, profile: str, ignore: np.ndarray) 
     markers[tuple(peaks.T)] = np.arange(1, n + 1)
     labels = split_fused(watershed(-response, markers, mask=mask), distance)
     props = region_properties(labels)
+    shapes = region_shapes(labels)
     h, w = image.shape
     centres = np.column_stack([props["centroid-1"] + 0.5, props["centroid-0"] + 0.5])
     deepest, where = label_maxima(labels, distance, len(props["label"]))
@@ -306,17 +347,29 @@ def _detect(image: np.ndarray, polarity: str, profile: str, ignore: np.ndarray) 
     shape, blur, level, level_map, how_shape = settle_profile(target, centres, first[0], first[2], first[1], typical,
                                                               whole, profile)
     refined = refine_dots(target, centres, first[0], first[2], typical, shape, blur, level, move=True)
+    spheres, refit = profile == "auto" and shape == 0.5, ""
+    overlapping = overlap_share(nearest_ratio(refined.centres, 2.0 * refined.radius)) if spheres else 0.0
+    if overlapping > OVERLAP_SHARE:  # projected spheres wider than their spacing: the particles are flatter
+        profile = "disc"
+        shape, blur, level, level_map, how_shape = settle_profile(target, centres, first[0], first[2], first[1],
+                                                                  typical, whole, profile)
+        how_shape = refit = (f"p = 0: as projected spheres {100 * overlapping:.0f} % of the dots with a close "
+                             "neighbour overlapped it, which particles in one layer cannot do, so they were fitted as "
+                             "flat discs")
+        refined = refine_dots(target, centres, first[0], first[2], typical, shape, blur, level, move=True)
     extra = missed_dots(target, refined, level_map, typical, shape, blur, noise)
     if len(extra):  # dots the threshold missed: fitted, and the film settled again with them if they are in its samples
         more, n = len(extra), len(centres)
         centres = np.vstack([centres, extra])
         touches = np.concatenate([touches, np.zeros(more, dtype=bool)])
+        shapes = np.vstack([shapes, np.full((more, 3), np.nan)])
         whole = np.flatnonzero(~touches)
         first = (np.concatenate([first[0], np.full(more, typical)]), np.concatenate([first[1], np.full(more, np.nan)]),
                  np.concatenate([first[2], np.full(more, float(np.median(first[2][sure])) if sure.any() else 0.0)]))
         if samples_hold(target.shape, centres, whole, typical, np.arange(n, n + more)):
             shape, blur, level, level_map, how_shape = settle_profile(target, centres, first[0], first[2], first[1],
                                                                       typical, whole, profile)
+            how_shape = refit or how_shape
         else:  # the settling is the same without them: the new dots take the level and blur where they lie
             nearest = np.argmin(np.hypot(*(extra[:, None, :] - centres[None, :n, :]).T), axis=0)
             at = np.clip(extra.astype(int), 0, [target.shape[1] - 1, target.shape[0] - 1])
@@ -340,11 +393,13 @@ def _detect(image: np.ndarray, polarity: str, profile: str, ignore: np.ndarray) 
                       len(start))
     rejected += int(np.count_nonzero(~good))
     errors = 2.0 * repeat_errors(target, centres, refined, typical, shape, blur, level, level_map)
-    centres, fitted, contrast, touches, errors = (part[good] for part in (centres, fitted, contrast, touches, errors))
+    centres, fitted, contrast, touches, errors, shapes = (part[good] for part in (centres, fitted, contrast, touches,
+                                                                                 errors, shapes))
     return Detection(centres, 2.0 * fitted, touches, contrast, dark, how, float(shape), how_shape,
-                     float(np.median(blur)), rejected, (h, w), (0, 0, w, h), errors)
+                     float(np.median(blur)), rejected, (h, w), (0, 0, w, h), errors, shapes)
 
 
 def _empty(shape, how: str, rejected: int) -> Detection:
     return Detection(np.zeros((0, 2)), np.zeros(0), np.zeros(0, dtype=bool), np.zeros(0), "light" not in how, how,
-                     math.nan, "", math.nan, rejected, tuple(shape), (0, 0, shape[1], shape[0]), np.zeros(0))
+                     math.nan, "", math.nan, rejected, tuple(shape), (0, 0, shape[1], shape[0]), np.zeros(0),
+                     np.zeros((0, 3)))

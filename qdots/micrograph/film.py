@@ -25,6 +25,9 @@ from ..state import State
 
 #: A cluster of at least this many dots is an aggregate (as in the reproduction of thesis Fig 2-2).
 AGGREGATE = 5
+#: Diameters further than OUTLIER robust deviations from the median are left out of the size statistics (`size_spread`):
+#: a normal distribution has one in 150,000 dots there.
+OUTLIER = 4.5
 
 
 def film_state(centres: np.ndarray, diameters: np.ndarray, image_shape: tuple[int, int]) -> State:
@@ -53,27 +56,36 @@ def complete_neighbourhood(state, window: tuple[float, float, float, float] | No
 
 
 def size_spread(diameters, errors=None) -> dict:
-    """The size spread sigma (SD / mean) of ``diameters``, honest about the measurement error.
+    """The size spread sigma (SD / mean) of ``diameters``, honest about the measurement error and about a few false
+    detections.
 
-    ``size_spread_measured`` is SD / mean of the diameters as measured; ``size_spread_error`` the root mean
-    square of their measurement ``errors`` over the mean (0 when none are given); ``size_spread`` the true
-    spread, ``sqrt(measured^2 - error^2)`` (the measured variance is the true one plus the error's, the errors
-    being independent of the sizes). ``size_spread_robust`` is the same from the interquartile range
-    (IQR / 1.349, the SD of a normal distribution) and the errors' median (times 1.4826), which a few fused or
-    split dots do not move: far below ``size_spread``, it says the spread is in a tail, not in the bulk.
+    A few fused, split or false dots, or letters taken for dots, would set the SD: diameters more than `OUTLIER`
+    robust deviations (the interquartile range over 1.349, the SD of a normal distribution) from the median are left
+    out of it (``size_outliers`` counts them; a film's own sizes, even two populations of them, lie within). Of the
+    others: ``size_spread_measured`` is SD / mean as measured; ``size_spread_error`` the root mean square of their
+    measurement ``errors`` over the mean (0 when none are given); ``size_spread`` the true spread,
+    ``sqrt(measured^2 - error^2)`` (the measured variance is the true one plus the error's, the errors being
+    independent of the sizes). ``size_spread_robust`` is the same from the interquartile range of all of them and the
+    errors' median (times 1.4826): far below ``size_spread``, it says the spread is in a tail, not in the bulk.
+    ``size_mean`` is the mean of the diameters kept.
     """
     d = np.asarray(diameters, dtype=float)
     if d.size < 2:
         return {"size_spread": math.nan, "size_spread_measured": math.nan, "size_spread_error": math.nan,
-                "size_spread_robust": math.nan}
-    mean, sd = float(d.mean()), float(d.std(ddof=1))
-    e = np.asarray(errors, dtype=float)[np.isfinite(errors)] if errors is not None else np.zeros(0)
-    rms = float(np.sqrt(np.mean(e**2))) if e.size else 0.0
-    typical_error = 1.4826 * float(np.median(np.abs(e))) if e.size else 0.0
+                "size_spread_robust": math.nan, "size_outliers": 0, "size_mean": float(d.mean()) if d.size else math.nan}
+    e = np.asarray(errors, dtype=float) if errors is not None else np.full(d.size, np.nan)
     iqr = float(np.subtract(*np.percentile(d, [75, 25]))) / 1.349
+    inlier = np.abs(d - np.median(d)) <= OUTLIER * max(iqr, 1e-9 * float(np.median(d)))
+    kept, kept_errors = d[inlier], e[inlier]
+    kept_errors = kept_errors[np.isfinite(kept_errors)]
+    mean, sd = float(kept.mean()), float(kept.std(ddof=1)) if kept.size > 1 else 0.0
+    rms = float(np.sqrt(np.mean(kept_errors**2))) if kept_errors.size else 0.0
+    all_errors = e[np.isfinite(e)]
+    typical_error = 1.4826 * float(np.median(np.abs(all_errors))) if all_errors.size else 0.0
     return {"size_spread": math.sqrt(max(sd**2 - rms**2, 0.0)) / mean, "size_spread_measured": sd / mean,
             "size_spread_error": rms / mean,
-            "size_spread_robust": math.sqrt(max(iqr**2 - typical_error**2, 0.0)) / float(np.median(d))}
+            "size_spread_robust": math.sqrt(max(iqr**2 - typical_error**2, 0.0)) / float(np.median(d)),
+            "size_outliers": int(d.size - kept.size), "size_mean": mean}
 
 
 def film_metrics(state, measured: np.ndarray | None = None, complete: np.ndarray | None = None,
@@ -96,8 +108,9 @@ def film_metrics(state, measured: np.ndarray | None = None, complete: np.ndarray
     -------
     dict
         ``dots``, ``dots_sized``, ``dots_complete``; ``mean_diameter_px``, ``sd_diameter_px`` (and in nm when
-        the scale is known); ``size_spread`` (the thesis's sigma, SD / mean, the measurement error taken out),
-        ``size_spread_measured``, ``size_spread_error``, ``size_spread_robust`` (`size_spread`);
+        the scale is known; outliers left out); ``size_spread`` (the thesis's sigma, SD / mean, the measurement error
+        and outliers taken out), ``size_spread_measured``, ``size_spread_error``, ``size_spread_robust``,
+        ``size_outliers`` (`size_spread`);
         ``interior_fraction`` (>= 5 neighbours), ``mean_neighbours``, ``psi6_local``, ``psi6_global``;
         ``aggregates`` (clusters of >= 5 dots), ``largest_share``, ``single_dots``;
         ``gr_peak_diameters`` (first peak of g(r) in mean diameters).
@@ -108,10 +121,11 @@ def film_metrics(state, measured: np.ndarray | None = None, complete: np.ndarray
     d = 2.0 * np.asarray(state.radii, dtype=float)
     sized = d[measured]
     out = {"dots": n, "dots_sized": int(measured.sum()), "dots_complete": int(complete.sum())}
-    mean = float(sized.mean()) if sized.size else math.nan
-    sd = float(sized.std(ddof=1)) if sized.size > 1 else math.nan
+    spread = size_spread(sized, None if errors is None else np.asarray(errors, dtype=float)[measured])
+    mean = spread.pop("size_mean")
+    sd = spread["size_spread_measured"] * mean if sized.size > 1 else math.nan
     out.update(mean_diameter_px=mean, sd_diameter_px=sd)
-    out.update(size_spread(sized, None if errors is None else np.asarray(errors, dtype=float)[measured]))
+    out.update(spread)
     if nm_per_px is not None:
         out.update(mean_diameter_nm=mean * nm_per_px, sd_diameter_nm=sd * nm_per_px)
     counts = neighbour_counts(state) if n else np.zeros(0, dtype=int)

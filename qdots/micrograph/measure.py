@@ -20,11 +20,12 @@ from labrig.validate import InputError
 
 from ..analysis.lqe import film_lqe
 from .detect import Detection, detect_dots
-from .film import complete_neighbourhood, film_metrics, film_state
+from .film import OUTLIER, complete_neighbourhood, film_metrics, film_state
 from .read import Micrograph, read_micrograph
-from .admit import check_film, check_picture
+from .admit import NotAFilm, check_picture, film_verdict
 from .annotations import Annotations, find_annotations
 from .scale import ScaleBar, check_nm_per_px, parse_length, scale_from_bar
+from .shapes import STACKED, nearest_ratio
 
 #: Diameters, nm, of quantum dots and nanocrystals: a scale that puts the dots outside says so (`scale_check`).
 PLAUSIBLE_NM = (1.0, 100.0)
@@ -56,9 +57,14 @@ class MeasuredFilm:
     bar : ScaleBar or None
         The scale bar found on the image (used for the scale when its length was given).
     summary : dict
-        `film_metrics` with ``coverage``, the film LQE and how the image was read.
+        `film_metrics` with ``coverage``, the film LQE, how the image was read and ``doubts`` (what makes the
+        measurement doubtful, in words, ``"; "`` between them; empty when nothing does).
     annotations : Annotations or None
         What was found drawn on the image and left out (`qdots.micrograph.annotations.find_annotations`).
+    stacked : ndarray of bool or None
+        Dots stacked on a neighbour (`qdots.micrograph.shapes.STACKED`: overlapping it by over a third, which no
+        particle in one layer can: a second layer, a piece of something larger, or not a particle), left out of the
+        size statistics as the dots the edge cuts are.
     """
 
     image: Micrograph
@@ -70,6 +76,7 @@ class MeasuredFilm:
     bar: ScaleBar | None
     summary: dict
     annotations: Annotations | None = None
+    stacked: np.ndarray | None = None
 
 
 def settle_scale(image: Micrograph, bar: ScaleBar | None, nm_per_px=None, scale_bar: str | None = None
@@ -96,7 +103,9 @@ def settle_scale(image: Micrograph, bar: ScaleBar | None, nm_per_px=None, scale_
 def describe_bar(bar: ScaleBar) -> str:
     """``127 px (a solid bar at x 730-857, y 837-845 px)``."""
     x0, y0, x1, y1 = bar.box
-    return f"{bar.length_px} px (a {'ruled' if bar.ruled else 'solid'} bar at x {x0}-{x1}, y {y0}-{y1} px)"
+    edge = "; it reaches the picture's edge, so it may be longer than shown: check it" if bar.at_edge else ""
+    return (f"{bar.length_px:.1f} px at half contrast (a {'ruled' if bar.ruled else 'solid'} bar at x {x0}-{x1}, "
+            f"y {y0}-{y1} px{edge})")
 
 
 def scale_check(summary: dict) -> str:
@@ -112,7 +121,7 @@ def scale_check(summary: dict) -> str:
 
 
 def measure_image(path: str | os.PathLike, *, nm_per_px=None, scale_bar: str | None = None, polarity: str = "auto",
-                  profile: str = "auto", page: int = 0, lqe: bool = True) -> MeasuredFilm:
+                  profile: str = "auto", page: int = 0, lqe: bool = True, force: bool = False) -> MeasuredFilm:
     """Read a micrograph, find its dots and measure the film (nothing written).
 
     Parameters
@@ -132,12 +141,17 @@ def measure_image(path: str | os.PathLike, *, nm_per_px=None, scale_bar: str | N
         Page of a multi-page file.
     lqe : bool
         Also compute the film LQE (thesis trap model, `qdots.analysis.lqe.film_lqe`).
+    force : bool
+        Measure a picture whose dots do not look like a film of round particles (`qdots.micrograph.admit`) anyway;
+        the summary's ``doubts`` then say why it would have been refused.
 
     Raises
     ------
     labrig.validate.InputError
-        Bad file or scale (one line), no dot found in the image, or a picture that is not a film of round
-        particles (`qdots.micrograph.admit`).
+        Bad file or scale (one line), or no dot found in the image.
+    qdots.micrograph.admit.NotAFilm
+        A picture that is not a film of round particles (one line with the reasons; unless ``force``); its ``found``
+        holds what was found, for an overlay.
     """
 
     if nm_per_px is not None:  # bad scales are refused before the image is read, even when the file has one
@@ -146,7 +160,8 @@ def measure_image(path: str | os.PathLike, *, nm_per_px=None, scale_bar: str | N
         parse_length(scale_bar)
     image = read_micrograph(path, page)
     found = find_annotations(image.pixels)
-    check_picture(image.pixels, found, str(path))
+    if not force:
+        check_picture(image.pixels, found, str(path))
     bar = found.bar
     scale, how = settle_scale(image, bar, nm_per_px, scale_bar)
     detection = detect_dots(image.pixels, polarity=polarity, profile=profile, ignore=found.ignore,
@@ -154,25 +169,44 @@ def measure_image(path: str | os.PathLike, *, nm_per_px=None, scale_bar: str | N
     if detection.n_dots == 0:
         raise InputError(f"{path}: no dots found ({detection.polarity}); nothing written. Check --polarity, "
                          "or crop the image to the film")
-    check_film(detection, str(path))
+    refusals, doubts = film_verdict(detection)
+    if refusals and force:
+        doubts = [f"measured with --force, though not a film of round particles: {r}" for r in refusals] + doubts
+    film = measured_film(image, detection, scale, how, bar, found, lqe and not (refusals and not force), doubts)
+    if refusals and not force:
+        raise NotAFilm(f"{path}: not a film of round particles: {'; '.join(refusals)}", refusals, film)
+    return film
+
+
+def measured_film(image: Micrograph, detection: Detection, scale: float | None, how: str, bar: ScaleBar | None,
+                  found: Annotations, lqe: bool, doubts: list[str]) -> MeasuredFilm:
+    """The board and the summary of the dots found in ``image`` (see `measure_image`), with the ``doubts`` about it
+    (`qdots.micrograph.admit.film_verdict`)."""
     state = film_state(detection.centres, detection.diameters, image.shape)
     h = image.shape[0]
     x0, y0, x1, y1 = detection.window
     complete = complete_neighbourhood(state, (x0, h - y1, x1, h - y0))
+    stacked = nearest_ratio(detection.centres, detection.diameters) < STACKED
     summary = {"image": image.source, "page": image.page, "width_px": image.shape[1], "height_px": image.shape[0],
                "nm_per_px": scale if scale is not None else math.nan, "scale": how,
                "polarity": detection.polarity, "profile": detection.profile, "profile_p": detection.shape,
                "blur_px": detection.blur, "rejected_objects": detection.rejected,
-               "dots_cut_by_edge": int(detection.cut.sum()), "coverage": detection.coverage(),
-               "left_out": found.describe(float(image.pixels.min()), float(image.pixels.max()))}
-    summary.update(film_metrics(state, measured=~detection.cut, complete=complete, nm_per_px=scale,
+               "dots_cut_by_edge": int(detection.cut.sum()), "dots_stacked": int(stacked.sum()),
+               "coverage": detection.coverage(),
+               "left_out": found.describe(float(image.pixels.min()), float(image.pixels.max())),
+               "doubts": "; ".join(doubts)}
+    summary.update(film_metrics(state, measured=~detection.cut & ~stacked, complete=complete, nm_per_px=scale,
                                 errors=detection.errors))
+    half = detection.half_widths()[~detection.cut & ~stacked]
+    summary["mean_half_width_px"] = float(half.mean()) if half.size else math.nan
+    if scale is not None:
+        summary["mean_half_width_nm"] = summary["mean_half_width_px"] * scale
     summary["scale_check"] = scale_check(summary)
     if lqe:
         draws = lqe_draws(state.n_dots)
         average = film_lqe(state, draws=draws, seed=0)
         summary.update(lqe=average.mean, lqe_standard_error=average.standard_error, lqe_trap_draws=draws)
-    return MeasuredFilm(image, detection, state, complete, scale, how, bar, summary, found)
+    return MeasuredFilm(image, detection, state, complete, scale, how, bar, summary, found, stacked)
 
 
 def summary_rows(summary: dict) -> list[tuple[str, str]]:
@@ -187,10 +221,15 @@ def summary_rows(summary: dict) -> list[tuple[str, str]]:
         ("left out", s["left_out"]),
         ("dots", (f"{s['dots']} ({s['dots_cut_by_edge']} cut by the edge; {s['dots_complete']} with their whole "
                  f"neighbourhood in the picture)")),
+        ("left out of the sizes", (f"{s['dots_stacked']} dots stacked on a neighbour (overlapping it by over a third: "
+                                   f"a second layer, or not particles); {s['size_outliers']} sizes over "
+                                   f"{OUTLIER:g} robust deviations from the median")),
         ("polarity", s["polarity"]),
         ("profile", f"{s['profile']}, blur {s['blur_px']:.2f} px"),
         ("coverage", f"{s['coverage']:.3f}"),
         ("mean diameter +- SD", size),
+        ("half-depth width", (f"{s['mean_half_width_nm']:.1f} nm" if nm else f"{s['mean_half_width_px']:.2f} px")
+         + " (the width at half contrast, as line profiles and thresholds measure it)"),
         ("size spread sigma (SD / mean)", (f"{100 * s['size_spread']:.1f} % (measured {100 * s['size_spread_measured']:.1f} %, "
                                            f"of which {100 * s['size_spread_error']:.1f} % is each diameter's "
                                            f"measurement error; from the interquartile range "
@@ -207,6 +246,7 @@ def summary_rows(summary: dict) -> list[tuple[str, str]]:
         lqe = f"{s['lqe']:.4f} +- {s['lqe_standard_error']:.4f} ({s['lqe_trap_draws']} trap draws)"
         rows.append(("film LQE (traps 1/3, R_F = mean d)", lqe))
     rows.append(("objects that are not dots", f"{s['rejected_objects']} (text, scale-bar strokes, debris)"))
+    rows += [("doubt", doubt) for doubt in s["doubts"].split("; ") if doubt]
     return rows
 
 

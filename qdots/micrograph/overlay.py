@@ -47,14 +47,16 @@ def draw_scale_bar(ax, nm_per_px: float | None, width_px: float, height_px: floa
 
 def save_overlay_axes(film: MeasuredFilm, ax, extent_nm: tuple[float, float] | None = None) -> None:
     """Draw the image and its detections on ``ax``: circles coloured by size (`qdots.render.size_colours`),
-    dashed white for dots cut by the edge, centres as yellow crosses, a scale bar. With ``extent_nm`` the
-    axes run in nm (row 0 at the top), else in image px."""
+    dashed white for dots cut by the edge, dotted red for dots stacked on a neighbour (left out of the sizes),
+    centres as yellow crosses, a scale bar. With ``extent_nm`` the axes run in nm (row 0 at the top), else in image
+    px."""
 
     h, w = film.image.shape
     det = film.detection
     k = 1.0 if extent_nm is None else extent_nm[0] / w
     ax.imshow(film.image.pixels, cmap="gray", extent=(0, w * k, h * k, 0), interpolation="nearest")
-    whole = ~det.cut
+    stacked = film.stacked if film.stacked is not None else np.zeros(det.n_dots, dtype=bool)
+    whole = ~det.cut & ~stacked
     colours = size_colours(0.5 * det.diameters[whole]) if whole.any() else np.zeros((0, 3))
     ax.add_collection(PatchCollection([Circle(c * k, 0.5 * d * k) for c, d in zip(det.centres[whole],
                                                                                  det.diameters[whole])],
@@ -62,6 +64,9 @@ def save_overlay_axes(film: MeasuredFilm, ax, extent_nm: tuple[float, float] | N
     ax.add_collection(PatchCollection([Circle(c * k, 0.5 * d * k) for c, d in zip(det.centres[det.cut],
                                                                                  det.diameters[det.cut])],
                                       facecolor="none", edgecolor="white", linewidth=0.9, linestyle="--"))
+    ax.add_collection(PatchCollection([Circle(c * k, 0.5 * d * k) for c, d in zip(det.centres[stacked & ~det.cut],
+                                                                                 det.diameters[stacked & ~det.cut])],
+                                      facecolor="none", edgecolor="red", linewidth=0.9, linestyle=":"))
     ax.plot(det.centres[:, 0] * k, det.centres[:, 1] * k, "+", color="yellow", markersize=3, markeredgewidth=0.6)
     mark_annotations(ax, film, k)
     draw_scale_bar(ax, film.nm_per_px / k if film.nm_per_px is not None else None, w * k, h * k)
@@ -90,23 +95,25 @@ def mark_annotations(ax, film: MeasuredFilm, k: float = 1.0) -> None:
                                facecolor="none", edgecolor="magenta", linewidth=1.5))
         from_bar = film.nm_per_px is not None and "from the scale bar" in film.scale
         used = f" = {film.bar.length_px * film.nm_per_px:.4g} nm" if from_bar else ""
-        ax.text((a + c) / 2 * k, (b - 2 * pad) * k, f"scale bar {film.bar.length_px} px{used}", color="magenta",
+        ax.text((a + c) / 2 * k, (b - 2 * pad) * k, f"scale bar {film.bar.length_px:.1f} px{used}", color="magenta",
                 ha="center", va="bottom", fontsize="small",
                 bbox={"facecolor": "white", "edgecolor": "none", "alpha": 0.7, "pad": 1})
 
 
-def save_overlay(film: MeasuredFilm, path, dpi: int | None = None) -> Path:
+def save_overlay(film: MeasuredFilm, path, dpi: int | None = None, refused: list[str] | None = None) -> Path:
     """`overlay_figure`, written atomically at about the image's own resolution (or ``dpi``)."""
 
     w = film.image.shape[1]
     if dpi is None:
         dpi = int(min(300, max(100, round(w / 9.6))))
-    return save_figure(overlay_figure(film), path, dpi=dpi)
+    return save_figure(overlay_figure(film, refused), path, dpi=dpi)
 
 
-def overlay_figure(film: MeasuredFilm):
+def overlay_figure(film: MeasuredFilm, refused: list[str] | None = None):
     """The detections drawn on the image (`save_overlay_axes`) with a title, the colour bar of the sizes and a
-    scale bar: a matplotlib Figure 10 in wide."""
+    scale bar: a matplotlib Figure 10 in wide. With ``refused`` (the reasons a picture is not a film of round
+    particles) the title says so, in red, and the reasons follow it; the measurement's doubts are written under the
+    title too."""
 
     h, w = film.image.shape
     det = film.detection
@@ -121,9 +128,21 @@ def overlay_figure(film: MeasuredFilm):
     s = film.summary
     size = (f"{s['mean_diameter_nm']:.1f} ± {s['sd_diameter_nm']:.1f} nm" if math.isfinite(s["nm_per_px"])
             else f"{s['mean_diameter_px']:.1f} ± {s['sd_diameter_px']:.1f} px")
-    ax.set_title(f"{film.image.source}: {s['dots']} dots ({s['dots_cut_by_edge']} cut by the edge, dashed), "
-                 f"d = {size}, σ = {100 * s['size_spread']:.1f} %, interior fraction {s['interior_fraction']:.2f}",
-                 fontsize="medium")
+    if refused:
+        ax.set_title(f"{film.image.source}: refused, not a film of round particles ({s['dots']} objects found)",
+                     fontsize="medium", color="firebrick")
+    else:
+        ax.set_title(f"{film.image.source}: {s['dots']} dots ({s['dots_cut_by_edge']} cut by the edge, dashed), "
+                     f"d = {size}, σ = {100 * s['size_spread']:.1f} %, interior fraction {s['interior_fraction']:.2f}",
+                     fontsize="medium")
+    notes = list(refused or []) + [d for d in s.get("doubts", "").split("; ") if d]
+    if notes:
+        import textwrap
+
+        text = "\n".join(textwrap.fill(("refused: " if refused and k < len(refused) else "doubt: ") + note, 140)
+                         for k, note in enumerate(notes[:4]))
+        ax.text(0.5, 1.0, text, transform=ax.transAxes, ha="center", va="top", fontsize="x-small",
+                color="firebrick" if refused else "black", bbox={"facecolor": "white", "alpha": 0.8, "pad": 2})
     k, unit = (film.nm_per_px, "nm") if film.nm_per_px is not None else (1.0, "image px")
     sized = film_state(det.centres[~det.cut] * k, det.diameters[~det.cut] * k, (h * k, w * k))
     add_key(ax, sized, unit, cax=fig.add_axes((0.3, 0.5 / total_in, 0.4, 0.12 / total_in)))

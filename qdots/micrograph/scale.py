@@ -19,6 +19,9 @@ BAR_ASPECT = 5.0
 BAR_GAP, MIN_HOLE = 3, 4
 #: Shortest scale bar, px.
 MIN_BAR = 10
+#: A bar holds at most OFF_SPINE times as many pixels off its spine as on it (its ticks, end caps, or its label's
+#: letters where they touch it: a cropped journal figure's bold "20 nm" set on its bar, 0.96 times).
+OFF_SPINE = 2.0
 #: Pixels within this share of the image's range of its darkest (or lightest) value are bar colour.
 BAR_TOLERANCE = 0.05
 #: Scales, nm per px: from 1 pm per pixel (finer than any electron microscope's pixel) to 1 mm per pixel.
@@ -33,8 +36,8 @@ class ScaleBar:
 
     Attributes
     ----------
-    length_px : int
-        Its length, px (along its long side).
+    length_px : float
+        Its length, px (along its long side), between the ends' half-contrast points (`half_contrast_length`).
     box : (int, int, int, int)
         ``(x0, y0, x1, y1)`` of the bar, px (x the column, y the row; ``x1``, ``y1`` exclusive).
     dark : bool
@@ -43,13 +46,16 @@ class ScaleBar:
         Whether it is divided or ticked (cuts, blocks in an outline, ticks, end caps) rather than a plain bar.
     thickness : int
         The thickness of its spine, px (ticks and end caps aside).
+    at_edge : bool
+        Whether it reaches the picture's edge (its length may then be cut, and is that of what is shown).
     """
 
-    length_px: int
+    length_px: float
     box: tuple[int, int, int, int]
     dark: bool
     ruled: bool = False
     thickness: int = 0
+    at_edge: bool = False
 
     def mask(self, shape: tuple[int, int], margin: int = 2) -> np.ndarray:
         """The bar's pixels and ``margin`` px around it, as a boolean image of ``shape``."""
@@ -79,11 +85,11 @@ def parse_length(text: str, name: str = "scale_bar") -> float:
     return nm
 
 
-def spine(component: np.ndarray) -> tuple[int, int, int] | None:
+def spine(component: np.ndarray) -> tuple[int, int, int, int] | None:
     """The spine of a horizontal bar-like component (a boolean crop, its holes filled): ``(length, thickness,
-    off)`` where ``length`` is the longest run of its pixels along a row, ``thickness`` the rows whose run is at
-    least 0.9 of it, ``off`` its pixels outside those rows (ticks, end caps); None when the spine does not span
-    the component (text, a chain of dots)."""
+    off, middle)`` where ``length`` is the longest run of its pixels along a row, ``thickness`` the rows whose run is
+    at least 0.9 of it, ``off`` its pixels outside those rows (ticks, end caps), ``middle`` the middle one of those
+    rows; None when the spine does not span the component (text, a chain of dots)."""
     padded = np.pad(component, ((0, 0), (1, 1)))
     edges = np.diff(padded.astype(np.int8), axis=1)
     runs = np.zeros(component.shape[0], dtype=int)
@@ -96,19 +102,21 @@ def spine(component: np.ndarray) -> tuple[int, int, int] | None:
         return None
     rows = runs >= 0.9 * length
     thickness = int(rows.sum())
-    return length, thickness, int(component[~rows].sum())
+    on = np.flatnonzero(rows)
+    return length, thickness, int(component[~rows].sum()), int(on[len(on) // 2])
 
 
-def bar_candidate(component: np.ndarray, holes: np.ndarray) -> tuple[int, int, int] | None:
-    """(length, thickness, pixels off the spine) when ``component`` (a boolean crop, holes filled) is a scale bar, solid, ruled or in
-    an outline: a spine at least `MIN_BAR` px long and `BAR_ASPECT` times its thickness, no more of it off the
-    spine than on it, and its holes (the empty blocks of a checkered bar; ``holes`` the filled-in pixels) as
-    tall as half the spine (a box holding text and a smaller bar has low holes)."""
+def bar_candidate(component: np.ndarray, holes: np.ndarray) -> tuple[int, int, int, int] | None:
+    """(length, thickness, pixels off the spine, the spine's middle row) when ``component`` (a boolean crop, holes filled) is a scale bar, solid, ruled or in
+    an outline: a spine at least `MIN_BAR` px long and `BAR_ASPECT` times its thickness, at most `OFF_SPINE` times
+    as much of it off the spine as on it (ticks, end caps, a label whose letters touch the bar), and its holes (the
+    empty blocks of a checkered bar; ``holes`` the filled-in pixels) as tall as half the spine (a box holding text
+    and a smaller bar has low holes)."""
     found = spine(component)
     if found is None:
         return None
-    length, thickness, off = found
-    if length < MIN_BAR or length < BAR_ASPECT * thickness or off > length * thickness:
+    length, thickness, off, _middle = found
+    if length < MIN_BAR or length < BAR_ASPECT * thickness or off > OFF_SPINE * length * thickness:
         return None
     if holes.any():
         hole_labels, _ = ndimage.label(holes)
@@ -116,7 +124,7 @@ def bar_candidate(component: np.ndarray, holes: np.ndarray) -> tuple[int, int, i
         for (rows, _cols), size in zip(ndimage.find_objects(hole_labels), sizes):
             if size >= MIN_HOLE and rows.stop - rows.start < 0.5 * thickness:
                 return None  # a hole of its own, low: text or a smaller bar in a box (specks of noise aside)
-    return length, thickness, off
+    return found
 
 
 def find_scale_bar(image: np.ndarray) -> ScaleBar | None:
@@ -124,8 +132,11 @@ def find_scale_bar(image: np.ndarray) -> ScaleBar | None:
 
     The pixels within `BAR_TOLERANCE` of the image's darkest (or lightest) value are closed along rows and
     columns by `BAR_GAP` px (the thin cuts of a ruled bar) and their holes filled (the blocks of a checkered
-    bar in its outline); a component not touching the image's edge (a frame is not a bar) is a bar when it is
-    one horizontally or vertically (`bar_candidate`). Dots are never that flat in colour, nor that long.
+    bar in its outline); a component is a bar when it is one horizontally or vertically (`bar_candidate`), and not a
+    box: its holes hold nothing of its colour (a label box drawn as an outline holds its bar and its text). A
+    component that spans the image from side to side is a frame, not a bar; one that reaches a side with one end
+    only is a bar cut by the picture's edge, which cropped figures often show (`ScaleBar.at_edge`). Its length is
+    measured at half contrast (`half_contrast_length`). Dots are never that flat in colour, nor that long.
     """
     image = np.asarray(image, dtype=float)
     low, high = float(image.min()), float(image.max())
@@ -133,6 +144,7 @@ def find_scale_bar(image: np.ndarray) -> ScaleBar | None:
     if not span > 0:
         return None
     best = None
+    h_img, w_img = image.shape
     for dark, value in ((True, low), (False, high)):
         colour = np.abs(image - value) <= BAR_TOLERANCE * span
         closed = colour | ndimage.binary_closing(colour, np.ones((1, BAR_GAP))) | ndimage.binary_closing(
@@ -143,19 +155,69 @@ def find_scale_bar(image: np.ndarray) -> ScaleBar | None:
                 continue
             rows, cols = box
             h, w = rows.stop - rows.start, cols.stop - cols.start
-            if rows.start == 0 or cols.start == 0 or rows.stop == image.shape[0] or cols.stop == image.shape[1]:
-                continue
-            if max(h, w) < MIN_BAR or max(h, w) < BAR_ASPECT * min(h, w) / 4:
+            across = (rows.start == 0 and rows.stop == h_img) or (cols.start == 0 and cols.stop == w_img)
+            corner = (rows.start == 0 or rows.stop == h_img) and (cols.start == 0 or cols.stop == w_img)
+            if across or corner or max(h, w) < MIN_BAR or max(h, w) < BAR_ASPECT * min(h, w) / 4:
                 continue
             own = labels[box] == k
             filled = ndimage.binary_fill_holes(own)
             holes = filled & ~own
+            if (holes & (labels[box] != k) & (labels[box] > 0)).any():
+                continue  # a box around a bar or text, not a bar
             found = bar_candidate(filled, holes) if w >= h else bar_candidate(filled.T, holes.T)
-            if found is not None and (best is None or found[0] > best.length_px):
-                best = ScaleBar(found[0], (cols.start, rows.start, cols.stop, rows.stop), dark,
+            if found is None:
+                continue
+            edge = rows.start == 0 or cols.start == 0 or rows.stop == h_img or cols.stop == w_img
+            middle = (rows.start if w >= h else cols.start) + found[3]
+            length = half_contrast_length(image, (cols.start, rows.start, cols.stop, rows.stop), w >= h, found[1],
+                                          float(found[0]), middle)
+            if best is None or length > best.length_px:
+                best = ScaleBar(length, (cols.start, rows.start, cols.stop, rows.stop), dark,
                                 ruled=bool(holes.any() or found[2] > 0 or (own & ~colour[box]).any()),
-                                thickness=found[1])
+                                thickness=found[1], at_edge=bool(edge))
     return best
+
+
+def half_contrast_length(image: np.ndarray, box: tuple[int, int, int, int], horizontal: bool, thickness: int,
+                         solid: float, middle: int) -> float:
+    """The length of the bar in ``box`` (x0, y0, x1, y1) between the points where its ends cross half contrast, px:
+    a blurred bar (a journal figure's, a JPEG's) is measured as drawn, not at its solid core (``solid`` px). The
+    profile along the bar is the mean of the ``thickness`` lines around its spine's ``middle`` one (a row of the image,
+    or a column for a vertical bar); the bar's level is the median of its middle
+    half, the background's the median of the ``max(3, thickness)`` px that begin 2 px past each solid end (what
+    surrounds the bar there: the picture, or a label box); from each solid end outward, the first pixel under half
+    contrast and the one before it give the crossing, interpolated. An end at the image's edge stays where the bar
+    stops; ``solid`` when the profile does not show both levels."""
+    x0, y0, x1, y1 = box
+    if not horizontal:
+        image = np.asarray(image).T
+        x0, y0, x1, y1 = y0, x0, y1, x1
+    rows = slice(max(0, middle - max(1, thickness) // 2), min(image.shape[0], middle + max(1, thickness) // 2 + 1))
+    profile = np.asarray(image[rows], dtype=float).mean(axis=0)
+    inner = profile[x0 + (x1 - x0) // 4:x1 - (x1 - x0) // 4]
+    if inner.size == 0:
+        return solid
+    level = float(np.median(inner))
+    width = max(3, thickness)
+    ends = []
+    for start, step in ((x0, -1), (x1 - 1, 1)):
+        near = profile[start + 2 * step::step][:width] if step > 0 else profile[max(0, start - 1 - width):start - 1][::-1]
+        if near.size < 2:  # the picture's edge: the end shown is where the bar stops
+            ends.append(float(start) + (1.0 if step > 0 else 0.0))
+            continue
+        background = float(np.median(near))
+        if abs(level - background) < 0.25 * float(np.ptp(profile)) or np.ptp(profile) <= 0:
+            return solid  # bar colour on both sides: not an end
+        t = (profile - background) / (level - background)  # 0 at the background, 1 on the bar
+        i = start
+        while 0 <= i + step < len(t) and t[i + step] >= 0.5:
+            i += step
+        if not (0 <= i + step < len(t)) or t[i] < 0.5:
+            return solid
+        frac = (t[i] - 0.5) / (t[i] - t[i + step])  # from pixel i's centre toward the next one
+        ends.append(i + 0.5 + step * frac)
+    length = ends[1] - ends[0]
+    return float(length) if 0.5 * solid <= length <= 1.5 * solid else solid
 
 
 def scale_from_bar(bar: ScaleBar | None, length: str) -> float:

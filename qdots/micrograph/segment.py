@@ -25,8 +25,10 @@ POLARITIES = ("auto", "dark", "light")
 #: dots at noise 0.3 of the background score 8-23 (median), clipped 8-bit or not.
 MIN_SIGNAL = 8.0
 #: `edge_curvature` counts edges whose gradient is at least EDGE_NOISE times the noise's (its standard deviation)
-#: and decides the polarity only from at least MIN_EDGES of them.
-EDGE_NOISE, MIN_EDGES = 3.0, 50
+#: and decides the polarity only from at least MIN_EDGES of them, read at the smoothing widths EDGE_WIDTHS (px) and
+#: the blobs' own. Measured on 20 real micrographs: at 1 px three films of dark particles on a grainy support or with
+#: pores inside read light (37-45 % of the edges around the darker side), at 4 px 58-80 %, as every other film there.
+EDGE_NOISE, MIN_EDGES, EDGE_WIDTHS = 3.0, 50, (1.0, 2.0, 4.0)
 #: The polarity (`edge_curvature`, `blob_skewness`) is read on the middle LOOK_SIDE x LOOK_SIDE px of a larger
 #: picture: a million pixels hold thousands of dots' edges, and the filters cost in proportion to the pixels.
 LOOK_SIDE = 1024
@@ -207,12 +209,27 @@ def edge_curvature(image: np.ndarray, ignore: np.ndarray, noise: float, scale: f
 
     A dot's edge is an arc around it; in a dense film, the vacancies and the gaps between dots are bounded by the
     same arcs, bent the same way, and only the few pixels where two dots meet bend the other. The isophote curvature
-    ``div(grad I / |grad I|)`` (Gaussian derivatives at ``s`` px: ``scale / 4`` within [1, 3] px, ``scale`` the
-    blobs' scale of `blob_skewness`) is positive where the edge curves around a darker inside, whatever the dots'
-    profile (flat discs as well as projected spheres). The edges counted are the tenth of the pixels with the
-    steepest gradient, and no less steep than `EDGE_NOISE` times the gradient the pixel noise (``noise``) gives, a
-    border of 3 px and the ignored pixels left out. Returns the share (0.5 and 0 with under `MIN_EDGES` edges)."""
-    s = float(np.clip(scale / 4.0, 1.0, 3.0))
+    ``div(grad I / |grad I|)`` (Gaussian derivatives at ``s`` px) is positive where the edge curves around a darker
+    inside, whatever the dots' profile (flat discs as well as projected spheres). It is read at ``s`` of
+    `EDGE_WIDTHS` (and ``scale / 4`` within [1, 3] px, ``scale`` the blobs' scale of `blob_skewness`), and the most
+    decided width is kept: at 1 px a support's grain or a particle's inner texture (pores, lattice fringes) can hold
+    the steepest edges of a sparse film, at 4 px they are smoothed away and the dots' arcs remain. The edges counted
+    are the tenth of the pixels with the steepest gradient, and no less steep than `EDGE_NOISE` times the gradient
+    the pixel noise (``noise``) gives, a border of 3 px and the ignored pixels left out. Returns the share (0.5 and 0
+    with under `MIN_EDGES` edges)."""
+    widths = sorted({float(np.clip(scale / 4.0, 1.0, 3.0)), *EDGE_WIDTHS})
+    best = (0.5, 0)
+    for s in widths:
+        if min(image.shape) < 8 * s:
+            continue
+        bent, n = _edge_bend(image, ignore, noise, s)
+        if n and abs(bent - 0.5) > abs(best[0] - 0.5):
+            best = (bent, n)
+    return best
+
+
+def _edge_bend(image: np.ndarray, ignore: np.ndarray, noise: float, s: float) -> tuple[float, int]:
+    """`edge_curvature` at one width ``s``, px."""
     x, y, xx, yy, xy = (ndimage.gaussian_filter(image, s, order=order, mode="nearest")
                         for order in ((0, 1), (1, 0), (0, 2), (2, 0), (1, 1)))
     impulse = np.zeros((2 * math.ceil(4 * s) + 1,) * 2)
@@ -220,7 +237,8 @@ def edge_curvature(image: np.ndarray, ignore: np.ndarray, noise: float, scale: f
     gain = float(np.sum(ndimage.gaussian_filter(impulse, s, order=(0, 1), mode="constant") ** 2))
     steep = x * x + y * y
     keep = ~ignore
-    keep[:3], keep[-3:], keep[:, :3], keep[:, -3:] = False, False, False, False
+    border = max(3, math.ceil(2 * s))
+    keep[:border], keep[-border:], keep[:, :border], keep[:, -border:] = False, False, False, False
     if not keep.any():
         return 0.5, 0
     edges = keep & (steep >= max(float(np.quantile(steep[keep], 0.9)), (EDGE_NOISE * noise) ** 2 * gain))

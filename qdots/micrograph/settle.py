@@ -23,9 +23,13 @@ from .refine import PASSES, REACH, REACH_PAD, WIDE, profile_reach, refine_dots
 #: the lone fits see the narrow gaps as background, far darker than it).
 LEVEL_DOTS, LEVEL_RANGE = 12, (0.8, 2.5)
 LEVEL_SCAN = (0.9, 1.0, 1.1, 1.25, 1.45, 1.7, 2.0)
-#: Shapes ``p`` tried by ``profile="auto"`` (0 a flat disc, 0.5 a projected sphere); another than the sphere is
-#: taken only when its predicted central curvature matches the measured one by CURVATURE_MARGIN more.
-SHAPES, CURVATURE_MARGIN = (0.0, 0.5), 0.05
+#: Shapes ``p`` tried by ``profile="auto"`` (0 a flat disc, 0.5 a projected sphere). The sphere is taken only when
+#: the dots' measured central curvature is within SPHERE_MATCH of its prediction and matches it by CURVATURE_MARGIN
+#: more than the disc's: crystals whose thickness tapers at their edge, blurred small dots and real particles with
+#: inner contrast read between the two (on the development half of the real micrographs: 20-46 % off the sphere's
+#: for faceted and polycrystalline particles, 1-9 % for Z-contrast (ADF) pictures and small blurred particles;
+#: synthetic projected spheres within a few %).
+SHAPES, CURVATURE_MARGIN, SPHERE_MATCH = (0.0, 0.5), 0.05, 0.25
 #: Blurs searched, px (the detector smooths every image by 1 px first, so none is under 1 px); the first one
 #: tried (also the blur of the lone fits that start everything).
 BLURS, FIRST_BLUR = (1.0, 5.0), 1.5
@@ -163,10 +167,10 @@ def settle_profile(image, centres, radii, contrast, background, typical: float, 
     around `FIRST_BLUR` and the best ``k`` of `LEVEL_SCAN`, from a state fitted at the middle one, and again
     around the minimum of the quadratic surface through the nine residuals (`quadratic_minimum`) at half the
     steps. For ``profile="auto"`` the shape is then the one whose predicted central curvature
-    (`qdots.micrograph.profiles.predicted_curvature`, at its blur) is nearest the curvature measured on the
-    neighbour-corrected profiles (`qdots.micrograph.profiles.central_curvature`), the projected sphere unless
-    another matches by `CURVATURE_MARGIN` more (the residual itself hardly tells a sphere from a disc on real
-    particles, which are neither exactly). A last pattern at a quarter of the steps settles the blur and ``k``
+    (`qdots.micrograph.profiles.predicted_curvature`, at its blur) matches the curvature measured on the
+    neighbour-corrected profiles (`qdots.micrograph.profiles.central_curvature`): the flat disc unless the sphere
+    matches within `SPHERE_MATCH` and by `CURVATURE_MARGIN` more (the residual itself hardly tells a sphere from a
+    disc on real particles, which are neither exactly). A last pattern at a quarter of the steps settles the blur and ``k``
     of the shape taken, then each tile of the film (`settle_tiles`). Returns (p, the blur at each dot, px, the
     level at each dot, the level map, how p was chosen).
     """
@@ -191,9 +195,8 @@ def settle_profile(image, centres, radii, contrast, background, typical: float, 
                                             found[p][1] * patch.part[inner])
             predicted[p] = predicted_curvature(p, found[p][0] / float(np.nanmedian(radius)))
         miss = {p: abs(measured[p] - predicted[p]) if np.isfinite(measured[p]) else np.inf for p in shapes}
-        shape = min(shapes, key=miss.get)
-        if miss[0.5] - miss[shape] < CURVATURE_MARGIN:
-            shape = 0.5
+        sphere = miss[0.5] <= SPHERE_MATCH * predicted[0.5] and miss[0.0] - miss[0.5] >= CURVATURE_MARGIN
+        shape = 0.5 if sphere else 0.0
         how = (f"p = {shape:g} from the curvature of {patch.size} dots' centres ({measured[shape]:.3f} r^2 measured, "
                f"{predicted[shape]:.3f} for p = {shape:g}; a sphere would give {predicted[0.5]:.3f} against "
                f"{measured[0.5]:.3f} measured, a flat disc {predicted[0.0]:.3f} against {measured[0.0]:.3f})")

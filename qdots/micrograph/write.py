@@ -17,6 +17,7 @@ from labrig.validate import count
 from ..io import checkpoint
 from ..io.experiment_file import save_experiment
 from .compare import MAX_COMPARE_DOTS, MAX_SEEDS, MAX_WORKERS, Comparison, compare_film, default_workers
+from .admit import NotAFilm
 from .measure import MeasuredFilm, measure_image, state_metadata
 from .overlay import save_overlay, save_side_by_side
 
@@ -30,15 +31,27 @@ def write_measurement(film: MeasuredFilm, files: OutputSet, stem: str) -> None:
 
 def measure(path: str | os.PathLike, out: str | os.PathLike | None = None, *, name: str | None = None,
             nm_per_px=None, scale_bar: str | None = None, polarity: str = "auto", profile: str = "auto",
-            page: int = 0, lqe: bool = True) -> MeasuredFilm:
+            page: int = 0, lqe: bool = True, force: bool = False) -> MeasuredFilm:
     """`measure_image`, then write ``NAME.npz``, ``NAME_detections.png`` and ``NAME_summary.csv`` into ``out``
-    (default: beside the image) as one set. ``NAME`` defaults to the image's stem. Nothing is written when the
-    image is refused or holds no dot."""
+    (default: beside the image) as one set. ``NAME`` defaults to the image's stem. A picture that is not a film of
+    round particles (`qdots.micrograph.admit.NotAFilm`, unless ``force``) writes only the overlay of what was found,
+    ``NAME-refused/NAME_refused.png`` (an earlier measurement of ``NAME`` is left as it was), and the error says
+    where; an image that cannot be read or holds no dot writes nothing."""
     path = Path(path)
-    film = measure_image(path, nm_per_px=nm_per_px, scale_bar=scale_bar, polarity=polarity, profile=profile,
-                         page=page, lqe=lqe)
     stem = slug(name if name is not None else path.stem)
     out = path.parent if out is None else Path(out)
+    try:
+        film = measure_image(path, nm_per_px=nm_per_px, scale_bar=scale_bar, polarity=polarity, profile=profile,
+                             page=page, lqe=lqe, force=force)
+    except NotAFilm as refusal:
+        if refusal.found is None:
+            raise
+        with OutputSet(out, f"{stem}-refused") as files:
+            picture = files.stage(f"{stem}_refused.png")
+            save_overlay(refusal.found, picture, refused=refusal.reasons)
+        shown = out / f"{stem}-refused" / picture.name
+        raise NotAFilm(f"{refusal}; what was found: {shown}; --force measures it anyway", refusal.reasons,
+                       refusal.found) from None
     with OutputSet(out, stem) as files:
         write_measurement(film, files, stem)
     return film
