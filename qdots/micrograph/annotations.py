@@ -38,8 +38,13 @@ FLAT = 0.01
 #: A label box over the film: a flat rectangle of at least MIN_BOX px a side, filling BOX_FILL of its bounding
 #: box once its holes (its text, its bar) are filled, holding at least BOX_HOLES of its area in them.
 MIN_BOX, BOX_FILL, BOX_HOLES = 8, 0.9, 0.02
-#: The smallest stroke of a label's text, px.
-MIN_STROKE = 8
+#: The smallest stroke of a label's text, px; a letter's strokes fill under GLYPH_FILL of its bounding box; a label is
+#: drawn within LABEL_INK of the image's range of the bar's colour.
+MIN_STROKE, GLYPH_FILL, LABEL_INK = 8, 0.6, 0.15
+#: A bar's label's letters are at most LABEL_SIZE of the bar long. A panel letter lies within PANEL_CORNER of the
+#: picture's width and height from a corner, at most PANEL_SIZE of its shorter side across; drawn flat, PANEL_FLAT of
+#: its pixels lie within 1 % of the range of the extreme.
+LABEL_SIZE, PANEL_CORNER, PANEL_SIZE, PANEL_FLAT = 0.35, 0.12, 0.15, 0.7
 
 
 @dataclass(frozen=True)
@@ -155,29 +160,94 @@ def find_boxes(image: np.ndarray, window) -> tuple[tuple[int, int, int, int], ..
     return tuple(boxes)
 
 
+def glyphs(labels: np.ndarray, n: int, thick: float) -> np.ndarray:
+    """Which of the components 1 .. ``n`` of ``labels`` are letters rather than dots: thin strokes (inscribed radius at
+    most ``max(2, thick / 2)`` px), or open shapes that fill under `GLYPH_FILL` of their bounding box ("0", "5", "n",
+    "m", "(": a dot, even a faceted one, fills three quarters of it), of at least `MIN_STROKE` px, not touching the
+    image's edge (a frame). Boolean array over the labels 0 .. n (0, the background, False)."""
+    index = np.arange(1, n + 1)
+    deepest = np.asarray(ndimage.maximum(ndimage.distance_transform_edt(labels > 0), labels, index))
+    area = np.bincount(labels.ravel(), minlength=n + 1)[1:]
+    boxes = ndimage.find_objects(labels)
+    box_area = np.array([(b[0].stop - b[0].start) * (b[1].stop - b[1].start) if b is not None else 1 for b in boxes])
+    edge = np.zeros(n + 1, dtype=bool)
+    edge[np.concatenate([labels[0], labels[-1], labels[:, 0], labels[:, -1]])] = True
+    letter = ((deepest <= max(2.0, 0.5 * thick)) | (area < GLYPH_FILL * box_area)) & (area >= MIN_STROKE) & ~edge[1:]
+    return np.concatenate([[False], letter])
+
+
 def label_strokes(image: np.ndarray, bar: ScaleBar) -> np.ndarray:
-    """The bar's label where the bar is drawn over the film: strokes of the bar's colour within one bar length of
-    it, thin (inscribed radius at most half the bar's thickness: not a dot's core), of at least `MIN_STROKE` px (not
-    a noise speck), not touching the image's edge (a frame) nor taller than half the bar. Boolean image."""
+    """The bar's label where the bar is drawn over the film: letters (`glyphs`) in the bar's colour (within
+    `LABEL_INK` of the image's range of it), beside it (within half its length along it and across), none longer than
+    `LABEL_SIZE` of the bar. Boolean image."""
     image = np.asarray(image, dtype=float)
     low, high = float(image.min()), float(image.max())
     x0, y0, x1, y1 = bar.box
     length = int(math.ceil(bar.length_px))
+    along, across = length // 2, length // 2
+    horizontal = x1 - x0 >= y1 - y0
+    reach_x, reach_y = (along, across) if horizontal else (across, along)
     near = np.zeros(image.shape, dtype=bool)
-    near[max(0, y0 - length):y1 + length, max(0, x0 - length):x1 + length] = True
-    ink = (image <= low + 0.3 * (high - low)) if bar.dark else (image >= high - 0.3 * (high - low))
+    near[max(0, y0 - reach_y):y1 + reach_y, max(0, x0 - reach_x):x1 + reach_x] = True
+    ink = (image <= low + LABEL_INK * (high - low)) if bar.dark else (image >= high - LABEL_INK * (high - low))
     labels, n = ndimage.label(ink & near)
     if n == 0:
         return np.zeros(image.shape, dtype=bool)
-    thick = max(1.0, float(bar.thickness))
-    index = np.arange(1, n + 1)
-    deepest = np.asarray(ndimage.maximum(ndimage.distance_transform_edt(labels > 0), labels, index))
-    area = np.bincount(labels.ravel(), minlength=n + 1)[1:]
-    edge = np.zeros(n + 1, dtype=bool)
-    edge[np.concatenate([labels[0], labels[-1], labels[:, 0], labels[:, -1]])] = True
-    tall = np.array([sl[0].stop - sl[0].start > 0.5 * length for sl in ndimage.find_objects(labels)])
-    stroke = (deepest <= max(2.0, 0.5 * thick)) & (area >= MIN_STROKE) & ~edge[1:] & ~tall
-    return np.concatenate([[False], stroke])[labels]
+    big = np.array([max(sl[0].stop - sl[0].start, sl[1].stop - sl[1].start) > LABEL_SIZE * length
+                    for sl in ndimage.find_objects(labels)])
+    letter = glyphs(labels, n, max(1.0, float(bar.thickness)))
+    letter[1:] &= ~big
+    return letter[labels]
+
+
+def same_line(labels: np.ndarray, letter: np.ndarray) -> np.ndarray:
+    """``letter`` (over the components 1 .. n of ``labels``) and the components set in a line with a letter: as tall
+    as it within a factor 2, overlapping its rows by half its height, and at most three of its heights from it
+    along the line (the rest of a word whose other letters are not thin or open: "(b)" once its "(" is found)."""
+    boxes = ndimage.find_objects(labels)
+    out = letter.copy()
+    for k in np.flatnonzero(letter):
+        rows, cols = boxes[k]
+        height = rows.stop - rows.start
+        for j, other in enumerate(boxes):
+            if out[j] or other is None:
+                continue
+            h = other[0].stop - other[0].start
+            shared = min(rows.stop, other[0].stop) - max(rows.start, other[0].start)
+            gap = max(other[1].start - cols.stop, cols.start - other[1].stop)
+            if 0.5 * height <= h <= 2.0 * height and shared >= 0.5 * height and gap <= 3 * height:
+                out[j] = True
+    return out
+
+
+def panel_letters(image: np.ndarray, window: tuple[int, int, int, int]) -> np.ndarray:
+    """A journal figure's panel letter ("a", "(b)", "C") in a corner of the picture: letters (`glyphs`) drawn flat
+    (`PANEL_FLAT` of their pixels within 1 % of the image's range of its darkest or lightest value) in either extreme
+    colour (within `LABEL_INK` of the range), within `PANEL_CORNER` of the picture's width and height from a corner,
+    at most `PANEL_SIZE` of its shorter side across, and what is set in a line with them (`same_line`). Boolean
+    image."""
+    image = np.asarray(image, dtype=float)
+    x0, y0, x1, y1 = window
+    low, high = float(image.min()), float(image.max())
+    span = high - low
+    out = np.zeros(image.shape, dtype=bool)
+    cw, ch = int(PANEL_CORNER * (x1 - x0)), int(PANEL_CORNER * (y1 - y0))
+    largest = PANEL_SIZE * min(x1 - x0, y1 - y0)
+    for xa, ya in ((x0, y0), (x1 - cw, y0), (x0, y1 - ch), (x1 - cw, y1 - ch)):
+        corner = (slice(ya, ya + ch), slice(xa, xa + cw))
+        part = image[corner]
+        for value, sign in ((low, 1.0), (high, -1.0)):
+            ink = sign * (part - value) <= LABEL_INK * span
+            labels, n = ndimage.label(ink)
+            if n == 0:
+                continue
+            flat = np.bincount(labels.ravel(), (sign * (part - value) <= 0.01 * span).ravel(), n + 1)[1:]
+            area = np.bincount(labels.ravel(), minlength=n + 1)[1:]
+            small = np.array([max(b[0].stop - b[0].start, b[1].stop - b[1].start) <= largest
+                              for b in ndimage.find_objects(labels)])
+            letter = glyphs(np.pad(labels, 1), n, 2.0)[1:] & (flat >= PANEL_FLAT * area) & small
+            out[corner] |= np.concatenate([[False], same_line(labels, letter & (area >= MIN_STROKE)) & small])[labels]
+    return out
 
 
 def find_annotations(image: np.ndarray) -> Annotations:
@@ -189,6 +259,7 @@ def find_annotations(image: np.ndarray) -> Annotations:
     ignore = np.zeros(image.shape, dtype=bool)
     for x0, y0, x1, y1 in boxes:
         ignore[max(0, y0 - 2):y1 + 2, max(0, x0 - 2):x1 + 2] = True
+    ignore |= ndimage.binary_dilation(panel_letters(image, window), iterations=2)
     if bar is not None:
         ignore |= bar.mask(image.shape)
         bx0, by0, bx1, by1 = bar.box
