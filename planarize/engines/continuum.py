@@ -28,7 +28,7 @@ from ..model import Model
 from ..heightfield import Surface, volume_weights
 from .flow import GHOST, area_sums, fill_ghosts, metal_rate
 from .offset import coat, extremes, surface_moments
-from .threads import available_threads, row_ranges, run_in_threads
+from labrig.threads import available_threads, row_ranges, run_in_threads
 
 #: Refinement factors the engine may run at (internal grid = the surface's grid refined that many times).
 MAX_REFINE = 16

@@ -42,7 +42,7 @@ from .features import oxide_reach
 from .kernels import closest_sets, search_radii, star_reach, within
 from .pyramid import BallCache, HeightPyramid
 from .sets import OxideSets
-from .threads import available_threads, run_in_threads
+from labrig.threads import available_threads, run_in_threads
 
 #: What the fast engine does with interacting candidates of a batch: one after the other, or together.
 INTERACTING = ("wait", "together")

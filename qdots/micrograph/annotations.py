@@ -22,6 +22,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import ndimage
 
+from labrig.compiled import jit
+
 from .scale import ScaleBar, find_scale_bar
 
 #: Sides, in the order strips are looked for.
@@ -135,8 +137,25 @@ def find_strips(image: np.ndarray) -> tuple[tuple[int, int, int, int], tuple[Str
 
 
 def flatness(image: np.ndarray, tolerance: float) -> np.ndarray:
-    """Pixels whose 3 x 3 neighbourhood spans at most ``tolerance``: flat colour, as drawn."""
-    return ndimage.maximum_filter(image, 3) - ndimage.minimum_filter(image, 3) <= tolerance
+    """Pixels whose 3 x 3 neighbourhood (within the image) spans at most ``tolerance``: flat colour, as drawn."""
+    out = np.empty(np.shape(image), dtype=np.bool_)
+    _flat3(np.ascontiguousarray(image, dtype=np.float64), float(tolerance), out)
+    return out
+
+
+@jit
+def _flat3(image, tolerance, out):
+    h, w = image.shape
+    for row in range(h):
+        for col in range(w):
+            low = np.inf
+            high = -np.inf
+            for r in range(max(0, row - 1), min(h, row + 2)):
+                for c in range(max(0, col - 1), min(w, col + 2)):
+                    v = image[r, c]
+                    low = min(low, v)
+                    high = max(high, v)
+            out[row, col] = high - low <= tolerance
 
 
 def find_boxes(image: np.ndarray, window) -> tuple[tuple[int, int, int, int], ...]:

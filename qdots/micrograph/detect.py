@@ -59,9 +59,8 @@ from .refine import refine_dots, repeat_errors
 from .settle import FIRST_BLUR, samples_hold, settle_profile
 from .shapes import OVERLAP_SHARE, nearest_ratio, overlap_share, region_shapes
 from .segment import (MIN_INSCRIBED, MIN_SIGNAL, POLARITIES, background_level, blob_seeds, blob_skewness,
-                      decide_polarity, edge_curvature, fill_small_holes, label_maxima, middle_window,
-                      pixel_noise, region_properties, scaled, signal_to_noise, spaced_maxima, split_fused,
-                      typical_radius)
+                      decide_polarity, edge_curvature, fill_small_holes, label_maxima, middle_window, pixel_noise,
+                      region_properties, scaled, signal_to_noise, spaced_maxima, split_fused, typical_radius)
 
 
 #: Smallest typical dot diameter, px, that can be measured.
@@ -83,6 +82,9 @@ MERGED = 1.5
 #: objects grow 2.7-12 times and their pixels 0.1-1.1 times; on 13 other real films 0.6-1.25 times; synthetic touching
 #: films of 6-10 px dots without vacancies merge when smoothed (objects 1.3-6 times larger, pixels 1.1-1.9 times).
 TEXTURE_GROWTH, TEXTURE_AREA, COARSE_SMOOTH = 2.0, 1.15, 3.0
+#: The blobs' scale and skewness (`blob_skewness`) are read on the middle SKEW_SIDE x SKEW_SIDE px (a quarter of the
+#: pixels the edges are read on: they need hundreds of dots, not thousands).
+SKEW_SIDE = 512
 
 
 @dataclass(frozen=True)
@@ -266,7 +268,8 @@ def _detect(image: np.ndarray, polarity: str, profile: str, ignore: np.ndarray) 
         return _empty(image.shape, polarity, 0)
     noise = pixel_noise(unit, ignore)
     look = middle_window(unit.shape) if not ignore[middle_window(unit.shape)].all() else (slice(None),) * 2
-    skew, sigma = blob_skewness(unit[look], ignore[look], noise)
+    small = middle_window(unit.shape, SKEW_SIDE) if not ignore[middle_window(unit.shape, SKEW_SIDE)].all() else look
+    skew, sigma = blob_skewness(unit[small], ignore[small], noise)
     dark, how = decide_polarity(*edge_curvature(unit[look], ignore[look], noise, sigma), skew, sigma, polarity)
     # the dots are measured on the unclipped image (clipping would flatten the darkest cores and the noise), the
     # pixels to ignore left out (NaN); dots are dark in every image below
@@ -280,14 +283,14 @@ def _detect(image: np.ndarray, polarity: str, profile: str, ignore: np.ndarray) 
     # look's radius instead
     smoothing = 1.0
     smooth, first, mask, radius = first_look(unit, ignore, smoothing)
-    coarse = first_look(unit, ignore, COARSE_SMOOTH)
-    if coarse[3] >= TEXTURE_GROWTH * radius and coarse[2].mean() <= TEXTURE_AREA * mask.mean():
-        smoothing = float(np.clip(coarse[3] / 3.0, COARSE_SMOOTH / 2.0, 2.0 * COARSE_SMOOTH))
+    half = (slice(None, None, 2), slice(None, None, 2))
+    coarse = first_look(unit[half], ignore[half], COARSE_SMOOTH / 2.0)  # at a quarter of the resolution: its radius only
+    if 2.0 * coarse[3] >= TEXTURE_GROWTH * radius and coarse[2].mean() <= TEXTURE_AREA * mask.mean():
+        smoothing = float(np.clip(2.0 * coarse[3] / 3.0, COARSE_SMOOTH / 2.0, 2.0 * COARSE_SMOOTH))
         smooth, first, mask, radius = first_look(unit, ignore, smoothing)
         how += f"; smoothed by {smoothing:.1f} px (the picture's grain or texture is finer than its dots)"
     if radius < 0.5 * MIN_DIAMETER:
         return _empty(image.shape, how, 0)
-    half = (slice(None, None, 2), slice(None, None, 2))
     away = ~ndimage.binary_dilation(mask, iterations=max(1, int(0.15 * radius))) & ~ignore[half]
     if away.any():
         coarse = background_level(smooth[half], away, 4.0 * radius)
@@ -302,7 +305,8 @@ def _detect(image: np.ndarray, polarity: str, profile: str, ignore: np.ndarray) 
     distance = ndimage.distance_transform_edt(mask)
     radius = typical_radius(distance)
     if sigma > 0 and smoothing == 1.0:  # touching small dots merged into one network: the blobs give their radius
-        blobs = typical_radius(ndimage.distance_transform_edt(mask & (ndimage.gaussian_laplace(flat, sigma) > 0)))
+        blobs = 2.0 * typical_radius(ndimage.distance_transform_edt(
+            mask[half] & (ndimage.gaussian_laplace(flat[half], sigma / 2.0) > 0)))
         radius = blobs if radius > MERGED * blobs else radius
     if radius < 0.5 * MIN_DIAMETER:
         return _empty(image.shape, how, 0)
@@ -370,13 +374,20 @@ def _detect(image: np.ndarray, polarity: str, profile: str, ignore: np.ndarray) 
             shape, blur, level, level_map, how_shape = settle_profile(target, centres, first[0], first[2], first[1],
                                                                       typical, whole, profile)
             how_shape = refit or how_shape
-        else:  # the settling is the same without them: the new dots take the level and blur where they lie
+            refined = refine_dots(target, centres, first[0], first[2], typical, shape, blur, level, move=True)
+        else:  # the settling is the same without them: the new dots take the level and blur where they lie, and only
+            # they and the dots whose profiles they reach are fitted again
             nearest = np.argmin(np.hypot(*(extra[:, None, :] - centres[None, :n, :]).T), axis=0)
             at = np.clip(extra.astype(int), 0, [target.shape[1] - 1, target.shape[0] - 1])
             level = np.concatenate([level, level_map[at[:, 1], at[:, 0]]])
             blur = blur if np.ndim(blur) == 0 else np.concatenate([blur, np.asarray(blur)[nearest]])
+            start = np.vstack([refined.centres, extra])
+            reach = 2.0 * float(np.max(refined.reach, initial=0.0)) + 2.0 * typical
+            near = np.min(np.hypot(*(start[:, None, :] - extra[None, :, :]).T), axis=0) <= reach
+            refined = refine_dots(target, start, np.concatenate([refined.radius, np.full(more, np.nan)]),
+                                  np.concatenate([refined.contrast, np.zeros(more)]), typical, shape, blur, level,
+                                  move=True, active=near)
         how_shape += f"; {more} faint dots the threshold missed found in the fit's residual"
-        refined = refine_dots(target, centres, first[0], first[2], typical, shape, blur, level, move=True)
     if np.ptp(blur) > 0.05:
         how_shape += f"; the blur {np.min(blur):.2f}-{np.max(blur):.2f} px across the film (uneven focus)"
     centres = np.where(touches[:, None], centres, refined.centres)  # a cut dot keeps the centre of its visible part

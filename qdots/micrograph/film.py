@@ -28,6 +28,9 @@ AGGREGATE = 5
 #: Diameters further than OUTLIER robust deviations from the median are left out of the size statistics (`size_spread`):
 #: a normal distribution has one in 150,000 dots there.
 OUTLIER = 4.5
+#: Two size populations (`size_populations`): the two-normal mixture's information criterion lower by BIMODAL_BIC, its
+#: means BIMODAL_GAP of the larger deviation apart, the smaller holding BIMODAL_SHARE of the dots.
+BIMODAL_BIC, BIMODAL_GAP, BIMODAL_SHARE = 10.0, 2.5, 0.05
 
 
 def film_state(centres: np.ndarray, diameters: np.ndarray, image_shape: tuple[int, int]) -> State:
@@ -88,6 +91,55 @@ def size_spread(diameters, errors=None) -> dict:
             "size_outliers": int(d.size - kept.size), "size_mean": mean}
 
 
+def size_populations(diameters) -> dict:
+    """Whether the diameters fall into two populations (a two-size sample: large particles among small seeds), and
+    each population's share, mean and spread (SD / mean).
+
+    A mixture of two normal distributions of ``log d`` (expectation-maximisation from the quartiles) is preferred to
+    one when its Bayesian information criterion is lower by `BIMODAL_BIC`, its two means are at least `BIMODAL_GAP`
+    times the larger of their deviations apart (two modes, not a skewed one), and the smaller population holds at
+    least `BIMODAL_SHARE` of the dots and 5 of them. Returns ``size_populations`` (1 or 2) and, for two,
+    ``small_share``, ``small_mean_diameter_px``, ``small_spread`` and the same for ``large`` (NaN for one)."""
+    out = {"size_populations": 1}
+    for part in ("small", "large"):
+        out.update({f"{part}_share": math.nan, f"{part}_mean_diameter_px": math.nan, f"{part}_spread": math.nan})
+    d = np.asarray(diameters, dtype=float)
+    d = d[np.isfinite(d) & (d > 0)]
+    if d.size < 20:
+        return out
+    x = np.log(d)
+    n = x.size
+    one = float(np.sum(_normal_log_density(x, x.mean(), max(x.std(), 1e-6))))
+    mean = np.percentile(x, [25, 75]).astype(float)
+    sd = np.full(2, max(x.std() / 2, 1e-3))
+    weight = np.array([0.5, 0.5])
+    for _ in range(200):
+        density = weight * np.exp(np.column_stack([_normal_log_density(x, m, s_) for m, s_ in zip(mean, sd)]))
+        total = density.sum(axis=1, keepdims=True)
+        share = density / np.maximum(total, 1e-300)
+        counts = share.sum(axis=0)
+        if np.any(counts < 2):
+            return out
+        weight = counts / n
+        mean = (share * x[:, None]).sum(axis=0) / counts
+        sd = np.sqrt(np.maximum((share * (x[:, None] - mean) ** 2).sum(axis=0) / counts, 1e-8))
+    two = float(np.sum(np.log(np.maximum(total[:, 0], 1e-300))))
+    bic_one, bic_two = -2 * one + 2 * math.log(n), -2 * two + 5 * math.log(n)
+    small, large = np.argsort(mean)
+    if (bic_two < bic_one - BIMODAL_BIC and mean[large] - mean[small] >= BIMODAL_GAP * sd.max()
+            and weight.min() >= BIMODAL_SHARE and counts.min() >= 5):
+        out["size_populations"] = 2
+        for part, k in (("small", small), ("large", large)):
+            members = d[share[:, k] >= 0.5]
+            out.update({f"{part}_share": float(weight[k]), f"{part}_mean_diameter_px": float(members.mean()),
+                        f"{part}_spread": float(members.std(ddof=1) / members.mean()) if members.size > 1 else 0.0})
+    return out
+
+
+def _normal_log_density(x, mean, sd):
+    return -0.5 * ((x - mean) / sd) ** 2 - math.log(sd * math.sqrt(2 * math.pi))
+
+
 def film_metrics(state, measured: np.ndarray | None = None, complete: np.ndarray | None = None,
                  nm_per_px: float | None = None, errors: np.ndarray | None = None) -> dict:
     """The thesis's packing figures of a film, edge-aware.
@@ -126,6 +178,7 @@ def film_metrics(state, measured: np.ndarray | None = None, complete: np.ndarray
     sd = spread["size_spread_measured"] * mean if sized.size > 1 else math.nan
     out.update(mean_diameter_px=mean, sd_diameter_px=sd)
     out.update(spread)
+    out.update(size_populations(sized))
     if nm_per_px is not None:
         out.update(mean_diameter_nm=mean * nm_per_px, sd_diameter_nm=sd * nm_per_px)
     counts = neighbour_counts(state) if n else np.zeros(0, dtype=int)

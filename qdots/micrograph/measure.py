@@ -215,6 +215,11 @@ def summary_rows(summary: dict) -> list[tuple[str, str]]:
     nm = math.isfinite(s["nm_per_px"])
     size = (f"{s['mean_diameter_nm']:.1f} +- {s['sd_diameter_nm']:.1f} nm ({s['mean_diameter_px']:.2f} px)" if nm
             else f"{s['mean_diameter_px']:.2f} +- {s['sd_diameter_px']:.2f} px")
+    populations = ""
+    if s.get("size_populations") == 2:
+        k, unit = (s["nm_per_px"], "nm") if nm else (1.0, "px")
+        populations = "; ".join(f"{100 * s[f'{p}_share']:.0f} % at {k * s[f'{p}_mean_diameter_px']:.3g} {unit} "
+                                f"(sigma {100 * s[f'{p}_spread']:.1f} %)" for p in ("small", "large"))
     rows = [
         ("scale", s["scale"]),
         ("scale check", s["scale_check"]),
@@ -234,6 +239,7 @@ def summary_rows(summary: dict) -> list[tuple[str, str]]:
                                            f"of which {100 * s['size_spread_error']:.1f} % is each diameter's "
                                            f"measurement error; from the interquartile range "
                                            f"{100 * s['size_spread_robust']:.1f} %)")),
+        *([("two size populations", populations)] if populations else []),
         ("interior fraction (>= 5 neighbours)", f"{s['interior_fraction']:.3f}"),
         ("mean neighbours", f"{s['mean_neighbours']:.2f}"),
         ("psi6 local / global", f"{s['psi6_local']:.3f} / {s['psi6_global']:.3f}"),

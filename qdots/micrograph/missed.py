@@ -17,7 +17,7 @@ import numpy as np
 from scipy import ndimage
 
 from .refine import refine_dots
-from .segment import spaced_maxima
+from .segment import broad_blur, spaced_maxima
 
 #: The residual is averaged over a Gaussian of SMOOTH typical radii, less its average over one of BROAD ones.
 SMOOTH, BROAD = 0.4, 3.0
@@ -31,6 +31,8 @@ MOST = 0.25
 #: A missed dot fits with a radius of at least ROUND typical radii; none is sought when the typical radius is over
 #: LARGEST of the image's shorter side (a handful of dots at most, and the search's footprint would be the image).
 ROUND, LARGEST = 0.8, 0.125
+#: Dots of a typical radius of COARSE_RADIUS px or more are sought at half the resolution.
+COARSE_RADIUS = 4.0
 
 
 def missed_dots(image, refined, level_map, typical: float, shape: float, blur, noise: float) -> np.ndarray:
@@ -61,22 +63,26 @@ def missed_dots(image, refined, level_map, typical: float, shape: float, blur, n
     if not ok.any() or not 0 < typical <= LARGEST * min(image.shape):  # dots that big leave no room to search
         return np.zeros((0, 2))
     residual = np.nan_to_num(level_map - refined.model - image)
-    smooth = ndimage.gaussian_filter(residual, SMOOTH * typical) - ndimage.gaussian_filter(residual,
-                                                                                         BROAD * typical)
+    # searched at half the resolution where dots are large enough (`COARSE_RADIUS`): the smoothed residual varies over
+    # a dot's size
+    k = 2 if typical >= COARSE_RADIUS else 1
+    h, w = (side // k * k for side in residual.shape)
+    residual = residual[:h, :w].reshape(h // k, k, w // k, k).mean(axis=(1, 3))
+    smooth = ndimage.gaussian_filter(residual, SMOOTH * typical / k) - broad_blur(residual, BROAD * typical / k)
     # the smoothed noise: white noise averaged over a Gaussian of width w keeps 1 / (2 sqrt(pi) w) of its deviation
     floor = max(DEPTH * float(np.median(refined.contrast[ok])),
                 6.0 * noise / (2.0 * math.sqrt(math.pi) * SMOOTH * typical))
-    clear = np.zeros(image.shape, dtype=np.bool_)
-    paint_discs(clear, np.ascontiguousarray(refined.centres, dtype=float),
-                np.maximum(np.nan_to_num(refined.radius) + CLEAR[1] * typical, CLEAR[0] * typical))
+    clear = np.zeros(residual.shape, dtype=np.bool_)
+    paint_discs(clear, np.ascontiguousarray(refined.centres / k, dtype=float),
+                np.maximum(np.nan_to_num(refined.radius) + CLEAR[1] * typical, CLEAR[0] * typical) / k)
     clear = ~clear
-    margin = int(math.ceil(typical))  # a dot the edge cuts is left to the segmentation
+    margin = int(math.ceil(typical / k))  # a dot the edge cuts is left to the segmentation
     clear[:margin], clear[-margin:], clear[:, :margin], clear[:, -margin:] = False, False, False, False
-    peaks = spaced_maxima(np.where(clear, smooth, -np.inf), max(2, round(1.5 * typical)), floor)
+    peaks = spaced_maxima(np.where(clear, smooth, -np.inf), max(2, round(1.5 * typical / k)), floor)
     peaks = peaks[: int(MOST * len(refined.radius)) + 1]
     if not len(peaks):
         return np.zeros((0, 2))
-    extra = peaks[:, ::-1] + 0.5
+    extra = (peaks[:, ::-1] + 0.5) * k
     n, more = len(refined.radius), len(extra)
     rows, cols = (np.clip(extra[:, i].astype(int), 0, image.shape[1 - i] - 1) for i in (1, 0))
     blurs = np.broadcast_to(np.asarray(blur, dtype=float), (n,))

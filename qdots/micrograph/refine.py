@@ -22,6 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from labrig.compiled import jit
+from labrig.threads import available_threads, run_in_threads
 
 from .profiles import BIN, FIT_STEP, fit_dot, polish_dot, profile_table, table_value
 
@@ -239,6 +240,34 @@ class Refined:
     reach: np.ndarray
 
 
+def footprint(reach: np.ndarray, radii: np.ndarray, typical: float) -> float:
+    """How far from its centre a dot's fit can read or change the model, px: its profile's reach, or twice the largest
+    radius a fit may take (`WIDE` times the typical one, or `NARROW` times its own) plus the quarter radius its centre
+    may move, and 2 px."""
+    largest = max(WIDE[1] * typical, NARROW[1] * float(np.nanmax(radii, initial=0.0)))
+    return max(float(np.max(reach, initial=0.0)), 2.0 * largest + 0.25 * largest) + 2.0
+
+
+def strip_schedule(centres: np.ndarray, active: np.ndarray, reach: float, threads: int) -> list[list[np.ndarray]]:
+    """The active dots of one pass, in two phases of strips: the picture cut into vertical strips at least twice
+    ``reach`` wide (`footprint`), the even strips first, then the odd ones. Dots in two strips of one phase are at
+    least a strip apart, so their fits never touch the same pixels: each phase's strips are fitted side by side in
+    threads (`labrig.threads`), and the result is the same whatever the number of threads. Returns, per phase, one
+    mask of dots per thread (at most ``threads``)."""
+    width = 2.0 * reach
+    strip = np.floor(np.asarray(centres, dtype=float)[:, 0] / width).astype(np.int64) if len(centres) else np.zeros(0,
+                                                                                                                   int)
+    phases = []
+    for parity in (0, 1):
+        chosen = active & (strip % 2 == parity)
+        if not chosen.any():
+            continue
+        strips = np.unique(strip[chosen])
+        parts = max(1, min(threads, len(strips)))
+        phases.append([chosen & np.isin(strip, strips[t::parts]) for t in range(parts)])
+    return phases
+
+
 def profile_reach(radii, typical: float) -> np.ndarray:
     """How far each dot's profile reaches, px: `REACH` times its radius (the typical one where larger or
     unknown) plus `REACH_PAD`."""
@@ -248,7 +277,7 @@ def profile_reach(radii, typical: float) -> np.ndarray:
 
 def refine_dots(image, centres, radii, contrast, typical: float, shape: float, blur: float, level,
                 passes: int = PASSES, reach=None, wide: bool = True, keep_profiles: bool = True,
-                move: bool = False, active=None) -> Refined:
+                move: bool = False, active=None, threads: int | None = None) -> Refined:
     """Fit every dot again on ``image`` with its neighbours' model added back, ``passes`` times (`refine_pass`:
     the first searches radii widely, the later ones near each dot's own).
 
@@ -280,6 +309,9 @@ def refine_dots(image, centres, radii, contrast, typical: float, shape: float, b
         Whether the passes after a wide one also move each centre (`centre_shift`; not with the background free).
     active : ndarray of bool (N,), optional
         The dots to fit (default all); the others stay as given, in the model.
+    threads : int, optional
+        Threads the passes run in (default: every CPU this process may use; `strip_schedule`: the result is the same
+        whatever their number). 1 where the caller runs fits side by side itself.
     """
     table = profile_table(shape)
     centres = np.array(centres, dtype=float)
@@ -293,11 +325,14 @@ def refine_dots(image, centres, radii, contrast, typical: float, shape: float, b
     residual = np.full(n, np.inf)
     blurs = per_dot(blur, n)
     model = model_image(image.shape, centres, radius, contrast, table, blurs)
+    active = np.ones(n, dtype=bool) if active is None else np.asarray(active, dtype=bool)
     for k in range(passes):
         first = wide and k == 0
-        refine_pass(image, model, centres, radius, contrast, background, residual, base, level is None, table,
-                    blurs, reach, n_bins, float(typical), first, move and not first and level is not None,
-                    np.ones(n, dtype=bool) if active is None else np.asarray(active, dtype=bool))
+        for part in strip_schedule(centres, active, footprint(reach, radius, typical),
+                                   available_threads() if threads is None else threads):
+            run_in_threads(lambda chosen, first=first: refine_pass(
+                image, model, centres, radius, contrast, background, residual, base, level is None, table, blurs,
+                reach, n_bins, float(typical), first, move and not first and level is not None, chosen), part)
     profiles = dot_profiles(image, model, centres, np.nan_to_num(radius), contrast, table, blurs, reach, n_bins,
                             BIN, -1) if keep_profiles else None
     return Refined(centres, radius, background, contrast, residual, profiles, model, reach)

@@ -15,6 +15,8 @@ import math
 
 import numpy as np
 
+from labrig.threads import available_threads, run_in_threads
+
 from .profiles import PROFILES, central_curvature, predicted_curvature
 from .refine import PASSES, REACH, REACH_PAD, WIDE, profile_reach, refine_dots
 
@@ -85,10 +87,10 @@ class Sample:
         if start is None:
             return refine_dots(self.image, self.where, self.radii, self.contrast, self.typical, shape, blur,
                                k * self.part, passes=passes, reach=self.reach, wide=True, keep_profiles=keep_profiles,
-                               move=move)
+                               move=move, threads=1)
         return refine_dots(self.image, self.where if move else start.centres, start.radius, start.contrast,
                            self.typical, shape, blur, k * self.part, passes=passes, reach=self.reach, wide=False,
-                           keep_profiles=keep_profiles, move=move)
+                           keep_profiles=keep_profiles, move=move, threads=1)
 
     def misfit(self, state, k) -> float:
         """Sum of squares of image minus (background minus model) over the patch's area."""
@@ -103,8 +105,17 @@ class Sample:
         high = np.minimum([BLURS[1], LEVEL_RANGE[1]], centre + 2.0 * step)
         anchor = self.fit(shape, centre[0], centre[1])
         points = np.clip(centre + step * np.array([(i, j) for i in (-1, 0, 1) for j in (-1, 0, 1)]), low, high)
-        values = np.array([self.misfit(self.fit(shape, b, k, anchor, SAMPLE_PASSES, move=move), k) for b, k in points])
+        values = np.array(run_in_threads(
+            lambda part: [self.misfit(self.fit(shape, b, k, anchor, SAMPLE_PASSES, move=move), k) for b, k in part],
+            split(points, available_threads())), dtype=object)
+        values = np.concatenate(list(values)).astype(float)
         return quadratic_minimum(points, values, low, high)[0], float(values.min())
+
+
+def split(items, parts: int) -> list:
+    """``items`` in ``parts`` consecutive runs (fewer when there are fewer items), for threads."""
+    parts = max(1, min(parts, len(items)))
+    return [items[len(items) * p // parts:len(items) * (p + 1) // parts] for p in range(parts)]
 
 
 def total_residual(residual) -> float:
@@ -179,7 +190,8 @@ def settle_profile(image, centres, radii, contrast, background, typical: float, 
     patch = Sample(image, centres, radii, contrast, field, whole_map, typical, whole)
     shapes = SHAPES if profile == "auto" else (PROFILES[profile],)
     step = np.array(FOCUS_STEP)
-    scan = [patch.misfit(patch.fit(shapes[-1], FIRST_BLUR, k), k) for k in LEVEL_SCAN]
+    scan = [v for part in run_in_threads(lambda ks: [patch.misfit(patch.fit(shapes[-1], FIRST_BLUR, k), k) for k in ks],
+                                         split(LEVEL_SCAN, available_threads())) for v in part]
     start = np.array([FIRST_BLUR, LEVEL_SCAN[int(np.argmin(scan))]])
     found = {shape: patch.pattern(shape, start, step)[0] for shape in shapes}
     found = {shape: patch.pattern(shape, found[shape], 0.5 * step)[0] for shape in shapes}

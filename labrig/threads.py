@@ -1,8 +1,9 @@
-"""Threads for the compiled kernels of the engines: a pool per thread count, and work split by rows.
+"""Threads for compiled kernels: a pool per thread count, and work split by rows.
 
 The kernels are compiled with the GIL released (`labrig.compiled.jit`), so Python threads run them
-side by side. Threads, not numba's parallel loops: a sweep's worker processes are forked, and a
-forked child has none of its parent's threads (the pools are dropped after a fork and made again).
+side by side (planarize's engines split a height grid by rows, qdots measure a film's dots by strips). Threads, not
+numba's parallel loops: a sweep's worker processes are forked, and a forked child has none of its parent's threads
+(the pools are dropped after a fork and made again).
 """
 
 from __future__ import annotations
@@ -20,7 +21,7 @@ def available_threads() -> int:
 @functools.lru_cache(maxsize=None)
 def thread_pool(threads: int) -> ThreadPoolExecutor:
     """One pool per thread count, kept for the life of the process (a pool per call costs more than a call)."""
-    return ThreadPoolExecutor(threads, thread_name_prefix="planarize")
+    return ThreadPoolExecutor(threads, thread_name_prefix="labrig")
 
 
 if hasattr(os, "register_at_fork"):  # a forked child (e.g. a sweep worker) has none of the pools' threads
