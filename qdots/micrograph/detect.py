@@ -59,7 +59,7 @@ from .refine import refine_dots, repeat_errors
 from .settle import FIRST_BLUR, samples_hold, settle_profile
 from .shapes import OVERLAP_SHARE, nearest_ratio, overlap_share, region_shapes
 from .segment import (MIN_INSCRIBED, MIN_SIGNAL, POLARITIES, background_level, blob_seeds, blob_skewness,
-                      decide_polarity, edge_curvature, fill_small_holes, label_maxima, middle_window, pixel_noise,
+                      decide_polarity, edge_curvature, fill_small_holes, grain_noise, label_maxima, middle_window, pixel_noise,
                       region_properties, scaled, signal_to_noise, spaced_maxima, split_fused, typical_radius)
 
 
@@ -395,7 +395,8 @@ def _detect(image: np.ndarray, polarity: str, profile: str, ignore: np.ndarray) 
     contrast = refined.contrast / np.maximum(background, 1e-12)  # in units of the background, as Detection has it
     good = np.isfinite(fitted) & (contrast > 0)
     sums, counts, _ = refined.profiles
-    score = signal_to_noise(sums[good], counts[good], fitted[good], background[good], noise)
+    grain = grain_noise(np.nan_to_num(target[half], nan=float(np.nanmedian(target))), away, 0.5 * typical)
+    score = signal_to_noise(sums[good], counts[good], fitted[good], background[good], noise, grain)
     good[good] = score >= MIN_SIGNAL
     if not good.any():
         best = float(np.max(score)) if score.size else 0.0

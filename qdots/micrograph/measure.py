@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -170,11 +170,21 @@ def measure_image(path: str | os.PathLike, *, nm_per_px=None, scale_bar: str | N
         raise InputError(f"{path}: no dots found ({detection.polarity}); nothing written. Check --polarity, "
                          "or crop the image to the film")
     refusals, doubts = film_verdict(detection)
+    if refusals and polarity == "auto":  # the other phase may be the film: dark particles joined by necks, light gaps
+        other = detect_dots(image.pixels, polarity="light" if detection.dark else "dark", profile=profile,
+                            ignore=found.ignore, window=found.window)
+        if other.n_dots and not film_verdict(other)[0]:
+            was = "darker" if detection.dark else "lighter"
+            detection = replace(other, polarity=f"{other.polarity.replace(' (given)', '')} (automatic: the {was} "
+                                                f"objects are not a film of round particles ({refusals[0]}), these are)")
+            refusals, doubts = film_verdict(detection)
     if refusals and force:
         doubts = [f"measured with --force, though not a film of round particles: {r}" for r in refusals] + doubts
     film = measured_film(image, detection, scale, how, bar, found, lqe and not (refusals and not force), doubts)
     if refusals and not force:
-        raise NotAFilm(f"{path}: not a film of round particles: {'; '.join(refusals)}", refusals, film)
+        other = "dark" if not detection.dark else "light"
+        raise NotAFilm(f"{path}: not a film of round particles: {'; '.join(refusals)} (the {detection.polarity.split()[0]}"
+                       f" objects; if the particles are the {other} ones, try --polarity {other})", refusals, film)
     return film
 
 

@@ -17,8 +17,8 @@ from .read import UNIT_NM
 BAR_ASPECT = 5.0
 #: Cuts in a ruled bar up to this many px wide are closed; holes in a bar of fewer px are specks of noise.
 BAR_GAP, MIN_HOLE = 3, 4
-#: Shortest scale bar, px.
-MIN_BAR = 10
+#: Shortest scale bar, px; a bar's surroundings are read within BAR_SURROUNDINGS px of its ends.
+MIN_BAR, BAR_SURROUNDINGS = 10, 12
 #: A bar holds at most OFF_SPINE times as many pixels off its spine as on it (its ticks, end caps, or its label's
 #: letters where they touch it: a cropped journal figure's bold "20 nm" set on its bar, 0.96 times).
 OFF_SPINE = 2.0
@@ -184,8 +184,8 @@ def half_contrast_length(image: np.ndarray, box: tuple[int, int, int, int], hori
     a blurred bar (a journal figure's, a JPEG's) is measured as drawn, not at its solid core (``solid`` px). The
     profile along the bar is the mean of the ``thickness`` lines around its spine's ``middle`` one (a row of the image,
     or a column for a vertical bar); the bar's level is the median of its middle
-    half, the background's the median of the ``max(3, thickness)`` px that begin 2 px past each solid end (what
-    surrounds the bar there: the picture, or a label box); from each solid end outward, the first pixel under half
+    half, the background's the value furthest from it within `BAR_SURROUNDINGS` px past each solid end (what surrounds
+    the bar there, the picture or a label box, past a blurred end's ramp); from each solid end outward, the first pixel under half
     contrast and the one before it give the crossing, interpolated. An end at the image's edge stays where the bar
     stops; ``solid`` when the profile does not show both levels."""
     x0, y0, x1, y1 = box
@@ -198,14 +198,14 @@ def half_contrast_length(image: np.ndarray, box: tuple[int, int, int, int], hori
     if inner.size == 0:
         return solid
     level = float(np.median(inner))
-    width = max(3, thickness)
     ends = []
     for start, step in ((x0, -1), (x1 - 1, 1)):
-        near = profile[start + 2 * step::step][:width] if step > 0 else profile[max(0, start - 1 - width):start - 1][::-1]
+        near = profile[start + step::step][:BAR_SURROUNDINGS] if step > 0 else \
+            profile[max(0, start - BAR_SURROUNDINGS):start][::-1]
         if near.size < 2:  # the picture's edge: the end shown is where the bar stops
             ends.append(float(start) + (1.0 if step > 0 else 0.0))
             continue
-        background = float(np.median(near))
+        background = float(near[np.argmax(np.abs(near - level))])  # past a blurred end's ramp, before a box's frame
         if abs(level - background) < 0.25 * float(np.ptp(profile)) or np.ptp(profile) <= 0:
             return solid  # bar colour on both sides: not an end
         t = (profile - background) / (level - background)  # 0 at the background, 1 on the bar

@@ -108,15 +108,28 @@ def pixel_noise(image: np.ndarray, ignore: np.ndarray) -> float:
     return 1.4826 * float(np.median(np.abs(residual - np.median(residual)))) / 6.0
 
 
-def signal_to_noise(sums, counts, radius, background, noise: float) -> np.ndarray:
+def signal_to_noise(sums, counts, radius, background, noise: float, mean_noise: float = 0.0) -> np.ndarray:
     """How clearly each dot stands out of the noise: its background less its mean within 0.7 radii, over the
-    noise of that mean (``noise / sqrt(pixels)``), a matched filter whose score grows with the dot's area. Blobs of
-    noise alone score about 1 (`MIN_SIGNAL`)."""
+    noise of that mean: ``noise / sqrt(pixels)`` for white noise (a matched filter whose score grows with the dot's
+    area), or ``mean_noise`` where that is larger (`grain_noise`: a support's grain, correlated over pixels, averages
+    out more slowly than white noise). Blobs of noise alone score about 1 (`MIN_SIGNAL`)."""
     rho = (np.arange(sums.shape[1]) + 0.5) * BIN
     inner = rho[None, :] < 0.7 * radius[:, None]
     n = (counts * inner).sum(axis=1)
     mean = (sums * inner).sum(axis=1) / np.maximum(n, 1)
-    return (background - mean) * np.sqrt(n) / max(noise, 1e-12)
+    return (background - mean) / np.maximum(max(noise, 1e-12) / np.sqrt(np.maximum(n, 1)), mean_noise)
+
+
+def grain_noise(image: np.ndarray, background: np.ndarray, radius: float) -> float:
+    """The noise of a dot's mean as the picture's own background shows it, whatever its correlation: the robust
+    deviation (1.4826 MAD) of ``image`` averaged by a Gaussian of 0.35 ``radius`` (as a disc of 0.7 radii averages
+    white noise), less its average over 2 radii (the illumination's slow change), over the ``background`` pixels (0 when
+    there are fewer than 100)."""
+    if np.count_nonzero(background) < 100 or not radius > 0:
+        return 0.0
+    band = ndimage.gaussian_filter(image, 0.35 * radius) - ndimage.gaussian_filter(image, 2.0 * radius)
+    values = band[background]
+    return 1.4826 * float(np.median(np.abs(values - np.median(values))))
 
 
 def fill_small_holes(mask: np.ndarray, largest: float) -> np.ndarray:
