@@ -13,7 +13,7 @@ from labrig.validate import InputError
 from qdots import geometry
 from qdots.analysis import overlaps
 from qdots.geometry import (DiscTree, VerletPairs, clashing_pairs, clear_of_walls, extent, moved_beyond,
-                            nested_pairs, overlapping_pairs, pair_bound, pair_separation, pairs_closer,
+                            nearest_ratio, nested_pairs, overlapping_pairs, pair_bound, pair_separation, pairs_closer,
                             pairs_with_distances, pairs_within, relative_overlap, segment_distances,
                             wall_clearances, worst_overlap, worst_wall_overlap)
 from qdots.placement import hexagonal_lattice
@@ -278,7 +278,19 @@ def check_clear_of_walls(positions, radii):
     assert clear_of_walls(positions, radii, np.zeros((0, 4))).all()
 
 
+def check_nearest_ratio(positions, radii):
+    d = distances(positions)
+    np.fill_diagonal(d, np.inf)
+    nearest = np.argmin(d, axis=1)
+    expected = d[np.arange(len(d)), nearest] / (radii + radii[nearest])  # diameters 2 r: mean diameter r_i + r_j
+    ratio = nearest_ratio(positions, 2.0 * radii)
+    ties = np.sort(d, axis=1)[:, 1] == d[np.arange(len(d)), nearest]  # two neighbours at one distance: either
+    np.testing.assert_allclose(ratio[~ties], expected[~ties], rtol=1e-12)
+    assert nearest_ratio(positions[:1], radii[:1]).tolist() == [np.inf]
+
+
 ORACLES = {
+    "nearest_ratio": check_nearest_ratio,
     "pair_separation": check_pair_separation, "pairs_within": check_pairs_within,
     "pairs_with_distances": check_pairs_with_distances, "pair_bound": check_pair_bound,
     "pairs_closer": check_pairs_closer, "VerletPairs": check_verlet_pairs, "moved_beyond": check_moved_beyond,

@@ -152,7 +152,7 @@ def test_a_scale_bar_is_found_measured_and_left_out():
     image = render_micrograph(centres, diameters, (300, 300), noise=0.02, seed=7)
     image[270:276, 180:280] = image.min() - 0.2  # a solid black bar 100 px long
     bar = find_scale_bar(image)
-    assert bar.length_px == pytest.approx(100, abs=0.05) and bar.box == (180, 270, 280, 276) and bar.dark
+    assert bar.length_px == pytest.approx(100, abs=0.2) and bar.box == (180, 270, 280, 276) and bar.dark
     nm_per_px = scale_from_bar(bar, "0.5um")
     assert nm_per_px == pytest.approx(5.0, rel=1e-3)
     assert parse_length("200 nm") == 200.0 and parse_length("2µm") == 2000.0 and parse_length("15A") == 1.5

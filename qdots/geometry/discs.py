@@ -7,7 +7,9 @@ Two discs of radii ``r_i``, ``r_j`` whose centres are ``d`` apart (``r_i + r_j``
   `overlapping_pairs`, `worst_overlap`);
 * they *clash* within a margin ``m`` when ``d < r_i + r_j + m``: their surfaces are closer than ``m`` px
   (`clashing_pairs` within one set of discs, `DiscTree.clashing_partners` between two);
-* one is *nested* in the other when ``d < |r_i - r_j|`` (`nested_pairs`).
+* one is *nested* in the other when ``d < |r_i - r_j|`` (`nested_pairs`);
+* a disc's *nearest ratio* is the distance to its nearest neighbour's centre over the mean of their diameters
+  (`nearest_ratio`): under 1, they overlap.
 
 A disc of radius ``r`` whose centre lies ``s`` from a wall segment has the *clearance* ``s - r`` px
 (`wall_clearances`; negative: it crosses the wall), the relative overlap ``(r - s) / r``
@@ -34,6 +36,16 @@ NESTING_SLACK = 1e-9
 #: Relative widening of the KD-tree reach of `DiscTree.clashing_partners`: the tree's own rounding of the
 #: reach never drops a pair that the exact test keeps.
 REACH_SLACK = 1e-9
+
+
+def nearest_ratio(centres: np.ndarray, diameters: np.ndarray) -> np.ndarray:
+    """Each disc's nearest-neighbour centre distance over the mean of their two diameters (inf for a lone disc)."""
+    centres = np.asarray(centres, dtype=float).reshape(-1, 2)
+    diameters = np.asarray(diameters, dtype=float)
+    if len(centres) < 2:
+        return np.full(len(centres), np.inf)
+    distance, index = cKDTree(centres).query(centres, k=2)
+    return distance[:, 1] / (0.5 * (diameters + diameters[index[:, 1]]))
 
 
 def relative_overlap(distance, contact):

@@ -24,7 +24,8 @@ from labrig.validate import InputError
 
 from .annotations import Annotations, flatness
 from .film import size_spread
-from .shapes import OVERLAP, OVERLAP_SHARE, STACKED, nearest_ratio, overlap_share
+from ..geometry import nearest_ratio
+from .shapes import OVERLAP, OVERLAP_SHARE, STACKED, overlap_share
 
 #: Share of the picture (within 0.2 % of its range) in flat 3 x 3 neighbourhoods above which it is drawn.
 FLAT_SHARE, FLAT_TOLERANCE = 0.3, 0.002

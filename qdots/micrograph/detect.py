@@ -51,13 +51,15 @@ from scipy import ndimage
 from labrig.compiled import jit
 from labrig.validate import InputError, choice
 
+from ..geometry import nearest_ratio
+
 from .annotations import find_strips
 from .profiles import (BIN, FIT_HIGH, FIT_LOW, FIT_STEP, PROFILES, fit_profiles, half_depth_radius, profile_table,
                        radial_profiles)
 from .missed import missed_dots
 from .refine import refine_dots, repeat_errors
 from .settle import FIRST_BLUR, samples_hold, settle_profile
-from .shapes import OVERLAP_SHARE, nearest_ratio, overlap_share, region_shapes
+from .shapes import OVERLAP_SHARE, overlap_share, region_shapes
 from .segment import (MIN_INSCRIBED, MIN_SIGNAL, POLARITIES, background_level, blob_seeds, blob_skewness,
                       decide_polarity, edge_curvature, fill_small_holes, grain_noise, label_maxima, middle_window, pixel_noise,
                       region_properties, scaled, signal_to_noise, spaced_maxima, split_fused, typical_radius)
@@ -395,7 +397,7 @@ def _detect(image: np.ndarray, polarity: str, profile: str, ignore: np.ndarray) 
     contrast = refined.contrast / np.maximum(background, 1e-12)  # in units of the background, as Detection has it
     good = np.isfinite(fitted) & (contrast > 0)
     sums, counts, _ = refined.profiles
-    grain = grain_noise(np.nan_to_num(target[half], nan=float(np.nanmedian(target))), away, 0.5 * typical)
+    grain = grain_noise(np.nan_to_num(target[half], nan=float(np.nanmedian(target))), mask[half], 0.5 * typical)
     score = signal_to_noise(sums[good], counts[good], fitted[good], background[good], noise, grain)
     good[good] = score >= MIN_SIGNAL
     if not good.any():

@@ -25,7 +25,8 @@ from .read import Micrograph, read_micrograph
 from .admit import NotAFilm, check_picture, film_verdict
 from .annotations import Annotations, find_annotations
 from .scale import ScaleBar, check_nm_per_px, parse_length, scale_from_bar
-from .shapes import STACKED, nearest_ratio
+from ..geometry import nearest_ratio
+from .shapes import STACKED
 
 #: Diameters, nm, of quantum dots and nanocrystals: a scale that puts the dots outside says so (`scale_check`).
 PLAUSIBLE_NM = (1.0, 100.0)

@@ -178,14 +178,30 @@ def find_scale_bar(image: np.ndarray) -> ScaleBar | None:
     return best
 
 
+def surroundings(near: np.ndarray, level: float) -> float:
+    """The level around a bar's end, from the profile ``near`` it (from the end outward, `BAR_SURROUNDINGS` px): the
+    median of the values from 2 px on, up to the first that turns back toward the bar's ``level`` (under half the
+    largest distance from it so far: a label box's frame, another mark). A blurred end's ramp is mostly in the first
+    2 px and weighs little in the median; noise is not picked as an extreme."""
+    far = np.abs(near - level)
+    start = min(2, len(near) - 1)
+    kept, peak = [], 0.0
+    for value, distance in zip(near[start:], far[start:]):
+        peak = max(peak, float(distance))
+        if distance < 0.5 * peak:
+            break
+        kept.append(float(value))
+    return float(np.median(kept)) if kept else float(near[-1])
+
+
 def half_contrast_length(image: np.ndarray, box: tuple[int, int, int, int], horizontal: bool, thickness: int,
                          solid: float, middle: int) -> float:
     """The length of the bar in ``box`` (x0, y0, x1, y1) between the points where its ends cross half contrast, px:
     a blurred bar (a journal figure's, a JPEG's) is measured as drawn, not at its solid core (``solid`` px). The
     profile along the bar is the mean of the ``thickness`` lines around its spine's ``middle`` one (a row of the image,
     or a column for a vertical bar); the bar's level is the median of its middle
-    half, the background's the value furthest from it within `BAR_SURROUNDINGS` px past each solid end (what surrounds
-    the bar there, the picture or a label box, past a blurred end's ramp); from each solid end outward, the first pixel under half
+    half, the background's what surrounds each solid end (`surroundings`: the picture, or a label box); from each solid
+    end outward, the first pixel under half
     contrast and the one before it give the crossing, interpolated. An end at the image's edge stays where the bar
     stops; ``solid`` when the profile does not show both levels."""
     x0, y0, x1, y1 = box
@@ -205,7 +221,7 @@ def half_contrast_length(image: np.ndarray, box: tuple[int, int, int, int], hori
         if near.size < 2:  # the picture's edge: the end shown is where the bar stops
             ends.append(float(start) + (1.0 if step > 0 else 0.0))
             continue
-        background = float(near[np.argmax(np.abs(near - level))])  # past a blurred end's ramp, before a box's frame
+        background = surroundings(near, level)
         if abs(level - background) < 0.25 * float(np.ptp(profile)) or np.ptp(profile) <= 0:
             return solid  # bar colour on both sides: not an end
         t = (profile - background) / (level - background)  # 0 at the background, 1 on the bar

@@ -34,6 +34,9 @@ EDGE_NOISE, MIN_EDGES, EDGE_WIDTHS = 3.0, 50, (1.0, 2.0, 4.0)
 LOOK_SIDE = 1024
 #: Image-wide statistics (percentiles, noise) use every SUBSAMPLE-th pixel.
 SUBSAMPLE = 3
+#: The support's grain (`grain_noise`) is read on the pixels at least GRAIN_CLEAR radii from every dot, when they are
+#: GRAIN_SHARE of the picture, against its average over GRAIN_BROAD radii.
+GRAIN_CLEAR, GRAIN_SHARE, GRAIN_BROAD = 2.0, 0.05, 6.0
 #: An object is a dot when its inscribed radius is at least this share of the typical radius.
 MIN_INSCRIBED = 1.0 / 3.0
 #: A region whose area is more than this many times the disc of its inscribed radius, and whose long axis is
@@ -120,15 +123,19 @@ def signal_to_noise(sums, counts, radius, background, noise: float, mean_noise: 
     return (background - mean) / np.maximum(max(noise, 1e-12) / np.sqrt(np.maximum(n, 1)), mean_noise)
 
 
-def grain_noise(image: np.ndarray, background: np.ndarray, radius: float) -> float:
+def grain_noise(image: np.ndarray, dots: np.ndarray, radius: float) -> float:
     """The noise of a dot's mean as the picture's own background shows it, whatever its correlation: the robust
     deviation (1.4826 MAD) of ``image`` averaged by a Gaussian of 0.35 ``radius`` (as a disc of 0.7 radii averages
-    white noise), less its average over 2 radii (the illumination's slow change), over the ``background`` pixels (0 when
-    there are fewer than 100)."""
-    if np.count_nonzero(background) < 100 or not radius > 0:
+    white noise), less its average over `GRAIN_BROAD` radii (the illumination's slow change), over the pixels at
+    least `GRAIN_CLEAR` radii from every pixel of the ``dots`` (a boolean image). 0 where under `GRAIN_SHARE` of the
+    picture is that clear (a dense film: its gaps hold dots' edges, not the support)."""
+    if not radius > 0:
         return 0.0
-    band = ndimage.gaussian_filter(image, 0.35 * radius) - ndimage.gaussian_filter(image, 2.0 * radius)
-    values = band[background]
+    clear = ndimage.distance_transform_edt(~dots) >= GRAIN_CLEAR * radius
+    if np.count_nonzero(clear) < max(100, GRAIN_SHARE * clear.size):
+        return 0.0
+    band = ndimage.gaussian_filter(image, 0.35 * radius) - broad_blur(image, GRAIN_BROAD * radius)
+    values = band[clear]
     return 1.4826 * float(np.median(np.abs(values - np.median(values))))
 
 

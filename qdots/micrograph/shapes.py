@@ -12,7 +12,7 @@ Three measures of each region (`region_shapes`) tell round particles from other 
   diameter: touching spheres meet at a narrow waist (0.2-0.6 once blurred), two pieces of one rod or two cubes
   face to face along their whole width (about 1).
 
-And one of the discs fitted to the dots (`nearest_ratio`, `overlap_share`): hard particles in one layer do not
+And one of the discs fitted to the dots (`qdots.geometry.nearest_ratio`, `overlap_share`): hard particles in one layer do not
 overlap, so discs that overlap their nearest neighbours are larger than the particles (or larger objects were cut into
 pieces).
 """
@@ -101,20 +101,8 @@ def region_shapes(labels: np.ndarray) -> np.ndarray:
     return np.column_stack([elongation, outline, neck])
 
 
-def nearest_ratio(centres: np.ndarray, diameters: np.ndarray) -> np.ndarray:
-    """Each dot's nearest-neighbour centre distance over the mean of their two diameters (inf for a lone dot)."""
-    from scipy.spatial import cKDTree
-
-    centres = np.asarray(centres, dtype=float)
-    diameters = np.asarray(diameters, dtype=float)
-    if len(centres) < 2:
-        return np.full(len(centres), np.inf)
-    distance, index = cKDTree(centres).query(centres, k=2)
-    return distance[:, 1] / (0.5 * (diameters + diameters[index[:, 1]]))
-
-
 def overlap_share(ratio: np.ndarray) -> float:
-    """Of the dots with a close neighbour (`nearest_ratio` under 1.5), the share that overlap it (under `OVERLAP`)."""
+    """Of the dots with a close neighbour (`qdots.geometry.nearest_ratio` under 1.5), the share that overlap it (under `OVERLAP`)."""
     ratio = np.asarray(ratio, dtype=float)
     close = ratio < 1.5
     return float(np.mean(ratio[close] < OVERLAP)) if close.any() else 0.0
