@@ -78,6 +78,9 @@ BLOB_RADIUS = 5.0
 #: 0.05): merged films of 6-7.5 px dots at 10-30 % vacancies 2.1-2.5; every other film of 6-24 px dots (sparse,
 #: touching, superlattices with 1-2 px gaps) 1.0-1.4.
 MERGED = 1.5
+#: The stages `detect_dots` announces (its ``step``), in order.
+STAGES = ("settling the blur and background", "fitting dots with their neighbours", "seeking faint dots the threshold "
+          "missed", "measuring each diameter again")
 #: A first look whose objects grow TEXTURE_GROWTH times or more when the picture is smoothed by COARSE_SMOOTH px, while
 #: their pixels grow at most TEXTURE_AREA times, found a support's grain or the particles' inner texture (pores)
 #: rather than dots: the picture is smoothed more (`first_look`). Measured: on four real films with grain or pores the
@@ -190,7 +193,7 @@ def paint_discs(covered, centres, radii):
 
 
 def detect_dots(image, polarity: str = "auto", profile: str = "auto", ignore: np.ndarray | None = None,
-                window: tuple[int, int, int, int] | None = None) -> Detection:
+                window: tuple[int, int, int, int] | None = None, step=None) -> Detection:
     """Every dot of a grey image, with sub-pixel centres and fitted diameters (see the module docstring).
 
     Parameters
@@ -210,6 +213,8 @@ def detect_dots(image, polarity: str = "auto", profile: str = "auto", ignore: np
     window : (int, int, int, int), optional
         ``(x0, y0, x1, y1)``: the part of the image that is picture (default: the image less the frame and data
         strips along its sides, `qdots.micrograph.annotations.find_strips`).
+    step : callable, optional
+        Called with the name of each stage as it begins (`STAGES`: a progress bar's).
 
     Returns
     -------
@@ -233,7 +238,7 @@ def detect_dots(image, polarity: str = "auto", profile: str = "auto", ignore: np
     if x1 - x0 < 2 or y1 - y0 < 2:
         return _empty((h, w), "no picture left inside the frame or strips", 0)
     inner = (slice(y0, y1), slice(x0, x1))
-    found = _detect(image[inner], polarity, profile, ignore[inner])
+    found = _detect(image[inner], polarity, profile, ignore[inner], step or (lambda stage: None))
     centres = found.centres + [x0, y0]
     r = 0.5 * found.diameters
     cut = found.cut | (centres[:, 0] - r < x0) | (centres[:, 1] - r < y0) | (centres[:, 0] + r > x1) | (
@@ -260,7 +265,7 @@ def first_look(unit: np.ndarray, ignore: np.ndarray, smoothing: float):
     return smooth, first, mask, 2.0 * typical_radius(ndimage.distance_transform_edt(mask))
 
 
-def _detect(image: np.ndarray, polarity: str, profile: str, ignore: np.ndarray) -> Detection:
+def _detect(image: np.ndarray, polarity: str, profile: str, ignore: np.ndarray, step) -> Detection:
     """`detect_dots` on an image without a frame; ``cut`` marks the dots whose watershed region touches its edge."""
     from skimage.filters import threshold_otsu
     from skimage.segmentation import expand_labels, watershed
@@ -350,8 +355,10 @@ def _detect(image: np.ndarray, polarity: str, profile: str, ignore: np.ndarray) 
     ok = np.isfinite(first[0]) & (first[2] > 0)
     sure = ok & ~touches if (ok & ~touches).any() else ok
     typical = float(np.median(first[0][sure])) if sure.any() else radius
+    step("settling the blur and background")
     shape, blur, level, level_map, how_shape = settle_profile(target, centres, first[0], first[2], first[1], typical,
                                                               whole, profile)
+    step(f"fitting {len(centres)} dots with their neighbours")
     refined = refine_dots(target, centres, first[0], first[2], typical, shape, blur, level, move=True)
     spheres, refit = profile == "auto" and shape == 0.5, ""
     overlapping = overlap_share(nearest_ratio(refined.centres, 2.0 * refined.radius)) if spheres else 0.0
@@ -363,6 +370,7 @@ def _detect(image: np.ndarray, polarity: str, profile: str, ignore: np.ndarray) 
                              "neighbour overlapped it, which particles in one layer cannot do, so they were fitted as "
                              "flat discs")
         refined = refine_dots(target, centres, first[0], first[2], typical, shape, blur, level, move=True)
+    step("seeking faint dots the threshold missed")
     extra = missed_dots(target, refined, level_map, typical, shape, blur, noise)
     if len(extra):  # dots the threshold missed: fitted, and the film settled again with them if they are in its samples
         more, n = len(extra), len(centres)
@@ -406,6 +414,7 @@ def _detect(image: np.ndarray, polarity: str, profile: str, ignore: np.ndarray) 
                                    f"deviations of its mean, under the {MIN_SIGNAL:g} a dot needs: noise alone",
                       len(start))
     rejected += int(np.count_nonzero(~good))
+    step("measuring each diameter again")
     errors = 2.0 * repeat_errors(target, centres, refined, typical, shape, blur, level, level_map)
     centres, fitted, contrast, touches, errors, shapes = (part[good] for part in (centres, fitted, contrast, touches,
                                                                                  errors, shapes))

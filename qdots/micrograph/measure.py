@@ -16,10 +16,11 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from labrig.progress import progress_bar
 from labrig.validate import InputError
 
 from ..analysis.lqe import film_lqe
-from .detect import Detection, detect_dots
+from .detect import STAGES, Detection, detect_dots
 from .film import OUTLIER, complete_neighbourhood, film_metrics, film_state
 from .read import Micrograph, read_micrograph
 from .admit import NotAFilm, check_picture, film_verdict
@@ -122,7 +123,8 @@ def scale_check(summary: dict) -> str:
 
 
 def measure_image(path: str | os.PathLike, *, nm_per_px=None, scale_bar: str | None = None, polarity: str = "auto",
-                  profile: str = "auto", page: int = 0, lqe: bool = True, force: bool = False) -> MeasuredFilm:
+                  profile: str = "auto", page: int = 0, lqe: bool = True, force: bool = False,
+                  progress: bool = False) -> MeasuredFilm:
     """Read a micrograph, find its dots and measure the film (nothing written).
 
     Parameters
@@ -145,6 +147,8 @@ def measure_image(path: str | os.PathLike, *, nm_per_px=None, scale_bar: str | N
     force : bool
         Measure a picture whose dots do not look like a film of round particles (`qdots.micrograph.admit`) anyway;
         the summary's ``doubts`` then say why it would have been refused.
+    progress : bool
+        Show a progress bar of the stages on stderr (it says when numba compiles, the first run on a machine).
 
     Raises
     ------
@@ -159,14 +163,21 @@ def measure_image(path: str | os.PathLike, *, nm_per_px=None, scale_bar: str | N
         check_nm_per_px(nm_per_px)
     if scale_bar is not None:
         parse_length(scale_bar)
-    image = read_micrograph(path, page)
-    found = find_annotations(image.pixels)
-    if not force:
-        check_picture(image.pixels, found, str(path))
-    bar = found.bar
-    scale, how = settle_scale(image, bar, nm_per_px, scale_bar)
-    detection = detect_dots(image.pixels, polarity=polarity, profile=profile, ignore=found.ignore,
-                            window=found.window)
+    with progress_bar(3 + len(STAGES), unit="stage", desc="qdots measure", show=progress, leave=False) as shown:
+        def step(stage: str) -> None:
+            shown.set_postfix_str(stage, refresh=False)
+            shown.update()
+
+        image = read_micrograph(path, page)
+        step("finding what is drawn on the picture")
+        found = find_annotations(image.pixels)
+        if not force:
+            check_picture(image.pixels, found, str(path))
+        scale, how = settle_scale(image, found.bar, nm_per_px, scale_bar)
+        step("finding the dots")
+        detection = detect_dots(image.pixels, polarity=polarity, profile=profile, ignore=found.ignore,
+                                window=found.window, step=step)
+        step("measuring the film")
     if detection.n_dots == 0:
         raise InputError(f"{path}: no dots found ({detection.polarity}); nothing written. Check --polarity, "
                          "or crop the image to the film")
@@ -181,7 +192,7 @@ def measure_image(path: str | os.PathLike, *, nm_per_px=None, scale_bar: str | N
             refusals, doubts = film_verdict(detection)
     if refusals and force:
         doubts = [f"measured with --force, though not a film of round particles: {r}" for r in refusals] + doubts
-    film = measured_film(image, detection, scale, how, bar, found, lqe and not (refusals and not force), doubts)
+    film = measured_film(image, detection, scale, how, found.bar, found, lqe and not (refusals and not force), doubts)
     if refusals and not force:
         other = "dark" if not detection.dark else "light"
         raise NotAFilm(f"{path}: not a film of round particles: {'; '.join(refusals)} (the {detection.polarity.split()[0]}"
