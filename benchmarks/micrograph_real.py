@@ -200,17 +200,20 @@ def results(halves: tuple[str, ...], only: list[str] | None = None, overlays: Pa
         return [Note(f"{len(missing)} of the {len(chosen)} real micrographs are not in {folder.name}/ (the cache "
                      "folder): fetch them with `python -m benchmarks.micrograph_real --fetch`.")]
     out: list = []
-    summary = []
+    summary, seconds = [], []
     for half in halves:
         rows = [measure_entry(e, folder, overlays) for e in chosen if e["half"] == half]
         if not rows:
             continue
         out.append(table(rows, half))
+        seconds += [r["seconds"] for r in rows]
         ok = sum(passed(r) == "ok" for r in rows)
         films = [r for r in rows if r["expect"] == "measure"]
         summary.append(f"{half}: {ok} of {len(rows)} within the goals; {sum(r['verdict'] == 'measured' for r in films)}"
                        f" of {len(films)} films measured")
-    out.insert(0, Headline("qdots measure on real micrographs (dev / test halves)", "; ".join(summary), ""))
+    out.insert(0, Headline("qdots measure on real micrographs (dev / test halves)",
+                           f"{sum(seconds):.0f} s for {len(seconds)} pictures (median {np.median(seconds):.1f} s)",
+                           "; ".join(summary)))
     return out
 
 
