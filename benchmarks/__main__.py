@@ -1,7 +1,8 @@
 """Run the benchmarks and write the performance report.
 
 ``python -m benchmarks [--quick] [--only NAME ...] [--out DIR]`` runs every module of
-`benchmarks.BENCHMARKS` (or those named) and writes, under ``DIR`` (default ``docs/``):
+`benchmarks.BENCHMARKS` (or those named) and writes, under ``DIR`` (default ``docs/``; for ``--quick``, which checks an
+install, ``./benchmarks-quick``, so that the published full report is never replaced by quick numbers):
 
 * ``performance.json``: every section's results and the machine it ran on (the report's data),
 * ``performance.md``: the report rendered from it (headline table, then one section per benchmark, then the
@@ -106,15 +107,22 @@ def render(store: dict, freshness=status) -> str:
     return "\n".join(lines) + "\n"
 
 
+#: Where a ``--quick`` run writes its report unless ``--out`` says otherwise.
+QUICK_OUT = Path("benchmarks-quick")
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m benchmarks", description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="small versions of every benchmark (minutes)")
     parser.add_argument("--render", action="store_true", help="run nothing: write performance.md again from "
                                                                 "performance.json (the staleness marks as of now)")
     parser.add_argument("--only", nargs="+", metavar="NAME", help=f"run only these (of: {', '.join(BENCHMARKS)})")
-    parser.add_argument("--out", type=Path, default=DOCS, help=f"directory of the report (default {DOCS})")
+    parser.add_argument("--out", type=Path, default=None,
+                        help=f"directory of the report (default {DOCS}; with --quick, {QUICK_OUT})")
     parser.add_argument("--list", action="store_true", help="list the benchmarks and exit")
     args = parser.parse_args(argv)
+    if args.out is None:
+        args.out = QUICK_OUT if args.quick and not args.render else DOCS
     if args.list:
         print("\n".join(f"{name}: {title_of(name)}" for name in BENCHMARKS))
         return 0

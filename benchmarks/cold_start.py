@@ -46,7 +46,9 @@ STARTS = [
     ("qdots", ["--help"]), ("qdots", ["--version"]), ("qdots", ["nosuch"]), ("qdots", ["run"]),
     ("qdots", ["run", "x.toml", "--engine", "verlet"]), ("qdots", ["preset", "nosuch"]), ("qdots", ["analyze"]),
     ("planarize", ["--help"]), ("planarize", ["--version"]), ("planarize", ["nosuch"]),
-    ("qdots", ["measure"]), ("planarize", ["run"]),  # their parsers read bounds in the simulators' modules
+    ("qdots", ["measure"]), ("planarize", ["run"]),
+    ("qdots", ["measure", "--help"]), ("qdots", ["compare", "--help"]), ("qdots", ["infer", "--help"]),
+    ("planarize", ["import", "--help"]), ("qdots", ["measure", "nofile.png"]),  # bounds from light modules
 ]
 #: How often each answer is timed (`--quick`: fewer).
 START_REPEATS = 9

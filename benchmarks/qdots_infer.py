@@ -84,6 +84,10 @@ def dask_speedup(films: int, n_dots: int) -> list:
 
 
 def run(quick: bool) -> list:
+    from qdots.micrograph.choices import INFER_EXTRA, missing_infer_extra
+
+    if missing_infer_extra():
+        return [Note(f"Not run: {INFER_EXTRA}.")]
     timing_rows, result = one_inference(quick)
     timing = Table("One inference on the shared micrograph (2 local workers)",
                    ["run", "wall s", "measure s", "library s", "films run", "training s", "sampling s",

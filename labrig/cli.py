@@ -14,6 +14,7 @@ the simulators, and a subcommand imports only what its own arguments need.
 from __future__ import annotations
 
 import argparse
+import difflib
 import sys
 from dataclasses import dataclass
 from typing import Callable, Sequence, TypeVar
@@ -29,7 +30,10 @@ class UsageError(Exception):
 
 
 class Parser(argparse.ArgumentParser):
-    """An ArgumentParser that raises `UsageError` instead of printing usage and exiting."""
+    """An ArgumentParser that raises `UsageError` instead of printing usage and exiting; ``commands`` holds its
+    subcommands' parsers by name (`command_line`)."""
+
+    commands: dict[str, argparse.ArgumentParser]
 
     def error(self, message: str):
         raise UsageError(f"{message} (see '{self.prog} --help')")
@@ -68,14 +72,19 @@ def float_in(low: float, high: float, low_open: bool = False, high_open: bool = 
 fraction = float_in(0.0, 1.0, low_open=True, high_open=False)
 
 
-def run_main(parser: argparse.ArgumentParser, argv: Sequence[str] | None) -> int:
+def run_main(parser: argparse.ArgumentParser, argv: Sequence[str] | None,
+             command: argparse.ArgumentParser | None = None) -> int:
     """Parse ``argv`` and run the chosen command's ``func``; returns the exit status.
 
     0 on success (or the command's own status), 2 on bad input (a one-line
     ``PROG: error: ...`` on stderr), 130 when interrupted. Other exceptions propagate.
+    Words no argument takes are reported against ``command``'s options (the chosen subcommand's parser,
+    default ``parser``), with the closest option and its ``--help``.
     """
     try:
-        args = parser.parse_args(argv)
+        args, unknown = parser.parse_known_args(argv)
+        if unknown:
+            raise UsageError(unrecognized(command or parser, unknown))
         return int(args.func(args))
     except SystemExit as exc:  # --help and --version
         return exc.code if isinstance(exc.code, int) else 0
@@ -90,6 +99,52 @@ def run_main(parser: argparse.ArgumentParser, argv: Sequence[str] | None) -> int
             raise
         print(interrupted_line(parser.prog), file=sys.stderr)
         return INTERRUPTED
+
+
+def did_you_mean(word: str, choices: Sequence[str]) -> str:
+    """``"; did you mean 'X'?"`` for the choice closest to ``word`` (``_`` read as ``-``), or ``""``."""
+    close = difflib.get_close_matches(word.replace("_", "-"), list(choices), n=1, cutoff=0.75)
+    return f"; did you mean {close[0]!r}?" if close else ""
+
+
+def option_strings(parser: argparse.ArgumentParser) -> dict[str, argparse.Action]:
+    """``parser``'s options by each of their strings (``--scale-bar``, ``-h``, ...)."""
+    return {string: action for action in parser._actions for string in action.option_strings}
+
+
+def unrecognized(parser: argparse.ArgumentParser, words: Sequence[str]) -> str:
+    """The error for ``words`` that no argument of ``parser`` takes: the first unknown option with the closest
+    known one, or the extra words; and where help is (``PROG COMMAND --help``)."""
+    options = [word.split("=", 1)[0] for word in words if word.startswith("-")]
+    if options:
+        hint = did_you_mean(options[0], list(option_strings(parser)))
+        return f"unknown option {options[0]!r}{hint} (see '{parser.prog} --help')"
+    return f"unrecognized arguments: {' '.join(words)} (see '{parser.prog} --help')"
+
+
+def join_dashed_values(parser: argparse.ArgumentParser, argv: Sequence[str]) -> list[str]:
+    """``argv`` with each value that starts with a dash joined to its option (``--rtol -inf`` ->
+    ``--rtol=-inf``), so that the option's own check reports it instead of argparse's "expected one argument".
+
+    Only for options of ``parser`` that take one value, and only where the next word is no option of it.
+    """
+    options = option_strings(parser)
+    words = list(argv)
+    joined: list[str] = []
+    i = 0
+    while i < len(words):
+        word = words[i]
+        action = options.get(word)
+        value = words[i + 1] if i + 1 < len(words) else None
+        if (action is not None and action.nargs is None and action.option_strings and action.const is None
+                and value is not None and value.startswith("-") and len(value) > 1
+                and value.split("=", 1)[0] not in options and not value.startswith("--")):
+            joined.append(f"{word}={value}")
+            i += 2
+            continue
+        joined.append(word)
+        i += 1
+    return joined
 
 
 def interrupted(exc: BaseException) -> bool:
@@ -160,17 +215,20 @@ def command_line(prog: str, description: str, commands: Sequence[Command]) -> tu
         and returns the exit status: 0 on success, 2 on bad input (a one-line ``PROG: error: ...`` on stderr).
     """
     def build_parser(command: str | None = EVERY) -> Parser:
-        """The argument parser: ``--version`` and one subparser per command (arguments: see `command_line`)."""
+        """The argument parser: ``--version`` and one subparser per command (arguments: see `command_line`);
+        each subparser is in its ``commands`` by name."""
         from . import __version__
 
         parser = Parser(prog=prog, description=description)
         parser.add_argument("--version", action="version", version=f"{prog} {__version__}")
         subparsers = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+        parser.commands = {}
         for entry in commands:
             p = subparsers.add_parser(entry.name, help=entry.help, description=entry.description or entry.run.__doc__)
             p.set_defaults(func=entry.run)
             if entry.arguments is not None and command in (EVERY, entry.name):
                 entry.arguments(p)
+            parser.commands[entry.name] = p
         return parser
 
     def main(argv: Sequence[str] | None = None) -> int:
@@ -178,7 +236,17 @@ def command_line(prog: str, description: str, commands: Sequence[Command]) -> tu
         argv = sys.argv[1:] if argv is None else list(argv)
         # the top level takes options without values only (--help, --version): its first other word is the command
         chosen = next((word for word in argv if not word.startswith("-")), None)
-        return run_main(build_parser(chosen), argv)
+        names = [entry.name for entry in commands]
+        if chosen is not None and chosen not in names:
+            print(f"{prog}: error: unknown command {printable(chosen)!r}{did_you_mean(chosen, names)} "
+                  f"(see '{prog} --help')", file=sys.stderr)
+            return 2
+        parser = build_parser(chosen)
+        command = parser.commands.get(chosen) if chosen is not None else None
+        if chosen is not None and command is not None:
+            at = argv.index(chosen) + 1
+            argv = argv[:at] + join_dashed_values(command, argv[at:])
+        return run_main(parser, argv, command)
 
     return build_parser, main
 

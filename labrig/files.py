@@ -16,6 +16,7 @@ import io
 import os
 import re
 import secrets
+import stat
 import time
 from pathlib import Path
 from typing import Iterator, Sequence
@@ -24,7 +25,7 @@ from .staging import SetBusyError, recover_beside
 from .validate import InputError, printable
 
 __all__ = ["atomic_path", "write_text_atomic", "write_csv", "temporary_beside", "existing_file",
-           "remove_stale_temporaries", "AllOrNothing", "StreamedFile", "OutputSet", "SetBusyError",
+           "remove_stale_temporaries", "writable_directory", "AllOrNothing", "StreamedFile", "OutputSet", "SetBusyError",
            "recover_beside", "slug"]
 
 #: Temporary files older than this (s) are left over from a killed process (`remove_stale_temporaries`).
@@ -45,12 +46,33 @@ def temporary_beside(path: Path) -> Path:
 
 def existing_file(path: str | os.PathLike, what: str) -> Path:
     """``path`` as a Path if it names a regular file; FileNotFoundError if nothing is there, `InputError` if it
-    is a directory, a pipe or another kind of file (``what`` names the file in messages, e.g. "scene file")."""
+    is a directory, a pipe or another kind of file, or cannot be opened (a symbolic link loop, no permission)
+    (``what`` names the file in messages, e.g. "scene file")."""
     path = Path(path)
-    if not path.exists():
-        raise FileNotFoundError(f"{what} {str(path)!r} does not exist")
-    if not path.is_file():
+    try:
+        info = os.stat(path)
+    except FileNotFoundError:
+        raise FileNotFoundError(f"{what} {str(path)!r} does not exist") from None
+    except OSError as exc:  # ELOOP (a symbolic link loop), EACCES, ENAMETOOLONG, ...
+        raise InputError(f"{what} {str(path)!r} cannot be opened: {exc.strerror or exc}") from None
+    if not stat.S_ISREG(info.st_mode):
         raise InputError(f"{what} {str(path)!r} is not a regular file (a directory or a pipe?)")
+    return path
+
+
+def writable_directory(path: str | os.PathLike, what: str = "output directory") -> Path:
+    """``path`` as a Path if it is a directory or can be made one; `InputError` naming what is in the way (a
+    file at ``path`` or at one of its parents, a symbolic link to nothing). Nothing is created."""
+    path = Path(path)
+    for part in (path, *path.parents):
+        if part.is_symlink() and not part.exists():
+            raise InputError(f"{what} {str(path)!r}: {str(part)!r} is a symbolic link to {os.readlink(part)!r}, "
+                             "which does not exist")
+        if part.exists():
+            if not part.is_dir():
+                where = "" if part == path else f": {str(part)!r}"
+                raise InputError(f"{what} {str(path)!r}{where} is a file, not a directory")
+            break
     return path
 
 

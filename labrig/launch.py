@@ -9,7 +9,8 @@ After the command has returned, Python would still tear its modules down (half a
 after a sweep), a time in which it no longer runs a handler of Ctrl-C: the process would die of the
 signal (status -2) and say nothing. The entry points therefore end the process themselves once every
 ``atexit`` handler has run, and a Ctrl-C after the command returned says so
-(``PROG: interrupted after it had finished``), with status 130.
+(``PROG: interrupted after it had finished``), with status 130. An exception that is a bug keeps its
+traceback and exits with status 1.
 """
 
 from __future__ import annotations
@@ -24,6 +25,8 @@ from typing import Sequence
 
 #: Exit status of an interrupted command (128 + SIGINT), as shells report it.
 INTERRUPTED = 130
+#: Exit status of a command that crashed (an exception that is a bug; its traceback is printed).
+CRASHED = 1
 
 
 class LateInterrupt(KeyboardInterrupt):
@@ -41,20 +44,28 @@ def launch(prog: str, module: str, argv: Sequence[str] | None = None, *, console
     """Import ``module`` and run its ``main(argv)``; returns the exit status (130 on Ctrl-C at any point).
 
     With ``console`` (a console command), the process ends as soon as the ``atexit`` handlers have run
-    (`end_after_exit_handlers`), and a Ctrl-C after ``main`` returned prints a line and exits 130.
+    (`end_after_exit_handlers`), and a Ctrl-C after ``main`` returned prints a line and exits 130. A crash (any
+    other exception) keeps its traceback and exits 1, so that a script tells it from a Ctrl-C.
     """
-    status = [INTERRUPTED]
+    status = [CRASHED]
     if console:
         end_after_exit_handlers(status)
+    finished = False
     try:
-        main = importlib.import_module(module).main
-        status[0] = main(argv)
-    except KeyboardInterrupt as exc:
-        print(interrupted_line(prog, exc), file=sys.stderr)
+        try:
+            main = importlib.import_module(module).main
+            status[0] = main(argv)
+            finished = True
+        finally:
+            if console and threading.current_thread() is threading.main_thread():
+                signal.signal(signal.SIGINT, lambda signum, frame: _late_interrupt(prog))
+    except KeyboardInterrupt as exc:  # during the command, or in the instant after it returned
+        late = LateInterrupt("it had finished (its results are written)") if finished else exc
+        print(interrupted_line(prog, late), file=sys.stderr)
         status[0] = INTERRUPTED
-    finally:
-        if console and threading.current_thread() is threading.main_thread():
-            signal.signal(signal.SIGINT, lambda signum, frame: _late_interrupt(prog))
+    except SystemExit as exc:
+        status[0] = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
+        raise
     return status[0]
 
 

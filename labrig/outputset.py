@@ -12,7 +12,7 @@ import shutil
 from pathlib import Path
 from typing import Callable
 
-from .files import AllOrNothing, StreamedFile, remove_stale_temporaries, temporary_beside
+from .files import AllOrNothing, StreamedFile, remove_stale_temporaries, temporary_beside, writable_directory
 from .staging import check_set_name, directory_lock, interrupts_deferred, open_staging, plain_file_name, recover
 from .validate import InputError
 
@@ -55,7 +55,7 @@ class OutputSet(AllOrNothing):
                              f"the run {name!r} writes a folder of that name there (move it, or choose another --out)")
         _refuse_folders(self.path)
         #: Whether this set made ``directory`` (an aborted set then removes it again if it is empty).
-        self.made_directory = not self.directory.exists()
+        self.made_directory = not writable_directory(self.directory).exists()
         self.directory.mkdir(parents=True, exist_ok=True)
         remove_stale_temporaries(self.directory)
         self._staging = open_staging(self.directory, self.name)

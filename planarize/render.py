@@ -29,6 +29,8 @@ from .heightfield import Surface
 #: Marker styles of Fig 3-8: metal squares, oxide circles.
 METAL = {"marker": "s", "color": "tab:blue"}
 OXIDE = {"marker": "o", "color": "tab:red"}
+#: Most grid points a slice marks one by one (beyond, its initial surfaces are dashed lines and the final ones solid).
+MAX_MARKED_POINTS = 80
 
 
 def _axes(ax, projection=None, figsize=(6, 4)):
@@ -92,13 +94,16 @@ def draw_slice(run: Anodization, ax=None, *, index: int | None = None, axis: int
               (start, OXIDE, "none", "_nolegend_" if same else "oxide, initial", 4 if same else 5),
               (run.metal, METAL, None, f"metal, after {run.thickness:.3g} nm of oxide", 5),
               (run.oxide, OXIDE, None, f"oxide, after {run.thickness:.3g} nm of oxide", 5)]
+    marked = coord.size <= MAX_MARKED_POINTS  # a marker at each grid point only where they can be told apart
     for surface, style, face, label, size in series:
-        ax.plot(coord, line(surface), linestyle="-", linewidth=0.6, markersize=size, color=style["color"],
-                marker=style["marker"], markerfacecolor=face if face else style["color"], label=label)
+        ax.plot(coord, line(surface), linestyle="-" if marked else ("-" if face is None else "--"),
+                linewidth=0.6 if marked else 1.2, markersize=size, color=style["color"],
+                marker=style["marker"] if marked else None, markerfacecolor=face if face else style["color"],
+                label=label)
     ax.set_xlabel(f"{'x' if axis == 0 else 'y'} (nm)")
     ax.set_ylabel("z (nm)")
     across = run.initial.y[index] if axis == 0 else run.initial.x[index]
-    ax.set_title(f"slice at {'y' if axis == 0 else 'x'} = {across:.3g} nm")
+    ax.set_title(f"slice at {'y' if axis == 0 else 'x'} = {across:.6g} nm")
     if legend:  # under the axes, where it covers no curve
         ax.legend(fontsize="small", loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=2, frameon=False)
     return ax

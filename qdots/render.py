@@ -47,6 +47,24 @@ def size_range(radii) -> tuple[float, float]:
     return low, high
 
 
+#: Robust deviations either side of the median diameter that `robust_size_range` spans.
+ROBUST_SPAN = 3.0
+
+
+def robust_size_range(radii) -> tuple[float, float]:
+    """The diameters, px, at the first and the last colour when a few outliers must not stretch the scale (measured
+    films): the median +- `ROBUST_SPAN` robust deviations (1.4826 x the median absolute deviation), within the
+    smallest and the largest diameter; `size_range` when the deviation is 0."""
+    d = 2.0 * np.asarray(radii, dtype=float).reshape(-1)
+    d = d[np.isfinite(d)]
+    if d.size < 3:
+        return size_range(radii)
+    median = float(np.median(d))
+    deviation = 1.4826 * float(np.median(np.abs(d - median)))
+    low, high = max(float(d.min()), median - ROBUST_SPAN * deviation), min(float(d.max()), median + ROBUST_SPAN * deviation)
+    return (low, high) if high - low > 1e-9 * abs(high) else size_range(radii)
+
+
 def _checked_range(diameters) -> tuple[float, float]:
     low, high = (float(v) for v in diameters)
     if not (math.isfinite(low) and math.isfinite(high) and 0 <= low < high):
@@ -150,11 +168,15 @@ def add_key(ax, state, unit: str = "px", *, diameters: tuple[float, float] | Non
     """
     low, high = size_range(state.radii) if diameters is None else _checked_range(diameters)
     mappable = ScalarMappable(Normalize(low, high), SIZE_CMAP)
+    d = 2.0 * np.asarray(state.radii, dtype=float)
+    d = d[np.isfinite(d)]
+    below, above = bool(d.size and d.min() < low * (1 - 1e-9)), bool(d.size and d.max() > high * (1 + 1e-9))
+    extend = ("both" if above else "min") if below else ("max" if above else "neither")  # arrows: dots beyond it
     fig = ax.figure
     if cax is None:
-        bar = fig.colorbar(mappable, ax=ax, location="bottom", shrink=0.7, fraction=0.04, pad=0.1)
+        bar = fig.colorbar(mappable, ax=ax, location="bottom", shrink=0.7, fraction=0.04, pad=0.1, extend=extend)
     else:
-        bar = fig.colorbar(mappable, cax=cax, orientation="horizontal")
+        bar = fig.colorbar(mappable, cax=cax, orientation="horizontal", extend=extend)
     bar.set_label(key_label(state, unit), fontsize="small")
     bar.ax.tick_params(labelsize="small")
     return bar

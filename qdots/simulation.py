@@ -359,10 +359,12 @@ class Simulation:
         `run` calls it before it starts; call it yourself to check a series of runs (a deposition) as one.
         """
         seconds = real("seconds", seconds, 0.0)
-        n_steps = round(seconds / self.dt)
-        if n_steps > MAX_STEPS:
-            raise InputError(f"a run of {seconds:g} s at dt = {self.dt:g} s is {n_steps:,} steps, more than the "
+        steps = seconds / self.dt
+        if steps > MAX_STEPS + 0.5:
+            said = f"{round(steps):,}" if steps < 1e15 else f"{steps:.3g}"
+            raise InputError(f"a run of {seconds:g} s at dt = {self.dt:g} s is {said} steps, more than the "
                              f"{MAX_STEPS:,} one run may take")
+        n_steps = round(steps)
         for force in self._forces:
             force.check_run(self.dt, n_steps)
         self._schedule.check_run(self.steps_taken, n_steps)

@@ -20,8 +20,10 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
-import numpy as np
+if TYPE_CHECKING:  # numpy is imported where it is used: the command line reads this module at once
+    import numpy as np
 
 from labrig.validate import InputError
 
@@ -52,6 +54,8 @@ def thesis_kick_speed(mass: float | np.ndarray) -> float | np.ndarray:
     mass : float or ndarray
         Dot mass in units of the mean dot mass.
     """
+    import numpy as np
+
     return 1.5 * np.sqrt(2.0 * THESIS_KB * THESIS_TEMPERATURE / (np.asarray(mass) * THESIS_MEAN_MASS_G))
 
 

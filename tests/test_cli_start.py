@@ -8,8 +8,8 @@ import sys
 import textwrap
 
 #: What no answer of `CASES` may import; the top level's answers import no numpy either.
-HEAVY = ("numba", "scipy", "pymunk", "matplotlib", "tqdm", "qdots.simulation", "qdots.geometry", "planarize.engines",
-         "planarize.anodize")
+HEAVY = ("numba", "scipy", "pymunk", "matplotlib", "tqdm", "qdots.simulation", "qdots.geometry",
+         "planarize.engines.continuum", "planarize.engines.fast", "planarize.anodize")
 #: (program, arguments, exit status, numpy allowed): the answers that must come at once, those that import no numpy
 #: first (they run in turn in one process).
 CASES = [
@@ -20,6 +20,11 @@ CASES = [
     ("qdots", ["run", "--help"], 0, True), ("qdots", ["preset", "nosuch"], 2, True), ("qdots", ["resume"], 2, True),
     ("qdots", ["render"], 2, True), ("qdots", ["analyze", "--traps", "2"], 2, True), ("qdots", ["sweep"], 2, True),
     ("qdots", ["sweep-plot"], 2, True), ("planarize", ["sweep-plot"], 2, True),
+    ("qdots", ["measure", "--help"], 0, True), ("qdots", ["compare", "--help"], 0, True),
+    ("qdots", ["infer", "--help"], 0, True), ("planarize", ["import", "--help"], 0, True),
+    ("planarize", ["run", "--help"], 0, True), ("qdots", ["measure", "nofile.png"], 2, True),
+    ("qdots", ["measure", "film.xyz"], 2, True), ("qdots", ["mesure"], 2, False),
+    ("qdots", ["measure", "--scalebar", "5nm", "x.png"], 2, True),
 ]
 PROBE = textwrap.dedent("""
     import contextlib, io, json, sys

@@ -133,6 +133,30 @@ def test_the_library_runs_only_the_films_it_lacks(tmp_path):
     assert all(row[k] == lib.rows[0][k] or (math.isnan(row[k]) and math.isnan(lib.rows[0][k])) for k in row)
 
 
+def test_films_that_fail_are_replaced_so_the_training_gets_the_films_asked_for(tmp_path, monkeypatch):
+    import qdots.micrograph.library as library
+
+    asked = []
+
+    def every_third_fails(points, folder, **where):  # a stand-in for the simulations: each point's row
+        asked.append(len(points))
+        return [{"status": "failed" if k % 3 == 0 else "ok", "run": f"r{k}", **p, **{key: 0.5 for key in SUMMARIES},
+                 "film_sigma": 0.1, "film_coverage": 0.3} for k, p in enumerate(points)]
+
+    monkeypatch.setattr(library, "run_points", every_third_fails)
+    lib = build_library(tmp_path / "lib", 20, progress=False, n_dots=12)
+    assert len(lib.ids) == 20 and len(lib.rows) == 20 and "r0" not in lib.ids
+    assert asked[0] == 20 and asked[-1] >= 30 and library_size(tmp_path / "lib") == asked[-1]
+    assert lib.ids == [f"r{k}" for k in range(asked[-1]) if k % 3][:20]  # the first usable ones, in order
+
+    def all_fail(points, folder, **where):
+        return [{"status": "failed", "run": f"r{k}", **p} for k, p in enumerate(points)]
+
+    monkeypatch.setattr(library, "run_points", all_fail)
+    none = build_library(tmp_path / "dead", 20, progress=False, n_dots=12)  # bounded: 20 more at most
+    assert len(none.ids) == 0 and library_size(tmp_path / "dead") == 40
+
+
 def test_training_arrays_keep_whole_rows_and_the_observation_refuses_gaps():
     good = {"status": "ok", "run": "a", **{k: 0.5 for k in SUMMARIES}, **point(), "film_sigma": 0.1,
             "film_coverage": 0.3}
@@ -145,6 +169,7 @@ def test_training_arrays_keep_whole_rows_and_the_observation_refuses_gaps():
 
 
 def test_infer_refuses_a_picture_that_is_not_a_film_in_one_line(tmp_path, capsys):
+    pytest.importorskip("sbi")  # without the extra, the command says so first
     noise = (np.random.default_rng(1).normal(128, 5, (128, 128))).clip(0, 255).astype(np.uint8)
     Image.fromarray(noise).save(tmp_path / "empty.png")
     out, library = tmp_path / "out", tmp_path / "library"
@@ -156,6 +181,7 @@ def test_infer_refuses_a_picture_that_is_not_a_film_in_one_line(tmp_path, capsys
 
 
 def test_a_film_outside_the_trained_conditions_is_refused_before_any_simulation(tmp_path, capsys):
+    pytest.importorskip("sbi")  # without the extra, the command says so first
     from qdots.micrograph.synthetic import render_micrograph
 
     centres, diameters = superlattice_board(300, 300, 16.0, 0.01, 2.0, "hexagonal", seed=2)

@@ -242,7 +242,7 @@ def test_cli_demo_is_reproducible(tmp_path):
         (["demo", "--dots", "-5"], "argument --dots: must be an integer in [1, 460], got -5"),
         (["demo", "--dots", "460", "--no-movie"], "board too full"),
         (["demo", "--sigma", "1.5"], r"argument --sigma: must be in [0, 1)"),
-        (["demo", "--bogus"], "unrecognized arguments: --bogus"),
+        (["demo", "--bogus"], "unknown option '--bogus' (see 'qdots demo --help')"),
         ([], "required: COMMAND"),
     ],
 )

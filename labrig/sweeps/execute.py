@@ -33,7 +33,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
-from ..files import write_text_atomic
+from ..files import writable_directory, write_text_atomic
 from ..validate import InputError, count
 from .backends import LocalPool, make_backend
 from .spec import DEFAULT_MAX_RUNS, Run, Sweep
@@ -174,11 +174,7 @@ def _progress(total: int, done: int, show: bool):
 def output_directory(out: str | os.PathLike) -> Path:
     """``out`` as an absolute, normalised directory path, created if missing; `InputError` when something else is
     there (a file, or a symbolic link to nothing)."""
-    out = Path(os.path.abspath(out))
-    if out.is_symlink() and not out.exists():
-        raise InputError(f"output directory {str(out)!r} is a symbolic link to {os.readlink(out)!r}, which does not exist")
-    if out.exists() and not out.is_dir():
-        raise InputError(f"output directory {str(out)!r} is a file, not a directory")
+    out = writable_directory(os.path.abspath(out))
     out.mkdir(parents=True, exist_ok=True)
     return out
 

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 import os
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -28,6 +29,7 @@ from ..io.results import save_history_csv, save_run
 from ..io.scenefile import save_scene
 from ..scene import PlanarizeScene, RunSettings, SurfaceSpec
 from ..metrics import z_range
+from ..model import MAX_STEP
 
 #: Movie frames (oxide thicknesses evenly spaced from 0 to the target, plus the scene's snapshots).
 MOVIE_FRAMES = 40
@@ -158,7 +160,9 @@ def import_scene(path: Path, *, thickness: float, step: float | None = None, nam
     ``spacing``, ``level``, ...) and run settings (``k_exp``, ``engine``,
     ...); None values are left out. The default ``step`` is the imported
     surface's z-range / 100 (one significant digit), about the thesis's
-    choice for its Ta film (0.5 nm steps for a ~50 nm z-range).
+    choice for its Ta film (0.5 nm steps for a ~50 nm z-range), and at
+    most `planarize.model.MAX_STEP` and a tenth of ``thickness`` (a line on
+    stderr says when it is capped).
     """
     surface_keys = ("unit", "z_unit", "spacing", "level", "channel", "format", "boundary", "max_aspect")
     params = {"path": os.path.abspath(path),  # not resolve(): a symbolic link loop is for load_heights to name
@@ -170,4 +174,9 @@ def import_scene(path: Path, *, thickness: float, step: float | None = None, nam
         if span <= 0:
             raise InputError(f"{path}: the surface is flat (z-range 0): pass a step")
         step = float(f"{span / 100:.0e}")
+        cap = min(MAX_STEP, float(f"{thickness / 10:.0e}")) if thickness > 0 else MAX_STEP
+        if step > cap:
+            print(f"step: the default z-range / 100 = {step:g} nm is capped at {cap:g} nm (the largest step, "
+                  "and a tenth of the thickness); pass --step to choose", file=sys.stderr)
+            step = cap
     return PlanarizeScene(name or Path(path).stem, surface=spec, run=RunSettings(thickness=thickness, step=step, **run))

@@ -25,7 +25,7 @@ _positive = float_in(0.0, math.inf, low_open=True)
 
 def _add_outputs(p, out_default: str) -> None:
     """Options shared by the commands that run: output directory, engine, quick mode, movie."""
-    from ..engines import ENGINES
+    from ..engines import NAMES as ENGINES
     from ..model import RULES
 
     p.add_argument("--out", type=Path, default=Path(out_default), metavar="DIR",

@@ -17,25 +17,44 @@ layout), `kernels` (the compiled distance kernel), `sets` (the fast engine's oxi
 
 from __future__ import annotations
 
+import importlib
+from typing import TYPE_CHECKING, Any
+
 from labrig.validate import InputError
 
-from .continuum import Continuum
-from .fast import Fast
-from .reference import Matlab, Reference
+if TYPE_CHECKING:
+    from .continuum import Continuum
+    from .fast import Fast
+    from .reference import Matlab, Reference
 
-#: The engines by name, each as its settings class (default settings: ``ENGINES[name]()``); the first is
-#: the default.
-ENGINES = {"continuum": Continuum, "fast": Fast, "reference": Reference, "matlab": Matlab}
+#: Each engine's name (the first is the default) with the module and name of its settings class. The engines
+#: are imported when first used (``ENGINES``, ``Fast``, ...), so that the command line lists their names at once.
+HOMES = {"continuum": (".continuum", "Continuum"), "fast": (".fast", "Fast"), "reference": (".reference", "Reference"),
+         "matlab": (".reference", "Matlab")}
+#: The engines' names, the default first.
+NAMES = tuple(HOMES)
+
+
+def __getattr__(name: str) -> Any:
+    """``ENGINES`` (the engines by name, each as its settings class; default settings: ``ENGINES[name]()``) and
+    the settings classes, imported when first asked for."""
+    if name == "ENGINES":
+        return {engine: __getattr__(cls) for engine, (_, cls) in HOMES.items()}
+    for module, cls in HOMES.values():
+        if name == cls:
+            return getattr(importlib.import_module(module, __name__), cls)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def engine_settings(engine) -> Continuum | Fast | Reference | Matlab:
     """An engine's settings object from a name of `ENGINES` or a settings object (returned as it is)."""
-    if isinstance(engine, tuple(ENGINES.values())):
+    engines = __getattr__("ENGINES")
+    if isinstance(engine, tuple(engines.values())):
         return engine
-    if isinstance(engine, str) and engine in ENGINES:
-        return ENGINES[engine]()
-    raise InputError(f"engine must be one of {', '.join(map(repr, ENGINES))} or a settings object "
+    if isinstance(engine, str) and engine in engines:
+        return engines[engine]()
+    raise InputError(f"engine must be one of {', '.join(map(repr, engines))} or a settings object "
                      f"(planarize.engines.Fast(...)), got {engine!r}")
 
 
-__all__ = ["ENGINES", "Continuum", "Fast", "Reference", "Matlab", "engine_settings"]
+__all__ = ["ENGINES", "NAMES", "Continuum", "Fast", "Reference", "Matlab", "engine_settings"]

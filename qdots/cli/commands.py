@@ -350,7 +350,12 @@ def resume(state_path: Path, seconds: float, out: Path | None, *, movie: bool, g
         say_replaced(files, earlier_until)
         print(f"resumed {state_path} in place: {files.path} now holds the run up to {seconds_label(sim.time)} s")
     else:
+        if out is not None and home is not None and Path(os.path.realpath(out)).is_relative_to(
+                os.path.realpath(state_path.parent)):
+            raise InputError(f"--out {str(out)!r} is in the folder of the run {state_path.stem!r} itself: a "
+                             "continuation is written beside it (without --out), or replaces it (--in-place)")
         sim = checkpoint.load(state_path)
+        sim.check_run(seconds)  # before the continuation's name is made of the time it reaches
         stem = continuation_name(state_path.stem, sim.time + seconds)
         out = (home if home is not None else state_path.parent) if out is None else out
         identity = _identity_of(state_path, sim, stem)

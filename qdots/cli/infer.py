@@ -4,23 +4,23 @@ from __future__ import annotations
 
 import argparse
 import os
+import shutil
+import sys
 from pathlib import Path
 
 from labrig.cli import int_in, print_table
-from labrig.validate import MAX_SEED
+from labrig.validate import MAX_SEED, InputError
 
 
 def add_arguments(p) -> None:
     """The library, the films and where they run."""
-    from ..micrograph.forward import FILM_DOTS, MAX_FILM_DOTS
-    from ..micrograph.infer import CHECK_FILMS, MAX_CHECK_FILMS, SAMPLES
-    from ..micrograph.library import LIBRARY_FILMS, MAX_LIBRARY_FILMS
-    from ..micrograph.posterior import MAX_SAMPLES
+    from ..micrograph.choices import (CHECK_FILMS, FILM_DOTS, LIBRARY_FILMS, MAX_CHECK_FILMS, MAX_FILM_DOTS,
+                                      MAX_LIBRARY_FILMS, MAX_SAMPLES, MIN_TRAINING_FILMS, SAMPLES)
 
     p.add_argument("--library", type=Path, default=Path("qdots-infer-library"), metavar="DIR",
                    help="the library of simulated films, kept and reused by later images (default "
                         "./qdots-infer-library)")
-    p.add_argument("--films", type=int_in(20, MAX_LIBRARY_FILMS), default=LIBRARY_FILMS,
+    p.add_argument("--films", type=int_in(MIN_TRAINING_FILMS, MAX_LIBRARY_FILMS), default=LIBRARY_FILMS,
                    help=f"training films (default {LIBRARY_FILMS}; the library runs only those it lacks)")
     p.add_argument("--check-films", type=int_in(1, MAX_CHECK_FILMS), default=CHECK_FILMS,
                    help=f"films of the posterior-predictive check (default {CHECK_FILMS})")
@@ -36,15 +36,32 @@ def add_arguments(p) -> None:
     p.add_argument("--seed", type=int_in(0, MAX_SEED), default=0, help="seed of the training and the draws")
 
 
+def check_extra() -> None:
+    """`InputError` saying how to install the infer extra when torch or sbi is missing (nothing is imported)."""
+    from ..micrograph.choices import INFER_EXTRA, missing_infer_extra
+
+    if missing_infer_extra():
+        raise InputError(INFER_EXTRA)
+
+
 def run(args: argparse.Namespace, stem: str) -> int:
     """Infer, write the files, print the intervals, the check and the timings."""
     from ..micrograph.infer import check_rows, interval_rows
     from ..micrograph.write import infer
 
-    result = infer(args.image, args.out, library=args.library, name=args.name, nm_per_px=args.nm_per_px,
-                   scale_bar=args.scale_bar, polarity=args.polarity, profile=args.profile, page=args.page,
-                   films=args.films, check_films=args.check_films, samples=args.samples, n_dots=args.dots,
-                   workers=args.workers, scheduler=args.scheduler, seed=args.seed, progress=True)
+    new_library = not args.library.exists()
+    try:
+        result = infer(args.image, args.out, library=args.library, name=args.name, nm_per_px=args.nm_per_px,
+                       scale_bar=args.scale_bar, polarity=args.polarity, profile=args.profile, page=args.page,
+                       films=args.films, check_films=args.check_films, samples=args.samples, n_dots=args.dots,
+                       workers=args.workers, scheduler=args.scheduler, seed=args.seed, progress=True)
+    except KeyboardInterrupt:
+        if new_library and not any(args.library.glob("*/runs/*.json")):  # nothing finished: leave nothing behind
+            shutil.rmtree(args.library, ignore_errors=True)
+        elif args.library.is_dir():
+            print(f"the library {str(args.library)!r} keeps the films that finished: the next qdots infer with it "
+                  "runs only the others (delete the folder to start over)", file=sys.stderr)
+        raise
     c = result.conditions
     print_table(f"{args.image}: sigma {c['sigma']:.3f}, coverage {c['coverage']:.3f}; posterior median and 90 % "
                 f"credible interval ({result.films} training films):", interval_rows(result))

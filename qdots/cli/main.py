@@ -147,9 +147,7 @@ def _analyze_arguments(p) -> None:
 def _add_image_options(p, out_default: str) -> None:
     """The arguments of the commands that read a micrograph (``measure``, ``compare``), their files going to
     ``./out_default`` by default."""
-    from ..micrograph.profiles import PROFILES
-    from ..micrograph.segment import POLARITIES
-    from ..micrograph.scale import MAX_NM_PER_PX, MIN_NM_PER_PX
+    from ..micrograph.choices import MAX_NM_PER_PX, MIN_NM_PER_PX, POLARITIES, PROFILES
 
     p.add_argument("image", type=Path, metavar="IMAGE",
                    help="micrograph: .tif/.tiff, .png, .jpg, .bmp, .gif, or .dm3/.dm4/.emd/.ser (qdots[microscope])")
@@ -182,7 +180,7 @@ def _measure_arguments(p) -> None:
 
 def _compare_arguments(p) -> None:
     from ..engine import ENGINES
-    from ..micrograph.compare import MAX_COMPARE_DOTS, MAX_SEEDS, MAX_WORKERS
+    from ..micrograph.choices import MAX_COMPARE_DOTS, MAX_SEEDS, MAX_WORKERS
 
     _add_image_options(p, "qdots-compare")
     p.add_argument("--seeds", type=int_in(1, MAX_SEEDS), default=3, help="simulated films (default 3)")
@@ -206,8 +204,10 @@ def _run_infer(args: argparse.Namespace) -> int:
     neural posterior estimation on a library of simulated films at its size spread and coverage: the
     posterior draws, 90 % credible intervals, a corner plot, the best-fitting film beside the micrograph
     and a posterior-predictive check. Needs the infer extra (torch, sbi)."""
-    from .infer import run
+    from .infer import check_extra, run
 
+    check_extra()
+    check_image_arguments(args)
     return run(args, film_stem(args))
 
 
@@ -217,6 +217,7 @@ def _run_measure(args: argparse.Namespace) -> int:
     summary table of the thesis's metrics: coverage, size and spread, interior fraction,
     neighbours, psi6, aggregates, g(r) and the film LQE. Dots cut by the image edge are measured and
     flagged; the neighbourhood metrics use only dots whose neighbourhood is inside the picture."""
+    check_image_arguments(args)
     from labrig.cli import print_table
 
     from ..micrograph.measure import summary_rows
@@ -231,6 +232,23 @@ def _run_measure(args: argparse.Namespace) -> int:
     return 0
 
 
+def check_image_arguments(args: argparse.Namespace) -> None:
+    """Refuse at once, before the measurement is imported: a picture that is not there, cannot be opened or has a
+    suffix qdots does not read; a ``--name`` that leaves no file name; an ``--out`` that a file is in the way of."""
+    from labrig.files import existing_file, writable_directory
+    from labrig.validate import InputError
+
+    from ..micrograph.choices import unknown_suffix
+
+    existing_file(args.image, "micrograph")
+    reason = unknown_suffix(args.image.name)
+    if reason is not None:
+        raise InputError(reason)
+    if args.name is not None and not any(char.isascii() and char.isalnum() for char in args.name):
+        raise InputError(f"--name {args.name!r} leaves no file name: give letters, digits, '.', '_' or '-'")
+    writable_directory(args.out)
+
+
 def film_stem(args: argparse.Namespace) -> str:
     from labrig.files import slug
 
@@ -242,6 +260,7 @@ def _run_compare(args: argparse.Namespace) -> int:
     spread and coverage (masses ~ d^3, 15 px mean diameter, the board sized for the coverage), run it
     for several seeds, and write the side-by-side figure, the table of every metric (image against
     simulation mean +- SE) and the experiment file it ran (edit it and run it with qdots run)."""
+    check_image_arguments(args)
     from labrig.cli import print_table
 
     from ..micrograph.compare import table_rows

@@ -90,8 +90,10 @@ def film_verdict(detection) -> tuple[list[str], list[str]]:
     whole = ~detection.cut
     n = int(np.count_nonzero(whole))
     if n < MIN_FILM_DOTS:
-        return [f"{n} round objects found whole (the edge cuts {int(detection.n_dots) - n} more), fewer than "
-                f"{MIN_FILM_DOTS}"], []
+        cut = int(detection.n_dots) - n
+        return [f"only {n} round object{'' if n == 1 else 's'} stand{'s' if n == 1 else ''} out of the background"
+                + (f" ({cut} more cut by the edge)" if cut else "")
+                + f": this does not look like a film of particles (a film shows at least {MIN_FILM_DOTS} whole)"], []
     d = float(np.median(detection.diameters))
     if d < MIN_FILM_DIAMETER:
         return [f"the round objects found are {d:.1f} px across, under {MIN_FILM_DIAMETER:g} px (strokes of text or "

@@ -32,6 +32,7 @@ from ..experiment import Board, Deposition, Experiment, default_forces, run_expe
 from ..presets import MEAN_DIAMETER, THESIS_SEED
 from .film import film_metrics
 from .measure import MeasuredFilm, lqe_draws
+from .choices import MAX_COMPARE_DOTS, MAX_SEEDS, MAX_WORKERS
 
 #: Metrics of the comparison table: (key, label, digits).
 METRICS = (("coverage", "coverage", 3), ("size_spread", "size spread sigma", 3),
@@ -41,10 +42,13 @@ METRICS = (("coverage", "coverage", 3), ("size_spread", "size spread sigma", 3),
            ("gr_peak_diameters", "g(r) first peak (mean diameters)", 2), ("lqe", "film LQE", 3))
 #: Metrics the simulation is given (not predictions): the board is built to match them.
 MATCHED = ("coverage", "size_spread")
-#: Most seeds, dots and worker processes of one comparison.
-MAX_SEEDS, MAX_COMPARE_DOTS, MAX_WORKERS = 100, 5000, 64
 #: Largest coverage a simulated board is asked to take (random deposition jams near 0.55-0.6).
 MAX_COVERAGE = 0.55
+#: Largest size spread a simulated deposition is given.
+MAX_SPREAD = 0.5
+#: The caps of the matched metrics, and why (`table_rows` says when one applied).
+CAPS = {"coverage": (MAX_COVERAGE, "a random deposition jams near 0.55-0.6"),
+        "size_spread": (MAX_SPREAD, "the largest spread a deposition is given")}
 
 
 @dataclass(frozen=True)
@@ -90,7 +94,7 @@ def matching_experiment(film: MeasuredFilm, n_dots: int = 300, engine: str = "ch
     if not (math.isfinite(sigma) and math.isfinite(coverage) and coverage > 0):
         raise InputError(f"the film has no measured size spread or coverage (sigma {sigma}, coverage {coverage}): "
                          "too few whole dots to simulate it")
-    sigma = min(max(sigma, 0.0), 0.5)
+    sigma = min(max(sigma, 0.0), MAX_SPREAD)
     asked = min(coverage, MAX_COVERAGE)
     side = math.sqrt(n_dots * math.pi * MEAN_DIAMETER**2 * (1.0 + sigma**2) / (4.0 * asked))
     deposition = Deposition(protocol="random", n_dots=n_dots, mean_diameter=MEAN_DIAMETER, sigma=sigma,
@@ -183,5 +187,8 @@ def table_rows(comparison: Comparison) -> list[tuple[str, str]]:
         d = digits[row["metric"]]
         se = f" +- {row['standard_error']:.{d}f}" if math.isfinite(row["standard_error"]) else ""
         given = "   (set to match)" if row["matched"] else ""
+        cap, why = CAPS.get(row["metric"], (math.inf, ""))
+        if row["matched"] and row["image"] > cap:
+            given = f"   (set to match, capped at {cap:g}: {why})"
         rows.append((row["label"], f"image {row['image']:.{d}f}   simulation {row['simulation']:.{d}f}{se}{given}"))
     return rows

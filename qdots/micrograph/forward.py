@@ -44,6 +44,7 @@ from ..forces import Drag, ThermalKicks, VanDerWaals
 from ..presets import MEAN_DIAMETER
 from ..restitution import Restitution
 from .film import complete_neighbourhood
+from .choices import FILM_DOTS, MAX_FILM_DOTS
 
 
 @dataclass(frozen=True)
@@ -91,8 +92,6 @@ MEASURES = {
 #: parameters do: on the shared micrograph the nearest gap reads 0.037 mean diameters where the films it
 #: resembles give 0.013-0.021).
 SUMMARIES = ("interior_fraction", "mean_neighbours", "psi6_local", "low_share", "single_share", "small_share")
-#: Dots of a simulated film by default, and the most allowed.
-FILM_DOTS, MAX_FILM_DOTS = 150, 2000
 
 
 def parameter_keys() -> tuple[str, ...]:

@@ -29,10 +29,9 @@ from .forward import FILM_DOTS, MEASURES, PARAMETERS, SUMMARIES, image_measures,
 from .library import LIBRARY_FILMS, build_library, observation
 from .measure import MeasuredFilm, measure_image
 from .conformal import IntervalCalibration, describe_factor
-from .posterior import ENSEMBLE, LEVEL, credible_intervals, load_or_train
+from .posterior import ENSEMBLE, LEVEL, credible_intervals, load_or_train, require_sbi
+from .choices import CHECK_FILMS, MAX_CHECK_FILMS, SAMPLES
 
-#: Posterior draws by default, and the films of the predictive check (and the most of those).
-SAMPLES, CHECK_FILMS, MAX_CHECK_FILMS = 4000, 24, 1000
 
 
 @dataclass(frozen=True)
@@ -158,6 +157,7 @@ def infer_film(film: MeasuredFilm, library: str | os.PathLike, *, films: int = L
         Dots of each simulated film (a library holds one size).
     """
     check_films = count("check_films", check_films, 1, MAX_CHECK_FILMS)
+    require_sbi()  # before any film is simulated
     conditions = image_point(film)
     measures = image_measures(film)
     x_obs = observation(measures, conditions)
@@ -194,6 +194,7 @@ def build_checks(points: list[dict], library: str | os.PathLike, **where) -> lis
 def infer_image(path: str | os.PathLike, library: str | os.PathLike, *, nm_per_px=None, scale_bar: str | None = None,
                 polarity: str = "auto", profile: str = "auto", page: int = 0, **options) -> Inference:
     """`measure_image` (without the film LQE), then `infer_film` (``options`` are its keywords)."""
+    require_sbi()  # before the picture is measured
     start = time.perf_counter()
     film = measure_image(path, nm_per_px=nm_per_px, scale_bar=scale_bar, polarity=polarity, profile=profile,
                          page=page, lqe=False)

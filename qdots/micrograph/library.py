@@ -19,6 +19,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -26,15 +27,15 @@ import numpy as np
 
 from labrig.files import write_text_atomic
 from labrig.sweeps import Sweep, run_sweep
-from labrig.sweeps.spec import MAX_RUNS
 from labrig.validate import InputError, count
 
 from .forward import CONDITIONS, FILM_DOTS, PARAMETERS, SUMMARIES, FilmRunner, condition_keys, parameter_keys
+from .choices import LIBRARY_FILMS, MAX_LIBRARY_FILMS
 
 #: Roots of the random streams of prior draws: the training films, and the held-out films of the calibration.
 STREAMS = {"training": 5601, "calibration": 5602}
-#: Films of a library by default, and the most one may hold.
-LIBRARY_FILMS, MAX_LIBRARY_FILMS = 1000, MAX_RUNS
+#: Films that fail are replaced by further prior draws, up to this many times the films asked for.
+MAX_REPLACED = 1
 
 
 def prior_point(index: int, stream: str = "training", n_dots: int = FILM_DOTS) -> dict:
@@ -107,8 +108,9 @@ def library_size(folder: str | os.PathLike) -> int:
 
 def build_library(folder: str | os.PathLike, films: int = LIBRARY_FILMS, *, workers: int | None = None,
                   scheduler=None, progress: bool = True, n_dots: int = FILM_DOTS) -> Library:
-    """Bring the library in ``folder`` to at least ``films`` training films (running only the missing ones) and
-    return the first ``films`` of them as arrays.
+    """Bring the library in ``folder`` to at least ``films`` usable training films (running only the missing ones;
+    films that fail or cannot be measured are replaced by further prior draws, at most `MAX_REPLACED` times
+    ``films``) and return the first ``films`` usable ones as arrays.
 
     Parameters
     ----------
@@ -133,15 +135,24 @@ def build_library(folder: str | os.PathLike, films: int = LIBRARY_FILMS, *, work
             raise InputError(f"library {str(folder)!r} holds films of {meta.get('n_dots')} dots, not {n_dots}: "
                              "use another folder for another film size")
     total = max(films, library_size(folder))
-    points = [prior_point(k, "training", n_dots) for k in range(total)]
     before = _finished(folder / "training")
-    rows = run_points(points, folder / "training", workers=workers, scheduler=scheduler, progress=progress)
-    write_text_atomic(meta_path, json.dumps({"format": "qdots-infer-library", "version": 1, "n_dots": n_dots,
-                                             "training_films": total,
-                                             "parameters": list(parameter_keys()),
-                                             "conditions": list(condition_keys()),
-                                             "summaries": list(SUMMARIES)}, indent=1))
-    rows = rows[:films]
+    while True:  # films that fail (an inelastic collapse, a film limit) are replaced by the next prior draws
+        points = [prior_point(k, "training", n_dots) for k in range(total)]
+        rows = run_points(points, folder / "training", workers=workers, scheduler=scheduler, progress=progress)
+        write_text_atomic(meta_path, json.dumps({"format": "qdots-infer-library", "version": 1, "n_dots": n_dots,
+                                                 "training_films": total,
+                                                 "parameters": list(parameter_keys()),
+                                                 "conditions": list(condition_keys()),
+                                                 "summaries": list(SUMMARIES)}, indent=1))
+        usable = [k for k, row in enumerate(rows) if usable_row(row)]
+        missing = films - len(usable)
+        if missing <= 0 or total >= min(MAX_LIBRARY_FILMS, films + MAX_REPLACED * films):
+            break
+        if progress:
+            print(f"{missing} of the first {films} films were left out (failed or not measurable): running "
+                  f"{missing} more to replace them", file=sys.stderr)
+        total = min(MAX_LIBRARY_FILMS, total + missing)
+    rows = [rows[k] for k in usable[:films]]
     theta, x, ids = training_arrays(rows)
     return Library(folder, rows, theta, x, ids, max(0, _finished(folder / "training") - before))
 
@@ -151,16 +162,22 @@ def _finished(sweep_folder: Path) -> int:
     return sum(1 for _ in runs.glob("*.json")) if runs.is_dir() else 0
 
 
+def usable_row(row: dict) -> bool:
+    """Whether a training film finished with every summary and condition measured (finite)."""
+    if row.get("status") != "ok":
+        return False
+    values = [row.get(key) for key in SUMMARIES] + [row.get(f"film_{key}") for key in condition_keys()]
+    return all(v is not None and math.isfinite(v) for v in values)
+
+
 def training_arrays(rows: list[dict]) -> tuple[np.ndarray, np.ndarray, list]:
     """(theta, x, run ids) of the rows that finished with every summary finite; x holds each film's own size
     spread and coverage (``film_sigma``, ``film_coverage``), as a micrograph's are measured, not its point's."""
     theta, x, ids = [], [], []
     for row in rows:
-        if row.get("status") != "ok":
+        if not usable_row(row):
             continue
-        summaries = [row.get(key) for key in SUMMARIES] + [row.get(f"film_{key}") for key in condition_keys()]
-        if any(v is None or not math.isfinite(v) for v in summaries):
-            continue
+        summaries = [row[key] for key in SUMMARIES] + [row[f"film_{key}"] for key in condition_keys()]
         theta.append([row[key] for key in parameter_keys()])
         x.append(summaries)
         ids.append(row["run"])

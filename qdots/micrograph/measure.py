@@ -265,7 +265,8 @@ def summary_rows(summary: dict) -> list[tuple[str, str]]:
         ("interior fraction (>= 5 neighbours)", f"{s['interior_fraction']:.3f}"),
         ("mean neighbours", f"{s['mean_neighbours']:.2f}"),
         ("psi6 local / global", f"{s['psi6_local']:.3f} / {s['psi6_global']:.3f}"),
-        ("aggregates", f"{s['aggregates']} clusters of 5 or more dots; the largest cluster holds "
+        ("aggregates", f"{s['aggregates']} cluster{'' if s['aggregates'] == 1 else 's'} of 5 or more dots; the "
+                       "largest cluster holds "
                        f"{100 * s['largest_share']:.1f} % of the dots"),
         ("single dots", f"{s['single_dots']}"),
         ("g(r) first peak", f"{s['gr_peak_diameters']:.2f} mean diameters"),

@@ -21,7 +21,7 @@ from matplotlib.patches import Circle, Rectangle
 from labrig.figures import save_figure
 
 from ..presets import MEAN_DIAMETER
-from ..render import add_key, draw_state, nice_length, size_colours
+from ..render import add_key, draw_state, nice_length, robust_size_range, size_colours
 from .compare import Comparison
 from .film import film_state
 from .measure import MeasuredFilm
@@ -45,11 +45,20 @@ def draw_scale_bar(ax, nm_per_px: float | None, width_px: float, height_px: floa
             ha="center", va="bottom", fontsize="small")
 
 
-def save_overlay_axes(film: MeasuredFilm, ax, extent_nm: tuple[float, float] | None = None) -> None:
+def overlay_range(film: MeasuredFilm) -> tuple[float, float]:
+    """The diameters, image px, at the ends of an overlay's colour scale: `qdots.render.robust_size_range` of the
+    whole dots that are not stacked (a few false or merged detections do not stretch it)."""
+    det = film.detection
+    stacked = film.stacked if film.stacked is not None else np.zeros(det.n_dots, dtype=bool)
+    return robust_size_range(0.5 * det.diameters[~det.cut & ~stacked])
+
+
+def save_overlay_axes(film: MeasuredFilm, ax, extent_nm: tuple[float, float] | None = None,
+                      diameters: tuple[float, float] | None = None) -> None:
     """Draw the image and its detections on ``ax``: circles coloured by size (`qdots.render.size_colours`),
     dashed white for dots cut by the edge, dotted red for dots stacked on a neighbour (left out of the sizes),
     centres as yellow crosses, a scale bar. With ``extent_nm`` the axes run in nm (row 0 at the top), else in image
-    px."""
+    px. The colours span ``diameters`` (image px; default `overlay_range`)."""
 
     h, w = film.image.shape
     det = film.detection
@@ -57,7 +66,8 @@ def save_overlay_axes(film: MeasuredFilm, ax, extent_nm: tuple[float, float] | N
     ax.imshow(film.image.pixels, cmap="gray", extent=(0, w * k, h * k, 0), interpolation="nearest")
     stacked = film.stacked if film.stacked is not None else np.zeros(det.n_dots, dtype=bool)
     whole = ~det.cut & ~stacked
-    colours = size_colours(0.5 * det.diameters[whole]) if whole.any() else np.zeros((0, 3))
+    span = overlay_range(film) if diameters is None else diameters
+    colours = size_colours(0.5 * det.diameters[whole], span) if whole.any() else np.zeros((0, 3))
     ax.add_collection(PatchCollection([Circle(c * k, 0.5 * d * k) for c, d in zip(det.centres[whole],
                                                                                  det.diameters[whole])],
                                       facecolor="none", edgecolor=colours, linewidth=1.2))
@@ -145,7 +155,9 @@ def overlay_figure(film: MeasuredFilm, refused: list[str] | None = None):
                 color="firebrick" if refused else "black", bbox={"facecolor": "white", "alpha": 0.8, "pad": 2})
     k, unit = (film.nm_per_px, "nm") if film.nm_per_px is not None else (1.0, "image px")
     sized = film_state(det.centres[~det.cut] * k, det.diameters[~det.cut] * k, (h * k, w * k))
-    add_key(ax, sized, unit, cax=fig.add_axes((0.3, 0.5 / total_in, 0.4, 0.12 / total_in)))
+    low, high = overlay_range(film)
+    add_key(ax, sized, unit, diameters=(low * k, high * k),
+            cax=fig.add_axes((0.3, 0.5 / total_in, 0.4, 0.12 / total_in)))
     return fig
 
 
@@ -169,14 +181,17 @@ def side_by_side_figure(comparison: Comparison):
     board = replace(state, positions=state.positions * scale, radii=state.radii * scale,
                     box=(state.box[0] * scale, state.box[1] * scale), walls=state.walls * scale)
     extent = max(w * nm, h * nm, *board.box)
+    low, high = overlay_range(film)
+    sim_low, sim_high = robust_size_range(board.radii)
+    shared = (min(low * nm, sim_low), max(high * nm, sim_high))  # one colour scale, nm, for both panels
     fig = Figure(figsize=(14, 8.6))
     FigureCanvasAgg(fig)
     left, right = fig.subplots(1, 2)
-    save_overlay_axes(film, left, extent_nm=(w * nm, h * nm))
+    save_overlay_axes(film, left, extent_nm=(w * nm, h * nm), diameters=(shared[0] / nm, shared[1] / nm))
     left.set_xlim(0, extent)
     left.set_ylim(extent, 0)
     left.set_title(f"{film.image.source}: {film.summary['dots']} dots measured", fontsize="medium")
-    draw_state(board, ax=right, show_time=False)
+    draw_state(board, ax=right, show_time=False, colours=size_colours(board.radii, shared))
     right.set_xlim(0, extent)
     right.set_ylim(0, extent)
     exp = comparison.experiment
@@ -186,9 +201,9 @@ def side_by_side_figure(comparison: Comparison):
         ax.set_aspect("equal")
         ax.set_xlabel(unit)
         ax.set_ylabel(unit)
-    add_key(right, board, unit)
+    add_key(right, board, unit, diameters=shared)
     detected = film.detection
     sized = film_state(detected.centres[~detected.cut] * nm, detected.diameters[~detected.cut] * nm, (h * nm, w * nm))
-    add_key(left, sized, unit)
+    add_key(left, sized, unit, diameters=shared)
     fig.subplots_adjust(left=0.06, right=0.98, top=0.94, bottom=0.2, wspace=0.15)
     return fig

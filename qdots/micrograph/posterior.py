@@ -36,12 +36,13 @@ from labrig.validate import InputError, count
 from .conformal import (CALIBRATION_SHARE, IntervalCalibration, central_quantiles, fit_calibration,
                         is_calibration_film)
 from .forward import PARAMETERS
+from .choices import INFER_EXTRA, MAX_SAMPLES, MIN_TRAINING_FILMS
 
 #: Networks averaged in one posterior, their flow, and the threads torch may use (one: on a busy 2-core machine
 #: two threads made a training 10-30x slower, measured).
 ENSEMBLE, FLOW, THREADS = 3, "maf", 1
-#: Most posterior samples drawn at once; draws per calibration film; the credible level of the intervals.
-MAX_SAMPLES, CALIBRATION_SAMPLES, LEVEL = 1_000_000, 1000, 0.9
+#: Draws per calibration film; the credible level of the intervals.
+CALIBRATION_SAMPLES, LEVEL = 1000, 0.9
 
 
 def require_sbi():
@@ -50,8 +51,7 @@ def require_sbi():
         import sbi  # noqa: F401
         import torch
     except ImportError:
-        raise InputError("qdots infer needs torch and sbi (the 'infer' extra): "
-                         "pip install torch==2.13.0 'nanodisorder[infer]'") from None
+        raise InputError(INFER_EXTRA) from None
     torch.set_num_threads(min(THREADS, os.cpu_count() or 1))
     return torch
 
@@ -117,8 +117,8 @@ def train_posterior(theta: np.ndarray, x: np.ndarray, *, ensemble: int = ENSEMBL
     ensemble = count("ensemble", ensemble, 1, 10)
     theta = np.asarray(theta, dtype=np.float32)
     x = np.asarray(x, dtype=np.float32)
-    if theta.ndim != 2 or theta.shape[1] != len(PARAMETERS) or len(x) != len(theta) or len(theta) < 20:
-        raise InputError(f"training needs at least 20 films with {len(PARAMETERS)} parameters each, "
+    if theta.ndim != 2 or theta.shape[1] != len(PARAMETERS) or len(x) != len(theta) or len(theta) < MIN_TRAINING_FILMS:
+        raise InputError(f"training needs at least {MIN_TRAINING_FILMS} films with {len(PARAMETERS)} parameters each, "
                          f"got theta {theta.shape} and x {x.shape}")
     box = prior()
     members = []

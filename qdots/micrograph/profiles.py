@@ -15,8 +15,6 @@ import numpy as np
 
 from labrig.compiled import jit
 
-#: Dot profiles by name (the exponent p).
-PROFILES = {"auto": None, "sphere": 0.5, "disc": 0.0}
 #: Radius search of the profile fit, in units of the segmented radius, and its step.
 FIT_LOW, FIT_HIGH, FIT_STEP = 0.6, 1.5, 0.0025
 #: The radius search first tries every COARSE-th step.

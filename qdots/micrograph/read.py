@@ -29,6 +29,7 @@ import numpy as np
 
 from labrig.files import existing_file
 from labrig.validate import InputError, count
+from .choices import MICROSCOPE, TIFF, unknown_suffix
 
 #: Smallest and largest image side, px (a particle and its background need more than a few pixels), and largest
 #: number of pixels (a 8192 x 8192 image; float64: 512 MiB).
@@ -38,11 +39,6 @@ MAX_PIXELS = 8192 * 8192
 UNIT_NM = {"nm": 1.0, "nanometer": 1.0, "nanometre": 1.0, "um": 1e3, "µm": 1e3, "micron": 1e3,
            "microns": 1e3, "micrometer": 1e3, "micrometre": 1e3, "mm": 1e6, "m": 1e9, "pm": 1e-3, "a": 0.1, "å": 0.1,
            "angstrom": 0.1}
-TIFF = (".tif", ".tiff")
-PILLOW = (".png", ".jpg", ".jpeg", ".bmp", ".gif")
-#: rosettasciio's reader module for each microscope format.
-MICROSCOPE = {".dm3": "digitalmicrograph", ".dm4": "digitalmicrograph", ".emd": "emd", ".ser": "tia"}
-SUFFIXES = TIFF + PILLOW + tuple(MICROSCOPE)
 
 
 @dataclass(frozen=True)
@@ -238,6 +234,9 @@ def read_micrograph(path: str | os.PathLike, page: int = 0) -> Micrograph:
         image (refused before its pixels are read), constant or all-NaN pixels.
     """
     path = existing_file(path, "micrograph")
+    unknown = unknown_suffix(path.name)
+    if unknown is not None:
+        raise InputError(unknown)
     suffix = path.suffix.lower()
     try:
         if suffix in TIFF:
@@ -249,8 +248,7 @@ def read_micrograph(path: str | os.PathLike, page: int = 0) -> Micrograph:
     except InputError:
         raise
     except (OSError, ValueError, SyntaxError, EOFError, KeyError, IndexError, TypeError) as exc:
-        known = "" if suffix in SUFFIXES else f" (qdots reads {', '.join(SUFFIXES)})"
-        raise InputError(f"{path}: not a readable image{known}: {type(exc).__name__}: "
+        raise InputError(f"{path}: not a readable image: {type(exc).__name__}: "
                          f"{str(exc).splitlines()[0] if str(exc) else 'no details'}") from None
     image = grey(pixels, path)
     check_size(*image.shape, path)

@@ -12,6 +12,7 @@ from scipy import ndimage
 from labrig.validate import InputError, real
 
 from .read import UNIT_NM
+from .choices import MAX_NM_PER_PX, MIN_NM_PER_PX
 
 #: A scale bar is at least this many times longer than it is thick.
 BAR_ASPECT = 5.0
@@ -24,8 +25,6 @@ MIN_BAR, BAR_SURROUNDINGS = 10, 12
 OFF_SPINE = 2.0
 #: Pixels within this share of the image's range of its darkest (or lightest) value are bar colour.
 BAR_TOLERANCE = 0.05
-#: Scales, nm per px: from 1 pm per pixel (finer than any electron microscope's pixel) to 1 mm per pixel.
-MIN_NM_PER_PX, MAX_NM_PER_PX = 1e-3, 1e6
 #: Lengths a scale bar can state, nm: 0.01 nm to 1 cm.
 MIN_BAR_NM, MAX_BAR_NM = 1e-2, 1e7
 

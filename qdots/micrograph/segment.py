@@ -16,8 +16,6 @@ from labrig.compiled import jit
 from ..geometry import pairs_within
 from .profiles import BIN
 
-#: Polarity choices: dots darker than the background (bright-field TEM), lighter, or decided from the image.
-POLARITIES = ("auto", "dark", "light")
 #: A dot must stand this clearly out of the noise (`signal_to_noise`: its darkness over the noise of its mean, which
 #: falls as the square root of its pixels). Noise alone, measured over 63,696 candidate dots that the detection finds
 #: in 24 images of white, clipped 8-bit and Poisson noise (64-400 px): median 1.3, 99th percentile 3.4, 99.9th 4.1,
