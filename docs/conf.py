@@ -59,7 +59,9 @@ autodoc_typehints = "signature"
 default_role = "py:obj"
 # The packages' ``__main__`` modules run the command line when imported: autosummary's module walk
 # would import them, so they are mocked (their content is the CLI, documented from its parsers).
-autodoc_mock_imports = ["qdots.__main__", "planarize.__main__"]
+autodoc_mock_imports = ["qdots.__main__", "planarize.__main__",
+                        # the napari plugin's Qt and napari imports: its pages build without the napari extra
+                        "qtpy", "napari"]
 napoleon_google_docstring = False
 napoleon_numpy_docstring = True
 napoleon_use_ivar = True        # "Attributes" sections as fields, not second descriptions of the members

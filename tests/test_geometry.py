@@ -13,7 +13,7 @@ from labrig.validate import InputError
 from qdots import geometry
 from qdots.analysis import overlaps
 from qdots.geometry import (DiscTree, VerletPairs, clashing_pairs, clear_of_walls, extent, moved_beyond,
-                            nearest_ratio, nested_pairs, overlapping_pairs, pair_bound, pair_separation, pairs_closer,
+                            nearest_centre, nearest_ratio, nested_pairs, overlapping_pairs, pair_bound, pair_separation, pairs_closer,
                             pairs_with_distances, pairs_within, relative_overlap, segment_distances,
                             wall_clearances, worst_overlap, worst_wall_overlap)
 from qdots.placement import hexagonal_lattice
@@ -289,8 +289,18 @@ def check_nearest_ratio(positions, radii):
     assert nearest_ratio(positions[:1], radii[:1]).tolist() == [np.inf]
 
 
+def check_nearest_centre(positions, radii):
+    points, centres = positions[::2] + 0.3, positions[1::2]
+    d = np.hypot(*(points[:, None, :] - centres[None, :, :]).transpose(2, 0, 1))
+    distance, index = nearest_centre(points, centres)
+    np.testing.assert_allclose(distance, d.min(axis=1), rtol=1e-12)
+    np.testing.assert_allclose(d[np.arange(len(points)), index], d.min(axis=1), rtol=1e-12)  # ties: either
+    none = nearest_centre(points, np.zeros((0, 2)))
+    assert np.isinf(none[0]).all() and (none[1] == 0).all()
+
+
 ORACLES = {
-    "nearest_ratio": check_nearest_ratio,
+    "nearest_ratio": check_nearest_ratio, "nearest_centre": check_nearest_centre,
     "pair_separation": check_pair_separation, "pairs_within": check_pairs_within,
     "pairs_with_distances": check_pairs_with_distances, "pair_bound": check_pair_bound,
     "pairs_closer": check_pairs_closer, "VerletPairs": check_verlet_pairs, "moved_beyond": check_moved_beyond,

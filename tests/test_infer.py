@@ -145,7 +145,7 @@ def test_films_that_fail_are_replaced_so_the_training_gets_the_films_asked_for(t
 
     monkeypatch.setattr(library, "run_points", every_third_fails)
     lib = build_library(tmp_path / "lib", 20, progress=False, n_dots=12)
-    assert len(lib.ids) == 20 and len(lib.rows) == 20 and "r0" not in lib.ids
+    assert len(lib.ids) == 20 and len(lib.rows) == 30 and lib.failed == 10 and "r0" not in lib.ids
     assert asked[0] == 20 and asked[-1] >= 30 and library_size(tmp_path / "lib") == asked[-1]
     assert lib.ids == [f"r{k}" for k in range(asked[-1]) if k % 3][:20]  # the first usable ones, in order
 

@@ -48,6 +48,17 @@ def nearest_ratio(centres: np.ndarray, diameters: np.ndarray) -> np.ndarray:
     return distance[:, 1] / (0.5 * (diameters + diameters[index[:, 1]]))
 
 
+def nearest_centre(points: np.ndarray, centres: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """For each of ``points``, the distance to the nearest of ``centres`` and its index (inf and 0 when there are
+    no centres)."""
+    points = np.asarray(points, dtype=float).reshape(-1, 2)
+    centres = np.asarray(centres, dtype=float).reshape(-1, 2)
+    if not len(centres):
+        return np.full(len(points), np.inf), np.zeros(len(points), dtype=np.intp)
+    distance, index = cKDTree(centres).query(points)
+    return np.asarray(distance, dtype=float), np.asarray(index, dtype=np.intp)
+
+
 def relative_overlap(distance, contact):
     """``(contact - distance) / (contact / 2)``: the relative overlap of discs whose centres are ``distance``
     apart and touch at ``contact = r_i + r_j`` (px, > 0); broadcasts. Dimensionless, > 0 when they overlap."""

@@ -241,14 +241,24 @@ def detect_dots(image, polarity: str = "auto", profile: str = "auto", ignore: np
     inner = (slice(y0, y1), slice(x0, x1))
     found = _detect(image[inner], polarity, profile, ignore[inner], step or (lambda stage: None))
     centres = found.centres + [x0, y0]
-    r = 0.5 * found.diameters
-    cut = found.cut | (centres[:, 0] - r < x0) | (centres[:, 1] - r < y0) | (centres[:, 0] + r > x1) | (
-        centres[:, 1] + r > y1)
-    if ignore.any():  # a dot partly hidden by what is left out (a label box, the bar) is cut too
-        labels = np.zeros(image.shape, dtype=np.int64)
-        paint_labels(labels, np.ascontiguousarray(centres, dtype=float), r)
-        cut[np.unique(labels[ignore & (labels > 0)]) - 1] = True
+    cut = found.cut | cut_dots(centres, found.diameters, (x0, y0, x1, y1), ignore)
     return replace(found, centres=centres, cut=cut, image_shape=(h, w), window=(x0, y0, x1, y1))
+
+
+def cut_dots(centres: np.ndarray, diameters: np.ndarray, window: tuple[int, int, int, int],
+             ignore: np.ndarray | None) -> np.ndarray:
+    """Which dots are cut: their disc crosses the edge of the picture (``window``, ``(x0, y0, x1, y1)`` px) or
+    covers pixels left out (``ignore``, a boolean image: a label box, the scale bar), so that only part of them is
+    seen."""
+    centres = np.asarray(centres, dtype=float).reshape(-1, 2)
+    r = 0.5 * np.asarray(diameters, dtype=float)
+    x0, y0, x1, y1 = window
+    cut = (centres[:, 0] - r < x0) | (centres[:, 1] - r < y0) | (centres[:, 0] + r > x1) | (centres[:, 1] + r > y1)
+    if ignore is not None and ignore.any() and len(r):
+        labels = np.zeros(ignore.shape, dtype=np.int64)
+        paint_labels(labels, np.ascontiguousarray(centres), r)
+        cut[np.unique(labels[ignore & (labels > 0)]) - 1] = True
+    return cut
 
 
 def first_look(unit: np.ndarray, ignore: np.ndarray, smoothing: float):

@@ -152,7 +152,7 @@ def build_library(folder: str | os.PathLike, films: int = LIBRARY_FILMS, *, work
             print(f"{missing} of the first {films} films were left out (failed or not measurable): running "
                   f"{missing} more to replace them", file=sys.stderr)
         total = min(MAX_LIBRARY_FILMS, total + missing)
-    rows = [rows[k] for k in usable[:films]]
+    rows = rows[:usable[films - 1] + 1] if len(usable) >= films else rows  # up to the last film used
     theta, x, ids = training_arrays(rows)
     return Library(folder, rows, theta, x, ids, max(0, _finished(folder / "training") - before))
 

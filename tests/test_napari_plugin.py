@@ -1,0 +1,174 @@
+"""The napari plugin (`qdots.napari_plugin`): its manifest, its reader, and its dock widget driven as a user does,
+in real viewers (on Linux without a display, on a virtual one the tests start, Xvfb). Skipped without the ``napari``
+extra; the viewer tests also without a display and Xvfb."""
+
+import csv
+import os
+import select
+import shutil
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+napari = pytest.importorskip("napari")
+
+
+@pytest.fixture(scope="module")
+def display():
+    """The display the viewers open on: ``DISPLAY`` when set (or not on Linux), else a virtual one (Xvfb) started for
+    this module and stopped after it; the tests skip when there is neither."""
+    if os.environ.get("DISPLAY") or not sys.platform.startswith("linux"):
+        yield os.environ.get("DISPLAY")
+        return
+    if shutil.which("Xvfb") is None:
+        pytest.skip("the napari viewer needs a display, or Xvfb to make one")
+    read, write = os.pipe()
+    server = subprocess.Popen(["Xvfb", "-displayfd", str(write), "-screen", "0", "1600x1000x24", "-nolisten", "tcp"],
+                              pass_fds=(write,), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    os.close(write)
+    ready = select.select([read], [], [], 60)[0]  # Xvfb writes its display number once it accepts clients
+    number = os.read(read, 64).decode().strip() if ready else ""
+    os.close(read)
+    try:
+        if not number.isdigit():
+            pytest.skip("Xvfb did not start")
+        yield f":{number}"
+    finally:
+        server.terminate()
+        server.wait(timeout=30)
+
+
+from qdots.cli import main  # noqa: E402
+from qdots.napari_plugin.reader import get_reader  # noqa: E402
+from qdots.napari_plugin.widget import DOTS, LEFT_OUT, MeasureWidget  # noqa: E402
+
+pytestmark = [pytest.mark.filterwarnings("ignore::UserWarning"), pytest.mark.filterwarnings("ignore::DeprecationWarning"),
+              pytest.mark.filterwarnings("ignore::PendingDeprecationWarning"), pytest.mark.timeout(300)]
+
+#: Where the test also saves the docs' screenshot (docs/figures/napari_plugin.png) when this variable names a folder.
+SCREENSHOT_DIR = "QDOTS_SCREENSHOT_DIR"
+
+
+def film_png(path, n=60, size=240, diameter=16.0, seed=3):
+    """A film of ``n`` dark discs on a noisy support, as a PNG; returns the true centres ``(x, y)``."""
+    from PIL import Image
+
+    from qdots.placement import random_sequential
+
+    centres = random_sequential(n, (size, size), diameter, 0.05, rng=seed)[0]
+    yy, xx = np.mgrid[:size, :size]
+    picture = np.full((size, size), 200.0)
+    for x, y in centres:
+        picture[(xx - x) ** 2 + (yy - y) ** 2 <= (diameter / 2) ** 2] = 60
+    picture += np.random.default_rng(seed).normal(scale=10, size=picture.shape)
+    Image.fromarray(np.clip(picture, 0, 255).astype(np.uint8)).save(path)
+    return np.asarray(centres)
+
+
+@pytest.fixture
+def make_napari_viewer(display, monkeypatch):
+    """Viewers for a test on ``display``, closed after it (napari's own fixture of that name is off: its plugin's
+    other fixtures would import Qt in every test of the suite)."""
+    if display is not None:
+        monkeypatch.setenv("DISPLAY", display)
+    made = []
+
+    def make():
+        viewer = napari.Viewer(show=False)
+        made.append(viewer)
+        return viewer
+
+    yield make
+    for viewer in made:
+        viewer.close()
+
+
+def test_the_manifest_offers_the_reader_and_the_widget():
+    from npe2 import PluginManager
+
+    manager = PluginManager.instance()
+    manager.discover()
+    manifest = next(m for m in manager.iter_manifests() if m.name == "nanodisorder")
+    assert "*.dm4" in manifest.contributions.readers[0].filename_patterns
+    assert manifest.contributions.widgets[0].display_name == "Measure dots (qdots)"
+    assert get_reader("film.png") is not None and get_reader("film.xyz") is None and get_reader(["a.png", "b.png"]) is None
+
+
+def test_the_widget_measures_shows_takes_corrections_and_exports_as_the_command_line(make_napari_viewer, tmp_path,
+                                                                                      capsys):
+    truth = film_png(tmp_path / "film.png")
+    viewer = make_napari_viewer()
+    layers = viewer.open(str(tmp_path / "film.png"), plugin="nanodisorder")
+    assert layers[0].metadata["qdots_path"] == str(tmp_path / "film.png")
+    widget = MeasureWidget(viewer)
+    viewer.window.add_dock_widget(widget, name="Measure dots (qdots)")
+    widget.nm_per_px.setText("0.5")
+    widget.measure_button.click()
+    film = widget.film
+    assert film is not None and not widget.refused, widget.status.text()
+    dots = viewer.layers[DOTS]
+    assert len(dots.data) == film.detection.n_dots and abs(len(dots.data) - len(truth)) <= 3
+    assert np.allclose(dots.size, film.detection.diameters) and abs(np.median(dots.size) - 16.0) < 1.0
+    assert widget.table.rowCount() > 5 and "dots measured" in widget.status.text()
+    if os.environ.get(SCREENSHOT_DIR):
+        viewer.window.resize(1500, 950)
+        viewer.screenshot(os.path.join(os.environ[SCREENSHOT_DIR], "napari_plugin.png"), canvas_only=False)
+
+    # the same files as qdots measure, with the same numbers
+    exported = widget.export()
+    assert sorted(p.name for p in exported.iterdir()) == ["film.npz", "film_detections.png", "film_summary.csv"]
+    assert main(["measure", str(tmp_path / "film.png"), "--nm-per-px", "0.5", "--out", str(tmp_path / "cli")]) == 0
+    capsys.readouterr()
+    with open(exported / "film_summary.csv") as a, open(tmp_path / "cli" / "film" / "film_summary.csv") as b:
+        assert list(csv.DictReader(a)) == list(csv.DictReader(b))
+
+    # delete three dots, add one where there is none, and measure again
+    before = len(dots.data)
+    dots.selected_data = {0, 1, 2}
+    dots.remove_selected()
+    dots.current_size = 12.0  # as the point-size slider sets it
+    dots.add([[5.0, 5.0]])
+    widget.edited_button.click()
+    edited = widget.film
+    assert edited.summary["dots"] == before - 2, widget.status.text()
+    assert edited.summary["dots_edited"] == 1 and edited.summary["dots_deleted"] == 3
+    assert "edited by hand" in edited.summary["doubts"]
+    assert len(viewer.layers[DOTS].data) == before - 2
+
+
+def test_a_refused_picture_shows_what_was_found_and_can_be_measured_anyway(make_napari_viewer, tmp_path):
+    film_png(tmp_path / "sparse.png", n=4, size=200)
+    viewer = make_napari_viewer()
+    viewer.open(str(tmp_path / "sparse.png"), plugin="nanodisorder")
+    widget = MeasureWidget(viewer)
+    widget.measure()
+    assert widget.refused and widget.status.text().startswith("Refused:") and "round object" in widget.status.text()
+    assert len(viewer.layers[DOTS].data) >= 4  # what was found, drawn for the user to judge
+    assert widget.export() is None and "Nothing to export" in widget.status.text()
+    widget.force.setChecked(True)
+    assert widget.measure() is not None and not widget.refused
+
+
+def test_a_layer_without_a_file_is_measured_from_its_pixels_and_scale(make_napari_viewer, tmp_path):
+    from PIL import Image
+
+    film_png(tmp_path / "film.png")
+    viewer = make_napari_viewer()
+    viewer.add_image(np.asarray(Image.open(tmp_path / "film.png")), name="pasted", scale=(0.5, 0.5))
+    widget = MeasureWidget(viewer)
+    film = widget.measure()
+    assert film is not None and film.nm_per_px == pytest.approx(0.5)
+    assert LEFT_OUT not in viewer.layers or len(viewer.layers[LEFT_OUT].data) >= 0
+    assert not list(tmp_path.glob("qdots-napari-*"))
+
+
+def test_the_reader_gives_the_pixel_size_of_the_file(tmp_path):
+    from qdots.napari_plugin.reader import read_layers
+
+    film_png(tmp_path / "film.png")
+    (pixels, attributes, kind), = read_layers(str(tmp_path / "film.png"))
+    assert kind == "image" and pixels.shape == (240, 240)
+    assert attributes["scale"] == (1.0, 1.0) and attributes["metadata"]["nm_per_px"] is None
+    assert attributes["metadata"]["scale_source"] == "none in the file"
