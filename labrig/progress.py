@@ -9,6 +9,7 @@ of its rate, so the ETA is that of the run itself. Its elapsed time is then the 
 
 from __future__ import annotations
 
+import sys
 import time
 
 from numba.core import event
@@ -21,7 +22,7 @@ COMPILING = "compiling the numba kernels (first run only: later runs load them f
 class _CompileClock(event.Listener):
     """Seconds of top-level numba compilation seen while a bar is open."""
 
-    def __init__(self, bar: "CompileAwareBar"):
+    def __init__(self, bar: "CompileAwareBar | StageLines"):
         self.bar = bar
         self.depth = 0
         self.started = 0.0
@@ -78,6 +79,68 @@ class CompileAwareBar(tqdm):
             self._listening = False
             event.unregister("numba:compile", self._clock)
         super().close()
+
+
+#: A run of stages that ends within this many seconds prints no stage line (`StageLines`).
+QUIET = 5.0
+
+
+class StageLines:
+    """Progress of a run of stages as plain lines, for logs and pipes, where a bar would redraw in place.
+
+    It takes a bar's calls (``set_postfix_str(stage)`` names the stage that starts, ``update()`` marks it). A run
+    that ends within `QUIET` s prints nothing; after that, each stage that starts prints one line,
+    ``DESC: STAGE (T s)``, with the time spent compiling numba's kernels said once (the first run on a machine).
+
+    Parameters
+    ----------
+    desc : str
+        What runs, the start of each line (``"qdots measure"``).
+    stream : file, optional
+        Where the lines go (default stderr).
+    quiet : float, optional
+        Seconds before the first line (default `QUIET`).
+    """
+
+    def __init__(self, desc: str, stream=None, quiet: float | None = None):
+        self.desc, self.stream, self.quiet = desc, stream, QUIET if quiet is None else quiet
+        self.stage = ""
+        self.start = time.perf_counter()
+        self.compile_seconds = 0.0
+        self._said_compile = False
+        self._clock = _CompileClock(self)
+        self._listening = True
+        event.register("numba:compile", self._clock)
+
+    def compiling(self) -> None:
+        """numba started compiling (said with the next line)."""
+
+    def leave_out(self, seconds: float) -> None:
+        self.compile_seconds += seconds
+
+    def set_postfix_str(self, stage: str, refresh: bool = False) -> None:
+        self.stage = stage
+
+    def update(self, n: float = 1) -> None:
+        elapsed = time.perf_counter() - self.start
+        if elapsed < self.quiet or not self.stage:
+            return
+        note = ""
+        if self.compile_seconds and not self._said_compile:
+            self._said_compile = True
+            note = f", of which {self.compile_seconds:.0f} s {COMPILING.split(' (')[0]}, first run only"
+        print(f"{self.desc}: {self.stage} ({elapsed:.0f} s{note})", file=self.stream or sys.stderr, flush=True)
+
+    def close(self) -> None:
+        if self._listening:
+            self._listening = False
+            event.unregister("numba:compile", self._clock)
+
+    def __enter__(self) -> "StageLines":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
 
 
 def progress_bar(total: float, *, unit: str, desc: str, show: bool = True, **options) -> CompileAwareBar:

@@ -233,6 +233,11 @@ def anodize(metal: Surface, thickness: float, model: Model | None = None, engine
     return Anodization(parameters, table, shots, metal, sim.metal(), sim.oxide(), sim.distances(), complete)
 
 
+class Stalled(InputError):
+    """A run that stopped making progress: the map is outside what the engine can compute (say, far steeper than its
+    grid resolves); one line saying so and what to try, not a traceback."""
+
+
 def record_run(sim, thickness: float, rows_at: np.ndarray, shots_at: np.ndarray, *, max_sweeps: int, bar=None,
                observer: Callable | None = None, max_seconds: float | None = None) -> tuple[dict, list, bool]:
     """Advance the engine ``sim`` to ``thickness`` (nm), taking a history row at each of ``rows_at`` and a
@@ -266,8 +271,12 @@ def record_run(sim, thickness: float, rows_at: np.ndarray, shots_at: np.ndarray,
                 complete = False
                 break
             if sim.iterations >= max_sweeps:
-                raise RuntimeError(f"the {sim.name} engine made no progress: {sim.iterations:,} sweeps reached "
-                                   f"{sim.thickness:.6g} of {thickness:g} nm")
+                metal = sim.metal()
+                slope = float(np.hypot(*np.gradient(metal.z, *metal.spacing)).max()) if min(metal.shape) > 1 else 0.0
+                raise Stalled(f"the {sim.name} engine made no progress: {sim.iterations:,} sweeps reached "
+                              f"{sim.thickness:.6g} of {thickness:g} nm on a map whose metal slopes reach {slope:.3g} "
+                              "(steeper than its grid resolves): try the fast engine (--engine fast), or a map "
+                              "smoothed or resampled to a coarser grid")
             sim.advance(float(targets[np.searchsorted(targets, sim.thickness, side="right")]))
             if not np.isfinite(sim.thickness):
                 raise InputError(f"the distances became non-finite at {sim.iterations} sweeps: the surface or the "

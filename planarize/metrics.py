@@ -37,7 +37,8 @@ HISTORY_COLUMNS = {
     "oxide_zrange_nm": "z-range of the oxide heights",
     "metal_lost_nm3": "metal volume consumed",
     "oxide_gained_nm3": "oxide volume added above the original surface",
-    "volume_error": "oxide_gained / ((k_exp - 1) metal_lost) - 1 (0 to round-off with exact accounting)",
+    "volume_error": "oxide_gained / ((k_exp - 1) metal_lost) - 1 (0 to round-off with exact accounting; without "
+                    "expansion, k_exp = 1, oxide_gained / metal_lost)",
     "iterations": "batches oxidized so far",
     "point_updates": "metal-point oxidations so far",
     "wall_s": "wall time since the start of the run, s",
@@ -65,6 +66,8 @@ def history_row(engine, target: float, wall: float) -> dict:
     expected = (engine.k_exp - 1.0) * lost
     if expected > 0:
         volume_error = gained / expected - 1.0
+    elif engine.k_exp == 1.0 and lost > 0:  # no expansion: no oxide should rise above the metal consumed
+        volume_error = gained / lost
     else:
         volume_error = 0.0 if gained == 0 else np.inf
     return {

@@ -149,10 +149,10 @@ def converge(metal: Surface, thickness: float, model: Model, settings: Continuum
 
 def _max_steps(engine: ContinuumEngine, thickness: float) -> int:
     """A bound on the time steps to ``thickness``: many times what the stability limit asks for where the
-    metal stalls (diffusion coefficient ``t / (k_exp - 1)``, the largest but for sharp bumps); a run past
-    it has stopped making progress."""
+    metal stalls (diffusion coefficient ``t / (k_exp - 1)``, the largest but for sharp bumps; none without
+    expansion, ``k_exp = 1``, where the metal recedes at one speed); a run past it has stopped making progress."""
     h = min(engine.dx, engine.dy)
-    stalled = 2 * thickness / (engine.k_exp - 1)
+    stalled = 2 * thickness / (engine.k_exp - 1) if engine.k_exp > 1 else 0.0
     return int(100 * (thickness / h + stalled * thickness / h ** 2) + 10_000)
 
 

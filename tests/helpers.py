@@ -6,6 +6,7 @@ mode, tests/ having no ``__init__.py``), whether it runs from the repository roo
 ``python -m pytest tests/...``.
 """
 
+import re
 from pathlib import Path
 
 import numpy as np
@@ -106,11 +107,23 @@ def refused_file(load, path, content, match, **options) -> str:
 # -- command lines ----------------------------------------------------------------------------------
 
 def one_line_error(capsys, prog="qdots"):
-    """The ``PROG: error: ...`` line a refused command printed last (after any progress bars, which also go to
-    stderr): one line, no traceback."""
-    err = capsys.readouterr().err.strip().split("\r")[-1]
-    assert err.startswith(f"{prog}: error:") and "\n" not in err and "Traceback" not in err, err
-    return err
+    """The ``PROG: error: ...`` line a refused command printed last (after any progress bars and stage lines, which
+    also go to stderr): one line, no traceback."""
+    return last_error_line(capsys.readouterr().err, prog)
+
+
+#: A stage line of a run that took longer than a few seconds (`labrig.progress.StageLines`).
+STAGE_LINE = re.compile(r"^\S+ \S+: .+ \(\d+ s.*\)$")
+
+
+def last_error_line(err: str, prog="qdots") -> str:
+    """The one ``PROG: error: ...`` line of ``err`` (a command's stderr), after any progress bars (redrawn in place)
+    and stage lines; no traceback."""
+    lines = err.strip().split("\r")[-1].splitlines()
+    assert lines and "Traceback" not in err, err
+    *before, last = lines
+    assert last.startswith(f"{prog}: error:") and all(STAGE_LINE.match(line) for line in before), err
+    return last
 
 
 def run_ok(main, argv, capsys):

@@ -175,3 +175,24 @@ def test_a_crash_exits_1_with_its_traceback_and_a_ctrl_c_130_with_one_line(error
     assert done.returncode == status, done.stderr
     assert done.stderr.strip().splitlines()[-1] == last
     assert ("Traceback" in done.stderr) == (status == 1)
+
+
+def test_measure_in_a_pipe_says_its_stages_once_it_runs_long(capsys, tmp_path, monkeypatch):
+    from PIL import Image
+
+    import labrig.progress
+    from qdots.placement import random_sequential
+
+    centres = random_sequential(40, (160, 160), 14.0, 0.1, rng=3)[0]
+    yy, xx = np.mgrid[:160, :160]
+    film = np.full((160, 160), 200.0)
+    for x, y in centres:
+        film[(xx - x) ** 2 + (yy - y) ** 2 <= 36] = 40
+    film += np.random.default_rng(3).normal(scale=12, size=film.shape)
+    Image.fromarray(np.clip(film, 0, 255).astype(np.uint8)).save(tmp_path / "film.png")
+    monkeypatch.setattr(labrig.progress, "QUIET", 0.0)  # as if every stage came after the first seconds
+    assert main(["measure", str(tmp_path / "film.png"), "--nm-per-px", "1", "--no-lqe", "--out",
+                 str(tmp_path / "out")]) == 0
+    said = capsys.readouterr().err.splitlines()
+    assert said and all(line.startswith("qdots measure: ") for line in said)
+    assert any(line.startswith("qdots measure: finding the dots (") for line in said)

@@ -119,7 +119,8 @@ def numpy_rate(z, dx, dy, t, k_exp):
     root = np.sqrt(np.maximum(mean ** 2 - gauss, 0))
     k1, k2 = mean + root, mean - root
     jac = np.where(1 + t * k2 <= 0, 0.0, (1 + t * k1) * (1 + t * k2))
-    speed = jac / (jac + k_exp - 1)
+    total = jac + k_exp - 1
+    speed = np.divide(jac, total, out=np.zeros_like(jac), where=total > 0)  # below a crease without expansion: 0
 
     def slope2(m2, m1, c, p1, p2, h):
         def minmod(a, b):
@@ -141,6 +142,9 @@ def test_metal_rate_is_the_flow_written_with_numpy():
     rate, stiff = np.empty(z.shape), np.zeros(9)
     metal_rate(padded, 0.3, 0.4, 0.7, 2.3, -1.0, rate, stiff, 0, 9)
     np.testing.assert_allclose(rate, numpy_rate(z, 0.3, 0.4, 0.7, 2.3), rtol=1e-12)
+    metal_rate(padded, 0.3, 0.4, 6.0, 1.0, -1.0, rate, stiff, 0, 9)  # no expansion, creases where t k2 < -1
+    assert np.isfinite(rate).all()
+    np.testing.assert_allclose(rate, numpy_rate(z, 0.3, 0.4, 6.0, 1.0), rtol=1e-12)
     metal_rate(padded, 0.3, 0.4, 0.7, 2.3, 0.5, rate, stiff, 0, 9)  # the conformal rule: one normal speed
     assert np.all(rate <= -0.5)
 
@@ -324,3 +328,33 @@ def test_a_time_budget_stops_a_continuum_run_at_its_reported_grid():
     run = anodize(surfaces.hill(), 1.0, max_seconds=1e-6)
     assert not run.complete and run.thickness < 1.0 and run.metal.shape == (17, 17)
     assert np.isnan(run.history["metal_rms_error_nm"]).all() and not run.parameters["rtol_met"]
+
+
+def test_without_expansion_the_oxide_stays_where_the_metal_was_and_the_run_ends():
+    """k_exp = 1 (no expansion): the continuum engine ran into a division by zero (its step bound and, below a crease,
+    its speed J / (J + k_exp - 1)); the oxide's top is the initial metal surface, as the thesis's algorithm gives."""
+    import planarize
+    from planarize.metrics import z_range
+    from planarize.model import Model
+
+    hill = planarize.surfaces.hill()
+    run = planarize.anodize(hill, 0.5, model=Model(k_exp=1.0))
+    assert np.isfinite(run.metal.z).all() and np.isfinite(run.oxide.z).all()
+    assert np.abs(run.oxide.z - hill.z).max() <= 0.05 * z_range(hill)
+    assert abs(run.history["volume_error"][-1]) <= 0.02
+    fast = planarize.anodize(hill, 0.5, model=Model(k_exp=1.0), engine="fast")
+    assert np.abs(fast.oxide.z - hill.z).max() == 0.0
+
+
+def test_a_run_that_stops_making_progress_says_so_in_one_line_with_what_to_try():
+    """Gaussian noise of sigma 100 nm at 10 nm spacing: the continuum engine stalls (a traceback before); the error is
+    one line that names the slope and the fast engine."""
+    from labrig.validate import InputError
+    from planarize.anodize import Stalled
+
+    noise = Surface(np.random.default_rng(0).normal(0.0, 100.0, (12, 12)), 10.0, "open")
+    with pytest.raises(Stalled) as caught:
+        anodize(noise, 100.0)
+    message = str(caught.value)
+    assert isinstance(caught.value, InputError) and "\n" not in message
+    assert "made no progress" in message and "slopes reach" in message and "--engine fast" in message

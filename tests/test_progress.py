@@ -55,3 +55,25 @@ def test_a_hidden_bar_prints_nothing():
         fresh_kernel()(3)
         bar.update(3)
     assert out.getvalue() == ""
+
+
+def test_stage_lines_are_quiet_for_a_short_run_then_one_per_stage_with_the_compile_said_once():
+    from labrig.progress import StageLines
+
+    out = io.StringIO()
+    with StageLines("demo", stream=out) as lines:  # a run within QUIET s says nothing
+        for stage in ("reading", "finding"):
+            lines.set_postfix_str(stage)
+            lines.update()
+    assert out.getvalue() == ""
+    kernel = fresh_kernel()
+    with StageLines("demo", stream=out, quiet=0.0) as lines:
+        kernel(10)  # compiles
+        for stage in ("reading", "finding"):
+            lines.set_postfix_str(stage)
+            lines.update()
+    said = out.getvalue().splitlines()
+    assert [line.split(" (")[0] for line in said] == ["demo: reading", "demo: finding"]
+    assert "compiling the numba kernels, first run only" in said[0] and "compiling" not in said[1]
+    fresh_kernel()(1)  # after the lines closed: not heard
+    assert lines.compile_seconds > 0 and len(out.getvalue().splitlines()) == 2

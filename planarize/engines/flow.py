@@ -125,10 +125,14 @@ def metal_rate(p, dx, dy, t, k_exp, uniform_speed, rate, row_stiff, start, stop)
             k1, k2, grad2 = curvatures(p, pi, pj, rdx, rdy)
             if uniform_speed < 0.0:
                 jac = area_ratio(k1, k2, t)
-                speed = jac / (jac + k_exp - 1.0)
-                # dV/dk = (k_exp - 1) t (1 + t k_other) / (J + k_exp - 1)^2, per unit of curvature
-                d = (k_exp - 1.0) * t * max(1.0 + t * k1, 0.0) / ((jac + k_exp - 1.0) ** 2 * grad2)
-                stiff = max(stiff, d)
+                total = jac + k_exp - 1.0
+                if total > 0.0:
+                    speed = jac / total
+                    # dV/dk = (k_exp - 1) t (1 + t k_other) / (J + k_exp - 1)^2, per unit of curvature
+                    d = (k_exp - 1.0) * t * max(1.0 + t * k1, 0.0) / (total * total * grad2)
+                    stiff = max(stiff, d)
+                else:  # no expansion (k_exp = 1) below a crease of the oxide: the metal stays, as for k_exp > 1
+                    speed = 0.0
             else:
                 speed = uniform_speed
             c = p[pi, pj]

@@ -225,7 +225,7 @@ def _run_measure(args: argparse.Namespace) -> int:
 
     film = measure(args.image, args.out, name=args.name, nm_per_px=args.nm_per_px, scale_bar=args.scale_bar,
                    polarity=args.polarity, profile=args.profile, page=args.page, lqe=not args.no_lqe,
-                   force=args.force, progress=sys.stderr.isatty())
+                   force=args.force, progress=True if sys.stderr.isatty() else "lines")
     print_table(f"{args.image}:", summary_rows(film.summary))
     stem = film_stem(args)
     print(f"wrote {args.out / stem}{os.sep}: {stem}.npz, {stem}_detections.png, {stem}_summary.csv")

@@ -16,7 +16,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from labrig.progress import progress_bar
+from labrig.progress import StageLines, progress_bar
 from labrig.validate import InputError
 
 from ..analysis.lqe import film_lqe
@@ -124,7 +124,7 @@ def scale_check(summary: dict) -> str:
 
 def measure_image(path: str | os.PathLike, *, nm_per_px=None, scale_bar: str | None = None, polarity: str = "auto",
                   profile: str = "auto", page: int = 0, lqe: bool = True, force: bool = False,
-                  progress: bool = False) -> MeasuredFilm:
+                  progress: bool | str = False) -> MeasuredFilm:
     """Read a micrograph, find its dots and measure the film (nothing written).
 
     Parameters
@@ -147,8 +147,10 @@ def measure_image(path: str | os.PathLike, *, nm_per_px=None, scale_bar: str | N
     force : bool
         Measure a picture whose dots do not look like a film of round particles (`qdots.micrograph.admit`) anyway;
         the summary's ``doubts`` then say why it would have been refused.
-    progress : bool
-        Show a progress bar of the stages on stderr (it says when numba compiles, the first run on a machine).
+    progress : bool or "lines"
+        Show a progress bar of the stages on stderr (it says when numba compiles, the first run on a machine), or
+        with ``"lines"`` (for logs and pipes) a line per stage once the run takes longer than a few seconds
+        (`labrig.progress.StageLines`).
 
     Raises
     ------
@@ -163,7 +165,9 @@ def measure_image(path: str | os.PathLike, *, nm_per_px=None, scale_bar: str | N
         check_nm_per_px(nm_per_px)
     if scale_bar is not None:
         parse_length(scale_bar)
-    with progress_bar(3 + len(STAGES), unit="stage", desc="qdots measure", show=progress, leave=False) as shown:
+    shown_as = (StageLines("qdots measure") if progress == "lines" else
+                progress_bar(3 + len(STAGES), unit="stage", desc="qdots measure", show=bool(progress), leave=False))
+    with shown_as as shown:
         def step(stage: str) -> None:
             shown.set_postfix_str(stage, refresh=False)
             shown.update()

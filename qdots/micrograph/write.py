@@ -31,7 +31,7 @@ def write_measurement(film: MeasuredFilm, files: OutputSet, stem: str) -> None:
 
 def measure(path: str | os.PathLike, out: str | os.PathLike | None = None, *, name: str | None = None,
             nm_per_px=None, scale_bar: str | None = None, polarity: str = "auto", profile: str = "auto",
-            page: int = 0, lqe: bool = True, force: bool = False, progress: bool = False) -> MeasuredFilm:
+            page: int = 0, lqe: bool = True, force: bool = False, progress: bool | str = False) -> MeasuredFilm:
     """`measure_image`, then write ``NAME.npz``, ``NAME_detections.png`` and ``NAME_summary.csv`` into ``out``
     (default: beside the image) as one set. ``NAME`` defaults to the image's stem. A picture that is not a film of
     round particles (`qdots.micrograph.admit.NotAFilm`, unless ``force``) writes only the overlay of what was found,
