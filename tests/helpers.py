@@ -151,3 +151,20 @@ def refused(call, *words) -> str:
     for word in words:
         assert word in message, (word, message)
     return message
+
+
+def disc_film_png(path, n=60, size=240, diameter=16.0, sigma=0.05, seed=3, noise=10.0):
+    """Write a film of ``n`` dark flat discs (placed at random, ``diameter`` px apart at least, spread ``sigma``) on a
+    ``size`` px square support with Gaussian noise, as a PNG; returns the true centres ``(x, y)``, px."""
+    from PIL import Image
+
+    from qdots.placement import random_sequential
+
+    centres = random_sequential(n, (size, size), diameter, sigma, rng=seed)[0]
+    yy, xx = np.mgrid[:size, :size]
+    picture = np.full((size, size), 200.0)
+    for x, y in centres:
+        picture[(xx - x) ** 2 + (yy - y) ** 2 <= (diameter / 2) ** 2] = 60
+    picture += np.random.default_rng(seed).normal(scale=noise, size=picture.shape)
+    Image.fromarray(np.clip(picture, 0, 255).astype(np.uint8)).save(path)
+    return np.asarray(centres)

@@ -15,7 +15,7 @@ import pytest
 from planarize.cli import main as planarize_main
 from qdots.cli import main
 
-from helpers import one_line_error
+from helpers import disc_film_png, one_line_error
 
 
 @pytest.fixture
@@ -178,18 +178,9 @@ def test_a_crash_exits_1_with_its_traceback_and_a_ctrl_c_130_with_one_line(error
 
 
 def test_measure_in_a_pipe_says_its_stages_once_it_runs_long(capsys, tmp_path, monkeypatch):
-    from PIL import Image
-
     import labrig.progress
-    from qdots.placement import random_sequential
 
-    centres = random_sequential(40, (160, 160), 14.0, 0.1, rng=3)[0]
-    yy, xx = np.mgrid[:160, :160]
-    film = np.full((160, 160), 200.0)
-    for x, y in centres:
-        film[(xx - x) ** 2 + (yy - y) ** 2 <= 36] = 40
-    film += np.random.default_rng(3).normal(scale=12, size=film.shape)
-    Image.fromarray(np.clip(film, 0, 255).astype(np.uint8)).save(tmp_path / "film.png")
+    disc_film_png(tmp_path / "film.png", n=40, size=160)
     monkeypatch.setattr(labrig.progress, "QUIET", 0.0)  # as if every stage came after the first seconds
     assert main(["measure", str(tmp_path / "film.png"), "--nm-per-px", "1", "--no-lqe", "--out",
                  str(tmp_path / "out")]) == 0

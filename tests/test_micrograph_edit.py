@@ -3,27 +3,18 @@
 
 import numpy as np
 import pytest
-from PIL import Image
 
 from qdots.micrograph.edit import edited_film
 from qdots.micrograph.measure import measure_image
 from qdots.napari_plugin.layers import film_from_points, points_data, shapes_data
 
-from helpers import refused
+from helpers import disc_film_png, refused
 
 
 @pytest.fixture(scope="module")
 def film(tmp_path_factory):
-    from qdots.placement import random_sequential
-
     folder = tmp_path_factory.mktemp("edit")
-    centres = random_sequential(50, (220, 220), 16.0, 0.05, rng=5)[0]
-    yy, xx = np.mgrid[:220, :220]
-    picture = np.full((220, 220), 200.0)
-    for x, y in centres:
-        picture[(xx - x) ** 2 + (yy - y) ** 2 <= 64] = 60
-    picture += np.random.default_rng(5).normal(scale=10, size=picture.shape)
-    Image.fromarray(np.clip(picture, 0, 255).astype(np.uint8)).save(folder / "film.png")
+    disc_film_png(folder / "film.png", n=50, size=220, seed=5)
     return measure_image(folder / "film.png", nm_per_px=0.5, lqe=False)
 
 

@@ -41,6 +41,8 @@ def display():
 
 
 from qdots.cli import main  # noqa: E402
+
+from helpers import disc_film_png  # noqa: E402
 from qdots.napari_plugin.reader import get_reader  # noqa: E402
 from qdots.napari_plugin.widget import DOTS, LEFT_OUT, MeasureWidget  # noqa: E402
 
@@ -49,22 +51,6 @@ pytestmark = [pytest.mark.filterwarnings("ignore::UserWarning"), pytest.mark.fil
 
 #: Where the test also saves the docs' screenshot (docs/figures/napari_plugin.png) when this variable names a folder.
 SCREENSHOT_DIR = "QDOTS_SCREENSHOT_DIR"
-
-
-def film_png(path, n=60, size=240, diameter=16.0, seed=3):
-    """A film of ``n`` dark discs on a noisy support, as a PNG; returns the true centres ``(x, y)``."""
-    from PIL import Image
-
-    from qdots.placement import random_sequential
-
-    centres = random_sequential(n, (size, size), diameter, 0.05, rng=seed)[0]
-    yy, xx = np.mgrid[:size, :size]
-    picture = np.full((size, size), 200.0)
-    for x, y in centres:
-        picture[(xx - x) ** 2 + (yy - y) ** 2 <= (diameter / 2) ** 2] = 60
-    picture += np.random.default_rng(seed).normal(scale=10, size=picture.shape)
-    Image.fromarray(np.clip(picture, 0, 255).astype(np.uint8)).save(path)
-    return np.asarray(centres)
 
 
 @pytest.fixture
@@ -98,7 +84,7 @@ def test_the_manifest_offers_the_reader_and_the_widget():
 
 def test_the_widget_measures_shows_takes_corrections_and_exports_as_the_command_line(make_napari_viewer, tmp_path,
                                                                                       capsys):
-    truth = film_png(tmp_path / "film.png")
+    truth = disc_film_png(tmp_path / "film.png")
     viewer = make_napari_viewer()
     layers = viewer.open(str(tmp_path / "film.png"), plugin="nanodisorder")
     assert layers[0].metadata["qdots_path"] == str(tmp_path / "film.png")
@@ -139,7 +125,7 @@ def test_the_widget_measures_shows_takes_corrections_and_exports_as_the_command_
 
 
 def test_a_refused_picture_shows_what_was_found_and_can_be_measured_anyway(make_napari_viewer, tmp_path):
-    film_png(tmp_path / "sparse.png", n=4, size=200)
+    disc_film_png(tmp_path / "sparse.png", n=4, size=200)
     viewer = make_napari_viewer()
     viewer.open(str(tmp_path / "sparse.png"), plugin="nanodisorder")
     widget = MeasureWidget(viewer)
@@ -154,7 +140,7 @@ def test_a_refused_picture_shows_what_was_found_and_can_be_measured_anyway(make_
 def test_a_layer_without_a_file_is_measured_from_its_pixels_and_scale(make_napari_viewer, tmp_path):
     from PIL import Image
 
-    film_png(tmp_path / "film.png")
+    disc_film_png(tmp_path / "film.png")
     viewer = make_napari_viewer()
     viewer.add_image(np.asarray(Image.open(tmp_path / "film.png")), name="pasted", scale=(0.5, 0.5))
     widget = MeasureWidget(viewer)
@@ -167,7 +153,7 @@ def test_a_layer_without_a_file_is_measured_from_its_pixels_and_scale(make_napar
 def test_the_reader_gives_the_pixel_size_of_the_file(tmp_path):
     from qdots.napari_plugin.reader import read_layers
 
-    film_png(tmp_path / "film.png")
+    disc_film_png(tmp_path / "film.png")
     (pixels, attributes, kind), = read_layers(str(tmp_path / "film.png"))
     assert kind == "image" and pixels.shape == (240, 240)
     assert attributes["scale"] == (1.0, 1.0) and attributes["metadata"]["nm_per_px"] is None
