@@ -15,11 +15,28 @@ import pytest
 napari = pytest.importorskip("napari")
 
 
+#: Opens a Qt application and a napari viewer in a process of its own: a Qt that cannot start (its platform libraries
+#: missing) aborts its process, which must not be the test run's.
+QT_PROBE = "import napari; napari.Viewer(show=False).close(); print('ok')"
+
+
+def qt_starts(display: str | None) -> bool:
+    """Whether a napari viewer opens on ``display``, tried in a child process."""
+    env = dict(os.environ, **({"DISPLAY": display} if display else {}))
+    try:
+        done = subprocess.run([sys.executable, "-c", QT_PROBE], env=env, capture_output=True, text=True, timeout=120)
+    except subprocess.TimeoutExpired:
+        return False
+    return done.returncode == 0 and done.stdout.strip().endswith("ok")
+
+
 @pytest.fixture(scope="module")
 def display():
     """The display the viewers open on: ``DISPLAY`` when set (or not on Linux), else a virtual one (Xvfb) started for
-    this module and stopped after it; the tests skip when there is neither."""
+    this module and stopped after it; the tests skip when there is neither, or when Qt cannot start on it."""
     if os.environ.get("DISPLAY") or not sys.platform.startswith("linux"):
+        if not qt_starts(os.environ.get("DISPLAY")):
+            pytest.skip("a napari viewer does not open here (Qt cannot start)")
         yield os.environ.get("DISPLAY")
         return
     if shutil.which("Xvfb") is None:
@@ -34,6 +51,8 @@ def display():
     try:
         if not number.isdigit():
             pytest.skip("Xvfb did not start")
+        if not qt_starts(f":{number}"):
+            pytest.skip("a napari viewer does not open on Xvfb (Qt's xcb platform libraries missing?)")
         yield f":{number}"
     finally:
         server.terminate()
