@@ -28,6 +28,7 @@ BENCHMARKS = [
     "planarize_fast",
     "planarize_accuracy",
     "planarize_continuum",
+    "afm_real",
     "sweeps",
     "cold_start",
 ]

@@ -5,7 +5,7 @@
   finest. Errors are the largest relative differences over the recorded thicknesses (RMS against
   at least 1 % of its starting value).
 * **Stated against true error.** The default run (``rtol`` 0.02) of each case states its error
-  (`planarize.resolution`); beside it, its true error against the converged answer.
+  (`planarize.engines.resolution`); beside it, its true error against the converged answer.
 * **The thesis's algorithm.** The fast engine on the hill at 4x ... 32x refinement, against the
   continuum engine's converged answer: the thesis's algorithm converges to it.
 * **The physics.** The thesis's rule against the ``"conformal"`` rule (uniform recession of the
@@ -92,7 +92,9 @@ def relative(values, truth) -> np.ndarray:
     return np.abs(np.asarray(values) - truth) / np.maximum(np.abs(truth), FLOOR * abs(truth[0]))
 
 
-def case_results(name: str, builder, thickness: float, factors) -> tuple[list, list, dict]:
+def case_results(name: str, builder, thickness: float, factors, settings: Continuum = CONTINUUM) -> tuple[list, list, dict]:
+    """The convergence rows of one case, its default run's stated and true errors, and the observed orders; the
+    default run is ``settings`` (the converged answer comes from the finest of ``factors``)."""
     surface = builder()
     levels = {f: level(surface, thickness, f) for f in factors}
     truth, orders = converged(levels)
@@ -103,7 +105,7 @@ def case_results(name: str, builder, thickness: float, factors) -> tuple[list, l
         rows.append([name, f, shape, steps, wall, 100 * errors["metal_rms_nm"], 100 * errors["oxide_rms_nm"],
                      100 * errors["metal_zrange_nm"], 100 * errors["oxide_zrange_nm"]])
     start = time.perf_counter()
-    run = anodize(surface, thickness, Model(), CONTINUUM, record=ROWS)
+    run = anodize(surface, thickness, Model(), settings, record=ROWS)
     wall = time.perf_counter() - start
     stated, true = {}, {}
     for c in ESTIMATED:

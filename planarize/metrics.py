@@ -44,7 +44,7 @@ HISTORY_COLUMNS = {
     "wall_s": "wall time since the start of the run, s",
 }
 #: The columns whose discretization error a continuum run estimates, each with an ``_error_nm`` column
-#: beside it (`planarize.resolution`).
+#: beside it (`planarize.engines.resolution`).
 ESTIMATED = ("metal_rms_nm", "metal_zrange_nm", "oxide_rms_nm", "oxide_zrange_nm")
 HISTORY_COLUMNS.update({column.replace("_nm", "_error_nm"): f"estimated discretization error of {column} "
                         "(continuum engine: from the run at half its resolution, Richardson's estimate)"

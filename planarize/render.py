@@ -143,7 +143,7 @@ def draw_history(run: Anodization, axes=None, *, errorbars: bool = True, log: bo
     distance); horizontal error bars are the standard deviation of the
     metal-oxide distances (the spread of the oxide's thickness: none on the continuum engine, whose
     oxide is exactly as thick everywhere), vertical ones the continuum engine's estimate of its
-    discretization error (`planarize.resolution`).
+    discretization error (`planarize.engines.resolution`).
 
     Parameters
     ----------

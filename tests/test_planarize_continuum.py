@@ -11,7 +11,7 @@ from planarize.engines import Continuum
 from planarize.engines.continuum import ContinuumEngine, resample
 from planarize.engines.flow import GHOST, fill_ghosts, metal_rate
 from planarize.engines.offset import coat, extremes, surface_moments
-from planarize.resolution import ORDER
+from planarize.engines.resolution import ORDER
 
 from helpers import refused
 

@@ -293,3 +293,36 @@ def test_a_run_continues_from_its_oxide():
     second = anodize(first.metal, 0.4, oxide=first.oxide, record=2, model=Model(step=0.01))
     assert second.thickness >= 0.4
     assert second.history["thickness_nm"][0] == pytest.approx(first.thickness)
+
+
+# -- the engines' contract (planarize.engines.protocol) ---------------------------------------------------------
+
+@pytest.mark.parametrize("name", ["continuum", "fast", "reference", "matlab"])
+def test_every_engine_satisfies_the_two_contracts(name):
+    from planarize.engines import ENGINES
+    from planarize.engines.protocol import EngineSettings, RunningEngine
+
+    settings = ENGINES[name]()
+    assert isinstance(settings, EngineSettings) and settings.name == name
+    engine = settings.build(surfaces.hill(points=5, refine=2), None, Model(step=0.05))
+    assert isinstance(engine, RunningEngine)
+
+
+def test_anodize_knows_no_engine_by_its_type():
+    """anodize hands a run to its settings (EngineSettings.run): a settings object of a new kind runs."""
+    import inspect
+
+    import planarize.anodize as module
+    from planarize.engines import Fast
+
+    assert "isinstance(settings" not in inspect.getsource(module)
+
+    class Counting(Fast):
+        calls = []
+
+        def run(self, *args, **kwargs):
+            Counting.calls.append(args[2])
+            return super().run(*args, **kwargs)
+
+    run = planarize.anodize(surfaces.hill(points=5, refine=2), 0.5, engine=Counting())
+    assert Counting.calls == [0.5] and run.complete

@@ -28,7 +28,7 @@ from planarize.surfaces import MAX_SCALES
 from helpers import one_line_error
 
 FLAT = Surface(np.zeros((4, 4)))
-anodize_module = importlib.import_module("planarize.anodize")  # (planarize.anodize is also the function)
+sweeps_module = importlib.import_module("planarize.engines.base")  # where the thesis's engines check their memory
 
 
 def refused(call, match: str) -> str:
@@ -195,7 +195,7 @@ def test_load_heights_checks_its_options_before_opening_the_file(tmp_path):
     absent = tmp_path / "absent.csv"  # every bad option is named before the missing file is noticed
     for options, match in [
         ({"max_aspect": "x"}, "max_aspect must be a number >= 1"), ({"max_aspect": 0.5}, "max_aspect must be >= 1"),
-        ({"max_aspect": math.inf}, "max_aspect must be >= 1"), ({"level": "yes"}, "level must be true or false"),
+        ({"max_aspect": math.inf}, "max_aspect must be >= 1"), ({"level": "yes"}, "level: unknown correction 'yes'"),
         ({"channel": 1.5}, "channel must be a channel number .* or a channel title"), ({"boundary": "round"}, "boundary must be"),
         ({"unit": 5}, "unit must be one of .nm."), ({"z_unit": "furlong"}, "z_unit must be one of .nm."),
         ({"spacing": -1}, "spacing must be finite and > 0"), ({"format": "tiff"}, "format must be one of"),
@@ -255,9 +255,9 @@ def test_the_memory_of_a_run_counts_the_engine_snapshots_and_history(monkeypatch
     need = run_bytes(hill.z.size, 51, 2)  # record=50: 51 rows; the default snapshots: start and end
     assert run_bytes(hill.z.size, 52, 2) - need == HISTORY_ROW_BYTES
     assert run_bytes(hill.z.size, 51, 3) - need == 24 * hill.z.size  # metal, oxide and distances
-    monkeypatch.setattr(anodize_module, "available_memory", lambda: need - 1)
+    monkeypatch.setattr(sweeps_module, "available_memory", lambda: need - 1)
     refused(lambda: anodize(hill, 0.01, Model(step=0.01), "fast"), "the run would need about .* GiB of memory, more than")
-    monkeypatch.setattr(anodize_module, "available_memory", lambda: need)
+    monkeypatch.setattr(sweeps_module, "available_memory", lambda: need)
     assert anodize(hill, 0.01, Model(step=0.01), "fast").complete
 
 

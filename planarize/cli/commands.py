@@ -1,7 +1,8 @@
 """What the ``planarize`` subcommands do; `planarize.cli` parses arguments and calls these.
 
 `run_scene` writes, into its output directory, for a scene named ``NAME``, the folder ``NAME/`` of
-``NAME.toml`` (the scene it ran, for provenance), ``NAME.npz`` (the run,
+``NAME.toml`` (the scene it ran, for provenance, with the levelling of an imported map spelled out),
+``NAME_levelling.csv`` (an imported map's artefacts: size, and whether each was removed), ``NAME.npz`` (the run,
 `planarize.io.results`), ``NAME_history.csv``, ``NAME_fig3-8.png`` (centre
 slice before/after), ``NAME_fig3-9.png`` (RMS and z-range against oxide
 thickness), ``NAME_surfaces.png`` (3-D oxide at the snapshots, Fig 3-11) and
@@ -25,7 +26,9 @@ from labrig.validate import InputError
 
 from .. import render
 from ..anodize import Anodization
+from ..io.heights import load_levelled
 from ..io.results import save_history_csv, save_run
+from ..levelling import applied_corrections, detect, report_rows
 from ..io.scenefile import save_scene
 from ..scene import PlanarizeScene, RunSettings, SurfaceSpec
 from ..metrics import z_range
@@ -56,6 +59,7 @@ def run_scene(scene: PlanarizeScene, out: Path, *, movie: bool = False, progress
     if movie:
         snapshots = sorted({*shown, *np.linspace(0.0, settings.thickness, MOVIE_FRAMES + 1).tolist()})
     with OutputSet(out, stem) as files:  # locks the set before anything is computed
+        found = levelling(scene)
         run = scene.anodize(progress=progress, snapshots=snapshots)
         save_run(run, files.stage(f"{stem}.npz"))
         save_history_csv(run, files.stage(f"{stem}_history.csv"))
@@ -71,6 +75,10 @@ def run_scene(scene: PlanarizeScene, out: Path, *, movie: bool = False, progress
         else:
             files.drop(f"{stem}.mp4")
         save_scene(scene, files.stage(files.name_beside(f"{stem}.toml", source)))
+        if found:
+            save_levelling_csv(found, files.stage(f"{stem}_levelling.csv"))
+        else:
+            files.drop(f"{stem}_levelling.csv")
     for path in files.removed:
         print(f"removed the earlier {path.name}: it showed the run that this one replaces"
               + (" (add --movie to make one)" if path.suffix == ".mp4" else ""))
@@ -80,12 +88,31 @@ def run_scene(scene: PlanarizeScene, out: Path, *, movie: bool = False, progress
                             f"+- {summary['distance_std_nm']:.2g} nm)"),
         *[(f"{surface} {label}", _change(summary, f"{surface}_{key}")) for surface in ("metal", "oxide")
           for key, label in (("rms", "RMS"), ("zrange", "z-range"))],
+        *[(f"levelling: {label}", sentence) for label, sentence in report_rows(found)],
         ("discretization error", _accuracy(summary)),
         ("volume balance error", f"{summary['volume_error']:.2g}"),
         ("wall time", f"{summary['wall_s']:.2f} s ({summary['point_updates_per_s']:,.0f} point updates/s)"),
         ("files", f"{files.path}{os.sep}: " + ", ".join(path.name for path in files.written)),
     ])
     return summary
+
+
+def levelling(scene: PlanarizeScene) -> list:
+    """The artefacts found and removed on a ``"file"`` scene's map as its ``level`` says (empty for the other
+    kinds, and for maps read as they are), `planarize.levelling.Artefact`."""
+    if scene.surface.kind != "file":
+        return []
+    params = dict(scene.surface.params)
+    return load_levelled(params.pop("path"), **params)[1]
+
+
+def save_levelling_csv(found: list, path: Path) -> Path:
+    """The artefacts of a run's map, one row each: what was found, its size and whether it was removed."""
+    rows = ["artefact,correction,size_nm,count,found,removed,detail"]
+    rows += [f"{a.name},{a.correction},{a.size!r},{a.count},{str(a.found).lower()},{str(a.applied).lower()},"
+             f"\"{a.detail}\"" for a in found]
+    Path(path).write_text("\n".join(rows) + "\n", encoding="utf-8")
+    return Path(path)
 
 
 def _method(summary: dict) -> str:
@@ -154,23 +181,38 @@ def summarize(scene: PlanarizeScene, run: Anodization) -> dict:
 
 def import_scene(path: Path, *, thickness: float, step: float | None = None, name: str | None = None,
                  **options) -> PlanarizeScene:
-    """A ``"file"`` scene for the height map at ``path``.
+    """A ``"file"`` scene for the height map at ``path``, its levelling made explicit, and a line on stdout
+    per artefact found or removed (`planarize.levelling`).
 
     ``options`` are `planarize.io.load_heights` arguments (``unit``,
     ``spacing``, ``level``, ...) and run settings (``k_exp``, ``engine``,
-    ...); None values are left out. The default ``step`` is the imported
-    surface's z-range / 100 (one significant digit), about the thesis's
-    choice for its Ta film (0.5 nm steps for a ~50 nm z-range), and at
-    most `planarize.model.MAX_STEP` and a tenth of ``thickness`` (a line on
-    stderr says when it is capped).
+    ...); None values are left out. The scene's ``level`` is the list of
+    corrections that were applied (``"auto"`` resolved), so that the scene
+    file reproduces the same surface. Maps read as they are (``.npy``, text)
+    are checked for artefacts too, and what is found is said, not removed.
+    The default ``step`` is the imported surface's z-range / 100 (one
+    significant digit), about the thesis's choice for its Ta film (0.5 nm
+    steps for a ~50 nm z-range), and at most `planarize.model.MAX_STEP` and
+    a tenth of ``thickness`` (a line on stderr says when it is capped).
     """
     surface_keys = ("unit", "z_unit", "spacing", "level", "channel", "format", "boundary", "max_aspect")
     params = {"path": os.path.abspath(path),  # not resolve(): a symbolic link loop is for load_heights to name
               **{k: v for k, v in options.items() if k in surface_keys and v is not None}}
     run = {k: v for k, v in options.items() if k not in surface_keys and v is not None}
+    SurfaceSpec("file", params)  # the options checked before the file is read
+    surface, found = load_levelled(params["path"], **{k: v for k, v in params.items() if k != "path"})
+    params["level"] = ",".join(applied_corrections(found)) or "none"
+    if not found:  # a map read as it is: say what looks like an artefact
+        found = [a for a in detect(surface) if a.found]
+        for artefact in found:
+            print(f"{Path(path).name}: {artefact.name} {artefact.detail}: found, not removed (--level "
+                  f"{artefact.correction} removes it)")
+    else:
+        for label, sentence in report_rows(found):
+            print(f"{Path(path).name}: {label} {sentence}")
     spec = SurfaceSpec("file", params)
     if step is None:
-        span = z_range(spec.build())
+        span = z_range(surface)
         if span <= 0:
             raise InputError(f"{path}: the surface is flat (z-range 0): pass a step")
         step = float(f"{span / 100:.0e}")

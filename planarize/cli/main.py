@@ -71,8 +71,13 @@ def _add_import(p) -> None:
     p.add_argument("--z-unit", default=None, help="height unit, if different from --unit")
     p.add_argument("--spacing", type=_positive, nargs="+", default=None, metavar="D",
                    help="grid spacing DX [DY] in --unit (.npy and plain matrices)")
-    p.add_argument("--level", action="store_true", help="remove the least-squares plane's tilt")
-    p.add_argument("--channel", default=None, help=".gwy channel number or title (default: first height channel)")
+    p.add_argument("--level", nargs="?", const="plane", default=None, metavar="WHAT",
+                   help="levelling: auto, none, or corrections joined by commas from lines, spikes, scars, plane, "
+                        "poly2, poly3 (default: auto for instruments' files and .gwy, none for others; "
+                        "--level alone: plane)")
+    p.add_argument("--channel", default=None,
+                   help="channel: a .gwy channel's number or title, an instrument file's channel name "
+                        "(default: the height channel)")
     p.add_argument("--step", type=_positive, default=None, metavar="NM",
                    help="metal consumed per oxidation, nm (default: z-range / 100)")
     p.add_argument("--k-exp", type=float_in(1.0, math.inf), default=2.3, metavar="K",
@@ -134,8 +139,9 @@ def _run_named(args: argparse.Namespace) -> int:
 
 
 def _run_import(args: argparse.Namespace) -> int:
-    """Import a height map (.xyz, .csv/.txt/.asc/.dat matrix, .npy, .gwy) and anodize it. Units and
-    sizes stated in the file are used; give the others with --unit and --spacing."""
+    """Import a height map (.xyz, .csv/.txt/.asc/.dat matrix, .npy, .gwy, or an AFM instrument's .spm, .ibw,
+    .jpk, .stp, .top) and anodize it. Units and sizes stated in the file are used; give the others with
+    --unit and --spacing. Artefacts are reported and levelled as --level says."""
     from ..io.scenefile import save_scene
     from .commands import import_scene, run_scene
 
@@ -144,7 +150,7 @@ def _run_import(args: argparse.Namespace) -> int:
     spacing = None if args.spacing is None else (args.spacing[0] if len(args.spacing) == 1 else args.spacing)
     channel = int(args.channel) if args.channel is not None and args.channel.isdigit() else args.channel
     scene = import_scene(args.file, thickness=args.thickness, step=args.step, unit=args.unit, z_unit=args.z_unit,
-                         spacing=spacing, level=args.level or None, channel=channel, k_exp=args.k_exp,
+                         spacing=spacing, level=args.level, channel=channel, k_exp=args.k_exp,
                          distance=args.distance)
     scene = _prepare(scene, args)
     if args.save is not None:

@@ -4,15 +4,18 @@ Choose one with its settings object, ``anodize(..., engine=Fast(tolerance=0.05))
 (``engine="reference"``):
 
 * `Continuum` -- the limit of the thesis's rule as grid and step shrink, with its discretization
-  error estimated (`planarize.engines.continuum`, `planarize.resolution`); the default;
+  error estimated (`planarize.engines.continuum`, `planarize.engines.resolution`); the default;
 * `Fast` -- batched sweeps with incremental updates, compiled (`planarize.engines.fast`);
 * `Reference` -- the thesis's sequential algorithm (`planarize.engines.reference`);
 * `Matlab` -- the reference with the Matlab listings' shortcuts, to measure them.
 
-The parts: `planarize.engines.base` (surfaces, Eq 3.9, volume accounting), `features` (the slot
+Each settings class builds its engine and runs it (the contracts: `planarize.engines.protocol`); `anodize`
+checks a run's arguments and calls the settings' ``run``. The parts: `planarize.engines.base` (surfaces, Eq 3.9,
+volume accounting, `run_sweeps`: the thesis's engines' run), `features` (the slot
 layout), `kernels` (the compiled distance kernel), `sets` (the fast engine's oxide sets),
 `pyramid` (ball searches), `closer` (where raised oxide can come closer); the continuum engine's
-`flow` (the metal's motion) and `offset` (its conformal oxide, surface integrals).
+`flow` (the metal's motion), `offset` (its conformal oxide, surface integrals) and `resolution` (its driver:
+the grid a tolerance asks for, and the error estimate).
 """
 
 from __future__ import annotations

@@ -29,12 +29,13 @@ import math
 
 import numpy as np
 
-from labrig.validate import InputError
+from labrig.validate import InputError, available_memory, within_memory
 
 from ..grid import Grid
 from ..metrics import roughness
 from ..model import Model
 from ..heightfield import Surface, volume_weights
+from ..recording import Anodization, progress_bar, record_run, run_bytes
 from .features import feature_tables
 from .kernels import max_feature_length
 
@@ -167,3 +168,24 @@ class Engine:
         the smallest distance after it.
         """
         raise NotImplementedError
+
+
+def run_sweeps(settings, metal: Surface, oxide: Surface | None, thickness: float, model: Model, rows_at: np.ndarray,
+               shots_at: np.ndarray, *, progress: bool = False, observer=None,
+               max_seconds: float | None = None) -> Anodization:
+    """A run of one of the thesis's engines (``settings``: `planarize.engines.Fast`, `Reference`, `Matlab`) on
+    the grid of ``metal``, the arguments `planarize.anodize`'s, checked: the engine ``settings.build`` makes,
+    advanced sweep by sweep by `planarize.recording.record_run`."""
+    n = metal.z.size
+    within_memory("the run", run_bytes(n, len(rows_at), len(shots_at)), available_memory())
+    sim = settings.build(metal, oxide, model)
+    parameters = {"engine": settings.name, "thickness": thickness, "step": model.step, "k_exp": model.k_exp,
+                  "distance": model.distance, "volume": model.volume, "boundary": metal.boundary,
+                  "shape": list(metal.shape), "spacing": list(metal.spacing), **settings.options()}
+    # no loop without a bound: a run of n points takes ~thickness / step point updates each (measured
+    # 0.2-1.3x), far fewer sweeps; many times that means the engine stopped making progress
+    max_sweeps = 100 * n * (math.ceil(thickness / model.step) + 1) + 1000
+    table, shots, complete = record_run(sim, thickness, rows_at, shots_at, max_sweeps=max_sweeps,
+                                        bar=progress_bar(thickness) if progress else None, observer=observer,
+                                        max_seconds=max_seconds)
+    return Anodization(parameters, table, shots, metal, sim.metal(), sim.oxide(), sim.distances(), complete)

@@ -3,7 +3,7 @@
 The thesis's algorithm (`Reference`, `Fast`) moves grid points by a step at a time; as grid and step
 shrink, it converges to a flow of the metal surface (`planarize.engines.flow`) under a conformal oxide
 (`planarize.engines.offset`). This engine computes that flow on the grid, so that its answer depends
-on the grid only by a small discretization error, which it estimates (`planarize.resolution` runs it
+on the grid only by a small discretization error, which it estimates (`planarize.engines.resolution` runs it
 at two resolutions and states the difference). Choose it with ``anodize(..., engine=Continuum())``
 or ``engine="continuum"``; it is the default.
 
@@ -24,9 +24,11 @@ import numpy as np
 from labrig.params import Param
 from labrig.validate import InputError, count, real
 
-from ..model import Model
 from ..heightfield import Surface, volume_weights
-from .flow import GHOST, area_sums, fill_ghosts, metal_rate
+from ..model import Model
+from ..recording import Anodization
+from .flow import GHOST, fill_ghosts, metal_rate, surface_area
+from .resolution import converge
 from .offset import coat, extremes, surface_moments
 from labrig.threads import available_threads, row_ranges, run_in_threads
 
@@ -98,6 +100,16 @@ class Continuum:
     def options(self) -> dict:
         """The settings as plain data (the fields that differ from the defaults)."""
         return {f.name: getattr(self, f.name) for f in dataclasses.fields(self) if getattr(self, f.name) != f.default}
+
+    def run(self, metal: Surface, oxide, thickness: float, model: Model, rows_at: np.ndarray, shots_at: np.ndarray, *,
+            progress: bool = False, observer=None, max_seconds: float | None = None) -> Anodization:
+        """A run at the resolution ``rtol`` asks for, with its error estimate (`planarize.engines.resolution`);
+        the arguments are `planarize.anodize`'s, checked. The continuum engine starts from bare metal."""
+        if oxide is not None:
+            raise InputError("the continuum engine starts from bare metal: oxide must be None (continue an "
+                             "existing oxide with engine=\"fast\")")
+        return converge(metal, thickness, model, self, rows_at, shots_at, progress=progress, observer=observer,
+                        max_seconds=max_seconds)
 
 
 def resample(surface: Surface, factor: float) -> Surface:
@@ -191,7 +203,8 @@ class ContinuumEngine:
         self.rate = np.empty((nx, ny))
         self.rate2 = np.empty((nx, ny))
         self.row_stiff = np.zeros(nx)
-        self.row_area = np.zeros((2, nx))
+        self.oxide_area = None  # the "conformal" rule's: the oxide's area as last coated, nm^2
+        self.imbalance = 0.0  # and its volume balance then, nm^3 (`balance`)
         self.m0 = self.inner.z.copy()
         self.ox = self.inner.z.copy()
         ii, jj = np.indices((nx, ny))
@@ -295,15 +308,31 @@ class ContinuumEngine:
         """Fill ``out`` with dM/dt; return the largest diffusion coefficient (nm)."""
         fill_ghosts(padded, self.periodic)
         if self.model.rule == "conformal":
-            run_in_threads(lambda part: area_sums(padded, self.dx, self.dy, t, self.row_area[0], self.row_area[1],
-                                                  *part), self.parts)
-            mean_j = self.row_area[0].sum() / self.row_area[1].sum()
-            speed = mean_j / (mean_j + self.k_exp - 1.0)
+            speed = self._conformal_speed(padded)
         else:
             speed = -1.0
         run_in_threads(lambda part: metal_rate(padded, self.dx, self.dy, t, self.k_exp, speed, out, self.row_stiff,
                                                *part), self.parts)
         return float(self.row_stiff.max()) if speed < 0 else 0.0
+
+    def _conformal_speed(self, padded: np.ndarray) -> float:
+        """The ``"conformal"`` rule's one normal speed of the metal, per unit of thickness: the volume balance
+        over the whole surface, ``V = A_ox / (A_ox + (k_exp - 1) A_metal)`` with the areas of the two surfaces
+        themselves (`surface_area`: the oxide as last coated, the metal now), and the imbalance measured at
+        the last coating (`balance`) made up over the next grid spacing of thickness, so that the discrete
+        volumes balance instead of drifting as the grid refines."""
+        metal = surface_area(padded[GHOST:-GHOST, GHOST:-GHOST], self.dx, self.dy, self.periodic, self.weights)
+        if self.oxide_area is None:
+            self.oxide_area = surface_area(self.ox, self.dx, self.dy, self.periodic, self.weights)
+        catch_up = self.imbalance / min(self.dx, self.dy)
+        total = self.oxide_area + (self.k_exp - 1.0) * metal
+        return min(max((self.oxide_area + catch_up) / total, 0.0), 1.0) if total > 0 else 1.0
+
+    def balance(self) -> float:
+        """Oxide volume gained less ``(k_exp - 1)`` times the metal volume lost, nm^3, at the last coating."""
+        lost = float(np.sum(self.weights * (self.m0 - self.metal_z)))
+        gained = float(np.sum(self.weights * (self.ox - self.m0)))
+        return gained - (self.k_exp - 1.0) * lost
 
     def time_step(self, stiffness: float) -> float:
         """The explicit step for the largest diffusion coefficient ``stiffness`` (nm), nm of thickness."""
@@ -342,3 +371,5 @@ class ContinuumEngine:
         self.point_updates += inner.size
         if self.t - self.coated >= min(self.dx, self.dy):
             self._coat(self.t, commit=True)
+            if self.model.rule == "conformal":
+                self.oxide_area, self.imbalance = None, self.balance()

@@ -36,7 +36,7 @@ import numpy as np
 from labrig.params import Param
 from labrig.validate import InputError, count
 
-from .base import Engine
+from .base import Engine, run_sweeps
 from .closer import TreeSearch, below_raised
 from .features import oxide_reach
 from .kernels import closest_sets, search_radii, star_reach, within
@@ -112,6 +112,13 @@ class Fast:
         """The settings as plain data (the fields that differ from the defaults)."""
         return {f.name: getattr(self, f.name) for f in dataclasses.fields(self)
                 if getattr(self, f.name) != f.default}
+
+    def run(self, metal, oxide, thickness, model, rows_at, shots_at, *, progress=False, observer=None,
+            max_seconds=None):
+        """A run on ``metal``'s grid, sweep by sweep (`planarize.engines.base.run_sweeps`); the arguments are
+        `planarize.anodize`'s, checked."""
+        return run_sweeps(self, metal, oxide, thickness, model, rows_at, shots_at, progress=progress,
+                          observer=observer, max_seconds=max_seconds)
 
 
 class FastEngine(Engine):

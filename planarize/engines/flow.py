@@ -14,8 +14,8 @@ oxide is thick) the metal below a crease of the oxide is a circular arc of radiu
 oxide point of its own: ``J = 0`` and it stops (docs/planarize_continuum.md derives all of this).
 
 The ``"conformal"`` rule (`planarize.model.RULES`) moves the whole metal at one speed, the same
-expression with ``J`` replaced by its area mean: the volume balances over the whole surface instead
-of at each point.
+expression with ``J`` replaced by its area mean, the oxide's area over the metal's (`surface_area` of
+each surface): the volume balances over the whole surface instead of at each point.
 
 The metal is a height field ``M`` on a grid; its normal speed ``V`` moves it down by
 ``V sqrt(1 + |grad M|^2)`` per unit of thickness. Slopes are upwind (Godunov's flux for a surface
@@ -142,20 +142,13 @@ def metal_rate(p, dx, dy, t, k_exp, uniform_speed, rate, row_stiff, start, stop)
         row_stiff[i] = stiff
 
 
-@jit
-def area_sums(p, dx, dy, t, num, den, start, stop):
-    """Per row of [start, stop): the metal's surface area (``den``) and the oxide's area above it (``num``,
-    the integral of ``J``), per horizontal area; ``num.sum() / den.sum()`` is the ``"conformal"`` rule's
-    balance, the oxide's area per metal area."""
-    g = GHOST
-    ny = p.shape[1] - 2 * g
-    for i in range(start, stop):
-        a = 0.0
-        b = 0.0
-        for j in range(ny):
-            k1, k2, grad2 = curvatures(p, i + g, j + g, 1.0 / dx, 1.0 / dy)
-            w = math.sqrt(grad2)  # surface area per horizontal area
-            a += w * area_ratio(k1, k2, t)
-            b += w
-        num[i] = a
-        den[i] = b
+def surface_area(z: np.ndarray, dx: float, dy: float, periodic: bool, weights: np.ndarray) -> float:
+    """The area of the height field ``z``, nm^2: each point's horizontal share (``weights``,
+    `planarize.heightfield.volume_weights`) times ``sqrt(1 + |grad z|^2)``, with central differences
+    (one-sided at open edges). The ``"conformal"`` rule balances the oxide's and the metal's areas."""
+    if periodic:
+        gx = (np.roll(z, -1, axis=0) - np.roll(z, 1, axis=0)) / (2.0 * dx)
+        gy = (np.roll(z, -1, axis=1) - np.roll(z, 1, axis=1)) / (2.0 * dy)
+    else:
+        gx, gy = np.gradient(z, dx, dy)
+    return float(np.sum(weights * np.sqrt(1.0 + gx * gx + gy * gy)))

@@ -30,7 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .base import Engine
+from .base import Engine, run_sweeps
 from .kernels import closest_sets
 
 
@@ -207,6 +207,13 @@ class Reference:
 
     def options(self) -> dict:
         return {}
+
+    def run(self, metal, oxide, thickness, model, rows_at, shots_at, *, progress=False, observer=None,
+            max_seconds=None):
+        """A run on ``metal``'s grid, sweep by sweep (`planarize.engines.base.run_sweeps`); the arguments are
+        `planarize.anodize`'s, checked."""
+        return run_sweeps(self, metal, oxide, thickness, model, rows_at, shots_at, progress=progress,
+                          observer=observer, max_seconds=max_seconds)
 
 
 @dataclass(frozen=True)

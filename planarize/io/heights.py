@@ -1,6 +1,8 @@
-"""Measured height maps (AFM) in and out: plain-text XYZ, text matrices, ``.npy`` and Gwyddion ``.gwy``.
+"""Measured height maps (AFM) in and out: plain-text XYZ, text matrices, ``.npy``, Gwyddion ``.gwy`` and the
+files AFM instruments write.
 
-`load_heights` returns a `planarize.Surface` in nm; `save_heights` writes one.
+`load_heights` returns a `planarize.Surface` in nm, levelled (`planarize.levelling`); `load_levelled` also
+returns the artefacts found and removed; `save_heights` writes a surface.
 
 Formats (chosen by suffix, or ``format=``):
 
@@ -21,6 +23,15 @@ Formats (chosen by suffix, or ``format=``):
     "nanodisorder[afm]"``; `planarize.io.gwy`). One channel is imported: by number or
     title, by default the first whose values are lengths. Pixel size and
     units come from the file.
+``"spm"``, ``"ibw"``, ``"jpk"``, ``"stp"``, ``"top"``
+    The files of Bruker, Asylum Research, JPK and WSxM instruments, read with the AFMReader package
+    (``pip install "nanodisorder[afm]"``; `planarize.io.instrument`). Pixel size and heights come from the
+    file; ``channel`` names a channel (default: the height channel).
+
+Levelling: ``level`` (`planarize.levelling`) removes scan-line offsets, spikes, scars, the tilt and a
+polynomial background. Files that instruments and Gwyddion write are levelled ``"auto"`` by default (each
+of line offsets, spikes, scars and tilt that is found is removed; a bow is reported, never removed unless
+asked); the others are read as they are unless ``level`` asks.
 
 Units: whatever the file states is used; ``unit`` (lateral, and heights
 unless ``z_unit`` is given) supplies what it does not, and must agree with
@@ -55,15 +66,20 @@ from labrig.params import Param
 from labrig.validate import InputError, array, real
 
 from ..heightfield import BOUNDARIES, MAX_POINTS, Surface, check_heights
+from ..levelling import Artefact, level_surface, parse_corrections
 from .gwy import read_gwy, write_gwy
+from .instrument import SUFFIXES as INSTRUMENT_SUFFIXES
+from .instrument import read_instrument
 from .limits import checked_file
 from .texttable import is_number, read_table
 from .units import LENGTH_UNITS, MAX_COORDINATE, file_unit, given_spacing, spacing_pair, unit_scales
 
 #: Formats by file suffix.
 SUFFIXES = {".xyz": "xyz", ".csv": "matrix", ".txt": "matrix", ".asc": "matrix", ".dat": "matrix",
-            ".npy": "npy", ".gwy": "gwy"}
-FORMATS = ("xyz", "matrix", "npy", "gwy")
+            ".npy": "npy", ".gwy": "gwy", **INSTRUMENT_SUFFIXES}
+FORMATS = ("xyz", "matrix", "npy", "gwy", *INSTRUMENT_SUFFIXES.values())
+#: Formats that instruments (or Gwyddion) write: their default levelling is ``"auto"`` (the others' is none).
+MEASURED_FORMATS = ("gwy", *INSTRUMENT_SUFFIXES.values())
 #: Header entries of text height maps that are read (Gwyddion's text export; keys in lower case).
 HEADER_KEYS = ("xy units", "value units", "width", "height")
 #: Most elongated pixel (longer / shorter side) accepted by default.
@@ -71,7 +87,8 @@ MAX_PIXEL_ASPECT = 8.0
 #: The options of `load_heights` (`labrig.params.Param`), which it checks with these; a scene file's
 #: ``[surface]`` keys for ``kind = "file"`` (`planarize.scene`).
 LOAD_OPTIONS = {
-    "path": Param("str", high=4096, doc="height map: .xyz, .csv/.txt/.asc/.dat matrix, .npy or .gwy",
+    "path": Param("str", high=4096, doc="height map: .xyz, .csv/.txt/.asc/.dat matrix, .npy, .gwy, or an AFM "
+                  "instrument's .spm, .ibw, .jpk, .stp, .top",
                   rule="relative to the scene file"),
     "unit": Param("str", choices=tuple(LENGTH_UNITS), optional=True,
                   doc="unit of lateral sizes (and heights), for files that do not state it", unset="the file's"),
@@ -81,8 +98,12 @@ LOAD_OPTIONS = {
                      parts=(Param("float", 0.0, low_open=True, doc="a number"),
                             Param("float2", 0.0, doc="[dx, dy]", rule="each > 0")),
                      unset="the file's"),
-    "level": Param("bool", doc="remove the least-squares plane's tilt"),
-    "channel": Param("either", optional=True, doc=".gwy channel",
+    "level": Param("either", optional=True, doc="levelling (planarize.levelling)",
+                   parts=(Param("bool", doc="true: the plane's tilt only"),
+                          Param("str", high=200, doc="\"auto\", \"none\" or corrections joined by commas",
+                                rule="corrections: lines, spikes, scars, plane, poly2, poly3")),
+                   unset="\"auto\" for instruments' files and .gwy, none for the others"),
+    "channel": Param("either", optional=True, doc="channel of a .gwy (number or title) or instrument file (name)",
                      parts=(Param("int", 0, doc="a channel number"), Param("str", high=1000, doc="a channel title")),
                      unset="the first height channel"),
     "format": Param("str", choices=FORMATS, optional=True, doc="format", unset="from the suffix"),
@@ -118,9 +139,9 @@ def level_plane(surface: Surface) -> Surface:
 # -- reading -----------------------------------------------------------------------------------
 
 def load_heights(path, *, unit: str | None = None, z_unit: str | None = None, spacing=None,
-                 level: bool = False, channel: int | str | None = None, format: str | None = None,
+                 level=None, channel: int | str | None = None, format: str | None = None,
                  boundary: str = "open", max_aspect: float = MAX_PIXEL_ASPECT) -> Surface:
-    """Read a measured height map as a `Surface` in nm.
+    """Read a measured height map as a `Surface` in nm, levelled as ``level`` asks.
 
     Parameters
     ----------
@@ -134,12 +155,16 @@ def load_heights(path, *, unit: str | None = None, z_unit: str | None = None, sp
     spacing : float or (float, float), optional
         Grid spacing ``dx`` (between rows of a plain matrix) and ``dy``, in
         ``unit``; required for ``.npy`` and header-less matrices, not used otherwise.
-    level : bool
-        Remove the least-squares plane's tilt (`level_plane`).
+    level : str, sequence of str or bool, optional
+        The corrections of `planarize.levelling` (``"lines,spikes,scars,plane"``), ``"auto"`` (those of
+        lines, spikes, scars and plane whose artefact is found) or ``"none"``; True means ``"plane"``.
+        Default: ``"auto"`` for the files instruments and Gwyddion write (`MEASURED_FORMATS`), none for
+        the others. `load_levelled` also returns what was found and removed.
     channel : int or str, optional
-        ``.gwy`` only: channel number or title (default: the first height channel).
-    format : {"xyz", "matrix", "npy", "gwy"}, optional
-        Overrides the suffix.
+        ``.gwy``: channel number or title (default: the first height channel); an instrument's file: the
+        channel's name (default: its height channel, `planarize.io.instrument.HEIGHT_CHANNELS`).
+    format : str, optional
+        One of `FORMATS`; overrides the suffix.
     boundary : {"open", "periodic"}
         Boundary of the returned surface.
     max_aspect : float
@@ -153,8 +178,15 @@ def load_heights(path, *, unit: str | None = None, z_unit: str | None = None, sp
         Naming the file and the problem: unreadable or unparsable file, a
         non-2-D or too small grid, NaN/inf heights, an irregular XYZ grid,
         missing units or spacing, a channel that is not a height or does not
-        exist (listing the available ones), too elongated pixels.
+        exist (listing the available ones), too elongated pixels, an unknown correction.
     """
+    return load_levelled(path, unit=unit, z_unit=z_unit, spacing=spacing, level=level, channel=channel,
+                         format=format, boundary=boundary, max_aspect=max_aspect)[0]
+
+
+def load_levelled(path, *, level=None, format: str | None = None, **options) -> tuple[Surface, list[Artefact]]:
+    """`load_heights` (the same arguments), and the artefacts `planarize.levelling.level_surface` found on the
+    map as read, each with its size and whether it was removed."""
     if not isinstance(path, (str, os.PathLike)):
         raise InputError(f"path must be a file name (str or Path), got {type(path).__name__}")
     path = Path(path)
@@ -165,18 +197,24 @@ def load_heights(path, *, unit: str | None = None, z_unit: str | None = None, sp
                              f"{', '.join(SUFFIXES)} or pass format= ({', '.join(FORMATS)})")
     else:
         LOAD_OPTIONS["format"].check("format", format)
+    unit, z_unit, spacing, channel = (options.get(k) for k in ("unit", "z_unit", "spacing", "channel"))
+    boundary, max_aspect = options.get("boundary", "open"), options.get("max_aspect", MAX_PIXEL_ASPECT)
     try:
         _check_options(unit, z_unit, spacing, level, channel, boundary, max_aspect)
+        corrections = parse_corrections(level, "auto" if format in MEASURED_FORMATS else "none")
         checked_file(path, format)  # a regular file within the format's size cap: nothing read yet
-        reader = {"xyz": _read_xyz, "matrix": _read_matrix, "npy": _read_npy, "gwy": read_gwy}[format]
-        z, (dx, dy), xy_scale, z_scale = reader(path, unit, z_unit, spacing, channel)
+        if format in INSTRUMENT_SUFFIXES.values():
+            z, (dx, dy), xy_scale, z_scale = read_instrument(path, format, unit, z_unit, spacing, channel)
+        else:
+            reader = {"xyz": _read_xyz, "matrix": _read_matrix, "npy": _read_npy, "gwy": read_gwy}[format]
+            z, (dx, dy), xy_scale, z_scale = reader(path, unit, z_unit, spacing, channel)
         z = check_heights(z, "heights") * z_scale
         dx, dy = dx * xy_scale, dy * xy_scale
         check_aspect(dx, dy, max_aspect)
         surface = Surface(z, (dx, dy), boundary)
     except ValueError as exc:
         raise InputError(f"{path}: {exc}") from None
-    return level_plane(surface) if level else surface
+    return level_surface(surface, corrections)
 
 
 def _check_options(unit, z_unit, spacing, level, channel, boundary, max_aspect) -> None:

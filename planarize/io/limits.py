@@ -25,13 +25,18 @@ NPY_HEADER_BYTES = 1 << 16
 #: ``gwyfile`` package reads the whole file and holds about five copies of it while decoding (measured
 #: 5.6x for one channel), so the cap is what bounds the memory of a ``.gwy`` import (~1.5 GB at the cap).
 GWY_OTHER_BYTES = 8 * MAX_POINTS + (1 << 20)
+#: Channels an instrument's file (`planarize.io.instrument`) may hold beside the one read: an AFM records a
+#: handful at once (height, error, phase, ..., each trace and retrace); AFMReader reads the whole file.
+INSTRUMENT_CHANNELS = 16
 #: Largest file read, bytes, by format: a matrix has one number per point, an XYZ file three, a ``.npy``
-#: array at most 16 bytes per value (a long double), a ``.gwy`` file 8 per value of its height channel.
+#: array at most 16 bytes per value (a long double), a ``.gwy`` file 8 per value of its height channel, an
+#: instrument's file 8 per value of `INSTRUMENT_CHANNELS` channels.
 MAX_FILE_BYTES = {
     "matrix": TEXT_BYTES_PER_VALUE * MAX_POINTS,
     "xyz": 3 * TEXT_BYTES_PER_VALUE * MAX_POINTS,
     "npy": NPY_HEADER_BYTES + 16 * MAX_POINTS,
     "gwy": 8 * MAX_POINTS + GWY_OTHER_BYTES,
+    **dict.fromkeys(("spm", "ibw", "jpk", "stp", "top"), 8 * INSTRUMENT_CHANNELS * MAX_POINTS + (1 << 20)),
 }
 
 

@@ -1,0 +1,94 @@
+"""Real AFM instrument files (`planarize.io.instrument`, through AFMReader): read with the units their headers
+state, the same scan alike in two formats, levelled, imported and refused in one line.
+
+The files are the public sample scans of `benchmarks/afm_real.toml`, fetched by ``python -m benchmarks.afm_files``
+(CI fetches them before the tests); without them, or without AFMReader, these tests are skipped.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from benchmarks.afm_files import manifest, present
+from labrig.validate import InputError
+from planarize.io import load_heights
+from planarize.io.heights import load_levelled
+
+pytest.importorskip("AFMReader")
+MAPS = present()
+ENTRIES = {e["file"]: e for e in manifest()["map"]}
+pytestmark = pytest.mark.skipif(len(MAPS) < len(ENTRIES), reason="the real AFM maps are not fetched "
+                                "(python -m benchmarks.afm_files)")
+
+
+@pytest.mark.parametrize("name", [n for n, e in ENTRIES.items() if "scan_nm" in e])
+def test_each_instrument_file_is_read_with_the_pixel_size_its_header_states(name):
+    surface = load_heights(MAPS.get(name, name), level="none")
+    nx = surface.shape[0]
+    assert surface.spacing[0] == pytest.approx(ENTRIES[name]["scan_nm"] / nx, rel=1e-6)
+    assert surface.spacing[0] == surface.spacing[1]
+
+
+@pytest.mark.parametrize("name", [n for n, e in ENTRIES.items() if "same_scan" in e])
+def test_a_top_file_reads_as_the_stp_file_of_the_same_scan(name):
+    """AFMReader 0.0.7 alone reads a .top file's height span as its integer part (12 % short on
+    sample_1_um_scale); the reader rescales to the header's span."""
+    top = load_heights(MAPS.get(name, name), level="none").z
+    stp = load_heights(MAPS.get(ENTRIES[name]["same_scan"], name), level="none").z
+    span = np.ptp(stp)
+    np.testing.assert_allclose(top - top.min(), stp - stp.min(), atol=2e-3 * span)
+
+
+def test_the_gwy_file_reads_alike_through_gwyfile_and_through_afmreader():
+    """Two independent readers of one file: ours (gwyfile) and AFMReader's own .gwy loader."""
+    from AFMReader import gwy
+
+    ours = load_heights(MAPS.get("sample_0.gwy", ""), level="none")
+    image, pixel = gwy.load_gwy(MAPS.get("sample_0.gwy", ""), "ZSensor")[:2]
+    assert ours.spacing[0] == pytest.approx(pixel, rel=1e-9)
+    np.testing.assert_allclose(ours.z, np.asarray(image).T, rtol=1e-12)
+
+
+@pytest.mark.parametrize("name", ["sample_0.spm", "sample_0.ibw", "sample_0.jpk", "sample_0.stp"])
+def test_auto_levelling_removes_what_it_finds_and_leaves_nothing_of_it(name):
+    surface, artefacts = load_levelled(MAPS.get(name, name))
+    by_name = {a.name: a for a in artefacts}
+    assert by_name["line offsets"].applied and by_name["tilt"].applied  # raw scans: both always found
+    again = {a.name: a for a in load_levelled(MAPS.get(name, name), level="auto")[1]}
+    assert again["line offsets"].size == by_name["line offsets"].size  # (the same file, the same levelling)
+    from planarize.levelling import detect
+
+    after = {a.name: a for a in detect(surface)}
+    assert not after["line offsets"].found and not after["tilt"].found
+
+
+def test_a_missing_channel_is_refused_in_one_line_listing_the_files_channels():
+    with pytest.raises(InputError, match=r"no channel 'Nope'.*HeightRetrace") as error:
+        load_heights(MAPS.get("sample_0.ibw", ""), channel="Nope")
+    assert "\n" not in str(error.value)
+    with pytest.raises(InputError, match="holds one channel"):
+        load_heights(MAPS.get("sample_0.stp", ""), channel="Height")
+
+
+def test_import_reports_the_artefacts_and_saves_the_levelling_it_applied(tmp_path):
+    scene_file = tmp_path / "stp.toml"
+    done = subprocess.run([sys.executable, "-m", "planarize", "import", str(MAPS.get("sample_0.stp", "")),
+                           "--thickness", "2", "--save", str(scene_file)], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    assert "line offsets RMS" in done.stdout and "removed" in done.stdout
+    from planarize.io.scenefile import load_scene
+
+    scene = load_scene(scene_file)
+    level = scene.surface.params["level"]
+    assert level.split(",")[0] == "lines" and "plane" in level
+    np.testing.assert_array_equal(scene.build_surface().z, load_heights(MAPS.get("sample_0.stp", "")).z)
+
+
+def test_without_afmreader_the_reader_names_the_extra(monkeypatch):
+    monkeypatch.setitem(sys.modules, "AFMReader", None)
+    with pytest.raises(InputError, match=r'needs the AFMReader package: pip install "nanodisorder\[afm\]"'):
+        load_heights(MAPS.get("sample_0.jpk", ""))
