@@ -6,12 +6,18 @@ Bruker scan saved by Gwyddion), fetched by ``python -m benchmarks.afm_files``; n
 
 * **Reading and levelling.** Each file read by `planarize.io.load_levelled` at its defaults (``"auto"``): its
   size and pixel, the artefacts found (and removed), the time to read and level it.
-* **Stated against true error.** The continuum engine at its defaults (``rtol`` 0.02) on the centre ``CROP`` x
-  ``CROP`` pixels of each levelled map (a crop: the refinements to 8x of a whole map would take hours), grown to
-  the crop's z-range in oxide thickness: the error it states beside its true error. The true error is against
-  the converged answer: the 16x run corrected by Richardson's rule at the order observed over 4x, 8x and 16x (as
-  `benchmarks.planarize_continuum` does on the thesis's surfaces). The goal of issue 63: stated within a factor
-  2 of the true error.
+* **Stated against true error.** The continuum engine at its defaults (``rtol`` 0.02) on ``CROP`` x ``CROP``
+  pixels of each levelled map (a crop: the refinements to 16x of a whole map would take days), grown to the
+  crop's z-range in oxide thickness: the error it states beside its true error. Two crops per map, chosen
+  before the estimator was changed: the **development half**, the centre crop, on which the estimator was
+  examined, and the **test half**, the crop centred at a quarter of the map's width and height, reported here
+  (its per-level numbers were printed once beside the development half's while the two candidate estimators
+  were compared; the observed-order range the engine uses, [0.7, 3], was fixed before either was run). The
+  true error is against the converged answer: the finest run corrected by Richardson's rule at the order
+  observed over the three finest (4x, 8x and 16x; 2x, 4x and 8x where the 8x run alone took longer than
+  `FINEST_AFTER_S`), as `benchmarks.planarize_continuum` does on the thesis's surfaces. The goal of issue 63:
+  stated within a factor 2 of the true error, and where the run is not in its asymptotic regime, no number
+  stated.
 
 Run: ``python -m benchmarks.afm_real [--quick]`` (the maps must be fetched first).
 """
@@ -37,15 +43,21 @@ MEASURED_CODE = ("planarize",)
 #: twice the finest the default run may choose, `planarize.engines.Continuum`'s ``max_refine`` of 8), and
 #: the default run's settings; quick: a smaller crop, and the default run capped at 2x.
 CROP, FACTORS, SETTINGS = 32, (0.5, 1, 2, 4, 8, 16), Continuum()
+#: The converged answer leaves out the 16x run where the 8x run took longer than this, s (16x would take ~40x as
+#: long: up to half an hour for one crop).
+FINEST_AFTER_S = 10.0
+#: The two halves: where each crop is centred, as fractions of the map's rows and columns.
+HALVES = {"development": (0.5, 0.5), "test": (0.25, 0.25)}
 QUICK_CROP, QUICK_FACTORS, QUICK_SETTINGS = 16, (0.5, 1, 2, 4), Continuum(max_refine=2)
 #: The maps run through the engine (one per scan: the .top files repeat the .stp files' scans).
 ENGINE_MAPS = ("sample_0.spm", "sample_0.ibw", "sample_0.jpk", "sample_0.gwy", "sample_0.stp",
                "sample_1_um_scale.stp")
 
 
-def centre_crop(surface: Surface, n: int) -> Surface:
-    """The centre ``n`` x ``n`` points of ``surface``."""
-    i0, j0 = (surface.shape[0] - n) // 2, (surface.shape[1] - n) // 2
+def crop(surface: Surface, n: int, centre: tuple[float, float] = (0.5, 0.5)) -> Surface:
+    """``n`` x ``n`` points of ``surface`` centred at the fractions ``centre`` of its rows and columns."""
+    i0 = min(max(int(surface.shape[0] * centre[0]) - n // 2, 0), surface.shape[0] - n)
+    j0 = min(max(int(surface.shape[1] * centre[1]) - n // 2, 0), surface.shape[1] - n)
     return Surface(surface.z[i0:i0 + n, j0:j0 + n], surface.spacing)
 
 
@@ -71,10 +83,10 @@ def reading(maps: dict) -> tuple[Table, dict]:
     return table, levelled
 
 
-def errors(levelled: dict, crop: int, factors, settings: Continuum) -> tuple[Table, list]:
-    """The default run's stated and true error on each map's centre crop."""
-    table = Table(f"Stated against true error at the default (rtol 0.02), centre {crop} x {crop} of each levelled "
-                  "map: largest over the recorded thicknesses (%)",
+def errors(levelled: dict, size: int, factors, settings: Continuum, half: str) -> tuple[Table, list]:
+    """The default run's stated and true error on one crop of each map (``half``: `HALVES`)."""
+    table = Table(f"{half.capitalize()} half: stated against true error at the default (rtol 0.02), {size} x {size} "
+                  f"crop centred at {HALVES[half][0]:g} of each levelled map: largest over the recorded thicknesses (%)",
                   ["file", "thickness (nm)", "refinement chosen", "wall (s)",
                    *[f"{c.replace('_nm', '').replace('_', ' ')} {what}" for c in ESTIMATED
                      for what in ("stated", "true", "ratio")]])
@@ -82,12 +94,29 @@ def errors(levelled: dict, crop: int, factors, settings: Continuum) -> tuple[Tab
     for name in ENGINE_MAPS:
         if name not in levelled:
             continue
-        surface = centre_crop(levelled[name], crop)
+        surface = crop(levelled[name], size, HALVES[half])
         thickness = float(f"{z_range(surface):.1g}")
-        _, default, _ = case_results(name, lambda s=surface: s, thickness, factors, settings)
-        table.rows.append([default[0], thickness, *default[1:]])
-        ratios += default[5::3]
+        rows, default, _ = case_results(name, lambda s=surface: s, thickness, factors, settings, FINEST_AFTER_S)
+        finest = 2 * max(row[1] for row in rows)
+        if default[1] >= finest:  # the converged answer comes from the run's own grids: no independent truth
+            cells = [x if k % 3 == 0 else "(truth from the run's own grids)" for k, x in enumerate(default[3:])]
+        else:
+            cells = ["not asymptotic" if np.isnan(x) else x for x in default[3:]]
+            ratios += default[5::3]
+        table.rows.append([default[0], thickness, *default[1:3], *cells])
     return table, ratios
+
+
+def verdict(ratios: list) -> str:
+    """How the stated errors of one half compare with the true ones."""
+    ratios = np.asarray(ratios, dtype=float)
+    stated = ratios[np.isfinite(ratios)]
+    within = int(((stated >= 0.5) & (stated <= 2.0)).sum())
+    text = (f"stated {len(stated)} of {len(ratios)} with an independent truth (the others: not asymptotic, no "
+            f"number); within 2x: {within} of {len(stated)}")
+    if len(stated):
+        text += f"; ratios {stated.min():.2g}-{stated.max():.2g}, under 0.5: {int((stated < 0.5).sum())}"
+    return text
 
 
 def run(quick: bool = False) -> list:
@@ -95,21 +124,26 @@ def run(quick: bool = False) -> list:
     if not maps:
         return [Note("The real AFM maps are not fetched: run `python -m benchmarks.afm_files` first.")]
     read, levelled = reading(maps)
-    crop, factors, settings = (QUICK_CROP, QUICK_FACTORS, QUICK_SETTINGS) if quick else (CROP, FACTORS, SETTINGS)
+    size, factors, settings = (QUICK_CROP, QUICK_FACTORS, QUICK_SETTINGS) if quick else (CROP, FACTORS, SETTINGS)
     if quick:
         levelled = {k: v for k, v in levelled.items() if k == "sample_0.jpk"}
-    stated, ratios = errors(levelled, crop, factors, settings)
-    within = sum(0.5 <= r <= 2.0 for r in ratios)
-    ratios = np.asarray(ratios)
+    tables, verdicts = [], []
+    for half in HALVES if not quick else ("development",):
+        table, ratios = errors(levelled, size, factors, settings, half)
+        tables.append(table)
+        verdicts.append(f"{half}: {verdict(ratios)}")
     return [
         Headline(f"planarize on real AFM files: {len(read.rows)} files read and levelled", "see table",
-                 f"stated / true error {ratios.min():.2g}-{ratios.max():.2g}; within 2x: {within} of {len(ratios)}"),
-        read, stated,
+                 "; ".join(verdicts)),
+        read, *tables,
         Note("Each engine run is on a crop, grown to the crop's z-range of oxide. The stated error is the run's own "
-             "estimate (history columns `*_error_nm`, from its companion at half the resolution, order 1.5 assumed); "
-             "the true error its difference from the converged answer (16x, Richardson at the observed order). "
-             f"{int((np.asarray(ratios) < 1).sum())} of {len(ratios)} ratios are under 1: these scans hold "
-             "pixel-scale noise, whose z-range converges slowly and unevenly as the grid refines."),
+             "(history columns `*_error_nm`: Richardson's estimate at the order observed over its grid and the two "
+             "coarser ones, where that order lies in [0.7, 3]; otherwise the run states no number and says the "
+             "quantity is not asymptotic); the true error its difference from the converged answer. These scans "
+             "hold pixel-scale noise, whose z-range converges slowly and unevenly as the grid refines: that is "
+             "where the runs state no number. A crop whose default run chose the finest grid the converged answer "
+             "was computed from (8x, where its 8x run took longer than FINEST_AFTER_S and 16x was left out) has no "
+             "independent truth: its ratios are shown as such and not counted. " + "; ".join(verdicts) + "."),
     ]
 
 

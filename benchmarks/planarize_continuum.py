@@ -19,6 +19,7 @@ Run: ``python -m benchmarks.planarize_continuum [--quick]``.
 
 from __future__ import annotations
 
+import math
 import multiprocessing
 import resource
 import tempfile
@@ -92,14 +93,21 @@ def relative(values, truth) -> np.ndarray:
     return np.abs(np.asarray(values) - truth) / np.maximum(np.abs(truth), FLOOR * abs(truth[0]))
 
 
-def case_results(name: str, builder, thickness: float, factors, settings: Continuum = CONTINUUM) -> tuple[list, list, dict]:
+def case_results(name: str, builder, thickness: float, factors, settings: Continuum = CONTINUUM,
+                 finest_after_s: float = np.inf) -> tuple[list, list, dict]:
     """The convergence rows of one case, its default run's stated and true errors, and the observed orders; the
-    default run is ``settings`` (the converged answer comes from the finest of ``factors``)."""
+    default run is ``settings`` (the converged answer comes from the three finest of ``factors``; the finest is
+    left out when the one before it took longer than ``finest_after_s``). A stated error the run does not give
+    (its quantity not asymptotic: `planarize.engines.resolution`) is NaN, its ratio too."""
     surface = builder()
-    levels = {f: level(surface, thickness, f) for f in factors}
+    levels = {}
+    for f in factors:
+        if f == factors[-1] and levels and levels[factors[-2]][1] > finest_after_s:
+            break
+        levels[f] = level(surface, thickness, f)
     truth, orders = converged(levels)
     rows = []
-    for f in factors[:-1]:
+    for f in sorted(levels)[:-1]:
         table, wall, steps, shape = levels[f]
         errors = {c: relative(table[c], truth[c]).max() for c in ESTIMATED}
         rows.append([name, f, shape, steps, wall, 100 * errors["metal_rms_nm"], 100 * errors["oxide_rms_nm"],
@@ -110,7 +118,8 @@ def case_results(name: str, builder, thickness: float, factors, settings: Contin
     stated, true = {}, {}
     for c in ESTIMATED:
         scale = np.maximum(np.abs(truth[c]), FLOOR * abs(truth[c][0]))
-        stated[c] = float(np.max(run.history[c.replace("_nm", "_error_nm")] / scale))
+        error = run.history[c.replace("_nm", "_error_nm")] / scale
+        stated[c] = math.nan if np.isnan(error).any() else float(np.max(error))
         true[c] = float(relative(run.history[c], truth[c]).max())
     default = [name, run.parameters["refine"], wall, *[x for c in ESTIMATED for x in
                                                        (100 * stated[c], 100 * true[c], stated[c] / true[c])]]

@@ -158,3 +158,12 @@ def progress_bar(total: float, *, unit: str, desc: str, show: bool = True, **opt
         Other tqdm options (``leave``, ``bar_format``, ``initial``, ...).
     """
     return CompileAwareBar(total=total, unit=unit, desc=desc, disable=not show, **options)
+
+
+def duration(seconds: float) -> str:
+    """``seconds`` as a person reads a duration: "45 s", "12 min", "3.5 h", "2.1 days"."""
+    if seconds < 90:
+        return f"{seconds:.2g} s" if seconds < 10 else f"{seconds:.0f} s"
+    if seconds < 5400:
+        return f"{seconds / 60:.0f} min"
+    return f"{seconds / 3600:.1f} h" if seconds < 48 * 3600 else f"{seconds / 86400:.1f} days"

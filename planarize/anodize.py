@@ -95,8 +95,8 @@ def anodize(metal: Surface, thickness: float, model: Model | None = None, engine
     engine : str or engine settings
         ``"continuum"`` (default; `planarize.engines.Continuum` for its settings: ``rtol``, the
         discretization error aimed at): the limit of the thesis's rule as grid and step shrink, computed
-        at two resolutions so that every run states its discretization error (history columns
-        ``*_error_nm``, `planarize.engines.resolution`). ``"fast"`` (`planarize.engines.Fast`: batch tolerance,
+        at three resolutions or more so that every run states its discretization error, or that it is not yet
+        in its asymptotic regime (history columns ``*_error_nm``, `planarize.engines.resolution`). ``"fast"`` (`planarize.engines.Fast`: batch tolerance,
         interacting candidates, threads), ``"reference"`` (the thesis's sequential algorithm) or
         ``"matlab"`` (the reference with the Matlab listings' shortcuts): the thesis's discrete algorithm
         at the given grid and ``model.step``.

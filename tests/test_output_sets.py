@@ -586,7 +586,7 @@ def test_planarize_interrupted_mid_run_says_so_on_its_own_line(tmp_path, capsys,
     monkeypatch.setattr(ContinuumEngine, "advance", interrupted)
     assert planarize_main(["scene", "hill", "--out", str(tmp_path / "out")]) == 130
     err = capsys.readouterr().err
-    assert err.endswith("\nplanarize: interrupted\n") and "oxide, grid 1x:" in err  # the bar ended its line first
+    assert err.endswith("\nplanarize: interrupted\n") and "oxide, grid 1/4 (error estimate):" in err  # the bar ended its line first
     assert not (tmp_path / "out").exists()
 
 

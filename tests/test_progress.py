@@ -77,3 +77,10 @@ def test_stage_lines_are_quiet_for_a_short_run_then_one_per_stage_with_the_compi
     assert "compiling the numba kernels, first run only" in said[0] and "compiling" not in said[1]
     fresh_kernel()(1)  # after the lines closed: not heard
     assert lines.compile_seconds > 0 and len(out.getvalue().splitlines()) == 2
+
+
+def test_a_duration_reads_as_a_person_says_it():
+    from labrig.progress import duration
+
+    assert [duration(s) for s in (0.5, 45, 89.6, 600, 5399, 12600, 3 * 86400)] == \
+        ["0.5 s", "45 s", "90 s", "10 min", "90 min", "3.5 h", "3.0 days"]

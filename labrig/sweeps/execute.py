@@ -187,16 +187,10 @@ def describe_plan(sweep: Sweep, runs: list, todo: int, capacity: int, estimate) 
             f"on {capacity} worker{'s' if capacity > 1 else ''}")
     if todo and estimate is not None:
         seconds = sum(estimate(run.params) for run in runs) * todo / len(runs) / capacity
-        line += f", about {_duration(seconds)} (a rough estimate; the progress bar's ETA follows the runs)"
+        from ..progress import duration  # (the progress module imports numba's event hooks: only when needed)
+
+        line += f", about {duration(seconds)} (a rough estimate; the progress bar's ETA follows the runs)"
     return line
-
-
-def _duration(seconds: float) -> str:
-    if seconds < 90:
-        return f"{seconds:.0f} s"
-    if seconds < 5400:
-        return f"{seconds / 60:.0f} min"
-    return f"{seconds / 3600:.1f} h" if seconds < 48 * 3600 else f"{seconds / 86400:.1f} days"
 
 
 def run_sweep(sweep: Sweep, run_one, out: str | os.PathLike, *, workers: int | None = None, scheduler=None,

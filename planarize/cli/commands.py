@@ -33,6 +33,7 @@ from ..io.scenefile import save_scene
 from ..scene import PlanarizeScene, RunSettings, SurfaceSpec
 from ..metrics import z_range
 from ..model import MAX_STEP
+from ..engines.resolution import ORDER_HIGH, ORDER_LOW
 
 #: Movie frames (oxide thicknesses evenly spaced from 0 to the target, plus the scene's snapshots).
 MOVIE_FRAMES = 40
@@ -132,14 +133,20 @@ def _accuracy(summary: dict) -> str:
     error = summary.get("estimated_error")
     if summary["engine"] != "continuum":
         return "not estimated (the thesis's algorithm: compare with engine continuum, or refine the grid)"
+    cost = f"; the next finer grid, {summary['finer_grid']}" if summary.get("finer_grid") else ""
+    if summary.get("not_asymptotic"):
+        return (f"not stated: {summary['not_asymptotic']} not yet converging at a steady order at the finest grid "
+                f"tried, {summary['resolution']} (observed order outside [{ORDER_LOW:g}, {ORDER_HIGH:g}]); its last "
+                f"refinement changed RMS and z-range by up to {100 * summary['last_change']:.3g} %{cost}")
     if error is None or not math.isfinite(error):
         return "not estimated (the run stopped before its error estimate)"
-    text = f"at most {100 * error:.2g} % of RMS and z-range (estimated from a run at half the resolution)"
+    text = (f"at most {100 * error:.2g} % of RMS and z-range (Richardson's estimate at the order observed over runs at "
+            "1/4, 1/2 and 1 times the resolution)")
     if summary["rtol_met"]:
         return f"{text}; meets rtol {100 * summary['rtol']:.2g} %"
     return (f"{text}, volume balance off by up to {100 * summary['volume_error_largest']:.2g} %; does NOT meet rtol "
-            f"{100 * summary['rtol']:.2g} % at the finest grid tried: a finer one (Continuum(max_refine=...)) or "
-            "engine fast")
+            f"{100 * summary['rtol']:.2g} % at the finest grid tried"
+            + (cost or ": a finer one (Continuum(max_refine=...)) or engine fast"))
 
 
 def _panels(run: Anodization, targets) -> Anodization:
@@ -165,6 +172,10 @@ def summarize(scene: PlanarizeScene, run: Anodization) -> dict:
         continuum = {"rule": p["rule"], "rtol": p["rtol"], "estimated_error": p["estimated_error"],
                      "rtol_met": p["rtol_met"], "volume_error_largest": p["volume_error"],
                      "resolution": "its own grid" if factor == 1 else f"{factor:g}x its grid",
+                     "asymptotic": p["asymptotic"], "last_change": p["change"],
+                     "not_asymptotic": ", ".join(f"{c.replace('_nm', '').replace('_', ' ')} (order {p['orders'][c]:.2g})"
+                                                 for c in p["not_asymptotic"]),
+                     "finer_grid": p["finer"],
                      **{f"{s}_{m}_error_nm": float(h[f"{s}_{m}_error_nm"][-1]) for s in ("metal", "oxide")
                         for m in ("rms", "zrange")}}
     return {

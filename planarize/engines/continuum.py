@@ -4,7 +4,7 @@ The thesis's algorithm (`Reference`, `Fast`) moves grid points by a step at a ti
 shrink, it converges to a flow of the metal surface (`planarize.engines.flow`) under a conformal oxide
 (`planarize.engines.offset`). This engine computes that flow on the grid, so that its answer depends
 on the grid only by a small discretization error, which it estimates (`planarize.engines.resolution` runs it
-at two resolutions and states the difference). Choose it with ``anodize(..., engine=Continuum())``
+at three resolutions and states Richardson's estimate at the order it observes, or that it observes none). Choose it with ``anodize(..., engine=Continuum())``
 or ``engine="continuum"``; it is the default.
 
 The model's ``k_exp`` and ``rule`` are the physics; its ``step``, ``distance`` and ``volume`` belong
@@ -52,10 +52,11 @@ class Continuum:
         Relative discretization error of the RMS and z-range (metal and oxide, at every recorded
         thickness) that a run aims at, in [1e-4, 1]: the run refines its grid (internally, by
         factors of 2 from the surface's own) until its stated error estimate meets it, or until
-        ``max_refine``. Default 0.02.
+        ``max_refine``, or until a finer grid would cost too much (`planarize.engines.resolution`).
+        Default 0.02.
     refine : int, optional
         Compute at this refinement of the surface's grid instead (a power of 2 up to `MAX_REFINE`),
-        with the error still estimated from the next coarser resolution.
+        with the error still estimated from the two coarser resolutions.
     max_refine : int
         Largest refinement ``rtol`` may choose (a power of 2 up to `MAX_REFINE`; default 8).
     stability : float

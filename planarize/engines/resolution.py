@@ -1,21 +1,40 @@
-"""The continuum engine's driver: how fine a run must be, and how far from the converged answer it is.
+"""The continuum engine's driver: how fine a run must be, how far from the converged answer it is, and what a
+finer grid would cost.
 
-A continuum run (`planarize.engines.Continuum`) is computed at two resolutions: the grid it reports
-and the one twice as coarse. Their difference is Richardson's estimate of the reported run's
-discretization error::
+A continuum run (`planarize.engines.Continuum`) is computed on a ladder of grids, each twice as fine as
+the one before: a quarter and a half of the reported grid's resolution (its companions), the reported
+grid, and, while the error asks for it, grids refined 2x, 4x ... up to ``max_refine``. From the three
+finest grids run so far (spacings 4h, 2h and h) come, for each of the RMS and z-range of both surfaces,
 
-    error = |R(h) - R(2h)| / (2^p - 1)
+* the **observed order** of convergence, ``p = log2(|R(2h) - R(4h)| / |R(h) - R(2h)|)`` (norms over the
+  recorded thicknesses), and
+* where ``p`` lies in [`ORDER_LOW`, `ORDER_HIGH`], the **asymptotic regime** (each refinement shrinks the
+  change by a steady factor), Richardson's estimate of the finest grid's error at every recorded
+  thickness, ``|R(h) - R(2h)| / (2^p - 1)`` (history columns ``*_error_nm``).
 
-for each of the RMS and z-range of both surfaces at every recorded thickness (history columns
-``*_error_nm``). The order used, `ORDER` = 1.5, lies between the orders measured on the thesis's
-surfaces (about 1.3 where the piecewise-linear surface has creases, 2 and more on smooth ones:
-docs/planarize_continuum.md); for any true order between 0.95 and 2.3 the estimate is within a factor
-2 of the true error. If the largest relative estimate exceeds the settings' ``rtol``, the grid is
-refined by 2 (the last run becomes the coarse one) until it does not, or until ``max_refine``.
-The time step follows the grid (the explicit scheme's stability limit), so the estimate covers both.
-The flow balances metal and oxide volumes only to its discretization error: the largest relative
-error of that balance must meet ``rtol`` too (on smooth surfaces it is far below; on surfaces
-steeper than about 45 degrees per grid spacing it is what asks for a finer grid).
+Where ``p`` lies outside that range the changes do not shrink steadily (pixel-scale noise in a measured
+map, whose z-range converges slowly and unevenly, does this): no error is stated for that quantity (its
+column is NaN), and the run says so, with the observed order and the change of the last refinement. A
+single assumed order was used before; on real AFM maps it under-stated the z-range's error up to 9x
+(docs/performance.md, ``afm_real``). If the largest relative estimate of the quantities stated exceeds the
+settings' ``rtol``, or none is stated, the grid is refined by 2 until it does not, or until
+``max_refine``; a quantity that is not yet asymptotic asks for a finer grid only while that grid is
+predicted to take at most `SETTLE_S` (on a noisy map its order may not settle at any affordable grid),
+and a run that ends with one does not claim to meet ``rtol``. The
+time step follows the grid (the explicit scheme's stability limit), so the estimate covers both. The
+flow balances metal and oxide volumes only to its discretization error: the largest relative error of
+that balance must meet ``rtol`` too.
+
+**Cost.** Before each grid from the reported one on, its wall time is predicted from the two grids
+before it (their time steps, grown by their observed ratio, times the points, at the kernels' measured
+speed and at most `SECONDS_PER_POINT_STEP`: a prediction on the low side). The reported grid may take
+the run's budget (``max_seconds``, or `BUDGET_S` without one); one predicted to take longer is refused
+up front (`TooCostly`), with its predicted time, unless ``max_seconds`` was given (then it runs until the
+budget and stops). A finer grid may take at most `LEVEL_GROWTH` times the grid before it (or
+`MIN_LEVEL_S`), within the budget: one predicted to take longer is not started, one that runs longer is
+stopped, and the run states the error of the grid before it, with what the finer one would have cost
+(parameter ``finer``). A grid that stops making progress ends the run (`planarize.recording.Stalled`).
+So every run ends.
 """
 
 from __future__ import annotations
@@ -26,7 +45,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from labrig.validate import available_memory, within_memory
+from labrig.progress import duration
+from labrig.validate import InputError, available_memory, within_memory
 
 from ..heightfield import MAX_POINTS, Surface
 from ..metrics import ESTIMATED
@@ -36,34 +56,91 @@ from ..recording import Anodization, progress_bar, record_run
 if TYPE_CHECKING:
     from .continuum import Continuum, ContinuumEngine
 
-#: Order of convergence the error estimate assumes (see the module docstring).
-ORDER = 1.5
+#: Observed orders of convergence taken as asymptotic (see the module docstring): the orders measured on the
+#: thesis's surfaces lie between about 1.3 (piecewise-linear surfaces with creases) and 2 and more (smooth ones).
+ORDER_LOW, ORDER_HIGH = 0.7, 3.0
 #: A relative error is taken against at least this fraction of the quantity's value at the start (a
 #: surface planarized flat has an RMS near 0, where a relative error means nothing).
 FLOOR = 0.01
 #: Memory the continuum engine needs per internal grid point, bytes (a dozen float arrays).
 BYTES_PER_POINT = 160
+#: Wall time of one time step per grid point that a cost prediction assumes at most, s (the compiled kernels
+#: on 2 cores take 40-100 ns; a faster measured speed is used as it is).
+SECONDS_PER_POINT_STEP = 5e-8
+#: A run's wall-time budget without ``max_seconds``, s: a reported grid predicted to take longer is refused.
+BUDGET_S = 4 * 3600.0
+#: A grid finer than the reported one may take at most this many times as long as the grid before it, or
+#: `MIN_LEVEL_S`, whichever is longer (a halving of the spacing takes 8-40 times as long on the maps measured;
+#: far more means the grid resolves features, steps or noise, that make the flow stiff).
+LEVEL_GROWTH, MIN_LEVEL_S = 64.0, 60.0
+#: A finer grid asked for only because a quantity is not yet asymptotic (every error stated meets ``rtol``) is
+#: computed only if it is predicted to take at most this long, s.
+SETTLE_S = 10.0
 
 
-def error_columns(fine: dict, coarse: dict, ratio: float) -> dict:
-    """The ``*_error_nm`` columns: Richardson's estimate of ``fine``'s error from ``coarse``, a run on a
-    grid ``ratio`` times coarser recorded at the same thicknesses."""
-    factor = ratio ** ORDER - 1.0
-    return {column.replace("_nm", "_error_nm"): np.abs(np.asarray(fine[column]) - np.asarray(coarse[column])) / factor
-            for column in ESTIMATED}
+class TooCostly(InputError):
+    """A continuum run refused before its reported grid: it is predicted to take longer than its budget."""
 
 
-def relative_error(table: dict) -> float:
-    """The largest estimated error relative to its quantity (floored at `FLOOR` of the starting value)."""
-    worst = 0.0
+def observed_orders(fine: dict, middle: dict, coarse: dict, ratio: float) -> dict:
+    """Each estimated column's observed order of convergence from three runs on grids ``ratio`` apart (`inf`
+    where the finer change is 0 and the coarser is not, NaN where both are 0)."""
+    orders = {}
     for column in ESTIMATED:
-        value = np.abs(np.asarray(table[column], dtype=float))
-        scale = np.maximum(value, FLOOR * value[0]) if len(value) else value
-        error = np.asarray(table[column.replace("_nm", "_error_nm")], dtype=float)
+        near = np.linalg.norm(np.asarray(fine[column]) - np.asarray(middle[column]))
+        far = np.linalg.norm(np.asarray(middle[column]) - np.asarray(coarse[column]))
         with np.errstate(divide="ignore", invalid="ignore"):
-            ratio = np.where(scale > 0, error / scale, np.where(error > 0, np.inf, 0.0))
+            orders[column] = float(np.log(far / near) / np.log(ratio)) if near > 0 or far > 0 else math.nan
+    return orders
+
+
+def error_columns(fine: dict, middle: dict, orders: dict, ratio: float) -> dict:
+    """The ``*_error_nm`` columns of ``fine``: Richardson's estimate from ``middle`` (a run on a grid ``ratio``
+    times coarser recorded at the same thicknesses) at each column's observed order, where it is asymptotic
+    (0 where neither run changed it), NaN where it is not."""
+    out = {}
+    for column in ESTIMATED:
+        change = np.abs(np.asarray(fine[column], dtype=float) - np.asarray(middle[column], dtype=float))
+        p = orders[column]
+        if math.isnan(p):
+            error = np.zeros_like(change)
+        elif ORDER_LOW <= p <= ORDER_HIGH:
+            error = change / (ratio ** p - 1.0)
+        else:
+            error = np.full_like(change, math.nan)
+        out[column.replace("_nm", "_error_nm")] = error
+    return out
+
+
+def relative(table: dict, column: str, values: np.ndarray) -> np.ndarray:
+    """``values`` relative to ``table[column]``, floored at `FLOOR` of its starting value."""
+    value = np.abs(np.asarray(table[column], dtype=float))
+    scale = np.maximum(value, FLOOR * value[0]) if len(value) else value
+    values = np.asarray(values, dtype=float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(scale > 0, values / scale, np.where(values > 0, np.inf, 0.0))
+
+
+def relative_error(table: dict, stated_only: bool = False) -> float:
+    """The largest estimated error relative to its quantity (floored at `FLOOR` of the starting value);
+    NaN if a quantity's error is not stated (``stated_only``: the largest over the quantities stated, NaN
+    if none is)."""
+    worst, stated = 0.0, False
+    for column in ESTIMATED:
+        ratio = relative(table, column, table[column.replace("_nm", "_error_nm")])
+        if np.isnan(ratio).any():
+            if not stated_only:
+                return math.nan
+            continue
+        stated = True
         worst = max(worst, float(np.max(ratio, initial=0.0)))
-    return worst
+    return worst if stated else math.nan
+
+
+def last_change(fine: dict, middle: dict) -> float:
+    """The largest relative change of RMS or z-range between two runs (the last refinement's)."""
+    return max(float(np.max(relative(fine, c, np.abs(np.asarray(fine[c]) - np.asarray(middle[c]))), initial=0.0))
+               for c in ESTIMATED)
 
 
 def volume_error(table: dict) -> float:
@@ -72,82 +149,138 @@ def volume_error(table: dict) -> float:
     return float(np.max(np.abs(np.nan_to_num(table["volume_error"], nan=np.inf)), initial=0.0))
 
 
+def predicted_seconds(before: dict, last: dict, points: int) -> float:
+    """Predicted wall time, s, of the next grid (``points`` points) from the two grids run before it (levels
+    with ``points``, ``steps`` and ``run_s``): the last one's steps grown by their observed ratio (2-16 per
+    halving of the spacing), at the last one's speed per point and step but at most
+    `SECONDS_PER_POINT_STEP`."""
+    growth = float(np.clip(last["steps"] / before["steps"], 2.0, 16.0)) if before["steps"] and last["steps"] else 4.0
+    speed = SECONDS_PER_POINT_STEP
+    if last["steps"]:
+        speed = min(speed, last["run_s"] / (last["steps"] * last["points"]))
+    return max(last["steps"], 1) * growth * points * speed
+
+
 def _ladder(settings: "Continuum") -> list[float]:
-    """The refinement factors to try, coarse companion first."""
-    if settings.refine is not None:
-        return [settings.refine / 2, settings.refine]
-    top = settings.max_refine
-    factors = [0.5, 1.0]
-    while factors[-1] < top:
+    """The refinement factors to run, coarsest first: the reported grid's two companions, the reported
+    grid, and the finer ones ``rtol`` may ask for."""
+    reported = settings.refine or 1
+    factors = [reported / 4, reported / 2, reported]
+    while settings.refine is None and factors[-1] < settings.max_refine:
         factors.append(factors[-1] * 2)
     return factors
+
+
+def _label(factor: float, companion: bool) -> str:
+    grid = f"1/{round(1 / factor)}" if factor < 1 else f"{factor:g}x"
+    return f"oxide, grid {grid}" + (" (error estimate)" if companion else "")
 
 
 def converge(metal: Surface, thickness: float, model: Model, settings: "Continuum", rows_at: np.ndarray,
              shots_at: np.ndarray, *, progress: bool = False, observer=None,
              max_seconds: float | None = None) -> Anodization:
     """A continuum run of `planarize.anodize` at the resolution ``settings.rtol`` asks for, with its error
-    estimate (see the module docstring); the arguments are `anodize`'s, checked."""
-    factors = _ladder(settings)
-    order = [factors[1], factors[0], *factors[2:]]  # the reported grid first: a budget that runs out keeps it
+    estimate and its cost bounded (see the module docstring); the arguments are `anodize`'s, checked."""
     start = time.perf_counter()
+    budget = BUDGET_S if max_seconds is None else max_seconds
+    reported = settings.refine or 1
     levels: list[dict] = []
-    runs: dict = {}
+    done: list[tuple] = []  # (level, engine, table, shots): complete runs, coarsest first
     best = None
     n = metal.z.size
-    for factor in order:
+    for factor in _ladder(settings):
         points = n * factor * factor
-        if factor > order[0] and (points > MAX_POINTS or points * BYTES_PER_POINT > available_memory() / 2):
+        if factor > reported and (points > MAX_POINTS or points * BYTES_PER_POINT > available_memory() / 2):
             levels.append({"factor": factor, "skipped": "more points than fit in memory"})
             break
         within_memory("the continuum run", int(points * BYTES_PER_POINT + 3 * 8 * n * (len(shots_at) + 1)),
                       available_memory())
         engine = settings.build(metal, None, model, factor)
-        began = time.perf_counter() - start
-        budget = None if max_seconds is None else max(max_seconds - (time.perf_counter() - start), 1e-3)
-        companion = factor < order[0]
-        label = f"oxide, grid {'1/2' if factor == 0.5 else f'{factor:g}x'}" + (" (error estimate)" if companion else "")
-        table, shots, complete = record_run(engine, thickness, rows_at, np.zeros(0) if companion else shots_at,
-                                            max_sweeps=_max_steps(engine, thickness),
-                                            bar=progress_bar(thickness, label) if progress else None, observer=observer,
-                                            max_seconds=budget)
-        levels.append({"factor": factor, "shape": list(engine.inner.shape), "spacing": list(engine.inner.spacing),
-                       "steps": engine.iterations, "wall_s": round(time.perf_counter() - start, 3)})
-        table["wall_s"] = table["wall_s"] + began  # (the run's wall time counts every resolution before it)
-        runs[factor] = (engine, table, shots, complete)
-        if factor == order[0]:
-            best = runs[factor]  # (the reported grid, even if a time budget stopped it)
+        elapsed = time.perf_counter() - start
+        allowed = budget - elapsed
+        if factor > reported:  # a finer grid: at most LEVEL_GROWTH times the one before
+            allowed = min(allowed, max(LEVEL_GROWTH * done[-1][0]["run_s"], MIN_LEVEL_S))
+        if factor >= reported and len(done) >= 2:
+            predicted = predicted_seconds(done[-2][0], done[-1][0], engine.inner.z.size)
+            if predicted > allowed:
+                if factor > reported:
+                    levels.append({"factor": factor, "skipped": f"predicted to take about {duration(predicted)}",
+                                   "predicted_s": predicted})
+                    break
+                if max_seconds is None:
+                    raise TooCostly(_too_costly(engine, thickness, predicted, done[-1][0]))
+        companion = factor < reported
+        table, shots, complete = record_run(
+            engine, thickness, rows_at, np.zeros(0) if companion else shots_at, max_sweeps=_max_steps(engine, thickness),
+            bar=progress_bar(thickness, _label(factor, companion)) if progress else None, observer=observer,
+            max_seconds=max(allowed, 1e-3))
+        run_s = time.perf_counter() - start - elapsed
+        level = {"factor": factor, "shape": list(engine.inner.shape), "spacing": list(engine.inner.spacing),
+                 "points": engine.inner.z.size, "steps": engine.iterations, "run_s": round(run_s, 6),
+                 "wall_s": round(time.perf_counter() - start, 3)}
+        levels.append(level)
+        table["wall_s"] = table["wall_s"] + elapsed  # (the run's wall time counts every resolution before it)
+        if factor > reported and not complete:  # stopped: the grid before it is the answer
+            level["skipped"] = (f"stopped after {duration(run_s)} at {engine.thickness:.3g} of {thickness:g} nm, "
+                                f"{'past the budget' if allowed == budget - elapsed else 'too slow'}")
+            level["predicted_s"] = run_s * thickness / max(engine.thickness, 1e-300)  # (on the low side: steps shrink)
+            break
+        if not companion:
+            best = (level, engine, table, shots, complete)
         if not complete:
+            if companion:
+                continue
             break
-        if companion:
-            coarse, fine = runs[factor], runs[order[0]]
-        elif factor != order[0]:
-            coarse, fine = runs[factor / 2], runs[factor]
+        if done and engine.inner.dx >= done[-1][1].inner.dx:  # a grid of 2 points a side has no coarser one
+            done[-1] = (level, engine, table, shots)
         else:
+            done.append((level, engine, table, shots))
+        if companion or len(done) < 3:
             continue
-        ratio = coarse[0].inner.dx / fine[0].inner.dx
-        if ratio <= 1.0:  # a grid of 2 points a side has no coarser companion: estimate from the next level
-            continue
-        fine[1].update(error_columns(fine[1], coarse[1], ratio))
-        best = fine
-        error, balance = relative_error(fine[1]), volume_error(fine[1])
-        levels[-1]["estimated_error"], levels[-1]["volume_error"] = error, balance
-        if settings.refine is not None or max(error, balance) <= settings.rtol:
+        (_, _, coarse_table, _), (_, middle, middle_table, _) = done[-3], done[-2]
+        ratio = middle.inner.dx / engine.inner.dx
+        orders = observed_orders(table, middle_table, coarse_table, ratio)
+        table.update(error_columns(table, middle_table, orders, ratio))
+        error, balance = relative_error(table), volume_error(table)
+        level.update(estimated_error=error, volume_error=balance, orders=orders, change=last_change(table, middle_table))
+        known = relative_error(table, stated_only=True)
+        if settings.refine is not None:
             break
-    engine, table, shots, complete = best
-    estimated = all(column.replace("_nm", "_error_nm") in table for column in ESTIMATED)
+        if math.isfinite(known) and max(known, balance) <= settings.rtol:
+            # every quantity stated meets rtol; one not yet asymptotic asks for a finer grid only if it is cheap
+            if math.isfinite(error) or predicted_seconds(done[-2][0], done[-1][0], 4 * engine.inner.z.size) > SETTLE_S:
+                break
+    level, engine, table, shots, complete = best
+    estimated = "orders" in level and complete
     if not estimated:
         for column in ESTIMATED:
             table[column.replace("_nm", "_error_nm")] = np.full(len(table[column]), np.nan)
     error = relative_error(table) if estimated else math.nan
     balance = volume_error(table)
-    complete = complete and estimated
+    orders = level.get("orders", {c: math.nan for c in ESTIMATED})
     parameters = {"engine": settings.name, "thickness": thickness, "k_exp": model.k_exp, "rule": model.rule,
                   "boundary": metal.boundary, "shape": list(metal.shape), "spacing": list(metal.spacing),
                   "rtol": settings.rtol, "refine": engine.factor, "estimated_error": error, "volume_error": balance,
-                  "rtol_met": bool(max(error, balance) <= settings.rtol), "order": ORDER, "levels": levels,
+                  "rtol_met": bool(math.isfinite(error) and max(error, balance) <= settings.rtol),
+                  "asymptotic": bool(estimated and math.isfinite(error)), "orders": orders,
+                  "not_asymptotic": [c for c, p in orders.items() if estimated and not ORDER_LOW <= p <= ORDER_HIGH
+                                     and not math.isnan(p)],
+                  "change": level.get("change", math.nan),
+                  "finer": (f"{levels[-1]['factor']:g}x {levels[-1]['skipped']}" if "skipped" in levels[-1] else ""),
+                  "levels": levels,
                   **{k: v for k, v in settings.options().items() if k != "rtol"}}
-    return Anodization(parameters, table, shots, metal, engine.metal(), engine.oxide(), engine.distances(), complete)
+    return Anodization(parameters, table, shots, metal, engine.metal(), engine.oxide(), engine.distances(),
+                       complete and estimated)
+
+
+def _too_costly(engine: "ContinuumEngine", thickness: float, predicted: float, last: dict) -> str:
+    nx, ny = engine.surface.shape
+    grid = "its own grid" if engine.factor == 1 else f"{engine.factor:g}x its grid"
+    return (f"the continuum engine would take about {duration(predicted)} to grow {thickness:g} nm of oxide on this "
+            f"{nx} x {ny} map at {grid} (predicted from its run at {last['factor']:g} of that resolution: "
+            f"{last['steps']:,} time steps), more than the {duration(BUDGET_S)} a run may take without max_seconds: "
+            "give max_seconds (the run stops there, with what it reached), a smaller or smoother map, or the fast "
+            "engine (--engine fast)")
 
 
 def _max_steps(engine: "ContinuumEngine", thickness: float) -> int:
@@ -159,4 +292,6 @@ def _max_steps(engine: "ContinuumEngine", thickness: float) -> int:
     return int(100 * (thickness / h + stalled * thickness / h ** 2) + 10_000)
 
 
-__all__ = ["converge", "error_columns", "relative_error", "volume_error", "ORDER", "FLOOR"]
+__all__ = ["converge", "error_columns", "observed_orders", "relative_error", "volume_error", "predicted_seconds",
+           "TooCostly", "ORDER_LOW", "ORDER_HIGH", "FLOOR", "BUDGET_S", "SECONDS_PER_POINT_STEP", "LEVEL_GROWTH",
+           "MIN_LEVEL_S", "SETTLE_S"]

@@ -133,9 +133,13 @@ def history_json(run: Anodization) -> dict:
     from ..metrics import HISTORY_COLUMNS
 
     def clean(v):
+        if isinstance(v, dict):
+            return {key: clean(value) for key, value in v.items()}
+        if isinstance(v, (list, tuple)):
+            return [clean(value) for value in v]
         return None if isinstance(v, float) and not math.isfinite(v) else v
 
-    return {"parameters": run.parameters,
+    return {"parameters": clean(run.parameters),
             "columns": {key: HISTORY_COLUMNS.get(key, "") for key in run.history},
             "history": {key: [clean(v.item()) for v in values] for key, values in run.history.items()}}
 
