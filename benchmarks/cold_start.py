@@ -127,7 +127,7 @@ def run(quick: bool, start_only: bool = False) -> list:
     if start_only:
         return results
     rows, headlines = [], []
-    for name, (argv, table) in COMMANDS.items():
+    for argv, table in COMMANDS.values():
         argv = argv + (["--seconds", "2"] if quick and argv[0] == "qdots" else [])
         argv = argv + (["--quick", "0.25"] if quick and argv[0] == "planarize" else [])
         with tempfile.TemporaryDirectory() as tmp:

@@ -39,8 +39,8 @@ from qdots.analysis import overlaps
 from qdots.engine.allocator import tune_allocator
 
 from . import pinned
-from .staleness import CHIPMUNK_ENGINE
 from .report import Figure, Headline, Note, Table
+from .staleness import CHIPMUNK_ENGINE
 
 #: The code this benchmark measures (besides itself): a commit to it after a run marks the run's section as
 #: older than its code (`benchmarks.staleness`).

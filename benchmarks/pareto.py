@@ -14,8 +14,8 @@ interleaved run):
 from __future__ import annotations
 
 import textwrap
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
 
 import numpy as np
 from matplotlib.ticker import FuncFormatter, LogLocator

@@ -239,7 +239,7 @@ def scaling(sizes, thickness: float = 3.0) -> list[tuple[int, float]]:
     for n in sizes:
         first = []  # (time, thickness) when 1 nm is first passed
 
-        def observe(engine) -> None:
+        def observe(engine, first=first) -> None:
             if not first and engine.thickness >= 1.0:
                 first.append((time.perf_counter(), engine.thickness))
 

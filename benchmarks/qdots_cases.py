@@ -38,10 +38,11 @@ import numpy as np
 
 import qdots
 from qdots.analysis import overlaps
-from qdots.forces import StepContext
 from qdots.diagnostics.hard_cases import loose_film
+from qdots.forces import StepContext
 
 from . import pinned
+
 #: The collision rule of the elastic gas: elastic impacts and walls, no sticking.
 ELASTIC = qdots.Restitution(mean=1.0, wall=1.0, sticking_speed=0.0)
 
@@ -148,7 +149,7 @@ def vdw_frames(gap0: float, dt: float, frames: int, mass: float = 1.0, r: float 
     return x1, x2, touch
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def vdw_reference(gap0: float = 8.0, dt: float = 0.02) -> tuple[float, float, float]:
     """(t_end, x1, x2): the frames' positions at 0.8 of the frames before the pair comes within 1 px (`vdw_frames`)."""
     *_, touch = vdw_frames(gap0, dt, round(100.0 / dt))
@@ -173,7 +174,7 @@ def pack_forces(centre: float, gravity: float) -> list[qdots.Force]:
             qdots.Drag(1.0, 0.01)]
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def settled_pack(gravity: float, quick: bool) -> qdots.Scene:
     """A polydisperse pack (radii N(7.5, 0.75) px) pulled together for 3 s (quick: 150 dots, 2 s) at the pinned
     settings."""

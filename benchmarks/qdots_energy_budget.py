@@ -33,8 +33,8 @@ from matplotlib.figure import Figure as MplFigure
 
 import qdots
 from qdots.analysis import packing_summary
-from qdots.diagnostics.energy_budget import EnergyBudget
 from qdots.analysis.structure import clusters
+from qdots.diagnostics.energy_budget import EnergyBudget
 from qdots.experiment import build_simulation, populate
 from qdots.presets import get_preset
 
@@ -194,7 +194,7 @@ def run(quick: bool) -> list:
                          "same velocity changes; energies in mean-dot mass px^2/s^2)",
                          ["film", "engine", "removed in frame 1", "pull injected in frame 2", "pull injected in frame 3",
                           "event: removed in frame 1", "event: pull injected in frame 2"])
-    for label, sigma, model in FILMS:
+    for label, _sigma, _model in FILMS:
         ref = np.array(refs[label])
         for engine, *_ in ENGINES[1:] + TOLERANCES:
             d = np.array(same[(label, engine)])

@@ -13,8 +13,8 @@ import dataclasses
 from qdots.diagnostics.hard_cases import CASES, SAMPLE, HardCase, check, passed
 
 from . import pinned
-from .staleness import CHIPMUNK_ENGINE
 from .report import Headline, Note, Table, cli
+from .staleness import CHIPMUNK_ENGINE
 
 #: The code this benchmark measures (besides itself): a commit to it after a run marks the run's section as
 #: older than its code (`benchmarks.staleness`).

@@ -31,8 +31,8 @@ from matplotlib.figure import Figure as MplFigure
 
 from . import pareto, pinned
 from .qdots_cases import CASES
-from .staleness import CHIPMUNK_ENGINE
 from .report import Figure, Headline, Note, Table, cli
+from .staleness import CHIPMUNK_ENGINE
 
 #: The code this benchmark measures (besides itself): a commit to it after a run marks the run's section as
 #: older than its code (`benchmarks.staleness`).
@@ -106,7 +106,7 @@ def sweep(knob: str, quick: bool, repeats: int) -> dict[str, list[pareto.Point]]
     for _ in range(repeats):
         for case in cases:
             measure = CASES[case][3]
-            for point, (label, s) in zip(points[case], chosen):
+            for point, (_label, s) in zip(points[case], chosen):
                 start = time.perf_counter()
                 while True:  # a run of a few ms is timed again, its fastest kept
                     m = measure(s, quick)

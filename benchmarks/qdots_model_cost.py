@@ -36,8 +36,8 @@ from qdots.analysis import overlaps
 from qdots.forces import Force, StepContext
 
 from . import pinned
-from .staleness import CHIPMUNK_ENGINE
 from .report import Headline, Note, Table, cli
+from .staleness import CHIPMUNK_ENGINE
 
 #: The code this benchmark measures (besides itself): a commit to it after a run marks the run's section as
 #: older than its code (`benchmarks.staleness`).
@@ -100,7 +100,7 @@ def measure(n: int, rounds: int, chunk: int = CHUNK) -> list[dict]:
     total = {label: [] for label, _, _ in sims}
     split = {label: [] for label, _, _ in sims}
     worst = {label: 0.0 for label, _, _ in sims}  # worst overlap at the chunk ends, % of the radius
-    for sim_label, sim, raw in sims:  # warm-up: first pair-list build, caches
+    for _label, sim, raw in sims:  # warm-up: first pair-list build, caches
         _advance(sim, raw, chunk)
         sim.timings.update(forces=0.0, pymunk=0.0)
     steps, substeps = {}, {}

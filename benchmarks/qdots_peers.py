@@ -36,13 +36,13 @@ import numpy as np
 
 import qdots
 from qdots.analysis import overlaps
-from qdots.forces import StepContext
 from qdots.diagnostics.hard_cases import loose_film
+from qdots.forces import StepContext
 
 from . import lammps_scene, pinned
 from .python_loop import LoopForces
-from .staleness import CHIPMUNK_ENGINE
 from .report import Headline, Note, Table, cli
+from .staleness import CHIPMUNK_ENGINE
 
 #: The code this benchmark measures (besides itself): a commit to it after a run marks the run's section as
 #: older than its code (`benchmarks.staleness`).

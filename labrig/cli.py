@@ -16,8 +16,9 @@ from __future__ import annotations
 import argparse
 import difflib
 import sys
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Callable, Sequence, TypeVar
+from typing import TypeVar
 
 from .launch import INTERRUPTED, interrupted_line
 from .validate import InputError, count, printable, real

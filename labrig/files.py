@@ -18,8 +18,8 @@ import re
 import secrets
 import stat
 import time
+from collections.abc import Iterator, Sequence
 from pathlib import Path
-from typing import Iterator, Sequence
 
 from .staging import SetBusyError, recover_beside
 from .validate import InputError, printable

@@ -21,7 +21,7 @@ import os
 import signal
 import sys
 import threading
-from typing import Sequence
+from collections.abc import Sequence
 
 #: Exit status of an interrupted command (128 + SIGINT), as shells report it.
 INTERRUPTED = 130

@@ -9,8 +9,8 @@ from __future__ import annotations
 import contextlib
 import os
 import shutil
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 from .files import AllOrNothing, StreamedFile, remove_stale_temporaries, temporary_beside, writable_directory
 from .staging import check_set_name, directory_lock, interrupts_deferred, open_staging, plain_file_name, recover
@@ -111,7 +111,7 @@ class OutputSet(AllOrNothing):
         self._staged.append(name)
         return path
 
-    def adopt(self, stream: "StreamedFile") -> "StreamedFile":
+    def adopt(self, stream: StreamedFile) -> StreamedFile:
         """Make ``stream`` (opened on a `stage`d path) part of the set: closed by `commit`, aborted by `abort`;
         a stream that wrote nothing leaves its file out of the set."""
         if Path(stream.path).parent != self.staging:

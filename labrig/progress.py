@@ -22,7 +22,7 @@ COMPILING = "compiling the numba kernels (first run only: later runs load them f
 class _CompileClock(event.Listener):
     """Seconds of top-level numba compilation seen while a bar is open."""
 
-    def __init__(self, bar: "CompileAwareBar | StageLines"):
+    def __init__(self, bar: CompileAwareBar | StageLines):
         self.bar = bar
         self.depth = 0
         self.started = 0.0
@@ -136,7 +136,7 @@ class StageLines:
             self._listening = False
             event.unregister("numba:compile", self._clock)
 
-    def __enter__(self) -> "StageLines":
+    def __enter__(self) -> StageLines:
         return self
 
     def __exit__(self, *exc) -> None:

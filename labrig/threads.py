@@ -18,7 +18,7 @@ def available_threads() -> int:
     return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def thread_pool(threads: int) -> ThreadPoolExecutor:
     """One pool per thread count, kept for the life of the process (a pool per call costs more than a call)."""
     return ThreadPoolExecutor(threads, thread_name_prefix="labrig")

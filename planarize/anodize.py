@@ -7,7 +7,7 @@
 
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 
@@ -18,8 +18,7 @@ from .engines import engine_settings
 from .engines.base import check_oxide
 from .heightfield import Surface
 from .model import Model
-from .recording import (ENGINE_BYTES_PER_POINT, HISTORY_ROW_BYTES, Anodization, Snapshot, Stalled, record_run,
-                        run_bytes)
+from .recording import ENGINE_BYTES_PER_POINT, HISTORY_ROW_BYTES, Anodization, Snapshot, Stalled, record_run, run_bytes
 
 #: Thickest oxide grown, nm (1 mm).
 MAX_THICKNESS = 1e6

@@ -143,19 +143,19 @@ class Surface:
         """Volume between the surface and the plane ``z = base``, nm^3 (exact for this surface)."""
         return float(np.sum(self.weights * (self._z - real("base", base, unit="nm"))))
 
-    def with_heights(self, z) -> "Surface":
+    def with_heights(self, z) -> Surface:
         """The same grid with new heights."""
         return Surface(z, (self.dx, self.dy), self.boundary)
 
-    def shifted(self, dz: float) -> "Surface":
+    def shifted(self, dz: float) -> Surface:
         """The surface moved up by ``dz`` nm."""
         return self.with_heights(self._z + real("dz", dz, -2 * MAX_HEIGHT, 2 * MAX_HEIGHT, unit="nm"))
 
-    def transposed(self) -> "Surface":
+    def transposed(self) -> Surface:
         """The surface mirrored across the line x = y (axes and spacings swapped)."""
         return Surface(self._z.T, (self.dy, self.dx), self.boundary)
 
-    def refine(self, factor: int, method: str = "linear") -> "Surface":
+    def refine(self, factor: int, method: str = "linear") -> Surface:
         """The surface resampled on a grid ``factor`` times finer in x and y.
 
         Parameters

@@ -76,6 +76,6 @@ class Model:
     def __post_init__(self) -> None:
         check_fields(self, self.PARAMS)
 
-    def replace(self, **changes) -> "Model":
+    def replace(self, **changes) -> Model:
         """A copy with some fields changed, validated again."""
         return dataclasses.replace(self, **changes)

@@ -215,13 +215,13 @@ class PlanarizeScene:
         ``snapshots``, ``observer``, ``max_seconds``)."""
         return anodize(self.build_surface(), progress=progress, **{**self.run.options(), **options})
 
-    def replace(self, **changes) -> "PlanarizeScene":
+    def replace(self, **changes) -> PlanarizeScene:
         """A copy with top-level fields (or ``run`` settings given as a dict) replaced."""
         if isinstance(changes.get("run"), dict):
             changes["run"] = dataclasses.replace(self.run, **changes["run"])
         return dataclasses.replace(self, **changes)
 
-    def quick(self, fraction: float) -> "PlanarizeScene":
+    def quick(self, fraction: float) -> PlanarizeScene:
         """A cheaper version for a first look: ``step / fraction``, refinement ``refine * fraction``
         (rounded, at least 1), and on the continuum engine a tolerance ``rtol / fraction`` (at most 1);
         thickness, records and snapshots unchanged.

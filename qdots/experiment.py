@@ -22,12 +22,12 @@ import numpy as np
 from labrig.params import Param, check_fields
 from labrig.validate import MAX_SEED, InputError, real
 
-from .restitution import Restitution
+from .engine import Chipmunk, Settings
 from .forces import Force, ThermalKicks, VanDerWaals, force_from_dict
 from .placement import MAX_TRIES
 from .protocols import GAP, MASS_MODELS, MAX_INTERVAL, MAX_MASS_EXPONENT, deposit, deposit_around_centre, ring_radius
+from .restitution import Restitution
 from .scene import MAX_DOTS, MAX_LENGTH, MAX_MASS, MIN_DIAMETER, Scene
-from .engine import Chipmunk, Settings
 from .simulation import MAX_STEPS, Simulation
 
 #: Deposition protocols: dots at random in the board (or grating channel), or on a ring around a centre.
@@ -268,11 +268,11 @@ class Experiment:
         """Fresh Force objects from `forces`."""
         return [force_from_dict(dict(spec)) for spec in self.forces]
 
-    def replace(self, **changes) -> "Experiment":
+    def replace(self, **changes) -> Experiment:
         """A copy with some fields changed, validated again."""
         return dataclasses.replace(self, **changes)
 
-    def quick(self, factor: float = 0.1) -> "Experiment":
+    def quick(self, factor: float = 0.1) -> Experiment:
         """A smaller, faster version of this experiment (for tests and notebooks).
 
         ``n_dots`` becomes ``max(1, round(n_dots * factor))`` and ``interval``

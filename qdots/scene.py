@@ -139,7 +139,7 @@ class Scene:
                 f"overlap_tolerance {self.overlap_tolerance:g})"
             )
 
-    def replace(self, **changes: object) -> "Scene":
+    def replace(self, **changes: object) -> Scene:
         """A copy with some fields changed, validated again."""
         return dataclasses.replace(self, **changes)
 

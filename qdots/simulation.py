@@ -19,7 +19,7 @@ object can serve any number of simulations.
 from __future__ import annotations
 
 import warnings
-from typing import Iterable, Sequence
+from collections.abc import Iterable, Sequence
 
 import numpy as np
 

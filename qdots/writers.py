@@ -9,13 +9,13 @@ even comb of frames and never writes a step twice.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable, Protocol
+from typing import Protocol
 
 from labrig.validate import InputError, count, real
 
 from .state import State
-
 
 #: Most states one writer may be given over a simulation's life, unless it states its own ``max_records``
 #: (a trajectory of 1,000,000 frames of 300 dots holds about 5 GB).

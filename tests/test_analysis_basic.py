@@ -5,13 +5,12 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from helpers import worst_overlap
 
 import qdots
-from helpers import worst_overlap
 from qdots import placement
 from qdots.analysis import neighbour_counts, overlaps, packing_summary
-from qdots.placement import random_sequential
-from qdots.placement import hexagonal_lattice
+from qdots.placement import hexagonal_lattice, random_sequential
 
 R = 7.5  # thesis mean radius, px
 

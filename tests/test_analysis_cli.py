@@ -5,12 +5,11 @@ import re
 
 import numpy as np
 import pytest
+from helpers import run_ok
 
 import qdots
 from qdots.cli import main
 from qdots.placement import hexagonal_lattice
-
-from helpers import run_ok
 
 
 @pytest.fixture(scope="module")

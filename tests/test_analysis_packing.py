@@ -7,7 +7,11 @@ import numpy as np
 import pytest
 
 from qdots.analysis import (
-    fill_within_radius, neighbour_counts, neighbour_edges, packing_summary, separation,
+    fill_within_radius,
+    neighbour_counts,
+    neighbour_edges,
+    packing_summary,
+    separation,
     size_separation_correlation,
 )
 from qdots.placement import hexagonal_lattice

@@ -7,9 +7,8 @@ import numpy as np
 import pytest
 
 from qdots.analysis import neighbour_counts, neighbour_edges
-from qdots.placement import random_sequential
 from qdots.analysis.structure import clusters, hexatic_order, radial_distribution, voronoi_coordination
-from qdots.placement import hexagonal_lattice
+from qdots.placement import hexagonal_lattice, random_sequential
 
 freud = pytest.importorskip("freud")
 

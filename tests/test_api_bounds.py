@@ -11,22 +11,21 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from helpers import refused
 
 import qdots
-from qdots.diagnostics import hard_cases
+from labrig.figures import MAX_DPI
 from qdots.analysis import lqe, lqe_thesis, packing, report, structure
 from qdots.analysis.forster import TAU_NS, exciton_network
+from qdots.diagnostics import hard_cases
+from qdots.engine import Chipmunk
 from qdots.geometry import MAX_DISTANCES, MAX_PAIRS, segment_distances
 from qdots.placement import MAX_CANDIDATES, MAX_LATTICE_SIZE, draw_candidates, hexagonal_lattice
 from qdots.presets import get_preset
 from qdots.protocols import deposit
-from labrig.figures import MAX_DPI
 from qdots.render import save_png
 from qdots.scene import MAX_DOTS, MAX_SEGMENTS, Scene, grating_segments
-from qdots.engine import Chipmunk
 from qdots.simulation import MAX_STEPS
-
-from helpers import refused
 
 
 def board(positions, radii=7.5, box=None):

@@ -26,8 +26,7 @@ pytest.importorskip("playwright.sync_api")
 pytest.importorskip("jupyterlab")
 pytest.importorskip("ipympl")
 
-from browser_lab import (JupyterLab, Notebook, browser_context, changed_fraction,  # noqa: E402
-                         chromium, coloured_fraction, decode_png)
+from browser_lab import JupyterLab, Notebook, browser_context, changed_fraction, chromium, coloured_fraction, decode_png  # noqa: E402
 
 pytestmark = pytest.mark.browser
 

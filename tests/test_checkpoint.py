@@ -7,13 +7,12 @@ import zipfile
 
 import numpy as np
 import pytest
+from helpers import one_line_error
 
 import labrig.archive
 import qdots
 from qdots.cli import main as qdots_main
 from qdots.io import checkpoint
-
-from helpers import one_line_error
 
 
 def busy_simulation(seed=7, n=80):

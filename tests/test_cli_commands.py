@@ -10,13 +10,12 @@ from pathlib import Path
 import imageio.v3 as iio
 import numpy as np
 import pytest
+from helpers import gravity_scene_file, one_line_error, refused_run, run_ok, to_toml
+from movie_probe import probe
 
 import qdots
 from planarize.cli import main as planarize_main
 from qdots.cli import main
-
-from helpers import gravity_scene_file, one_line_error, refused_run, run_ok, to_toml
-from movie_probe import probe
 
 
 def rows(path):

@@ -11,11 +11,10 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from helpers import disc_film_png, one_line_error
 
 from planarize.cli import main as planarize_main
 from qdots.cli import main
-
-from helpers import disc_film_png, one_line_error
 
 
 @pytest.fixture

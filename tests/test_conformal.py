@@ -6,9 +6,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from qdots.micrograph.conformal import (CALIBRATION_SHARE, MIN_CALIBRATION_FILMS, central_quantiles,
-                                        conformal_factor, conformal_scores, fit_calibration, is_calibration_film,
-                                        spread_draws)
+from qdots.micrograph.conformal import (
+    CALIBRATION_SHARE,
+    MIN_CALIBRATION_FILMS,
+    central_quantiles,
+    conformal_factor,
+    conformal_scores,
+    fit_calibration,
+    is_calibration_film,
+    spread_draws,
+)
 
 
 def toy_films(rng, films: int, width: float, draws: int = 400):

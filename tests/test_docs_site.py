@@ -145,7 +145,7 @@ class _Page(HTMLParser):
             self.sources.append(attrs["src"])
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _parsed(path: Path) -> _Page:
     return _Page(path)
 

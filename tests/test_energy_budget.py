@@ -7,8 +7,8 @@ import pytest
 
 import qdots
 from labrig.validate import InputError
-from qdots.engine.contacts import install_handlers
 from qdots.diagnostics.energy_budget import EnergyBudget
+from qdots.engine.contacts import install_handlers
 
 ENGINES = ("event", "chipmunk")
 EDGES = (0.9, 1.1)

@@ -2,16 +2,15 @@
 
 import numpy as np
 import pytest
+from helpers import lone_dot, worst_overlap
 from scipy.integrate import solve_ivp
 
 import qdots
 from labrig.validate import InputError
-from qdots.experiment import Experiment
 from qdots.engine import PairScheme
+from qdots.experiment import Experiment
 from qdots.forces import StepContext, hamaker_force, thesis_offset
 from qdots.units import thesis_kick_speed
-
-from helpers import lone_dot, worst_overlap
 
 BIG_BOX = (2000.0, 2000.0)
 #: Every van der Waals pair pulled every step (no far pass).

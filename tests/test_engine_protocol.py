@@ -8,12 +8,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import lone_dot
 
 import qdots
-from qdots.engine import ENGINES, Backend, Chipmunk, Event, PairScheme, engine_from_dict
 from labrig.validate import InputError
-
-from helpers import lone_dot
+from qdots.engine import ENGINES, Backend, Chipmunk, Event, PairScheme, engine_from_dict
 
 PACKAGE = Path(qdots.__file__).resolve().parent
 

@@ -6,10 +6,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from helpers import TimeRecorder, lone_dot
 
 import qdots
-
-from helpers import TimeRecorder, lone_dot
 
 
 # ---------------------------------------------------------------- the same seed, the same run

@@ -7,18 +7,35 @@ import re
 
 import numpy as np
 import pytest
+from helpers import refused
 
 import qdots
 from labrig.validate import InputError
 from qdots import geometry
 from qdots.analysis import overlaps
-from qdots.geometry import (DiscTree, VerletPairs, clashing_pairs, clear_of_walls, extent, moved_beyond,
-                            nearest_centre, nearest_ratio, nested_pairs, overlapping_pairs, pair_bound, pair_separation, pairs_closer,
-                            pairs_with_distances, pairs_within, relative_overlap, segment_distances,
-                            wall_clearances, worst_overlap, worst_wall_overlap)
+from qdots.geometry import (
+    DiscTree,
+    VerletPairs,
+    clashing_pairs,
+    clear_of_walls,
+    extent,
+    moved_beyond,
+    nearest_centre,
+    nearest_ratio,
+    nested_pairs,
+    overlapping_pairs,
+    pair_bound,
+    pair_separation,
+    pairs_closer,
+    pairs_with_distances,
+    pairs_within,
+    relative_overlap,
+    segment_distances,
+    wall_clearances,
+    worst_overlap,
+    worst_wall_overlap,
+)
 from qdots.placement import hexagonal_lattice
-
-from helpers import refused
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 

@@ -5,19 +5,26 @@ import math
 
 import numpy as np
 import pytest
+from helpers import one_line_error, refused
 from PIL import Image
 
 from labrig.validate import InputError
 from qdots.cli.main import main
 from qdots.experiment import Deposition, Experiment
 from qdots.micrograph.film import film_state
-from qdots.micrograph.forward import (CONDITIONS, PARAMETERS, SUMMARIES, FilmRunner, check_point, film_experiment,
-                                      film_measures, peak_position)
+from qdots.micrograph.forward import (
+    CONDITIONS,
+    PARAMETERS,
+    SUMMARIES,
+    FilmRunner,
+    check_point,
+    film_experiment,
+    film_measures,
+    peak_position,
+)
 from qdots.micrograph.library import build_library, library_size, observation, prior_point, training_arrays
 from qdots.micrograph.synthetic import superlattice_board
 from qdots.protocols import dot_masses
-
-from helpers import one_line_error, refused
 
 
 def test_power_masses_follow_the_exponent_and_match_the_named_models():

@@ -4,9 +4,9 @@ import subprocess
 import sys
 import textwrap
 
-from labrig.tomlfile import tomllib
-
 import pytest
+
+from labrig.tomlfile import tomllib
 
 BLOCKED_RUN = textwrap.dedent("""
     import importlib.abc, sys
@@ -66,8 +66,9 @@ def test_importing_the_packages_installs_no_import_hooks():
 
 def test_a_warning_fails_the_test_suite(tmp_path):
     """The pytest configuration makes every warning an error (pyproject.toml), so the suite stays warning-free."""
-    import tomllib
     from pathlib import Path
+
+    import tomllib
 
     root = Path(__file__).resolve().parent.parent
     config = tomllib.loads((root / "pyproject.toml").read_text())["tool"]["pytest"]["ini_options"]

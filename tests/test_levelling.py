@@ -12,8 +12,17 @@ from scipy.ndimage import gaussian_filter
 from labrig.validate import InputError
 from planarize import Surface, anodize, surfaces
 from planarize.engines import Continuum
-from planarize.levelling import (CORRECTIONS, align_lines, applied_corrections, detect, level_surface,
-                                 parse_corrections, report_rows, scar_mask, spike_mask)
+from planarize.levelling import (
+    CORRECTIONS,
+    align_lines,
+    applied_corrections,
+    detect,
+    level_surface,
+    parse_corrections,
+    report_rows,
+    scar_mask,
+    spike_mask,
+)
 
 
 def film(n: int = 96, seed: int = 0, rms: float = 3.0, spacing: float = 5.0) -> Surface:

@@ -8,14 +8,18 @@ import numpy as np
 import pytest
 
 import qdots
-
 from qdots.analysis.forster import (
-    KB_EV, TAU_NS, cutoff_for, dot_energies, draw_traps, exciton_network, truncation_bound,
+    KB_EV,
+    TAU_NS,
+    cutoff_for,
+    dot_energies,
+    draw_traps,
+    exciton_network,
+    truncation_bound,
 )
 from qdots.analysis.lqe import film_lqe, lqe_exact, lqe_monte_carlo
 from qdots.analysis.lqe_thesis import _event_table, step_probabilities
-from qdots.placement import random_sequential
-from qdots.placement import hexagonal_lattice
+from qdots.placement import hexagonal_lattice, random_sequential
 
 R = 7.5
 

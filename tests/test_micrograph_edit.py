@@ -3,12 +3,11 @@
 
 import numpy as np
 import pytest
+from helpers import disc_film_png, refused
 
 from qdots.micrograph.edit import edited_film
 from qdots.micrograph.measure import measure_image
 from qdots.napari_plugin.layers import film_from_points, points_data, shapes_data
-
-from helpers import disc_film_png, refused
 
 
 @pytest.fixture(scope="module")

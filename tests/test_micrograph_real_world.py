@@ -9,6 +9,7 @@ import math
 
 import numpy as np
 import pytest
+from helpers import last_error_line
 from PIL import Image
 from scipy import ndimage
 
@@ -23,8 +24,6 @@ from qdots.micrograph.scale import find_scale_bar
 from qdots.micrograph.segment import broad_blur
 from qdots.micrograph.shapes import region_shapes
 from qdots.micrograph.synthetic import dense_board, render_micrograph, score_detection, sparse_board
-
-from helpers import last_error_line
 
 
 def disc_labels(shape, centres, radii):

@@ -59,9 +59,9 @@ def display():
         server.wait(timeout=30)
 
 
-from qdots.cli import main  # noqa: E402
-
 from helpers import disc_film_png  # noqa: E402
+
+from qdots.cli import main  # noqa: E402
 from qdots.napari_plugin.reader import get_reader  # noqa: E402
 from qdots.napari_plugin.widget import DOTS, LEFT_OUT, MeasureWidget  # noqa: E402
 

@@ -14,8 +14,16 @@ import nbformat
 import pytest
 
 import labrig
-from notebooks.execute import (KEY, LINE_START, NOTEBOOKS, WIDGET_STATE, format_duration,
-                               problems, set_status_line, status_line)
+from notebooks.execute import (
+    KEY,
+    LINE_START,
+    NOTEBOOKS,
+    WIDGET_STATE,
+    format_duration,
+    problems,
+    set_status_line,
+    status_line,
+)
 
 PATHS = sorted(NOTEBOOKS.glob("*.ipynb"))
 RECORD = {"version": labrig.__version__, "executed": "2026-11-27T04:00:00+00:00", "wall_s": 312.4, "scale": "full",

@@ -19,9 +19,10 @@ import time
 from pathlib import Path
 
 import pytest
+from helpers import gravity_scene_file, one_line_error, run_ok
 
-import qdots
 import labrig.staging as staging
+import qdots
 from labrig.cli import Parser, run_main
 from labrig.files import OutputSet, SetBusyError, recover_beside
 from labrig.staging import PREFIX
@@ -29,8 +30,6 @@ from planarize.cli import main as planarize_main
 from planarize.io.results import load_run
 from qdots.cli import main as qdots_main
 from qdots.cli.commands import OVERLAP_COLUMN, merge_summary
-
-from helpers import gravity_scene_file, one_line_error, run_ok
 
 #: Longest any subprocess of these tests may take, s.
 TIMEOUT = 300

@@ -5,15 +5,14 @@ import re
 
 import numpy as np
 import pytest
+from helpers import refused_run, run_ok
+from movie_probe import assert_playable
 
 import planarize
 from planarize.cli import build_parser, main
 from planarize.io.results import load_run
 from planarize.io.scenefile import load_scene
 from planarize.scene import SCENES
-
-from helpers import refused_run, run_ok
-from movie_probe import assert_playable
 
 FILES = (".toml", ".npz", "_history.csv", "_fig3-8.png", "_fig3-9.png", "_surfaces.png")
 

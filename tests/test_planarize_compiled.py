@@ -7,8 +7,14 @@ import pytest
 from planarize import Fast, Model, Surface, anodize, surfaces
 from planarize.engines import fast
 from planarize.engines.fast import FastEngine
-from planarize.engines.features import (METAL_HALF_DIAGONALS, METAL_SEGMENTS, OXIDE_HALF_DIAGONALS, OXIDE_SEGMENTS,
-                                        OXIDE_TRIANGLES, feature_tables)
+from planarize.engines.features import (
+    METAL_HALF_DIAGONALS,
+    METAL_SEGMENTS,
+    OXIDE_HALF_DIAGONALS,
+    OXIDE_SEGMENTS,
+    OXIDE_TRIANGLES,
+    feature_tables,
+)
 from planarize.engines.kernels import closest_sets, max_feature_length, pair_slots, star_reach
 from planarize.engines.pyramid import BallCache, HeightPyramid
 from planarize.engines.sets import OxideSets

@@ -5,14 +5,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from helpers import refused
 
 from planarize import Model, Surface, anodize, surfaces
 from planarize.engines import Continuum
 from planarize.engines.continuum import ContinuumEngine, resample
 from planarize.engines.flow import GHOST, fill_ghosts, metal_rate
 from planarize.engines.offset import coat, extremes, surface_moments
-
-from helpers import refused
 
 RNG = np.random.default_rng(5)
 

@@ -9,8 +9,8 @@ import planarize
 from planarize import Fast, Model, Surface, surfaces
 from planarize.engines.fast import FastEngine
 from planarize.engines.kernels import closest_sets
-from planarize.metrics import history_difference
 from planarize.engines.reference import ReferenceEngine
+from planarize.metrics import history_difference
 
 #: The thesis's algorithm: these tests are the discrete engines' (the continuum engine has its own file).
 anodize = functools.partial(planarize.anodize, engine="fast")

@@ -8,8 +8,8 @@ import pytest
 from helpers import refused_file
 
 import planarize
-from planarize.io.gwy import gwy_channels
 from planarize.io import level_plane, load_heights, save_heights
+from planarize.io.gwy import gwy_channels
 
 gwyfile = pytest.importorskip("gwyfile")
 from gwyfile.objects import GwyContainer, GwyDataField  # noqa: E402

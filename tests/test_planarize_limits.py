@@ -11,21 +11,20 @@ import os
 
 import numpy as np
 import pytest
+from helpers import one_line_error
 
 from labrig.validate import InputError
 from planarize import Model, Surface, anodize, surfaces
 from planarize.anodize import HISTORY_ROW_BYTES, MAX_RECORD, MAX_STEPS_PER_RUN, run_bytes
 from planarize.cli import main as planarize_main
 from planarize.grid import Grid
+from planarize.heightfield import MAX_POINTS
 from planarize.io import heights, load_heights, texttable
 from planarize.io.gwy import gwy_channels
 from planarize.io.limits import MAX_FILE_BYTES, TEXT_BYTES_PER_VALUE
 from planarize.io.scenefile import scene_from_toml
 from planarize.scene import RunSettings, SurfaceSpec
-from planarize.heightfield import MAX_POINTS
 from planarize.surfaces import MAX_SCALES
-
-from helpers import one_line_error
 
 FLAT = Surface(np.zeros((4, 4)))
 sweeps_module = importlib.import_module("planarize.engines.base")  # where the thesis's engines check their memory

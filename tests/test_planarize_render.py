@@ -5,11 +5,10 @@ import numpy as np
 import pytest
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from movie_probe import read_frames
 
 import planarize
 from planarize import render
-
-from movie_probe import read_frames
 
 
 @pytest.fixture(scope="module")

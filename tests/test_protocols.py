@@ -9,8 +9,7 @@ from helpers import TimeRecorder, worst_overlap
 import qdots
 from qdots.experiment import Board, Deposition, Experiment, run_experiment
 from qdots.presets import GRATING_WIDTH, PRESETS, get_preset
-from qdots.protocols import (HEX_PACKING, draw_diameters, deposit, deposit_around_centre, dot_masses,
-                             ring_radius)
+from qdots.protocols import HEX_PACKING, deposit, deposit_around_centre, dot_masses, draw_diameters, ring_radius
 
 
 def empty_sim(box=(100.0, 100.0), forces=(), segments=None, seed=1):

@@ -11,6 +11,7 @@ import pytest
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.collections import EllipseCollection, LineCollection
 from matplotlib.figure import Figure
+from movie_probe import assert_playable, probe, read_frames
 
 import qdots
 from qdots import cli
@@ -18,7 +19,6 @@ from qdots.placement import random_sequential
 from qdots.protocols import dot_masses
 from qdots.render import MovieWriter, add_key, draw_state, heavy_dots, key_label, save_png, size_colours, size_range
 
-from movie_probe import assert_playable, probe, read_frames
 
 def small_sim(n=10, seed=2):
     positions, radii = random_sequential(n, (120, 120), sigma=0.1, rng=seed)

@@ -5,6 +5,7 @@ wrong type) in one line before it writes anything."""
 import re
 
 import pytest
+from helpers import refused_run
 
 import qdots
 from labrig.validate import InputError
@@ -12,8 +13,6 @@ from qdots.cli import main as qdots_main
 from qdots.experiment import Deposition, Experiment
 from qdots.forces.thermal import MAX_KICKS_PER_RUN, MAX_KICKS_PER_STEP
 from qdots.io.experiment_file import experiment_from_toml
-
-from helpers import refused_run
 
 ONE_DOT = qdots.Scene(box=(100, 100), positions=[[50, 50]], radii=[5])
 

@@ -12,13 +12,19 @@ from helpers import refused_file
 import qdots
 from labrig.tomlfile import tomllib
 from qdots.cli.sweep import ExperimentRunner
-from qdots.forces import FORCE_TYPES, thesis_offset
-from qdots.experiment import Board, Deposition, Experiment
-from qdots.presets import PRESETS, get_preset
-from qdots.io import experiment_file
 from qdots.engine import ENGINES, Chipmunk, Event
-from qdots.io.experiment_file import (TABLES, experiment_from_toml, experiment_to_toml, load_experiment,
-                                      save_experiment, table_params)
+from qdots.experiment import Board, Deposition, Experiment
+from qdots.forces import FORCE_TYPES, thesis_offset
+from qdots.io import experiment_file
+from qdots.io.experiment_file import (
+    TABLES,
+    experiment_from_toml,
+    experiment_to_toml,
+    load_experiment,
+    save_experiment,
+    table_params,
+)
+from qdots.presets import PRESETS, get_preset
 
 ALL_PRESET_RUNS = [exp for name in PRESETS for exp in (*PRESETS[name], *get_preset(name, quick=True))]
 

@@ -5,11 +5,11 @@ import math
 import pytest
 
 import planarize
+from labrig.sweeps import Sweep, run_sweep
+from planarize.cli.sweep import AnodizeRunner, load_sweep, scene_to_dict
 from planarize.io.results import load_run
 from planarize.io.scenefile import scene_from_dict
 from planarize.scene import SCENES
-from planarize.cli.sweep import AnodizeRunner, load_sweep, scene_to_dict
-from labrig.sweeps import Sweep, run_sweep
 
 #: The thesis hill on its unrefined 5 x 5 grid, coarse steps: milliseconds per run.
 TINY = {"surface": {"kind": "hill", "refine": 1}, "run": {"thickness": 0.3, "step": 0.05, "record": [0.1, 0.2, 0.3]}}

@@ -7,12 +7,12 @@ import numpy as np
 import pytest
 
 import qdots
+from labrig.sweeps import Sweep, read_table, run_sweep
 from qdots.analysis import packing_summary
 from qdots.cli import main
-from qdots.experiment import Board, Deposition, Experiment, run_experiment
 from qdots.cli.sweep import ExperimentRunner, experiment_to_dict
+from qdots.experiment import Board, Deposition, Experiment, run_experiment
 from qdots.io.experiment_file import experiment_from_dict, save_experiment
-from labrig.sweeps import Sweep, read_table, run_sweep
 
 #: A few dots and about 1 s of simulated time per run.
 TINY = Experiment(name="tiny", board=Board(120.0, 120.0),

@@ -15,11 +15,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import one_line_error
 
 from labrig.sweeps import Sweep, read_table, run_sweep, save_sweep_plot, summarize
 from qdots.cli import main as qdots_main
-
-from helpers import one_line_error
 
 
 @dataclass(frozen=True)

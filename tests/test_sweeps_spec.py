@@ -3,14 +3,13 @@
 import tracemalloc
 
 import pytest
+from helpers import one_line_error
 
-from qdots.cli import main as qdots_main
-from qdots.cli.sweep import ExperimentRunner, load_sweep
 from labrig.sweeps import Sweep, run_id
 from labrig.sweeps.files import sweep_from_dict
 from labrig.sweeps.spec import get_path, range_values, set_path
-
-from helpers import one_line_error
+from qdots.cli import main as qdots_main
+from qdots.cli.sweep import ExperimentRunner, load_sweep
 
 
 def test_product_order_points_axes_then_seeds():

@@ -26,14 +26,14 @@ from labrig.validate import InputError
 
 from .. import render
 from ..anodize import Anodization
+from ..engines.resolution import ORDER_HIGH, ORDER_LOW
 from ..io.heights import load_levelled
 from ..io.results import save_history_csv, save_run
-from ..levelling import applied_corrections, detect, report_rows
 from ..io.scenefile import save_scene
-from ..scene import PlanarizeScene, RunSettings, SurfaceSpec
+from ..levelling import applied_corrections, detect, report_rows
 from ..metrics import z_range
 from ..model import MAX_STEP
-from ..engines.resolution import ORDER_HIGH, ORDER_LOW
+from ..scene import PlanarizeScene, RunSettings, SurfaceSpec
 
 #: Movie frames (oxide thicknesses evenly spaced from 0 to the target, plus the scene's snapshots).
 MOVIE_FRAMES = 40

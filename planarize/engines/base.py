@@ -32,9 +32,9 @@ import numpy as np
 from labrig.validate import InputError, available_memory, within_memory
 
 from ..grid import Grid
+from ..heightfield import Surface, volume_weights
 from ..metrics import roughness
 from ..model import Model
-from ..heightfield import Surface, volume_weights
 from ..recording import Anodization, progress_bar, record_run, run_bytes
 from .features import feature_tables
 from .kernels import max_feature_length

@@ -22,15 +22,15 @@ from typing import ClassVar
 import numpy as np
 
 from labrig.params import Param
+from labrig.threads import available_threads, row_ranges, run_in_threads
 from labrig.validate import InputError, count, real
 
 from ..heightfield import Surface, volume_weights
 from ..model import Model
 from ..recording import Anodization
 from .flow import GHOST, fill_ghosts, metal_rate, surface_area
-from .resolution import converge
 from .offset import coat, extremes, surface_moments
-from labrig.threads import available_threads, row_ranges, run_in_threads
+from .resolution import converge
 
 #: Refinement factors the engine may run at (internal grid = the surface's grid refined that many times).
 MAX_REFINE = 16
@@ -93,7 +93,7 @@ class Continuum:
         if self.threads is not None:
             object.__setattr__(self, "threads", count("threads", self.threads, 1, MAX_THREADS))
 
-    def build(self, metal: Surface, oxide, model: Model, factor: float = 1.0) -> "ContinuumEngine":
+    def build(self, metal: Surface, oxide, model: Model, factor: float = 1.0) -> ContinuumEngine:
         """The engine for ``metal`` under ``model`` on its grid resampled by ``factor`` (a power of 2,
         below 1 for a coarser grid)."""
         return ContinuumEngine(metal, oxide, model, self, factor)

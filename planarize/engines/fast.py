@@ -34,6 +34,7 @@ from typing import ClassVar
 import numpy as np
 
 from labrig.params import Param
+from labrig.threads import available_threads, run_in_threads
 from labrig.validate import InputError, count
 
 from .base import Engine, run_sweeps
@@ -42,7 +43,6 @@ from .features import oxide_reach
 from .kernels import closest_sets, search_radii, star_reach, within
 from .pyramid import BallCache, HeightPyramid
 from .sets import OxideSets
-from labrig.threads import available_threads, run_in_threads
 
 #: What the fast engine does with interacting candidates of a batch: one after the other, or together.
 INTERACTING = ("wait", "together")
@@ -104,7 +104,7 @@ class Fast:
         if self.threads is not None:
             object.__setattr__(self, "threads", count("threads", self.threads, 1, MAX_THREADS))
 
-    def build(self, metal, oxide, model) -> "FastEngine":
+    def build(self, metal, oxide, model) -> FastEngine:
         """The engine for ``metal`` (and ``oxide``) under ``model``."""
         return FastEngine(metal, oxide, model, settings=self)
 

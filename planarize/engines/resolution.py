@@ -161,7 +161,7 @@ def predicted_seconds(before: dict, last: dict, points: int) -> float:
     return max(last["steps"], 1) * growth * points * speed
 
 
-def _ladder(settings: "Continuum") -> list[float]:
+def _ladder(settings: Continuum) -> list[float]:
     """The refinement factors to run, coarsest first: the reported grid's two companions, the reported
     grid, and the finer ones ``rtol`` may ask for."""
     reported = settings.refine or 1
@@ -176,7 +176,7 @@ def _label(factor: float, companion: bool) -> str:
     return f"oxide, grid {grid}" + (" (error estimate)" if companion else "")
 
 
-def converge(metal: Surface, thickness: float, model: Model, settings: "Continuum", rows_at: np.ndarray,
+def converge(metal: Surface, thickness: float, model: Model, settings: Continuum, rows_at: np.ndarray,
              shots_at: np.ndarray, *, progress: bool = False, observer=None,
              max_seconds: float | None = None) -> Anodization:
     """A continuum run of `planarize.anodize` at the resolution ``settings.rtol`` asks for, with its error
@@ -273,7 +273,7 @@ def converge(metal: Surface, thickness: float, model: Model, settings: "Continuu
                        complete and estimated)
 
 
-def _too_costly(engine: "ContinuumEngine", thickness: float, predicted: float, last: dict) -> str:
+def _too_costly(engine: ContinuumEngine, thickness: float, predicted: float, last: dict) -> str:
     nx, ny = engine.surface.shape
     grid = "its own grid" if engine.factor == 1 else f"{engine.factor:g}x its grid"
     return (f"the continuum engine would take about {duration(predicted)} to grow {thickness:g} nm of oxide on this "
@@ -283,7 +283,7 @@ def _too_costly(engine: "ContinuumEngine", thickness: float, predicted: float, l
             "engine (--engine fast)")
 
 
-def _max_steps(engine: "ContinuumEngine", thickness: float) -> int:
+def _max_steps(engine: ContinuumEngine, thickness: float) -> int:
     """A bound on the time steps to ``thickness``: many times what the stability limit asks for where the
     metal stalls (diffusion coefficient ``t / (k_exp - 1)``, the largest but for sharp bumps; none without
     expansion, ``k_exp = 1``, where the metal recedes at one speed); a run past it has stopped making progress."""

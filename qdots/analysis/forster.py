@@ -190,7 +190,7 @@ class ExcitonNetwork:
         """The LQE without transfer (dilute solution): efficiency times the radiative fraction."""
         return self.efficiency * float(np.mean(~self.traps)) if self.n_dots else math.nan
 
-    def with_traps(self, traps) -> "ExcitonNetwork":
+    def with_traps(self, traps) -> ExcitonNetwork:
         """The same board and rates with other traps (boolean array, shape (N,))."""
         return dataclasses.replace(self, traps=_traps(self.n_dots, 0.0, traps, None))
 

@@ -35,7 +35,6 @@ from tqdm.auto import tqdm
 from labrig.validate import InputError, count
 
 from ..limits import MAX_DRAWS  # noqa: F401 (public here too)
-
 from .forster import KB_EV, TRAP_FRACTION, ExcitonNetwork, draw_traps, exciton_network
 from .lqe_thesis import check_dt, check_walks, drop_trapped, step_probabilities, thesis_walks
 

@@ -25,8 +25,8 @@ import os
 import re
 import sys
 import time
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Sequence
 
 from labrig.cli import print_table
 from labrig.files import OutputSet, slug, write_csv

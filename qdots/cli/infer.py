@@ -14,8 +14,17 @@ from labrig.validate import MAX_SEED, InputError
 
 def add_arguments(p) -> None:
     """The library, the films and where they run."""
-    from ..micrograph.choices import (CHECK_FILMS, FILM_DOTS, LIBRARY_FILMS, MAX_CHECK_FILMS, MAX_FILM_DOTS,
-                                      MAX_LIBRARY_FILMS, MAX_SAMPLES, MIN_TRAINING_FILMS, SAMPLES)
+    from ..micrograph.choices import (
+        CHECK_FILMS,
+        FILM_DOTS,
+        LIBRARY_FILMS,
+        MAX_CHECK_FILMS,
+        MAX_FILM_DOTS,
+        MAX_LIBRARY_FILMS,
+        MAX_SAMPLES,
+        MIN_TRAINING_FILMS,
+        SAMPLES,
+    )
 
     p.add_argument("--library", type=Path, default=Path("qdots-infer-library"), metavar="DIR",
                    help="the library of simulated films, kept and reused by later images (default "

@@ -41,7 +41,6 @@ from labrig.validate import InputError
 from ..experiment import Experiment, run_experiment
 from ..io.experiment_file import TABLES, experiment_from_dict, table_params
 
-
 #: Wall seconds per time step and per dot and time step of a run, at the default engine settings (from fig2-2:
 #: 160,000 steps, 3.0e7 dot-steps, 34 s), for `ExperimentRunner.estimate`.
 STEP_SECONDS = 3e-5
@@ -108,7 +107,6 @@ class ExperimentRunner:
     def __call__(self, params: dict, state_path: Path | None = None) -> dict:
         from ..analysis.packing import packing_summary
         from ..io import checkpoint
-
         from .commands import OVERLAP_COLUMN
 
         sim = run_experiment(experiment_from_dict(params))

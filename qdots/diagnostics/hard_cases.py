@@ -32,16 +32,16 @@ from __future__ import annotations
 import math
 import time
 import warnings
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable
 
 import numpy as np
 
 from labrig.validate import InputError, choice, count, real
 
-from ..restitution import Restitution
 from ..forces import CentreGravity, Drag, Gravity, ThermalKicks, VanDerWaals
 from ..geometry import DiscTree, nested_pairs, worst_overlap, worst_wall_overlap
+from ..restitution import Restitution
 from ..scene import MAX_DOTS, Scene, grating_segments
 from ..simulation import OVERLAP_WARNING, Simulation
 from ..units import thesis_kick_speed

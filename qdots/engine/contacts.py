@@ -53,7 +53,6 @@ from ..restitution import Restitution, impact_normal
 from .allocator import tune_allocator
 from .pymunk_adapter import DOT, POSITION, VELOCITY, WALL, add_pre_solve_callback, impact_layout, internals
 
-
 # -- the collision record: one float64 array the callbacks read and write ----------------------
 
 #: Slots of `CollisionRecord.array`. Float slots: the rule and the current sub-step (s). Integer slots (the
@@ -204,7 +203,7 @@ class CollisionRecord:
     def to_dict(self) -> dict:
         return {name: getattr(self, name) for name in self.SAVED}
 
-    def copy_from(self, other: "CollisionRecord") -> None:
+    def copy_from(self, other: CollisionRecord) -> None:
         """Take ``other``'s counts and stream position (a simulation that goes on from another)."""
         for name in self.SAVED:
             setattr(self, name, getattr(other, name))

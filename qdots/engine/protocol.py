@@ -9,7 +9,8 @@ Whatever else an engine counts it reports in `Backend.diagnostics`, so that no c
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Protocol, Sequence
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Protocol
 
 if TYPE_CHECKING:
     import numpy as np

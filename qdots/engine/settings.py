@@ -51,11 +51,11 @@ class Settings:
         check_fields(self, self.PARAMS)
 
     @property
-    def pairs(self) -> "PairScheme":
+    def pairs(self) -> PairScheme:
         """How the engine evaluates pair forces in time (`qdots.engine.PairScheme`)."""
         raise NotImplementedError
 
-    def build(self, walls, restitution, key: int, positions, velocities, radii, masses) -> "Backend":
+    def build(self, walls, restitution, key: int, positions, velocities, radii, masses) -> Backend:
         """The engine of one simulation, holding these dots (validated by the caller, a `qdots.Scene`).
 
         Parameters

@@ -28,9 +28,9 @@ import html
 from labrig.validate import real
 from labrig.widgets import require_widgets, widget_figure
 
+from ..engine import ENGINES
 from ..presets import GRATING_WIDTH
 from ..render import BoardArtists
-from ..engine import ENGINES
 from .live import GRAVITY_MODES, LiveRun
 
 #: Largest canvas, inches a side: 2,000 px at matplotlib's 100 dpi, wider than a notebook's page (every

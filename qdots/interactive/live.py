@@ -33,17 +33,17 @@ from labrig.validate import InputError, choice, count, real
 
 from ..analysis.packing import packing_summary
 from ..analysis.structure import hexatic_order
+from ..engine import ENGINES, Chipmunk, Settings
+from ..engine.settings import DT_RANGE
 from ..forces import CentreGravity, Drag, Gravity, ThermalKicks, VanDerWaals
 from ..forces.fields import MAX_ACCELERATION, MAX_DRAG, THESIS_GRAVITY
 from ..forces.thermal import MAX_SCALE
 from ..forces.vdw import MAX_RANGE
+from ..geometry import worst_wall_overlap
 from ..io import checkpoint
 from ..protocols import deposit
-from ..geometry import worst_wall_overlap
-from ..scene import MAX_DOTS, Scene, grating_segments
-from ..engine import ENGINES, Chipmunk, Settings
-from ..engine.settings import DT_RANGE
 from ..restitution import Restitution
+from ..scene import MAX_DOTS, Scene, grating_segments
 from ..simulation import Simulation
 from ..state import State
 

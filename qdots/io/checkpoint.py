@@ -44,11 +44,11 @@ from labrig.archive import read_archive, write_archive
 from labrig.files import recover_beside
 from labrig.validate import InputError, count, flag, real, reals
 
-from ..engine.contacts import stream_key
-from ..restitution import Restitution
-from ..forces import force_from_dict
-from ..scene import MAX_DOTS, MAX_LENGTH, MAX_SEGMENTS, Scene
 from ..engine import ENGINES, engine_from_dict
+from ..engine.contacts import stream_key
+from ..forces import force_from_dict
+from ..restitution import Restitution
+from ..scene import MAX_DOTS, MAX_LENGTH, MAX_SEGMENTS, Scene
 from ..simulation import Simulation
 from ..state import State
 from .old_spellings import current_engine, current_force, current_numerics

@@ -34,10 +34,10 @@ from labrig.params import file_schema
 from labrig.tomlfile import as_table, check_keys, from_source, parse_toml, read_toml, toml_line, top_level
 from labrig.validate import InputError, typed
 
-from ..restitution import Restitution
+from ..engine import Settings, engine_class, engine_params
 from ..experiment import Board, Deposition, Experiment
 from ..forces import FORCE_TYPE, FORCE_TYPES
-from ..engine import Settings, engine_class, engine_params
+from ..restitution import Restitution
 from .old_spellings import current_experiment
 
 #: The tables of an experiment file and the classes they build. The keys of a table, their kinds, ranges and

@@ -22,9 +22,9 @@ import numpy as np
 
 from labrig.validate import InputError
 
+from ..geometry import nearest_ratio
 from .annotations import Annotations, flatness
 from .film import size_spread
-from ..geometry import nearest_ratio
 from .shapes import OVERLAP, OVERLAP_SHARE, STACKED, overlap_share
 
 #: Share of the picture (within 0.2 % of its range) in flat 3 x 3 neighbourhoods above which it is drawn.

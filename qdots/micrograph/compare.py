@@ -30,9 +30,9 @@ from ..analysis.lqe import film_lqe
 from ..engine import ENGINES
 from ..experiment import Board, Deposition, Experiment, default_forces, run_experiment
 from ..presets import MEAN_DIAMETER, THESIS_SEED
+from .choices import MAX_COMPARE_DOTS, MAX_SEEDS, MAX_WORKERS
 from .film import film_metrics
 from .measure import MeasuredFilm, lqe_draws
-from .choices import MAX_COMPARE_DOTS, MAX_SEEDS, MAX_WORKERS
 
 #: Metrics of the comparison table: (key, label, digits).
 METRICS = (("coverage", "coverage", 3), ("size_spread", "size spread sigma", 3),

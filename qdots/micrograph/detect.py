@@ -52,19 +52,33 @@ from labrig.compiled import jit
 from labrig.validate import InputError, choice
 
 from ..geometry import nearest_ratio
-
 from .annotations import find_strips
-from .profiles import (BIN, FIT_HIGH, FIT_LOW, FIT_STEP, fit_profiles, half_depth_radius, profile_table,
-                       radial_profiles)
+from .choices import POLARITIES, PROFILES
 from .missed import missed_dots
+from .profiles import BIN, FIT_HIGH, FIT_LOW, FIT_STEP, fit_profiles, half_depth_radius, profile_table, radial_profiles
 from .refine import refine_dots, repeat_errors
+from .segment import (
+    MIN_INSCRIBED,
+    MIN_SIGNAL,
+    background_level,
+    blob_seeds,
+    blob_skewness,
+    decide_polarity,
+    edge_curvature,
+    fill_small_holes,
+    grain_noise,
+    label_maxima,
+    middle_window,
+    pixel_noise,
+    region_properties,
+    scaled,
+    signal_to_noise,
+    spaced_maxima,
+    split_fused,
+    typical_radius,
+)
 from .settle import FIRST_BLUR, samples_hold, settle_profile
 from .shapes import OVERLAP_SHARE, overlap_share, region_shapes
-from .segment import (MIN_INSCRIBED, MIN_SIGNAL, background_level, blob_seeds, blob_skewness,
-                      decide_polarity, edge_curvature, fill_small_holes, grain_noise, label_maxima, middle_window, pixel_noise,
-                      region_properties, scaled, signal_to_noise, spaced_maxima, split_fused, typical_radius)
-from .choices import POLARITIES, PROFILES
-
 
 #: Smallest typical dot diameter, px, that can be measured.
 MIN_DIAMETER = 4.0

@@ -43,8 +43,8 @@ from ..experiment import Board, Deposition, Experiment, build_simulation, popula
 from ..forces import Drag, ThermalKicks, VanDerWaals
 from ..presets import MEAN_DIAMETER
 from ..restitution import Restitution
-from .film import complete_neighbourhood
 from .choices import FILM_DOTS, MAX_FILM_DOTS
+from .film import complete_neighbourhood
 
 
 @dataclass(frozen=True)

@@ -25,13 +25,12 @@ import numpy as np
 from labrig.validate import count
 
 from ..io import checkpoint
+from .choices import CHECK_FILMS, MAX_CHECK_FILMS, SAMPLES
+from .conformal import IntervalCalibration, describe_factor
 from .forward import FILM_DOTS, MEASURES, PARAMETERS, SUMMARIES, image_measures, image_point, parameter_keys
 from .library import LIBRARY_FILMS, build_library, observation
 from .measure import MeasuredFilm, measure_image
-from .conformal import IntervalCalibration, describe_factor
 from .posterior import ENSEMBLE, LEVEL, credible_intervals, load_or_train, require_sbi
-from .choices import CHECK_FILMS, MAX_CHECK_FILMS, SAMPLES
-
 
 
 @dataclass(frozen=True)

@@ -29,8 +29,8 @@ from labrig.files import write_text_atomic
 from labrig.sweeps import Sweep, run_sweep
 from labrig.validate import InputError, count
 
-from .forward import CONDITIONS, FILM_DOTS, PARAMETERS, SUMMARIES, FilmRunner, condition_keys, parameter_keys
 from .choices import LIBRARY_FILMS, MAX_LIBRARY_FILMS
+from .forward import CONDITIONS, FILM_DOTS, PARAMETERS, SUMMARIES, FilmRunner, condition_keys, parameter_keys
 
 #: Roots of the random streams of prior draws: the training films, and the held-out films of the calibration.
 STREAMS = {"training": 5601, "calibration": 5602}

@@ -20,13 +20,13 @@ from labrig.progress import StageLines, progress_bar
 from labrig.validate import InputError
 
 from ..analysis.lqe import film_lqe
+from ..geometry import nearest_ratio
+from .admit import NotAFilm, check_picture, film_verdict
+from .annotations import Annotations, find_annotations
 from .detect import STAGES, Detection, detect_dots
 from .film import OUTLIER, complete_neighbourhood, film_metrics, film_state
 from .read import Micrograph, read_micrograph
-from .admit import NotAFilm, check_picture, film_verdict
-from .annotations import Annotations, find_annotations
 from .scale import ScaleBar, check_nm_per_px, parse_length, scale_from_bar
-from ..geometry import nearest_ratio
 from .shapes import STACKED
 
 #: Diameters, nm, of quantum dots and nanocrystals: a scale that puts the dots outside says so (`scale_check`).

@@ -33,10 +33,9 @@ import numpy as np
 from labrig.files import atomic_path
 from labrig.validate import InputError, count
 
-from .conformal import (CALIBRATION_SHARE, IntervalCalibration, central_quantiles, fit_calibration,
-                        is_calibration_film)
-from .forward import PARAMETERS
 from .choices import INFER_EXTRA, MAX_SAMPLES, MIN_TRAINING_FILMS
+from .conformal import CALIBRATION_SHARE, IntervalCalibration, central_quantiles, fit_calibration, is_calibration_film
+from .forward import PARAMETERS
 
 #: Networks averaged in one posterior, their flow, and the threads torch may use (one: on a busy 2-core machine
 #: two threads made a training 10-30x slower, measured).

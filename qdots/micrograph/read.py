@@ -29,6 +29,7 @@ import numpy as np
 
 from labrig.files import existing_file
 from labrig.validate import InputError, count
+
 from .choices import MICROSCOPE, TIFF, unknown_suffix
 
 #: Smallest and largest image side, px (a particle and its background need more than a few pixels), and largest

@@ -11,8 +11,8 @@ from scipy import ndimage
 
 from labrig.validate import InputError, real
 
-from .read import UNIT_NM
 from .choices import MAX_NM_PER_PX, MIN_NM_PER_PX
+from .read import UNIT_NM
 
 #: A scale bar is at least this many times longer than it is thick.
 BAR_ASPECT = 5.0

@@ -17,9 +17,9 @@ import numpy as np
 
 from labrig.threads import available_threads, run_in_threads
 
+from .choices import PROFILES
 from .profiles import central_curvature, predicted_curvature
 from .refine import PASSES, REACH, REACH_PAD, WIDE, profile_reach, refine_dots
-from .choices import PROFILES
 
 #: The background field: a quadratic surface through the lone fits' backgrounds (`smooth_level`; their median
 #: when fewer than LEVEL_DOTS), times a factor searched in LEVEL_RANGE, first at LEVEL_SCAN (on a dense film

@@ -16,8 +16,8 @@ from labrig.validate import count
 
 from ..io import checkpoint
 from ..io.experiment_file import save_experiment
-from .compare import MAX_COMPARE_DOTS, MAX_SEEDS, MAX_WORKERS, Comparison, compare_film, default_workers
 from .admit import NotAFilm
+from .compare import MAX_COMPARE_DOTS, MAX_SEEDS, MAX_WORKERS, Comparison, compare_film, default_workers
 from .measure import MeasuredFilm, measure_image, state_metadata
 from .overlay import save_overlay, save_side_by_side
 
@@ -96,10 +96,11 @@ def infer(path: str | os.PathLike, out: str | os.PathLike | None = None, *, libr
     ``NAME_corner.png``, ``NAME_best.png`` (the micrograph beside the best-fitting film, both measure tables),
     ``NAME_check.png`` (the predictive check) and ``NAME_best-film.npz`` (that film's board). ``options`` are
     `qdots.micrograph.infer.infer_film`'s keywords. The library is kept in ``library``."""
+    from labrig.figures import save_figure
+
     from .forward import parameter_keys
     from .infer import infer_image
     from .infer_plots import best_film_figure, check_figure, corner_figure
-    from labrig.figures import save_figure
 
     path = Path(path)
     stem = slug(name if name is not None else path.stem)

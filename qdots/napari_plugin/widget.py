@@ -21,8 +21,18 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
-from qtpy.QtWidgets import (QCheckBox, QComboBox, QFormLayout, QLabel, QLineEdit, QPushButton, QTableWidget,
-                            QTableWidgetItem, QVBoxLayout, QWidget)
+from qtpy.QtWidgets import (
+    QCheckBox,
+    QComboBox,
+    QFormLayout,
+    QLabel,
+    QLineEdit,
+    QPushButton,
+    QTableWidget,
+    QTableWidgetItem,
+    QVBoxLayout,
+    QWidget,
+)
 
 from labrig.files import OutputSet, slug
 from labrig.validate import InputError
@@ -191,7 +201,7 @@ class MeasureWidget(QWidget):
         try:
             value = float(text)
         except ValueError:
-            raise InputError(f"nm per px must be a number in [{MIN_NM_PER_PX:g}, {MAX_NM_PER_PX:g}], got {text!r}")
+            raise InputError(f"nm per px must be a number in [{MIN_NM_PER_PX:g}, {MAX_NM_PER_PX:g}], got {text!r}") from None
         return value
 
     def _picture(self):
