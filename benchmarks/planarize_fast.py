@@ -5,7 +5,7 @@ Cases (k_exp 2.3, thesis distances, exact volume accounting, default batch toler
 * ``hill``: the thesis hill, 17 x 17 at 0.25 nm, to 1 nm in 0.01 nm steps (goal < 0.5 s). Error:
   largest relative RMS difference from the reference's at every 0.1 nm (the reference's answer
   is computed by the fast engine at tolerance 0, which reproduces it bit for bit; see
-  tests/test_planarize_engines.py). The reference engine itself is timed on the same case.
+  tests/planarize/test_planarize_engines.py). The reference engine itself is timed on the same case.
 * ``random65``: a 65 x 65 random surface (uniform heights +-0.25 nm on 17 x 17 points, refined
   4x) to 1 nm; the reference engine is timed for ``--budget`` seconds and its full time
   extrapolated at its measured rate to the updates it needs (known from the tolerance-0 run).

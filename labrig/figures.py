@@ -1,6 +1,13 @@
 """Figures written to files: atomically, at a bounded resolution.
 
->>> save_figure(fig, "run.png", dpi=150)     # doctest: +SKIP
+>>> from matplotlib.figure import Figure
+>>> fig = Figure(figsize=(4, 3))
+>>> save_figure(fig, "run.png", dpi=150)
+PosixPath('run.png')
+>>> save_figure(fig, "huge.png", dpi=1e5)
+Traceback (most recent call last):
+...
+labrig.validate.InputError: dpi must be in (0, ...], got 100000.0
 """
 
 from __future__ import annotations

@@ -4,7 +4,7 @@ Everything the packages save goes through `atomic_path`: the data is written to 
 in the same directory and renamed onto the target, so a crash or a bad input mid-write never
 corrupts or loses what was saved before. A process killed mid-write leaves its temporary file
 (``.NAME-xxxxxxxx.tmp.SUFFIX``) behind; `remove_stale_temporaries` clears old ones. The files of one
-result (a state, its picture, its movie, ...) are an `OutputSet` (`labrig.outputset`, imported from here too):
+result (a state, its picture, its movie, ...) are an `labrig.outputset.OutputSet`:
 a folder that replaces the earlier one in one step, even against a kill (`labrig.staging`).
 """
 
@@ -25,7 +25,7 @@ from .staging import SetBusyError, recover_beside
 from .validate import InputError, printable
 
 __all__ = ["atomic_path", "write_text_atomic", "write_csv", "temporary_beside", "existing_file",
-           "remove_stale_temporaries", "writable_directory", "AllOrNothing", "StreamedFile", "OutputSet", "SetBusyError",
+           "remove_stale_temporaries", "writable_directory", "AllOrNothing", "StreamedFile", "SetBusyError",
            "recover_beside", "slug"]
 
 #: Temporary files older than this (s) are left over from a killed process (`remove_stale_temporaries`).
@@ -221,4 +221,15 @@ def slug(name: str) -> str:
     return text or "run"
 
 
-from .outputset import OutputSet  # noqa: E402 (defined on the helpers above; the packages import it from here)
+def __getattr__(name: str):
+    """``OutputSet``, imported from here until 0.3 (it is `labrig.outputset.OutputSet`; importing it here made
+    the two modules import each other)."""
+    if name == "OutputSet":
+        import warnings
+
+        from .outputset import OutputSet
+
+        warnings.warn("labrig.files.OutputSet is labrig.outputset.OutputSet; importing it from labrig.files will stop "
+                      "working in the release after 0.3", DeprecationWarning, stacklevel=2)
+        return OutputSet
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -39,12 +39,15 @@ class OutputSet(AllOrNothing):
 
     Examples
     --------
-    >>> with OutputSet(out, "run") as files:                             # doctest: +SKIP
-    ...     save_png(state, files.stage("run.png"))
-    ...     movie = files.adopt(MovieWriter(files.stage("run.mp4")))
-    ...     save_scene(scene, files.stage("run.toml"))
-    >>> files.written                                                    # doctest: +SKIP
-    [PosixPath('out/run/run.png'), PosixPath('out/run/run.mp4'), PosixPath('out/run/run.toml')]
+    A run's files (here two small ones; a movie would be ``files.adopt(MovieWriter(files.stage("run.mp4")))``):
+
+    >>> with OutputSet("out", "run") as files:
+    ...     _ = files.stage("run.toml").write_text("seed = 1")
+    ...     _ = files.stage("run.csv").write_text("rms_nm,0.5")
+    >>> files.written
+    [PosixPath('out/run/run.toml'), PosixPath('out/run/run.csv')]
+    >>> sorted(p.name for p in Path("out/run").iterdir())
+    ['run.csv', 'run.toml']
     """
 
     def __init__(self, directory: str | os.PathLike, name: str):

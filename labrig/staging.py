@@ -1,6 +1,6 @@
 """Staging directories of output sets: who writes which set, and a switch that is one rename.
 
-An `labrig.files.OutputSet` named ``NAME`` in an output directory ``OUT`` is the folder ``OUT/NAME``.
+An `labrig.outputset.OutputSet` named ``NAME`` in an output directory ``OUT`` is the folder ``OUT/NAME``.
 Its files are written into a hidden staging directory beside it, ``OUT/.staging-NAME-<pid>-<8 hex
 digits>/`` (the same filesystem). Its process holds an exclusive ``flock`` on that directory while the
 set is open: the lock says that the set is being written, and the operating system drops it when the

@@ -51,7 +51,7 @@ class Grid:
         #: the 3 other corners of each QUADRANTS cell, shape (n, 4, 3): (sx, 0), (sx, sy), (0, sy); -1 if no cell
         corners = np.stack([np.stack([self.shift(k, sx, 0), self.shift(k, sx, sy), self.shift(k, 0, sy)], axis=1)
                             for sx, sy in QUADRANTS], axis=1)
-        missing = (corners < 0).any(axis=2, keepdims=True)
+        missing = np.any(corners < 0, axis=2, keepdims=True)
         self.quadrant_corners = np.where(missing, -1, corners)
         #: the cell of each QUADRANTS quadrant, named by its lower-left corner, shape (n, 4); -1 if none
         lower_left = np.stack([self.shift(k, min(sx, 0), min(sy, 0)) for sx, sy in QUADRANTS], axis=1)
@@ -60,7 +60,7 @@ class Grid:
         cell = np.stack([k, self.shift(k, 1, 0), self.shift(k, 1, 1), self.shift(k, 0, 1)], axis=1)
         self.cell_corners = np.where((cell < 0).any(axis=1, keepdims=True), -1, cell)
 
-    def shift(self, k, di: int, dj: int) -> np.ndarray:
+    def shift(self, k, di: int | np.ndarray, dj: int | np.ndarray) -> np.ndarray:
         """Index of the point ``(di, dj)`` away from each ``k``; -1 past an open edge."""
         i = self.i[k] + di
         j = self.j[k] + dj

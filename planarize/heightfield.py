@@ -195,7 +195,7 @@ class Surface:
         return (self.spacing == other.spacing and self.boundary == other.boundary
                 and self.shape == other.shape and bool(np.array_equal(self._z, other._z)))
 
-    __hash__ = None
+    __hash__ = None  # type: ignore[assignment]  # the unhashable idiom; typeshed types it as a method
 
 
 def volume_weights(shape: tuple[int, int], dx: float, dy: float, boundary: str = "open") -> np.ndarray:

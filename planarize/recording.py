@@ -52,8 +52,8 @@ class Anodization:
         The metal at the start.
     metal, oxide : Surface
         The surfaces at the end.
-    distances : ndarray
-        Every metal point's distance to the oxide at the end, nm.
+    distances : ndarray or None
+        Every metal point's distance to the oxide at the end, nm (None when the record does not hold them).
     complete : bool
         False when the run stopped at its wall-time budget before the target thickness.
     """
@@ -64,7 +64,7 @@ class Anodization:
     initial: Surface
     metal: Surface
     oxide: Surface
-    distances: np.ndarray = field(repr=False, default=None)
+    distances: np.ndarray | None = field(repr=False, default=None)
     complete: bool = True
 
     @property

@@ -129,7 +129,7 @@ def log_axis(ax, values, min_decades: float = 0.5) -> tuple[float, float]:
     ax.set_yscale("log")
     ax.set_ylim(10 ** (low - margin), 10 ** (high + margin))
     if high - low + 2 * margin < 2:
-        subs = (1.0, 2.0, 5.0) if high - low + 2 * margin >= 1 else np.arange(1.0, 10.0)
+        subs = (1.0, 2.0, 5.0) if high - low + 2 * margin >= 1 else tuple(np.arange(1.0, 10.0))
         ax.yaxis.set_major_locator(LogLocator(base=10, subs=subs))
         ax.yaxis.set_major_formatter(FuncFormatter(lambda value, _: f"{value:g}"))
         ax.yaxis.set_minor_formatter(NullFormatter())
@@ -365,6 +365,9 @@ class SurfaceMovie(FigureMovie):
     size_px : int
         Frame width and height, pixels (even, >= 16).
     """
+
+    half_range: float
+    cmap: str
 
     def __init__(self, path, half_range: float, fps: float = 10, size_px: int = 600, cmap: str = "viridis"):
         if not (isinstance(half_range, numbers.Real) and math.isfinite(half_range) and half_range > 0):

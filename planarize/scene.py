@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import dataclasses
 import inspect
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from labrig.params import Param, check_fields, file_schema
@@ -31,7 +32,7 @@ from .model import Model
 
 #: Surface kinds: kind -> (builder, {parameter: `labrig.params.Param`}); the builders check their arguments
 #: with the same declarations.
-SURFACE_KINDS = {
+SURFACE_KINDS: dict[str, tuple[Callable[..., Surface], dict[str, Param]]] = {
     "hill": (surfaces.hill, {k: p for k, p in surfaces.BUMP.items() if k != "height"}),
     "depression": (surfaces.depression, {k: p for k, p in surfaces.BUMP.items() if k != "height"}),
     "bump": (surfaces.bump, surfaces.BUMP),
@@ -40,7 +41,7 @@ SURFACE_KINDS = {
     "file": (load_heights, LOAD_OPTIONS),
 }
 #: Surface kinds as a scene file states them: kind -> (builder, {parameter: (file kind, comment)}).
-SURFACES = {kind: (builder, file_schema(params)) for kind, (builder, params) in SURFACE_KINDS.items()}
+SURFACES: dict[str, tuple[Callable[..., Surface], dict]] = {kind: (builder, file_schema(params)) for kind, (builder, params) in SURFACE_KINDS.items()}
 #: The ``[run]`` keys (`labrig.params.Param`): the run's own arguments (`planarize.anodize.RUN_ARGUMENTS`), the
 #: `Model`'s fields and the engines' settings, each declared once where it is checked.
 RUN_PARAMS = {

@@ -15,7 +15,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass, field
-from typing import ClassVar
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -260,7 +260,7 @@ class Experiment:
 
     def scene(self) -> Scene:
         """The empty board: box and grating wall (if any)."""
-        segments = [[0.0, self.grating, self.board.width, self.grating]] if self.grating else None
+        segments = np.array([[0.0, self.grating, self.board.width, self.grating]]) if self.grating else None
         return Scene(box=(self.board.width, self.board.height), positions=np.zeros((0, 2)), radii=np.zeros(0),
                      segments=segments, closed=self.board.closed)
 
@@ -321,10 +321,10 @@ def populate(sim: Simulation, exp: Experiment, progress: bool = False) -> Simula
     _, deposit_seed = np.random.SeedSequence(exp.seed).spawn(2)
     dep = exp.deposition
     sim.check_run(dep.n_dots * dep.interval + dep.settle)  # the whole deposition, before the first dot
-    common = dict(mean_diameter=dep.mean_diameter, sigma=dep.sigma, mass_model=dep.mass_model,
-                  heavy_mass=dep.heavy_mass, mass_exponent=dep.mass_exponent, interval=dep.interval,
-                  max_tries=dep.max_tries,
-                  rng=np.random.default_rng(deposit_seed), progress=progress)
+    common: dict[str, Any] = dict(mean_diameter=dep.mean_diameter, sigma=dep.sigma, mass_model=dep.mass_model,
+                                  heavy_mass=dep.heavy_mass, mass_exponent=dep.mass_exponent, interval=dep.interval,
+                                  max_tries=dep.max_tries,
+                                  rng=np.random.default_rng(deposit_seed), progress=progress)
     if dep.protocol == "centre":
         deposit_around_centre(sim, dep.n_dots, exp.centre(), **common)
     else:

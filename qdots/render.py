@@ -18,10 +18,12 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.cm import ScalarMappable
 from matplotlib.collections import EllipseCollection, LineCollection
+from matplotlib.colorbar import Colorbar
 from matplotlib.colors import Normalize
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Rectangle
+from matplotlib.text import Text
 
 from labrig.figures import save_figure
 from labrig.movies import FigureMovie
@@ -161,7 +163,7 @@ def key_label(state, unit: str = "px") -> str:
     return label
 
 
-def add_key(ax, state, unit: str = "px", *, diameters: tuple[float, float] | None = None, cax=None):
+def add_key(ax, state, unit: str = "px", *, diameters: tuple[float, float] | None = None, cax=None) -> Colorbar:
     """The key of the size colours: a horizontal colour bar labelled with `key_label`; returns the Colorbar.
 
     Drawn in ``cax`` if given, else under ``ax`` (space taken from it). ``diameters`` as in `size_colours`.
@@ -205,7 +207,8 @@ class BoardArtists:
             self.outline = Rectangle((0, 0), w, h, fill=False, edgecolor="0.6", linewidth=0.8,
                                      linestyle="--", zorder=1)
             ax.add_patch(self.outline)
-            self.walls = LineCollection(walls, colors="black", linewidths=1.5, zorder=3)
+            self.walls = LineCollection(walls,  # type: ignore[arg-type]  # the stub wants a Sequence; arrays work too
+                                        colors="black", linewidths=1.5, zorder=3)
             ax.add_collection(self.walls, autolim=False)
             self.dots = EllipseCollection(
                 diameters, diameters, np.zeros(len(diameters)), units="xy", offsets=positions,
@@ -372,9 +375,16 @@ class MovieWriter(FigureMovie):
 
     Examples
     --------
-    >>> with MovieWriter("run.mp4", every=200) as movie:     # doctest: +SKIP
-    ...     sim.attach(movie)
-    ...     sim.run(20.0)
+    Two dots jiggling for half a second (25 steps of 20 ms), a frame every 5 steps:
+
+    >>> import qdots
+    >>> scene = qdots.Scene(box=(100, 100), positions=[[30, 50], [70, 50]], radii=[7.5, 7.5])
+    >>> sim = qdots.Simulation(scene, [qdots.ThermalKicks()], seed=1)
+    >>> with MovieWriter("run.mp4", every=5) as movie:
+    ...     _ = sim.attach(movie)
+    ...     _ = sim.run(0.5)
+    >>> movie.frames
+    6
     """
 
     #: Most frames a movie takes (over an hour at 25 frames/s; matplotlib draws each in ~20 ms): a run that
@@ -383,7 +393,7 @@ class MovieWriter(FigureMovie):
 
     def __init__(self, path, every: int = 50, fps: float = 25, size_px: int = 600, title: str = "",
                  diameters: tuple[float, float] | None = None):
-        if not (isinstance(every, numbers.Integral) and every >= 1):
+        if not (isinstance(every, (int, numbers.Integral)) and every >= 1):  # int: so that mypy sees an int pass
             raise InputError(f"every must be an integer >= 1 step, got {every!r}")
         self.every = int(every)
         self.wall_seconds = 0.0
@@ -393,7 +403,9 @@ class MovieWriter(FigureMovie):
         ax = self.figure.add_axes((0.02, 0.15, 0.96, 0.72 if self.title else 0.78))
         ax.set_axis_off()
         self._board = BoardArtists(ax)
-        self._bar = self._bar_label = self._key = None
+        self._bar: Line2D | None = None
+        self._bar_label: Text | None = None
+        self._key: Colorbar | None = None
 
     def _legend(self, state) -> None:
         """Under the board: a scale bar of a round length in px (and in mean diameters), and the colour bar of
@@ -411,7 +423,9 @@ class MovieWriter(FigureMovie):
             self._bar_label = fig.text(x0, 0.065, "", fontsize="small", va="bottom")
             self._key = add_key(ax, state, diameters=self.diameters, cax=fig.add_axes((0.5, 0.065, 0.46, 0.022)))
         elif self.diameters is None:
+            assert self._key is not None  # made with the bar, on the first frame
             self._key.mappable.set_norm(Normalize(*size_range(state.radii)))
+        assert self._bar_label is not None and self._key is not None  # made with the bar, on the first frame
         self._key.set_label(key_label(state).replace("\nthick", "; thick"), fontsize="x-small")
         self._bar.set_xdata([x0, x1])
         self._bar_label.set_text(f"{length:g} px{size}")

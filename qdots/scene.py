@@ -11,6 +11,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -139,12 +140,13 @@ class Scene:
                 f"overlap_tolerance {self.overlap_tolerance:g})"
             )
 
-    def replace(self, **changes: object) -> Scene:
+    def replace(self, **changes: Any) -> Scene:
         """A copy with some fields changed, validated again."""
         return dataclasses.replace(self, **changes)
 
     def wall_segments(self) -> np.ndarray:
         """All static segments, box edges first when the box is closed, shape (M, 4)."""
+        assert self.segments is not None  # __post_init__ replaces the default None by an array
         if not self.closed:
             return self.segments
         w, h = self.box

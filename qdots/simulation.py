@@ -258,6 +258,8 @@ class Simulation:
         fresh = Scene(box=self.scene.box, positions=positions, radii=radii, masses=masses,
                       velocities=velocities)
         if fresh.n_dots:
+            # (a Scene replaces its default None fields by arrays)
+            assert self.scene.segments is not None and fresh.velocities is not None and fresh.masses is not None
             check_clear(fresh, self.state(), self.scene.segments)
             self.backend.add_dots(fresh.positions, fresh.velocities, fresh.radii, fresh.masses)
 
@@ -278,6 +280,7 @@ class Simulation:
         checkpoint therefore continue bit for bit alike.
         """
         board = self.current_scene()
+        assert board.velocities is not None and board.masses is not None  # (a Scene fills its defaults)
         self.backend.rebuild(board.positions, board.velocities, board.radii, board.masses)
 
     @property

@@ -36,7 +36,7 @@ class Writer(Protocol):
 class Attached:
     """A writer attached to a simulation: it gets the state every ``period`` steps (counted from step 0)."""
 
-    writer: object
+    writer: Writer
     period: int
     seconds: float | None = None  # given in seconds: the period follows the time step
     last: int = -1  # the step last written

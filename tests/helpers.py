@@ -1,9 +1,9 @@
 """Plain helpers the test files share: oracles, writers, file builders and the checks of a command's exit.
 
 Pytest's fixtures and hooks are in conftest.py; this is an ordinary module. Test files import it as
-``from helpers import ...``: pytest puts this directory on ``sys.path`` (the rootdir-based "prepend" import
-mode, tests/ having no ``__init__.py``), whether it runs from the repository root, from tests/, or as
-``python -m pytest tests/...``.
+``from helpers import ...``: pyproject's ``pythonpath`` puts tests/ on ``sys.path`` for the test files in
+tests/labrig, tests/qdots and tests/planarize as for those at the top (no folder of tests has an
+``__init__.py``), whether pytest runs from the repository root or as ``python -m pytest tests/...``.
 """
 
 import re

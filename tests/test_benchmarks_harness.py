@@ -67,6 +67,7 @@ def test_a_quick_run_writes_the_report_and_only_keeps_other_sections(tmp_path):
 
 
 @pytest.mark.slow
+@pytest.mark.release
 def test_the_whole_quick_run_writes_every_section_in_time(tmp_path):
     """Every benchmark's quick mode runs, within `QUICK_EACH` s each and `QUICK_LIMIT` s in all (a change of a default
     that stretched a benchmark would fail here: each names its settings, `benchmarks.pinned`)."""

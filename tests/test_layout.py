@@ -1,8 +1,11 @@
-"""The packages' layout: planarize and labrig stand without qdots and without pymunk."""
+"""The packages' layout: planarize and labrig stand without qdots and without pymunk; imports only point down, take
+no private name and make no cycle (ARCHITECTURE.md)."""
 
+import ast
 import subprocess
 import sys
 import textwrap
+from pathlib import Path
 
 import pytest
 
@@ -100,3 +103,86 @@ def test_a_release_states_its_version_licence_and_types():
     for package in ("labrig", "qdots", "planarize"):
         assert (root / package / "py.typed").is_file(), package
     assert pyproject["tool"]["setuptools"]["package-data"]["*"] == ["py.typed"]
+
+
+# -- the import graph, read from the source (ARCHITECTURE.md's rules) ---------------------------------------------
+
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGES = ("labrig", "qdots", "planarize")
+#: What each package may import of the others: an arrow only points down.
+MAY_IMPORT = {"labrig": set(), "qdots": {"labrig"}, "planarize": {"labrig"}}
+
+
+def module_name(path: Path) -> str:
+    parts = list(path.relative_to(ROOT).with_suffix("").parts)
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+MODULES = {module_name(p): p for package in PACKAGES for p in sorted((ROOT / package).rglob("*.py"))}
+
+
+def imports(name: str, top_level_only: bool) -> list[tuple[str, list[str]]]:
+    """(module imported, names taken from it) for each import statement of module ``name``; with
+    ``top_level_only``, those that run when it is imported (not inside functions, nor under TYPE_CHECKING)."""
+    path = MODULES[name]
+    package = name.split(".") if path.name == "__init__.py" else name.split(".")[:-1]
+    found = []
+
+    def visit(nodes):
+        for node in nodes:
+            if isinstance(node, ast.If) and "TYPE_CHECKING" in ast.unparse(node.test) and top_level_only:
+                visit(node.orelse)
+            elif isinstance(node, ast.Import):
+                found.extend((alias.name, []) for alias in node.names)
+            elif isinstance(node, ast.ImportFrom):
+                base = package[:len(package) - node.level + 1] if node.level else []
+                module = ".".join(base + ([node.module] if node.module else []))
+                for alias in node.names:
+                    child = f"{module}.{alias.name}"
+                    found.append((child, []) if child in MODULES else (module, [alias.name]))
+            elif top_level_only and isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.Lambda)):
+                continue
+            else:
+                visit(ast.iter_child_nodes(node))
+
+    visit(ast.parse(path.read_text()).body)
+    return found
+
+
+def test_an_import_only_points_down_from_the_simulators_to_labrig():
+    wrong = [(name, target) for name in MODULES for target, _ in imports(name, top_level_only=False)
+             if target.split(".")[0] in PACKAGES and target.split(".")[0] != name.split(".")[0]
+             and target.split(".")[0] not in MAY_IMPORT[name.split(".")[0]]]
+    assert not wrong, wrong
+
+
+def test_no_module_imports_a_private_name_of_another():
+    wrong = [(name, target, taken) for name in MODULES for target, names in imports(name, top_level_only=False)
+             for taken in names if target.split(".")[0] in PACKAGES and target != name
+             and taken.startswith("_") and not taken.startswith("__")]
+    assert not wrong, wrong
+
+
+def test_the_packages_have_no_import_cycle():
+    """No group of modules imports itself round when they are imported (imports inside functions, which run
+    later, and those only for the type checker do not count)."""
+    graph = {name: {target for target, _ in imports(name, top_level_only=True) if target in MODULES} - {name}
+             for name in MODULES}
+    def reachable(start: str) -> set[str]:
+        found, todo = set(), list(graph[start])
+        while todo:
+            node = todo.pop()
+            if node not in found:
+                found.add(node)
+                todo.extend(graph[node])
+        return found
+
+    cycles = sorted(name for name in graph if name in reachable(name))  # every module on a way back to itself
+    assert not cycles, cycles
+
+
+def test_the_type_checker_covers_every_package_and_excuses_no_module():
+    config = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["mypy"]
+    assert sorted(config["files"]) == sorted(PACKAGES)
+    excused = [o["module"] for o in config.get("overrides", []) if o.get("ignore_errors")]
+    assert not excused, f"modules excused from type checking: {excused}"

@@ -24,7 +24,8 @@ from helpers import gravity_scene_file, one_line_error, run_ok
 import labrig.staging as staging
 import qdots
 from labrig.cli import Parser, run_main
-from labrig.files import OutputSet, SetBusyError, recover_beside
+from labrig.files import SetBusyError, recover_beside
+from labrig.outputset import OutputSet
 from labrig.staging import PREFIX
 from planarize.cli import main as planarize_main
 from planarize.io.results import load_run
@@ -110,8 +111,11 @@ def one_line(err: str, prog: str = "qdots") -> str:
 
 def killed_at_every_step(out: Path, name: str, prog: str, *argv) -> list[dict]:
     """`kill_points.py`: the command killed at each step of its switch in turn, and what each kill left."""
-    result = subprocess.run([sys.executable, str(Path(__file__).with_name("kill_points.py")), str(out), name, prog,
-                             *map(str, argv)], capture_output=True, text=True, timeout=TIMEOUT)
+    # run through runpy, not as a script: a script's folder (tests/) comes first on sys.path, where the folders
+    # tests/labrig, tests/qdots and tests/planarize would be found as empty namespace packages before the packages
+    script = "import runpy, sys; sys.argv = sys.argv[1:]; runpy.run_path(sys.argv[0], run_name='__main__')"
+    result = subprocess.run([sys.executable, "-c", script, str(Path(__file__).with_name("kill_points.py")), str(out),
+                             name, prog, *map(str, argv)], capture_output=True, text=True, timeout=TIMEOUT)
     assert result.returncode == 0, result.stderr
     return json.loads(result.stdout)
 
@@ -148,7 +152,7 @@ def test_the_switch_is_one_exchange_and_a_kill_before_or_after_it_is_cleared_by_
     killed = python("""
         import os, sys
         import labrig.staging as staging
-        from labrig.files import OutputSet
+        from labrig.outputset import OutputSet
         exchange = staging.exchange
 
         def killed_after(a, b):
@@ -173,7 +177,7 @@ def test_without_an_exchange_a_switch_cut_between_its_two_renames_is_rolled_forw
     killed = python("""
         import errno, os, sys
         import labrig.staging as staging
-        from labrig.files import OutputSet
+        from labrig.outputset import OutputSet
 
         def unsupported(a, b):
             raise staging.ExchangeUnsupported(errno.EINVAL, "no exchange on this filesystem")
@@ -217,7 +221,7 @@ def test_sigkill_before_the_switch_leaves_the_earlier_set_and_the_next_open_clea
     write_set(tmp_path, "old")
     killed = python("""
         import os, sys
-        from labrig.files import OutputSet
+        from labrig.outputset import OutputSet
         with OutputSet(sys.argv[1], "r") as files:
             for k in range(9):
                 files.stage(f"r.{k}").write_text(f"new r.{k}")
@@ -356,7 +360,7 @@ def test_a_live_set_is_left_alone_and_a_second_writer_is_refused(tmp_path):
         with pytest.raises(SetBusyError, match=message.replace("(", r"\(").replace(")", r"\)")):
             OutputSet(tmp_path, "r")
         OutputSet(tmp_path, "r2").abort()  # another set of the same directory is free
-        other = python("import sys\nfrom labrig.files import OutputSet\nOutputSet(sys.argv[1], 'r')", tmp_path)
+        other = python("import sys\nfrom labrig.outputset import OutputSet\nOutputSet(sys.argv[1], 'r')", tmp_path)
         assert "SetBusyError" in other.stderr and f"(pid {os.getpid()})" in other.stderr
     assert (tmp_path / "r" / "r.0").read_text() == "new" and stagings(tmp_path) == []
 
@@ -398,7 +402,7 @@ def test_concurrent_in_place_resumes_of_one_checkpoint_never_drop_a_continuation
 MERGER = """
 import sys
 from pathlib import Path
-from labrig.files import OutputSet
+from labrig.outputset import OutputSet
 from qdots.cli.commands import merge_summary
 
 out, who, n = Path(sys.argv[1]), sys.argv[2], int(sys.argv[3])

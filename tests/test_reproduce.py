@@ -83,6 +83,7 @@ def test_statistics_and_verdict_names():
 
 
 @pytest.mark.slow
+@pytest.mark.release
 def test_whole_quick_set_writes_every_item_and_resumes_the_films(tmp_path):
     runs = tmp_path / "runs"
     run = reproduce("--quick", "--out", str(tmp_path), "--runs", str(runs))

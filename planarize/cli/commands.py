@@ -6,7 +6,7 @@
 `planarize.io.results`), ``NAME_history.csv``, ``NAME_fig3-8.png`` (centre
 slice before/after), ``NAME_fig3-9.png`` (RMS and z-range against oxide
 thickness), ``NAME_surfaces.png`` (3-D oxide at the snapshots, Fig 3-11) and
-optionally ``NAME.mp4`` (the oxide growing): one `labrig.files.OutputSet`, switched into place in one
+optionally ``NAME.mp4`` (the oxide growing): one `labrig.outputset.OutputSet`, switched into place in one
 atomic step. Runs of different names may share a directory; nothing in it is shared between them (no
 summary table), so concurrent runs of different names never touch each other's files.
 """
@@ -21,7 +21,8 @@ from pathlib import Path
 import numpy as np
 
 from labrig.cli import print_table
-from labrig.files import OutputSet, slug
+from labrig.files import slug
+from labrig.outputset import OutputSet
 from labrig.validate import InputError
 
 from .. import render
@@ -45,7 +46,7 @@ def run_scene(scene: PlanarizeScene, out: Path, *, movie: bool = False, progress
               source: Path | None = None) -> dict:
     """Run ``scene`` and write its files into ``out``; returns the summary (also printed as a table).
 
-    The files are one `labrig.files.OutputSet`, locked before the run starts (a second run of the same name
+    The files are one `labrig.outputset.OutputSet`, locked before the run starts (a second run of the same name
     into the same directory is refused) and switched in all at once when it has finished, so a failed or
     killed run leaves the earlier folder of the same name as it was; ``source``, the scene file the scene was
     read from, is never written over (its provenance copy is then ``NAME.ran.toml``). An earlier

@@ -21,7 +21,7 @@ the grid a tolerance asks for, and the error estimate).
 from __future__ import annotations
 
 import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, cast
 
 from labrig.validate import InputError
 
@@ -52,8 +52,8 @@ def __getattr__(name: str) -> Any:
 def engine_settings(engine) -> Continuum | Fast | Reference | Matlab:
     """An engine's settings object from a name of `ENGINES` or a settings object (returned as it is)."""
     engines = __getattr__("ENGINES")
-    if isinstance(engine, tuple(engines.values())):
-        return engine
+    if isinstance(engine, tuple(engines.values())):  # the classes are imported lazily: mypy cannot narrow
+        return cast("Continuum | Fast | Reference | Matlab", engine)
     if isinstance(engine, str) and engine in engines:
         return engines[engine]()
     raise InputError(f"engine must be one of {', '.join(map(repr, engines))} or a settings object "

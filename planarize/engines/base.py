@@ -26,6 +26,7 @@ speed/accuracy knob.
 from __future__ import annotations
 
 import math
+from typing import overload
 
 import numpy as np
 
@@ -40,6 +41,10 @@ from .features import feature_tables
 from .kernels import max_feature_length
 
 
+@overload
+def check_oxide(metal: Surface, oxide: Surface) -> Surface: ...
+@overload
+def check_oxide(metal: Surface, oxide: None) -> None: ...
 def check_oxide(metal: Surface, oxide: Surface | None) -> Surface | None:
     """``oxide`` if it is None or a `Surface` on ``metal``'s grid lying nowhere below it; `InputError` otherwise."""
     if oxide is None:

@@ -204,7 +204,7 @@ class ContinuumEngine:
         self.rate = np.empty((nx, ny))
         self.rate2 = np.empty((nx, ny))
         self.row_stiff = np.zeros(nx)
-        self.oxide_area = None  # the "conformal" rule's: the oxide's area as last coated, nm^2
+        self.oxide_area: float | None = None  # the "conformal" rule's: the oxide's area as last coated, nm^2
         self.imbalance = 0.0  # and its volume balance then, nm^3 (`balance`)
         self.m0 = self.inner.z.copy()
         self.ox = self.inner.z.copy()
@@ -213,8 +213,9 @@ class ContinuumEngine:
         self.weights = volume_weights((nx, ny), self.dx, self.dy, self.inner.boundary)
         self.t = 0.0  # the thickness of the committed steps
         self.coated = 0.0  # the thickness at which `ox` was last updated
-        self.shown = None  # (thickness, padded metal) of a step to a thickness asked for, shown until the next
-        self.shown_oxide = None  # that state's oxide, once computed
+        # (thickness, padded metal) of a step to a thickness asked for, shown until the next
+        self.shown: tuple[float, np.ndarray] | None = None
+        self.shown_oxide: np.ndarray | None = None  # that state's oxide, once computed
         self.iterations = 0
         self.point_updates = 0
         threads = available_threads() if self.settings.threads is None else self.settings.threads

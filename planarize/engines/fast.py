@@ -136,6 +136,8 @@ class FastEngine(Engine):
     """
 
     name = "fast"
+    #: the sweep at which the reaches were last measured exactly (set by the first `_update_reaches`)
+    _reach_checked: int
 
     def __init__(self, metal, oxide=None, model=None, settings: Fast | None = None):
         super().__init__(metal, oxide, model)
@@ -178,6 +180,7 @@ class FastEngine(Engine):
             self._oxide_longest = float(star_reach(self.tables, self.zo).max())
             self._reach_checked = self.iterations
         else:
+            assert oxide_moved is not None  # the two moves are given together
             def longest(job):
                 moved, z = job
                 near = self.grid.block(moved) if self.distance == "exact" else moved

@@ -39,7 +39,7 @@ class ReferenceEngine(Engine):
 
     name = "reference"
 
-    def __init__(self, metal, oxide=None, model=None):
+    def __init__(self, metal, oxide=None, model=None) -> None:
         super().__init__(metal, oxide, model)
         n = self.grid.n
         self.ox: list[set[int]] = [set() for _ in range(n)]
@@ -120,8 +120,8 @@ class ReferenceEngine(Engine):
             stale |= self.met[o]
         raised, _, moved = self.oxidize(owner, oxide, set_size, sharers, self.step)
         self._length += 2.0 * moved
-        stale = np.array(sorted(stale), dtype=np.intp)
-        self._recompute(stale, self.D[stale] + moved)
+        points = np.array(sorted(stale), dtype=np.intp)
+        self._recompute(points, self.D[points] + moved)
         self._take_closer(raised)
 
 
@@ -188,8 +188,8 @@ class MatlabEngine(ReferenceEngine):
             stale |= self.met[o]
         previous = self.D.copy()
         raised, _, _ = self.oxidize(owner, oxide, set_size, sharers, self.step)
-        stale = np.array(sorted(stale), dtype=np.intp)
-        self._recompute(stale, previous[stale])
+        points = np.array(sorted(stale), dtype=np.intp)
+        self._recompute(points, previous[points])
         self._take_closer(raised)
 
 

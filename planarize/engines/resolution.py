@@ -41,7 +41,7 @@ from __future__ import annotations
 
 import math
 import time
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -186,7 +186,7 @@ def converge(metal: Surface, thickness: float, model: Model, settings: Continuum
     reported = settings.refine or 1
     levels: list[dict] = []
     done: list[tuple] = []  # (level, engine, table, shots): complete runs, coarsest first
-    best = None
+    best: tuple[dict, ContinuumEngine, dict, list, bool] | None = None  # the reported resolution's run
     n = metal.z.size
     for factor in _ladder(settings):
         points = n * factor * factor
@@ -215,9 +215,10 @@ def converge(metal: Surface, thickness: float, model: Model, settings: Continuum
             bar=progress_bar(thickness, _label(factor, companion)) if progress else None, observer=observer,
             max_seconds=max(allowed, 1e-3))
         run_s = time.perf_counter() - start - elapsed
-        level = {"factor": factor, "shape": list(engine.inner.shape), "spacing": list(engine.inner.spacing),
-                 "points": engine.inner.z.size, "steps": engine.iterations, "run_s": round(run_s, 6),
-                 "wall_s": round(time.perf_counter() - start, 3)}
+        level: dict[str, Any] = {
+            "factor": factor, "shape": list(engine.inner.shape), "spacing": list(engine.inner.spacing),
+            "points": engine.inner.z.size, "steps": engine.iterations, "run_s": round(run_s, 6),
+            "wall_s": round(time.perf_counter() - start, 3)}
         levels.append(level)
         table["wall_s"] = table["wall_s"] + elapsed  # (the run's wall time counts every resolution before it)
         if factor > reported and not complete:  # stopped: the grid before it is the answer
@@ -250,6 +251,7 @@ def converge(metal: Surface, thickness: float, model: Model, settings: Continuum
             # every quantity stated meets rtol; one not yet asymptotic asks for a finer grid only if it is cheap
             if math.isfinite(error) or predicted_seconds(done[-2][0], done[-1][0], 4 * engine.inner.z.size) > SETTLE_S:
                 break
+    assert best is not None  # the reported resolution always runs (coarser ones first, finer ones after)
     level, engine, table, shots, complete = best
     estimated = "orders" in level and complete
     if not estimated:

@@ -56,16 +56,16 @@ class _TableReader:
         self.max_values, self.keys, self.limit_note = max_values, keys, limit_note
         self.header: dict[str, str] = {}
         self.values = array("d")
-        self.width = None  # values per row (the first data row's)
+        self.width: int | None = None  # values per row (the first data row's)
         self.rows = 0
-        self.delimiter = None  # decided by the first data line: "," or ";" if it holds one, else whitespace
+        self.delimiter: str | None = None  # decided by the first data line: "," or ";" if it holds one, else whitespace
         self.names_allowed = True  # the first data line may be column names
         self.number = 0  # line number
-        self.line_mode = None  # of the current line: "data", "names", "skip"; None between lines
+        self.line_mode: str | None = None  # of the current line: "data", "names", "skip"; None between lines
         self.carry = ""  # the start of a field cut by the end of a piece
         self.row_values = 0
         self.seen_text = False  # the current line has more than whitespace
-        self.bad_name = None  # in a names line: the first field that is not a number
+        self.bad_name: str | None = None  # in a names line: the first field that is not a number
 
     def read(self, piece: str) -> None:
         if "\x00" in piece:
@@ -126,6 +126,7 @@ class _TableReader:
 
     def _names(self, fields) -> None:
         if any(is_number(f) for f in fields):  # a line of names has no number
+            assert self.bad_name is not None  # set with line_mode "names"
             raise InputError(f"line {self.number}: cannot read {self.bad_name.strip()!r} as a number")
 
     def _end_line(self) -> None:
@@ -150,6 +151,7 @@ class _TableReader:
             self._end_line()
         if not self.rows:
             raise InputError("no numbers in the file")
+        assert self.width is not None  # set by the first data row
         return np.frombuffer(self.values, dtype=float).reshape(self.rows, self.width)
 
 

@@ -343,7 +343,7 @@ def exciton_network(state, forster_radius: float | None = None, trap_fraction: f
         cutoff = cutoff_for(forster_radius, spacing, tolerance, efficiency)
     elif not (isinstance(cutoff, (int, float)) and cutoff > spacing):
         raise InputError(f"cutoff must exceed the smallest centre distance {spacing:.4g} px, got {cutoff!r}")
-    if periodic and cutoff >= box.min() / 2:
+    if box is not None and cutoff >= box.min() / 2:  # periodic
         raise InputError(f"periodic: the pair cutoff {cutoff:.4g} px must be below half the box's shorter side "
                          f"({box.min() / 2:.4g} px); use a larger board, a larger tolerance or a smaller cutoff")
     bound = 0.0 if cutoff > extent else truncation_bound(forster_radius, cutoff, spacing, efficiency)
@@ -351,7 +351,7 @@ def exciton_network(state, forster_radius: float | None = None, trap_fraction: f
     i, j = pairs[:, 0], pairs[:, 1]
     x, y = positions[:, 0].copy(), positions[:, 1].copy()  # contiguous: faster gathers
     dx, dy = x[i] - x[j], y[i] - y[j]
-    if periodic:  # minimum image
+    if box is not None:  # periodic: minimum image
         dx -= box[0] * np.round(dx / box[0])
         dy -= box[1] * np.round(dy / box[1])
     forward = k_r * forster_radius**6 / (dx * dx + dy * dy) ** 3

@@ -251,6 +251,7 @@ def lqe_monte_carlo(network: ExcitonNetwork, n_excitons: int = 100_000, method: 
     if method == "gillespie":
         radiated = gillespie_walks(network, starts, rng, progress)
     else:
+        assert step is not None  # the thesis method's time step, set above
         radiated, _ = thesis_walks(network, starts, step, rng, progress=progress)
     p = float(radiated.mean())
     return LQEResult(p, math.sqrt(p * (1 - p) / n_excitons), network.truncation_bound, method,

@@ -319,9 +319,9 @@ def size_separation_correlation(state, pairs: str = "neighbours", rule: str = "t
         i, j, d = lo[first], hi[first], d[first]
         add(d - radii[i] - radii[j], np.abs(radii[i] - radii[j]))
     else:
-        n = len(radii)
-        if n * (n - 1) // 2 > MAX_ALL_PAIRS:
-            raise InputError(f"pairs='all' visits {n * (n - 1) // 2:,} pairs of the {n:,} dots, more than the "
+        n_dots = len(radii)
+        if n_dots * (n_dots - 1) // 2 > MAX_ALL_PAIRS:
+            raise InputError(f"pairs='all' visits {n_dots * (n_dots - 1) // 2:,} pairs of the {n_dots:,} dots, more than the "
                              f"{MAX_ALL_PAIRS:,} allowed (use pairs='neighbours')")
         block = max(1, 4_000_000 // max(len(radii), 1))
         for start in range(0, len(radii), block):

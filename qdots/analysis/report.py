@@ -151,7 +151,9 @@ def save_report_png(state, report: BoardReport, path, dpi: int = 100) -> Path:
     ax[1, 0].set(xlabel="radius around the board centre (px)", ylabel="covered fraction", ylim=(0, 1),
                  title="fill within radius")
     if report.lqe is not None:
-        colours = cmap(report.lqe.first.yields)
+        yields = report.lqe.first.yields
+        assert yields is not None  # the exact result of a draw has them (TrapAverage.first)
+        colours = cmap(yields)
         colours[report.lqe.first_traps] = (0, 0, 0, 1)
         draw_state(state, ax=ax[1, 1], colours=colours, show_time=False)
         ax[1, 1].set_title(f"emission probability per dot (traps black), LQE {report.lqe.mean:.3f}")

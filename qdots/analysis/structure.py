@@ -223,9 +223,9 @@ def voronoi_coordination(state, min_edge: float = 1e-6) -> np.ndarray:
         return out
     nearest, partner = cKDTree(positions).query(positions, k=2)
     if nearest[:, 1].min() <= 0:
-        k = int(np.argmin(nearest[:, 1]))
-        other = int(partner[k, 1] if partner[k, 0] == k else partner[k, 0])
-        raise InputError(f"Voronoi coordination: dots {min(k, other)} and {max(k, other)} share a centre")
+        dot = int(np.argmin(nearest[:, 1]))
+        other = int(partner[dot, 1] if partner[dot, 0] == dot else partner[dot, 0])
+        raise InputError(f"Voronoi coordination: dots {min(dot, other)} and {max(dot, other)} share a centre")
     tri = Delaunay(positions)
     corners = tri.simplices
     centres = _circumcentres(*(positions[corners[:, k]] for k in range(3)))

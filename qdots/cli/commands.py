@@ -3,7 +3,7 @@
 Every command that runs dots writes, per experiment, a folder ``<slug>/`` into its output directory:
 ``<slug>.npz`` (final checkpoint, resumable), ``<slug>.png``, optionally ``<slug>.mp4`` and
 ``<slug>.gsd``, and the experiment file ``<slug>.toml`` for provenance; and a row of the directory's
-``summary.csv``, the table of its runs. A run's folder is one `labrig.files.OutputSet`: locked when
+``summary.csv``, the table of its runs. A run's folder is one `labrig.outputset.OutputSet`: locked when
 the run starts (a second run of the same name into the same directory is refused), written when the
 run has finished and switched into place in one atomic step, so that a run that fails or is killed
 at any moment leaves the earlier folder of the same name whole, byte for byte. The table is rewritten
@@ -29,7 +29,8 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from labrig.cli import print_table
-from labrig.files import OutputSet, slug, write_csv
+from labrig.files import slug, write_csv
+from labrig.outputset import OutputSet
 from labrig.validate import InputError, printable
 
 from ..analysis.packing import packing_summary
@@ -94,9 +95,10 @@ def run_identity(exp) -> dict:
 
 def run_title(identity: dict) -> str:
     """Two lines: the run's name, then what it is (the keys of `run_identity` that ``identity`` has)."""
+    mass_model = identity.get("mass_model")
     parts = [f"{identity['dots']} dots" if "dots" in identity else None,
              f"sigma {identity['sigma']:g}" if "sigma" in identity else None,
-             MASS_WORDS.get(identity.get("mass_model"), identity.get("mass_model")),
+             MASS_WORDS.get(mass_model, mass_model) if mass_model is not None else None,
              f"{identity['engine']} engine" if "engine" in identity else None,
              f"seed {identity['seed']}" if "seed" in identity else None]
     details = ", ".join(part for part in parts if part)
@@ -235,7 +237,7 @@ def merge_summary(path: Path, rows: Sequence[dict], into: Path | None = None, ke
     columns are the union, in order of first appearance (a ``max_overlap`` column of an
     earlier version, a fraction, becomes `OVERLAP_COLUMN`, percent). An earlier table that cannot be read
     whole is kept beside (`read_summary`). Concurrent runs call this under the directory's lock
-    (`labrig.files.OutputSet.update`).
+    (`labrig.outputset.OutputSet.update`).
     """
     into = path if into is None else into
     old = read_summary(path)

@@ -365,7 +365,8 @@ def _run_demo(args: argparse.Namespace) -> int:
 
     import qdots
     from labrig.cli import print_table
-    from labrig.files import OutputSet, write_csv
+    from labrig.files import write_csv
+    from labrig.outputset import OutputSet
 
     from ..analysis.packing import packing_summary
     from ..placement import random_sequential

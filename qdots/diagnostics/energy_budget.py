@@ -26,10 +26,14 @@ Energies are in mean-dot mass px^2/s^2 (a dot of the mean mass moving at 1 px/s 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..forces.base import Force, StepContext
+
+if TYPE_CHECKING:
+    from ..simulation import Simulation
 
 
 class _Probe(Force):
@@ -111,7 +115,7 @@ class EnergyBudget:
     (``sim.run``, a deposition, `qdots.experiment.populate`), then ``budget.finish(sim)`` and ``budget.frames()``.
     """
 
-    def __init__(self, mass_edges=(), names=None):
+    def __init__(self, mass_edges=(), names=None) -> None:
         self.edges = np.asarray(mass_edges, dtype=float).reshape(-1)
         if np.any(np.diff(self.edges) <= 0):
             raise ValueError("mass_edges must increase")
@@ -120,7 +124,7 @@ class EnergyBudget:
         if len(self.names) != n:
             raise ValueError(f"{n} classes need {n} names, got {len(self.names)}")
         self._forces: tuple[str, ...] = ()
-        self._sim = None
+        self._sim: Simulation | None = None
         self._class_of = np.zeros(0, dtype=np.int64)
         self._rows: list[tuple] = []
         self._pending: list | None = None  # the frame whose end is not known yet
@@ -174,6 +178,7 @@ class EnergyBudget:
             dots = np.bincount(self._class_of, minlength=self.n_classes)
             self._pending = [ctx.time, dots, energy, [], speed, impacts]
         else:
+            assert self._pending is not None  # stage 0 of this step opened the frame
             dv = ctx.dv
             self._pending[3].append(self._energy(masses, v[:, 0] + dv[:, 0], v[:, 1] + dv[:, 1]))
 

@@ -39,6 +39,7 @@ import numpy as np
 
 from labrig.validate import InputError, choice, count, real
 
+from ..engine import Chipmunk
 from ..forces import CentreGravity, Drag, Gravity, ThermalKicks, VanDerWaals
 from ..geometry import DiscTree, nested_pairs, worst_overlap, worst_wall_overlap
 from ..restitution import Restitution
@@ -230,7 +231,9 @@ def check(case: HardCase) -> dict:
     """Run ``case``; everything the tests assert, with the wall time."""
     scene, forces = case.build()
     sim = Simulation(scene, forces, restitution=case.restitution, seed=1, **case.settings)
-    walls, channels = scene.wall_segments(), _channels(scene.positions, scene.segments)
+    segments = scene.segments
+    assert segments is not None  # Scene.__post_init__ replaces the default None by an array
+    walls, channels = scene.wall_segments(), _channels(scene.positions, segments)
     samples = max(1, round(case.seconds / max(case.sample, sim.dt)))  # each sample at least one step
     sim.check_run(samples * round(case.seconds / samples / sim.dt) * sim.dt)  # the whole case, as one run
     pair, wall, finite, lost, crossed, wall_time = [], [], True, False, False, 0.0
@@ -251,10 +254,12 @@ def check(case: HardCase) -> dict:
             wall.append(worst_wall_overlap(s.positions, s.radii, walls)[0])
             outside = (s.positions < 0).any() or (s.positions > np.array(s.box)).any()
             lost = lost or swallowed or bool(outside) or sim.n_dots != scene.n_dots
-            crossed = crossed or not np.array_equal(_channels(s.positions, scene.segments), channels)
+            crossed = crossed or not np.array_equal(_channels(s.positions, segments), channels)
     settled = slice(int(0.6 * samples), None)
-    adaptive = sim.engine.overlap_tolerance is not None
-    step = 0.0 if adaptive else sim.dt / sim.engine.substeps
+    engine = sim.engine
+    assert isinstance(engine, Chipmunk)  # no case's settings name another engine
+    adaptive = engine.overlap_tolerance is not None
+    step = 0.0 if adaptive else sim.dt / engine.substeps
     return {"case": case.name, "dots": sim.n_dots, "steps": sim.steps_taken, "wall_s": wall_time,
             "finite": finite, "lost": lost, "crossed": crossed,
             "warned": any("per sub-step" in str(w.message) for w in caught),

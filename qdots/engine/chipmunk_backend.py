@@ -8,6 +8,8 @@ checkpoint have the same Chipmunk history (body order, shape ids, spatial index)
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from ..restitution import Restitution
@@ -16,6 +18,9 @@ from .chipmunk import Chipmunk
 from .chipmunk_step import Stepper
 from .contacts import install_handlers, start_run
 from .pymunk_adapter import add_discs, new_space, tune_space
+
+if TYPE_CHECKING:
+    import pymunk
 
 
 class ChipmunkBackend:
@@ -47,7 +52,7 @@ class ChipmunkBackend:
         collision record and the timings carry over.
         """
         self.space = new_space(self.walls, self.settings)
-        self._bodies = []
+        self._bodies: list[pymunk.Body] = []
         self.radii = np.zeros(0)
         self.masses = np.zeros(0)
         self._stepper = None
@@ -72,6 +77,12 @@ class ChipmunkBackend:
     def n_dots(self) -> int:
         return len(self._bodies)
 
+    @property
+    def _live_stepper(self) -> Stepper:
+        """The stepper of the current space (None only while `rebuild` replaces it)."""
+        assert self._stepper is not None
+        return self._stepper
+
     # -- what acts, between runs --------------------------------------------------------------------
 
     def set_restitution(self, rule: Restitution) -> None:
@@ -88,7 +99,7 @@ class ChipmunkBackend:
             positions, velocities = self.read()
             self.rebuild(positions, velocities, self.radii, self.masses)
             return
-        self._stepper.settings = settings
+        self._live_stepper.settings = settings
         tune_space(self.space, settings)
         if settings.impacts != old.impacts:
             install_handlers(self.space, self._restitution, self.collisions, settings.impacts == "contact")
@@ -97,32 +108,32 @@ class ChipmunkBackend:
 
     def forget_forces(self) -> None:
         """Empty every force's cache (the forces, or the scheme their pairs are pulled with, changed)."""
-        self._stepper.forget_forces()
+        self._live_stepper.forget_forces()
 
     def force_cache(self, k: int) -> dict:
         """The cache of the ``k``-th force (what it derived from the dots: pair lists, per-dot constants)."""
-        return self._stepper.caches.get(k, {})
+        return self._live_stepper.caches.get(k, {})
 
     # -- running ------------------------------------------------------------------------------------
 
     def step(self, forces, time: float, rng: np.random.Generator) -> int:
         """Advance one time step of ``settings.dt`` from ``time`` s; returns the Chipmunk sub-steps taken."""
-        return self._stepper.step(forces, self._restitution, time, rng, self.timings)
+        return self._live_stepper.step(forces, self._restitution, time, rng, self.timings)
 
     def substep(self) -> float:
         """The last step's sub-step, s (``dt / substeps`` before the first step)."""
-        return self.settings.dt / max(self._stepper.previous, self.settings.substeps)
+        return self.settings.dt / max(self._live_stepper.previous, self.settings.substeps)
 
     def take_unplanned_travel(self) -> float | None:
         """The largest travel into a contact per sub-step (radii) in a step whose sub-steps hit ``max_substeps``,
         since the last call (then reset to 0); None when the sub-steps are not planned (``overlap_tolerance``
         None)."""
-        travel = self._stepper.take_capped_travel()
+        travel = self._live_stepper.take_capped_travel()
         return None if self.settings.overlap_tolerance is None else travel
 
     def diagnostics(self) -> dict[str, float]:
         """``last_substeps``: the sub-steps of the last step (0 before the first)."""
-        return {"last_substeps": self._stepper.previous}
+        return {"last_substeps": self._live_stepper.previous}
 
     def read(self) -> tuple[np.ndarray, np.ndarray]:
         """Positions and velocities of the dots, two new (N, 2) arrays (px, px/s)."""

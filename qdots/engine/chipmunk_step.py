@@ -151,6 +151,7 @@ def substep_count(travel: float, settings: Chipmunk, previous: int) -> int:
     ``settings.substeps`` when that is more), even when ``travel`` needs more.
     """
     tolerance = settings.overlap_tolerance
+    assert tolerance is not None  # sub-steps are planned only with an overlap tolerance
     need = math.ceil(travel / tolerance) if travel > tolerance else 1
     most = max(settings.max_substeps, settings.substeps)
     return int(min(max(need, settings.substeps, math.ceil(previous / SUBSTEP_GROWTH)), most))
@@ -213,7 +214,7 @@ class Stepper:
         #: Largest travel into a contact per sub-step (radii) in a step whose sub-steps hit
         #: ``max_substeps``, since the last `take_capped_travel`.
         self.capped_travel = 0.0
-        self._bias_h = None
+        self._bias_h: float | None = None
 
     @property
     def settings(self) -> Chipmunk:
@@ -273,6 +274,7 @@ class Stepper:
 
     def _plan(self, settings: Chipmunk) -> int:
         """Sub-steps for the current velocities (the pair list follows the fastest dot)."""
+        assert settings.overlap_tolerance is not None  # sub-steps are planned only with an overlap tolerance
         dt = settings.dt
         fastest = fastest_speed(self.vx, self.vy)
         if fastest == math.inf:  # no plan holds it; the simulation says what ran away

@@ -160,6 +160,12 @@ def stream_key(rng: np.random.Generator) -> int:
     return int.from_bytes(hashlib.blake2b(state, digest_size=8).digest(), "little")
 
 
+def _word(slot: int) -> property:
+    """A `CollisionRecord` count kept as an integer in the word ``slot`` of its array."""
+    return property(lambda self: int(self._words[slot]),
+                    lambda self, value: self._words.__setitem__(slot, int(value)))
+
+
 class CollisionRecord:
     """The collision rule's memory: its parameters, the draw stream and the impact counts.
 
@@ -186,16 +192,11 @@ class CollisionRecord:
                                (BODY_INVERSE_MASS, "inverse_mass"), (BODY_TRANSLATION, "translation")):
                 self._words[slot] = layout[name]
 
-    def _get(slot):
-        return property(lambda self: int(self._words[slot]),
-                        lambda self, value: self._words.__setitem__(slot, int(value)))
-
-    key = _get(KEY)
-    draws = _get(DRAWS)
-    dot_dot = _get(DOT_DOT)
-    sticking = _get(STUCK)
-    dot_wall = _get(DOT_WALL)
-    del _get
+    key = _word(KEY)
+    draws = _word(DRAWS)
+    dot_dot = _word(DOT_DOT)
+    sticking = _word(STUCK)
+    dot_wall = _word(DOT_WALL)
 
     #: What a checkpoint saves.
     SAVED = ("dot_dot", "dot_wall", "sticking", "draws", "key")
@@ -254,6 +255,7 @@ def install_handlers(space: pymunk.Space, rule: Restitution, record: CollisionRe
     def resolve(arbiter: pymunk.Arbiter, wall: bool) -> None:
         shape_a, shape_b = arbiter.shapes
         a, b, n = shape_a.body, shape_b.body, arbiter.normal
+        assert a is not None and b is not None  # a colliding shape is attached to a body
         speed = (a.velocity.x - b.velocity.x) * n.x + (a.velocity.y - b.velocity.y) * n.y
         if not speed > RESTING:
             arbiter.restitution = 0.0

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, ClassVar, Protocol
+from typing import TYPE_CHECKING, Any, ClassVar, Protocol
 
 from labrig.params import Param, check_fields
 
@@ -47,10 +47,10 @@ class PairLaw(Protocol):
     #: No force beyond this surface gap, px.
     max_gap: float
 
-    def pair_constants(self, ctx: StepContext) -> object:
+    def pair_constants(self, ctx: StepContext) -> Any:
         """What the law derives from the dots and the collision rule once per run (kept in the force's cache)."""
 
-    def add_pair_kicks(self, constants: object, x: np.ndarray, y: np.ndarray, i: np.ndarray, j: np.ndarray,
+    def add_pair_kicks(self, constants: Any, x: np.ndarray, y: np.ndarray, i: np.ndarray, j: np.ndarray,
                        radii: np.ndarray, gap_to: float, fade_from: float, fade_to: float, far: bool, seconds: float,
                        dv: np.ndarray) -> None:
         """Add to ``dv`` the pull over ``seconds`` of the pairs ``(i, j)`` closer than the surface gap ``gap_to``:
@@ -118,10 +118,12 @@ class PairScheme:
             return
         if rebuilt:  # every pair that can come within near_gap before the next rebuild
             cache["near"] = pairs_closer(ctx.x, ctx.y, cache["radii"], pairs.i, pairs.j, self.near_gap + pairs.skin)
-        self._pull(law, ctx, *cache["near"], self.near_gap, False, ctx.dt)
+        near_i, near_j = cache["near"]
+        self._pull(law, ctx, near_i, near_j, self.near_gap, False, ctx.dt)
         # the far pass: at the start of the step that follows each interval's middle (the middles in
         # (time - dt, time]), its pull over the interval, where the dots were at the (last) middle
         interval = self.far_interval
+        assert interval is not None  # a split scheme has one (`splits`)
         intervals = instants_in_step(ctx.time - ctx.dt + 0.5 * interval, ctx.dt, interval)
         if intervals:
             lag = ctx.time - (math.floor((ctx.time + 0.5 * interval) / interval + 1e-9) - 0.5) * interval

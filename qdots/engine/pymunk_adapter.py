@@ -163,7 +163,8 @@ def impact_layout() -> dict | None:
     ``Body.position``, ``pymunk.batch``) reads that translation, which its integrator sets from ``cpBody.p``
     at the next step: a callback that moves ``p`` writes both.
     """
-    if internals() is None:
+    known = internals()
+    if known is None:
         return None
     ffi = _ffi()
     arbiter, contact = ffi.typeof("struct cpArbiter"), ffi.typeof("struct cpContact")
@@ -178,7 +179,7 @@ def impact_layout() -> dict | None:
         found.add(tuple(8 * k for k in range(1, len(memory)) if (memory[k - 1], memory[k]) == (mass, 1.0 / mass)))
     if len(found) != 1 or len(at := found.pop()) != 1:
         return None
-    translation = _translation_offset(int(internals().body_offsets[POSITION]))
+    translation = _translation_offset(int(known.body_offsets[POSITION]))
     if translation is None:
         return None
     return {**{name: offset // 8 for name, offset in offsets.items()}, "inverse_mass": at[0], "translation": translation}

@@ -47,6 +47,9 @@ class Settings:
     #: when an older file is loaded).
     SAVED: ClassVar[tuple[str, ...]] = ()
 
+    #: Time step, s: every engine takes one (each subclass declares it first, with its default).
+    dt: float = THESIS_FRAME
+
     def __post_init__(self) -> None:
         check_fields(self, self.PARAMS)
 

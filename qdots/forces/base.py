@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..engine.pair_scheme import PairScheme
+from ..restitution import Restitution
 
 
 @dataclass
@@ -52,10 +53,10 @@ class StepContext:
     velocity: np.ndarray
     radii: np.ndarray
     masses: np.ndarray
-    rng: np.random.Generator
+    rng: np.random.Generator | None  # (None only in an engine's context between steps)
     dv: np.ndarray
     pairs: PairScheme = field(default_factory=PairScheme)
-    restitution: object = None
+    restitution: Restitution | None = None
     cache: dict = field(default_factory=dict)
 
 

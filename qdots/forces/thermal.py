@@ -84,6 +84,7 @@ class ThermalKicks(Force):
         if "speed" not in ctx.cache:
             ctx.cache["speed"] = self.scale * thesis_kick_speed(ctx.masses)
         speed = ctx.cache["speed"]
+        assert ctx.rng is not None  # the engine hands each step its generator
         for _ in range(kicks):
             angle = ctx.rng.uniform(0.0, 2.0 * math.pi, size=len(speed))
             ctx.dv[:, 0] += speed * np.cos(angle)
@@ -126,5 +127,6 @@ class Langevin(Force):
             ctx.cache["sigma_unit"] = np.sqrt(self.kT / ctx.masses)
         c = math.exp(-self.gamma * ctx.dt)
         sigma = ctx.cache["sigma_unit"] * math.sqrt(1.0 - c * c)
+        assert ctx.rng is not None  # the engine hands each step its generator
         noise = ctx.rng.standard_normal(ctx.dv.shape)
         ctx.dv += (c - 1.0) * ctx.velocity + sigma[:, None] * noise

@@ -265,6 +265,7 @@ class VanDerWaals(Force):
     def pair_constants(self, ctx: StepContext) -> dict:
         """What the pull derives from the dots and the collision rule once per run: the inverse masses, the
         proxy's offset and the Hamaker constant (`qdots.engine.pair_scheme.PairLaw`)."""
+        assert ctx.restitution is not None  # the engine hands each step the collision rule
         offset = self.proxy_offset(ctx.restitution.sticking_speed)
         return {"inv_mass": np.ascontiguousarray(1.0 / ctx.masses, dtype=float), "offset": offset,
                 "strength": self.hamaker_strength(offset)}

@@ -261,4 +261,4 @@ def clear_of_walls(centres: np.ndarray, radii: np.ndarray, segments: np.ndarray,
     radii = np.asarray(radii, dtype=float).reshape(-1)
     if not len(segments):
         return np.ones(len(radii), dtype=bool)
-    return (segment_distances(centres, segments) >= radii[:, None] + margin).all(axis=1)
+    return np.all(segment_distances(centres, segments) >= radii[:, None] + margin, axis=1)

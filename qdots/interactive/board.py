@@ -1,8 +1,10 @@
 """The thesis's design tool in Jupyter: a board that runs live in a notebook widget.
 
+In a notebook, the last line shows the widget (here it is not run: it needs a notebook's kernel):
+
 >>> from qdots.interactive import LiveBoard
 >>> board = LiveBoard(seed=1)          # doctest: +SKIP
->>> board                              # doctest: +SKIP  (shows the widget)
+>>> board                              # doctest: +SKIP
 
 `LiveBoard` is a thin layer of ipywidgets controls over `qdots.interactive.live.LiveRun`,
 which does everything through the public `Scene` / `Simulation` / forces

@@ -36,6 +36,7 @@ from ..analysis.structure import hexatic_order
 from ..engine import ENGINES, Chipmunk, Settings
 from ..engine.settings import DT_RANGE
 from ..forces import CentreGravity, Drag, Gravity, ThermalKicks, VanDerWaals
+from ..forces.base import Force
 from ..forces.fields import MAX_ACCELERATION, MAX_DRAG, THESIS_GRAVITY
 from ..forces.thermal import MAX_SCALE
 from ..forces.vdw import MAX_RANGE
@@ -104,7 +105,7 @@ class Knobs:
 
     def forces(self, box: tuple[float, float]) -> list:
         """Fresh force objects for a board of size ``box`` (px); a knob at 0 adds no force."""
-        forces = []
+        forces: list[Force] = []
         if self.vdw_r0 > 0:
             forces.append(VanDerWaals(r0=self.vdw_r0))
         if self.thermal > 0:
@@ -227,7 +228,9 @@ class LiveRun:
             On a bad segment (as `Scene`) or one that crosses a dot on the board.
         """
         board = self.sim.current_scene()
+        assert board.segments is not None  # Scene.__post_init__ replaces the default None by an array
         new = board.replace(segments=np.vstack([board.segments, np.asarray(segments, dtype=float).reshape(-1, 4)]))
+        assert new.segments is not None
         added = new.segments[len(board.segments):]
         _, (k, m) = worst_wall_overlap(board.positions, board.radii, added)
         if k >= 0:

@@ -36,6 +36,7 @@ from __future__ import annotations
 import math
 import os
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 import pymunk
@@ -117,7 +118,8 @@ def save_board(state: State, path: str | os.PathLike, extra: dict | None = None)
     default engine and collision rule: `read_state` reads it, ``qdots analyze`` and ``qdots render`` too,
     and `load` would start a run from it. ``extra`` adds metadata keys (see `save`).
     """
-    scene = Scene(box=tuple(state.box), positions=state.positions, radii=state.radii, masses=state.masses,
+    box = cast("tuple[float, float]", tuple(state.box))  # (a State's box holds 2 numbers)
+    scene = Scene(box=box, positions=state.positions, radii=state.radii, masses=state.masses,
                   velocities=state.velocities, segments=np.zeros((0, 4)), closed=state.closed, from_engine=True)
     return save(Simulation(scene, [], seed=0), path, extra)
 
@@ -166,7 +168,8 @@ def _read(path: str | os.PathLike) -> tuple[dict, Scene, Restitution]:
         if not isinstance(rule, dict) or sorted(rule) != ["mean", "sticking_speed", "wall"]:
             raise InputError(f"restitution must be a table of mean, wall and sticking_speed, got {rule!r}")
         restitution = Restitution(**rule)
-        scene = Scene(box=reals("box", _field(metadata, "box"), 2, 0.0, MAX_LENGTH), positions=arrays["positions"],
+        box = cast("tuple[float, float]", reals("box", _field(metadata, "box"), 2, 0.0, MAX_LENGTH))  # (2 numbers)
+        scene = Scene(box=box, positions=arrays["positions"],
                       radii=arrays["radii"], masses=arrays["masses"], velocities=arrays["velocities"],
                       segments=arrays["segments"], closed=flag("closed", _field(metadata, "closed")),
                       from_engine=True)
@@ -187,6 +190,7 @@ def read_state(path: str | os.PathLike) -> State:
         If the file is not a readable qdots state file (the message says why).
     """
     metadata, scene, _ = _read(path)
+    assert scene.velocities is not None and scene.masses is not None  # (a Scene fills its defaults)
     return State(time=metadata["time"], positions=scene.positions.copy(), velocities=scene.velocities.copy(),
                  radii=scene.radii.copy(), masses=scene.masses.copy(), box=scene.box,
                  walls=scene.wall_segments().copy(), closed=scene.closed)

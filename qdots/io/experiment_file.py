@@ -45,7 +45,8 @@ from .old_spellings import current_experiment
 #: `labrig.params.Param`; for ``[engine]``, `qdots.engine.engine_params`: its ``kind`` and that engine's
 #: settings class), as are the top-level keys (`Experiment.PARAMS`) and each force's parameters
 #: (``FORCE_TYPES[type].PARAMS``).
-TABLES = {"board": Board, "deposition": Deposition, "restitution": Restitution, "engine": Settings}
+TABLES: dict[str, type[Board | Deposition | Restitution | Settings]] = {
+    "board": Board, "deposition": Deposition, "restitution": Restitution, "engine": Settings}
 
 
 def table_params(obj) -> dict:
@@ -76,7 +77,7 @@ def experiment_to_toml(exp: Experiment) -> str:
     return "\n".join(lines) + "\n"
 
 
-def force_defaults(name: str) -> dict:
+def force_defaults(name: object) -> dict:
     """The constructor defaults of the force type ``name`` ({} for an unknown type, or a type that is not a
     string: the force reader refuses it in words)."""
     cls = FORCE_TYPES.get(name) if isinstance(name, str) else None

@@ -20,6 +20,7 @@ import os
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -35,7 +36,7 @@ from .synthetic import render_micrograph
 #: How the calibration's micrographs are drawn: image px per board px, and the imaging
 #: (`qdots.micrograph.synthetic.render_micrograph`).
 SCALE = 2.0
-IMAGING = {"noise": 0.05, "blur": 1.0, "contrast": 0.55, "contrast_spread": 0.12, "illumination": 0.3,
+IMAGING: dict[str, Any] = {"noise": 0.05, "blur": 1.0, "contrast": 0.55, "contrast_spread": 0.12, "illumination": 0.3,
            "texture": 0.02}
 
 
@@ -52,8 +53,9 @@ def write_png(pixels: np.ndarray, path: str | os.PathLike) -> Path:
     """``pixels`` (about 0-1) as an 8-bit grey PNG."""
     import imageio.v3 as iio
 
-    iio.imwrite(path, (np.clip(pixels, 0.0, 1.0) * 255).round().astype(np.uint8))
-    return Path(path)
+    out = Path(path)
+    iio.imwrite(out, (np.clip(pixels, 0.0, 1.0) * 255).round().astype(np.uint8))
+    return out
 
 
 @dataclass(frozen=True)

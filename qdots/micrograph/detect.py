@@ -429,6 +429,7 @@ def _detect(image: np.ndarray, polarity: str, profile: str, ignore: np.ndarray, 
     fitted, background = refined.radius, refined.background
     contrast = refined.contrast / np.maximum(background, 1e-12)  # in units of the background, as Detection has it
     good = np.isfinite(fitted) & (contrast > 0)
+    assert refined.profiles is not None  # refine_dots keeps the profiles unless told not to
     sums, counts, _ = refined.profiles
     grain = grain_noise(np.nan_to_num(target[half], nan=float(np.nanmedian(target))), mask[half], 0.5 * typical)
     score = signal_to_noise(sums[good], counts[good], fitted[good], background[good], noise, grain)

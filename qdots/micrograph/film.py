@@ -33,7 +33,7 @@ OUTLIER = 4.5
 BIMODAL_BIC, BIMODAL_GAP, BIMODAL_SHARE = 10.0, 2.5, 0.05
 
 
-def film_state(centres: np.ndarray, diameters: np.ndarray, image_shape: tuple[int, int]) -> State:
+def film_state(centres: np.ndarray, diameters: np.ndarray, image_shape: tuple[float, float]) -> State:
     """The board of dots at image ``centres`` ((column, row), px) with ``diameters`` (px) on an open board of
     the image's size, ``y`` up, at rest, masses ``(d / mean d)^3``."""
     h, w = image_shape
@@ -100,7 +100,7 @@ def size_populations(diameters) -> dict:
     times the larger of their deviations apart (two modes, not a skewed one), and the smaller population holds at
     least `BIMODAL_SHARE` of the dots and 5 of them. Returns ``size_populations`` (1 or 2) and, for two,
     ``small_share``, ``small_mean_diameter_px``, ``small_spread`` and the same for ``large`` (NaN for one)."""
-    out = {"size_populations": 1}
+    out: dict[str, float] = {"size_populations": 1}
     for part in ("small", "large"):
         out.update({f"{part}_share": math.nan, f"{part}_mean_diameter_px": math.nan, f"{part}_spread": math.nan})
     d = np.asarray(diameters, dtype=float)
@@ -172,7 +172,7 @@ def film_metrics(state, measured: np.ndarray | None = None, complete: np.ndarray
     complete = np.ones(n, dtype=bool) if complete is None else np.asarray(complete, dtype=bool)
     d = 2.0 * np.asarray(state.radii, dtype=float)
     sized = d[measured]
-    out = {"dots": n, "dots_sized": int(measured.sum()), "dots_complete": int(complete.sum())}
+    out: dict[str, float] = {"dots": n, "dots_sized": int(measured.sum()), "dots_complete": int(complete.sum())}
     spread = size_spread(sized, None if errors is None else np.asarray(errors, dtype=float)[measured])
     mean = spread.pop("size_mean")
     sd = spread["size_spread_measured"] * mean if sized.size > 1 else math.nan
@@ -187,8 +187,8 @@ def film_metrics(state, measured: np.ndarray | None = None, complete: np.ndarray
     out.update(
         interior_fraction=float(np.mean(counts[complete] >= INTERIOR_MIN_NEIGHBOURS)) if complete.any() else math.nan,
         mean_neighbours=float(counts[complete].mean()) if complete.any() else math.nan,
-        psi6_local=float(np.abs(hexatic.psi[inner]).mean()) if inner.any() else math.nan,
-        psi6_global=float(abs(hexatic.psi[inner].mean())) if inner.any() else math.nan,
+        psi6_local=float(np.abs(hexatic.psi[inner]).mean()) if hexatic is not None and inner.any() else math.nan,
+        psi6_global=float(abs(hexatic.psi[inner].mean())) if hexatic is not None and inner.any() else math.nan,
     )
     _, sizes = clusters(state) if n else (None, np.zeros(0, dtype=int))
     out.update(aggregates=int(np.sum(sizes >= AGGREGATE)), largest_share=float(sizes[0] / n) if n else math.nan,

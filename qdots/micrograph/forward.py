@@ -180,7 +180,7 @@ def film_measures(state, complete: np.ndarray | None = None) -> dict:
     if inner.any():
         out.update(psi6_local=float(np.abs(hexatic.psi[inner]).mean()),
                    psi6_global=float(abs(hexatic.psi[inner].mean())))
-    from scipy.spatial import cKDTree  # a nearest-neighbour query, not a pair search (tests/test_geometry.py)
+    from scipy.spatial import cKDTree  # a nearest-neighbour query, not a pair search (tests/qdots/test_geometry.py)
 
     positions = np.asarray(state.positions, dtype=float)
     chosen = np.flatnonzero(complete)

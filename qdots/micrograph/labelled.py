@@ -143,7 +143,7 @@ def label_micrograph(film, nm_per_px: float, *, bar_nm: float = 100.0, strip: st
     field = (1.0 - strip_value if strip is not None else strip_value) if boxed else strip_value
     mark = 1.0 - field
     fig = Figure(figsize=(W / 100.0, H / 100.0), dpi=100)
-    FigureCanvasAgg(fig)
+    agg = FigureCanvasAgg(fig)  # becomes fig.canvas
     ax = fig.add_axes((0, 0, 1, 1))
     ax.imshow(canvas, cmap="gray", vmin=0.0, vmax=1.0, extent=(0, W, H, 0), interpolation="nearest")
     ax.set_xlim(0, W)
@@ -174,8 +174,8 @@ def label_micrograph(film, nm_per_px: float, *, bar_nm: float = 100.0, strip: st
         for k, line in enumerate(text):
             ax.text(area[0] + 2, 12 + k * 2.2 * thick, line, color=str(1.0 - strip_value), ha="left", va="top",
                     fontsize=font * 0.8)
-    fig.canvas.draw()
-    pixels = np.asarray(fig.canvas.buffer_rgba(), dtype=float)[..., :3].mean(axis=-1) / 255.0
+    agg.draw()
+    pixels = np.asarray(agg.buffer_rgba(), dtype=float)[..., :3].mean(axis=-1) / 255.0
     top_of_bar = min(b for _, b, _, _, _ in pieces)
     bottom_of_bar = max(d for _, _, _, d, _ in pieces)
     return Labelled(pixels[:H, :W], (x0, y0, x0 + w, y0 + h), (bx, top_of_bar, bx + bar_px, bottom_of_bar), bar_px)
@@ -193,7 +193,7 @@ def not_a_film(kind: str, shape: tuple[int, int] = (480, 640), seed: int = 0) ->
     h, w = (count("shape", v, 16, MAX_CANVAS) for v in shape)
     rng = np.random.default_rng(seed)
     fig = Figure(figsize=(w / 100.0, h / 100.0), dpi=100)
-    FigureCanvasAgg(fig)
+    agg = FigureCanvasAgg(fig)  # becomes fig.canvas
     if kind == "plot":
         ax = fig.add_subplot()
         x = np.linspace(0, 10, 200)
@@ -213,10 +213,10 @@ def not_a_film(kind: str, shape: tuple[int, int] = (480, 640), seed: int = 0) ->
         ax.set_ylim(0, h)
         ax.set_axis_off()
         for _ in range(25):
-            x, y, r = rng.uniform(0, w), rng.uniform(0, h), rng.uniform(8, 40)
+            cx, cy, r = rng.uniform(0, w), rng.uniform(0, h), rng.uniform(8, 40)
             shade = str(rng.uniform(0.2, 0.8))
-            patch = Circle((x, y), r) if rng.random() < 0.6 else Rectangle((x, y), 2 * r, r)
+            patch = Circle((cx, cy), r) if rng.random() < 0.6 else Rectangle((cx, cy), 2 * r, r)
             patch.set(facecolor=shade if rng.random() < 0.5 else "none", edgecolor="black", linewidth=1.5)
             ax.add_patch(patch)
-    fig.canvas.draw()
-    return np.asarray(fig.canvas.buffer_rgba(), dtype=float)[:h, :w, :3].mean(axis=-1) / 255.0
+    agg.draw()
+    return np.asarray(agg.buffer_rgba(), dtype=float)[:h, :w, :3].mean(axis=-1) / 255.0

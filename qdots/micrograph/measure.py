@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 import os
 from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 
@@ -21,6 +22,7 @@ from labrig.validate import InputError
 
 from ..analysis.lqe import film_lqe
 from ..geometry import nearest_ratio
+from ..state import State
 from .admit import NotAFilm, check_picture, film_verdict
 from .annotations import Annotations, find_annotations
 from .detect import STAGES, Detection, detect_dots
@@ -71,7 +73,7 @@ class MeasuredFilm:
 
     image: Micrograph
     detection: Detection
-    state: object
+    state: State
     complete: np.ndarray
     nm_per_px: float | None
     scale: str
@@ -95,6 +97,7 @@ def settle_scale(image: Micrograph, bar: ScaleBar | None, nm_per_px=None, scale_
         return value, f"{value:.4g} nm/px (given)"
     if scale_bar is not None:
         value = scale_from_bar(bar, scale_bar)
+        assert bar is not None  # scale_from_bar refuses a missing bar
         return value, f"{value:.4g} nm/px from the scale bar: {scale_bar} over {describe_bar(bar)}"
     if bar is not None:
         return None, (f"none (sizes in px): a scale bar of {describe_bar(bar)}; give its length with "
@@ -198,9 +201,9 @@ def measure_image(path: str | os.PathLike, *, nm_per_px=None, scale_bar: str | N
         doubts = [f"measured with --force, though not a film of round particles: {r}" for r in refusals] + doubts
     film = measured_film(image, detection, scale, how, found.bar, found, lqe and not (refusals and not force), doubts)
     if refusals and not force:
-        other = "dark" if not detection.dark else "light"
+        flip = "dark" if not detection.dark else "light"
         raise NotAFilm(f"{path}: not a film of round particles: {'; '.join(refusals)} (the {detection.polarity.split()[0]}"
-                       f" objects; if the particles are the {other} ones, try --polarity {other})", refusals, film)
+                       f" objects; if the particles are the {flip} ones, try --polarity {flip})", refusals, film)
     return film
 
 
@@ -213,7 +216,7 @@ def measured_film(image: Micrograph, detection: Detection, scale: float | None, 
     x0, y0, x1, y1 = detection.window
     complete = complete_neighbourhood(state, (x0, h - y1, x1, h - y0))
     stacked = nearest_ratio(detection.centres, detection.diameters) < STACKED
-    summary = {"image": image.source, "page": image.page, "width_px": image.shape[1], "height_px": image.shape[0],
+    summary: dict[str, Any] = {"image": image.source, "page": image.page, "width_px": image.shape[1], "height_px": image.shape[0],
                "nm_per_px": scale if scale is not None else math.nan, "scale": how,
                "polarity": detection.polarity, "profile": detection.profile, "profile_p": detection.shape,
                "blur_px": detection.blur, "rejected_objects": detection.rejected,

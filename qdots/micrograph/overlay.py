@@ -103,8 +103,8 @@ def mark_annotations(ax, film: MeasuredFilm, k: float = 1.0) -> None:
         pad = 3
         ax.add_patch(Rectangle(((a - pad) * k, (b - pad) * k), (c - a + 2 * pad) * k, (d - b + 2 * pad) * k,
                                facecolor="none", edgecolor="magenta", linewidth=1.5))
-        from_bar = film.nm_per_px is not None and "from the scale bar" in film.scale
-        used = f" = {film.bar.length_px * film.nm_per_px:.4g} nm" if from_bar else ""
+        nm_per_px = film.nm_per_px if "from the scale bar" in film.scale else None
+        used = f" = {film.bar.length_px * nm_per_px:.4g} nm" if nm_per_px is not None else ""
         ax.text((a + c) / 2 * k, (b - 2 * pad) * k, f"scale bar {film.bar.length_px:.1f} px{used}", color="magenta",
                 ha="center", va="bottom", fontsize="small",
                 bbox={"facecolor": "white", "edgecolor": "none", "alpha": 0.7, "pad": 1})

@@ -24,6 +24,7 @@ import math
 import os
 from dataclasses import dataclass
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 
@@ -171,9 +172,9 @@ def _read_pillow(path: Path, page: int) -> tuple[np.ndarray, None, int, str]:
     from PIL import Image
 
     try:
-        image = Image.open(path)  # reads the header only
+        image: Image.Image = Image.open(path)  # reads the header only
     except Image.DecompressionBombError:  # Pillow's own bound, twice its MAX_IMAGE_PIXELS, above ours
-        raise InputError(f"{path}: the image declares more than {2 * Image.MAX_IMAGE_PIXELS:,} pixels; at most "
+        raise InputError(f"{path}: the image declares more than {2 * cast(int, Image.MAX_IMAGE_PIXELS):,} pixels; at most "
                          f"{MAX_PIXELS:,} are read (crop or bin it first)") from None
     with image:
         width, height = image.size
@@ -252,7 +253,8 @@ def read_micrograph(path: str | os.PathLike, page: int = 0) -> Micrograph:
         raise InputError(f"{path}: not a readable image: {type(exc).__name__}: "
                          f"{str(exc).splitlines()[0] if str(exc) else 'no details'}") from None
     image = grey(pixels, path)
-    check_size(*image.shape, path)
+    height, width = image.shape  # `grey` returns a 2-D image
+    check_size(height, width, path)
     finite = np.isfinite(image)
     if not finite.any():
         raise InputError(f"{path}: every pixel is NaN or infinite")

@@ -235,7 +235,7 @@ class Refined:
     background: np.ndarray
     contrast: np.ndarray
     residual: np.ndarray
-    profiles: tuple
+    profiles: tuple | None
     model: np.ndarray
     reach: np.ndarray
 
@@ -275,7 +275,7 @@ def profile_reach(radii, typical: float) -> np.ndarray:
     return REACH * np.maximum(radii, typical) + REACH_PAD
 
 
-def refine_dots(image, centres, radii, contrast, typical: float, shape: float, blur: float, level,
+def refine_dots(image, centres, radii, contrast, typical: float, shape: float, blur: float | np.ndarray, level,
                 passes: int = PASSES, reach=None, wide: bool = True, keep_profiles: bool = True,
                 move: bool = False, active=None, threads: int | None = None) -> Refined:
     """Fit every dot again on ``image`` with its neighbours' model added back, ``passes`` times (`refine_pass`:

@@ -7,6 +7,7 @@ or, where a library would sort or loop in Python, in a compiled loop.
 from __future__ import annotations
 
 import math
+from typing import cast
 
 import numpy as np
 from scipy import ndimage
@@ -221,7 +222,7 @@ def blob_skewness(image: np.ndarray, ignore: np.ndarray, noise: float) -> tuple[
         block = max(1, int(sigma / 2.0)) if sigma >= 4.0 else 1
         h, w = (side // block * block for side in image.shape)
         shrunk = filled[:h, :w].reshape(h // block, block, w // block, block).mean(axis=(1, 3))
-        hidden = ignore[:h, :w].reshape(h // block, block, w // block, block).any(axis=(1, 3))
+        hidden = cast(np.ndarray, ignore[:h, :w].reshape(h // block, block, w // block, block).any(axis=(1, 3)))
         s = sigma / block
         response = s * s * ndimage.gaussian_laplace(shrunk, s, mode="nearest")
         impulse = np.zeros((2 * math.ceil(4 * s) + 1,) * 2)
@@ -242,7 +243,8 @@ def blob_skewness(image: np.ndarray, ignore: np.ndarray, noise: float) -> tuple[
 
 def middle_window(shape, side: int = LOOK_SIDE) -> tuple[slice, slice]:
     """The middle ``side`` x ``side`` px of an image of ``shape`` (all of a side shorter than ``side``)."""
-    return tuple(slice(max(0, (n - side) // 2), max(0, (n - side) // 2) + min(n, side)) for n in shape)
+    return cast(tuple[slice, slice],
+                tuple(slice(max(0, (n - side) // 2), max(0, (n - side) // 2) + min(n, side)) for n in shape))
 
 
 def edge_curvature(image: np.ndarray, ignore: np.ndarray, noise: float, scale: float) -> tuple[float, int]:

@@ -12,6 +12,7 @@ between the image and the model of all dots over a patch of the film, its gaps a
 from __future__ import annotations
 
 import math
+from typing import cast
 
 import numpy as np
 
@@ -169,7 +170,7 @@ def quadratic_minimum(points: np.ndarray, values: np.ndarray, low, high) -> tupl
 
 
 def settle_profile(image, centres, radii, contrast, background, typical: float, whole, profile: str
-                   ) -> tuple[float, float, np.ndarray, np.ndarray, str]:
+                   ) -> tuple[float, np.ndarray, np.ndarray, np.ndarray, str]:
     """The dots' shape ``p``, the blur and the background at each dot and everywhere, settled on a `Sample` of the
     film: those that leave the least squared difference between the image and the model of all dots
     (`refine_dots`, every dot fitted with the background fixed) over the sample's pixels.
@@ -189,7 +190,7 @@ def settle_profile(image, centres, radii, contrast, background, typical: float, 
     centres = np.asarray(centres, dtype=float)
     field, whole_map = smooth_level(centres, background, image.shape)
     patch = Sample(image, centres, radii, contrast, field, whole_map, typical, whole)
-    shapes = SHAPES if profile == "auto" else (PROFILES[profile],)
+    shapes = SHAPES if profile == "auto" else (cast(float, PROFILES[profile]),)  # only "auto" maps to None
     step = np.array(FOCUS_STEP)
     scan = [v for part in run_in_threads(lambda ks: [patch.misfit(patch.fit(shapes[-1], FIRST_BLUR, k), k) for k in ks],
                                          split(LEVEL_SCAN, available_threads())) for v in part]
@@ -204,8 +205,8 @@ def settle_profile(image, centres, radii, contrast, background, typical: float, 
         for p in shapes:
             state = patch.fit(p, found[p][0], found[p][1], keep_profiles=True)
             radius = state.radius[inner]
-            measured[p] = central_curvature(*(part_[inner] for part_ in state.profiles), radius,
-                                            found[p][1] * patch.part[inner])
+            sums, counts, rhos = (part_[inner] for part_ in state.profiles)
+            measured[p] = central_curvature(sums, counts, rhos, radius, found[p][1] * patch.part[inner])
             predicted[p] = predicted_curvature(p, found[p][0] / float(np.nanmedian(radius)))
         miss = {p: abs(measured[p] - predicted[p]) if np.isfinite(measured[p]) else np.inf for p in shapes}
         sphere = miss[0.5] <= SPHERE_MATCH * predicted[0.5] and miss[0.0] - miss[0.5] >= CURVATURE_MARGIN
@@ -250,12 +251,12 @@ def settle_tiles(image, centres, radii, contrast, field, field_map, typical: flo
     if not points:
         blur, k = settled
         return np.full(len(centres), blur), k * field, k * field_map
-    middles, values = [], []
+    tile_middles, tile_values = [], []
     for point in points:
         patch = Sample(image, centres, radii, contrast, field, field_map, typical, whole, point)
-        middles.append(np.median(patch.where[patch.inner] + patch.offset, axis=0))
-        values.append(patch.pattern(shape, settled, 0.25 * np.array(FOCUS_STEP), move=False)[0])
-    middles, values = np.array(middles), np.array(values)
+        tile_middles.append(np.median(patch.where[patch.inner] + patch.offset, axis=0))
+        tile_values.append(patch.pattern(shape, settled, 0.25 * np.array(FOCUS_STEP), move=False)[0])
+    middles, values = np.array(tile_middles), np.array(tile_values)
     design = np.column_stack([np.ones(len(middles)), middles / [w, h]])
     planes = np.linalg.lstsq(design, values, rcond=None)[0]  # blur and k, each a plane over the film
 

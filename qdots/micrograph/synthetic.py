@@ -65,7 +65,7 @@ def sparse_board(width: float, height: float, mean_diameter: float, sigma: float
     x = rng.uniform(0, width, (tries, 2)) * [1.0, height / width]
     d = np.clip(rng.normal(mean_diameter, sigma * mean_diameter, tries), 0.5 * mean_diameter, 1.5 * mean_diameter)
     a, b = clashing_pairs(x, 0.5 * d, gap * mean_diameter)
-    earlier = [[] for _ in range(tries)]  # the clashing candidates drawn before each one
+    earlier: list[list[int]] = [[] for _ in range(tries)]  # the clashing candidates drawn before each one
     for first, second in zip(np.minimum(a, b), np.maximum(a, b)):
         earlier[second].append(first)
     taken = np.zeros(tries, dtype=bool)

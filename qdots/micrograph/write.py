@@ -3,7 +3,7 @@ inference, written as one set.
 
 The analysis is `qdots.micrograph.measure.measure_image`, `qdots.micrograph.compare.compare_film` and
 `qdots.micrograph.infer.infer_image` (they return their results and write nothing); these functions run them and write the results into a run folder
-(`labrig.files.OutputSet`: all files or none), as the command line does.
+(`labrig.outputset.OutputSet`: all files or none), as the command line does.
 """
 
 from __future__ import annotations
@@ -11,7 +11,8 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from labrig.files import OutputSet, slug, write_csv
+from labrig.files import slug, write_csv
+from labrig.outputset import OutputSet
 from labrig.validate import count
 
 from ..io import checkpoint

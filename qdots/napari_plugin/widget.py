@@ -34,7 +34,8 @@ from qtpy.QtWidgets import (
     QWidget,
 )
 
-from labrig.files import OutputSet, slug
+from labrig.files import slug
+from labrig.outputset import OutputSet
 from labrig.validate import InputError
 
 from ..micrograph.admit import NotAFilm
@@ -50,7 +51,7 @@ DOTS, LEFT_OUT = "dots", "left out"
 class MeasureWidget(QWidget):
     """The dock widget (see the module). ``viewer`` is the napari viewer it works in."""
 
-    def __init__(self, napari_viewer):
+    def __init__(self, napari_viewer) -> None:
         super().__init__()
         self.viewer = napari_viewer
         #: The last measurement (or what a refusal found), None before the first.

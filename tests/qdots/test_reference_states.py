@@ -29,7 +29,7 @@ from qdots.experiment import run_experiment
 from qdots.io.experiment_file import experiment_from_toml
 from qdots.presets import PRESETS, get_preset
 
-DATA = Path(__file__).parent / "data"
+DATA = Path(__file__).resolve().parents[1] / "data"
 
 
 def _has_avx512() -> bool:

@@ -22,7 +22,7 @@ from qdots.micrograph.read import MAX_PIXELS, read_micrograph
 from qdots.micrograph.scale import find_scale_bar, parse_length, scale_from_bar
 from qdots.micrograph.synthetic import dense_board, render_micrograph, score_detection, sparse_board
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 TEM = ROOT.parent / "shared" / "data" / "micrographs" / "nanoparticle_film_tem.png"
 
 

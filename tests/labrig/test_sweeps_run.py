@@ -105,9 +105,10 @@ def test_rerun_skips_finished_runs_and_extends(tmp_path, log):
 
 KILLED = """
 import sys
-sys.path.insert(0, {tests!r})
-from test_sweeps_run import SWEEP, Toy
+import qdots.cli  # the packages before tests/ goes on the path: its folders labrig/ and qdots/ would hide them
 from labrig.sweeps import run_sweep
+sys.path[:0] = [{here!r}, {tests!r}]
+from test_sweeps_run import SWEEP, Toy
 run_sweep(SWEEP, Toy({log!r}, sleep=0.3), {out!r}, workers=1, progress=False)
 """
 
@@ -119,7 +120,8 @@ def run_records(out: Path) -> list[Path]:
 
 def test_killed_sweep_resumes_without_rerunning_finished_runs(tmp_path, log):
     out = tmp_path / "out"
-    script = KILLED.format(tests=str(Path(__file__).parent), log=str(log), out=str(out))
+    script = KILLED.format(here=str(Path(__file__).parent), tests=str(Path(__file__).parents[1]), log=str(log),
+                           out=str(out))
     proc = subprocess.Popen([sys.executable, "-c", script])
     deadline = time.monotonic() + 60
     while len(run_records(out)) < 3 and time.monotonic() < deadline and proc.poll() is None:

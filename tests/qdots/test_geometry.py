@@ -37,7 +37,7 @@ from qdots.geometry import (
 )
 from qdots.placement import hexagonal_lattice
 
-ROOT = pathlib.Path(__file__).resolve().parents[1]
+ROOT = pathlib.Path(__file__).resolve().parents[2]
 
 
 def grid(n, spacing=1.0):

@@ -24,7 +24,7 @@ from qdots.engine import pymunk_adapter as chipmunk
 from qdots.engine.bodies import BodyArrays
 from qdots.engine.pymunk_adapter import advance, internals
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 
 
 # ---------------------------------------------------------------- bulk access to the bodies, direct stepping
