@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import os
 import tempfile
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -46,6 +47,14 @@ from .layers import film_from_points, points_data, shapes_data
 
 #: The names of the layers the widget makes (and replaces on each measurement).
 DOTS, LEFT_OUT = "dots", "left out"
+
+
+def slot(action: Callable[[], object]) -> Callable[[], None]:
+    """A Qt slot that calls ``action`` and drops what it returns (a slot returns nothing)."""
+    def called() -> None:
+        action()
+
+    return called
 
 
 class MeasureWidget(QWidget):
@@ -77,8 +86,10 @@ class MeasureWidget(QWidget):
         self.status.setWordWrap(True)
         self.table = QTableWidget(0, 2)
         self.table.setHorizontalHeaderLabels(["measure", "value"])
-        self.table.horizontalHeader().setStretchLastSection(True)
-        self.table.verticalHeader().setVisible(False)
+        header, rows = self.table.horizontalHeader(), self.table.verticalHeader()
+        assert header is not None and rows is not None  # a table widget is made with both
+        header.setStretchLastSection(True)
+        rows.setVisible(False)
         self.table.setWordWrap(True)
         self.setMinimumWidth(420)
         form = QFormLayout()
@@ -90,9 +101,9 @@ class MeasureWidget(QWidget):
         for widget in (self.force, self.lqe, self.measure_button, self.edited_button, QLabel("export into"),
                        self.out, self.export_button, self.status, self.table):
             layout.addWidget(widget)
-        self.measure_button.clicked.connect(self.measure)
-        self.edited_button.clicked.connect(self.measure_edited)
-        self.export_button.clicked.connect(self.export)
+        for button, action in ((self.measure_button, self.measure), (self.edited_button, self.measure_edited),
+                               (self.export_button, self.export)):
+            button.clicked.connect(slot(action))
         self.viewer.layers.events.inserted.connect(self.list_images)
         self.viewer.layers.events.removed.connect(self.list_images)
         self.list_images()
