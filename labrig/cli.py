@@ -15,7 +15,9 @@ from __future__ import annotations
 
 import argparse
 import difflib
+import functools
 import sys
+import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import TypeVar
@@ -80,13 +82,16 @@ def run_main(parser: argparse.ArgumentParser, argv: Sequence[str] | None,
     0 on success (or the command's own status), 2 on bad input (a one-line
     ``PROG: error: ...`` on stderr), 130 when interrupted. Other exceptions propagate.
     Words no argument takes are reported against ``command``'s options (the chosen subcommand's parser,
-    default ``parser``), with the closest option and its ``--help``.
+    default ``parser``), with the closest option and its ``--help``. A `FutureWarning` (a file in a spelling that
+    will stop being read, say) is one line, ``PROG: note: ...``, on stderr.
     """
     try:
-        args, unknown = parser.parse_known_args(argv)
-        if unknown:
-            raise UsageError(unrecognized(command or parser, unknown))
-        return int(args.func(args))
+        with warnings.catch_warnings():
+            warnings.showwarning = functools.partial(_note, parser.prog, warnings.showwarning)
+            args, unknown = parser.parse_known_args(argv)
+            if unknown:
+                raise UsageError(unrecognized(command or parser, unknown))
+            return int(args.func(args))
     except SystemExit as exc:  # --help and --version
         return exc.code if isinstance(exc.code, int) else 0
     except (UsageError, InputError, OSError) as exc:
@@ -100,6 +105,14 @@ def run_main(parser: argparse.ArgumentParser, argv: Sequence[str] | None,
             raise
         print(interrupted_line(parser.prog), file=sys.stderr)
         return INTERRUPTED
+
+
+def _note(prog: str, show, message, category, filename, lineno, file=None, line=None) -> None:
+    """Show a `FutureWarning` as the line ``PROG: note: MESSAGE``, other warnings with ``show``."""
+    if issubclass(category, FutureWarning):
+        print(f"{prog}: note: {message}", file=sys.stderr)
+    else:
+        show(message, category, filename, lineno, file, line)
 
 
 def did_you_mean(word: str, choices: Sequence[str]) -> str:

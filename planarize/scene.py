@@ -1,7 +1,8 @@
 """A planarize scene: a starting surface and the anodization to run on it (`PlanarizeScene`).
 
 A scene holds top-level ``name`` and ``seed``, a surface (`SurfaceSpec`: ``kind`` and that kind's
-parameters) and a run (`RunSettings`: the arguments of `planarize.anodize`). Every parameter but the
+parameters), a run (`RunSettings`: the thickness, the `Model`, the records) and the engine that computes it (its
+settings object, `planarize.engines`; a scene file's ``[engine]`` table, keyed by ``kind``). Every parameter but the
 ``path`` of a ``"file"`` surface has a default (the surface kinds' defaults are those of the
 `planarize.surfaces` functions); each is declared once here with its type, unit and range, which the
 scene files (`planarize.io.scenefile`) write as comments. Wrong types and out-of-range values raise a
@@ -25,7 +26,7 @@ from labrig.validate import MAX_SEED, InputError, real
 
 from . import surfaces
 from .anodize import RUN_ARGUMENTS, Anodization, anodize, check_steps, thickness_targets
-from .engines import ENGINES, Continuum, Fast, engine_settings
+from .engines import Continuum, Fast, Matlab, Reference, engine_from_dict, engine_settings, engine_to_dict
 from .heightfield import Surface
 from .io.heights import LOAD_OPTIONS, load_heights
 from .model import Model
@@ -42,24 +43,21 @@ SURFACE_KINDS: dict[str, tuple[Callable[..., Surface], dict[str, Param]]] = {
 }
 #: Surface kinds as a scene file states them: kind -> (builder, {parameter: (file kind, comment)}).
 SURFACES: dict[str, tuple[Callable[..., Surface], dict]] = {kind: (builder, file_schema(params)) for kind, (builder, params) in SURFACE_KINDS.items()}
-#: The ``[run]`` keys (`labrig.params.Param`): the run's own arguments (`planarize.anodize.RUN_ARGUMENTS`), the
-#: `Model`'s fields and the engines' settings, each declared once where it is checked.
+#: The ``[run]`` keys (`labrig.params.Param`): the run's own arguments (`planarize.anodize.RUN_ARGUMENTS`) and the
+#: `Model`'s fields, each declared once where it is checked. The engine's settings are the ``[engine]`` table's,
+#: declared by each engine's settings class (`planarize.engines.engine_params`).
 RUN_PARAMS = {
     "thickness": RUN_ARGUMENTS["thickness"],
     "step": Model.PARAMS["step"],
     "k_exp": Model.PARAMS["k_exp"],
-    "engine": Param("str", choices=tuple(ENGINES), doc='the engine ("continuum": the thesis rule\'s converged '
-                                                      'limit, with its error; "reference": the thesis algorithm, '
-                                                      'slow)'),
     "rule": Model.PARAMS["rule"],
-    "rtol": dataclasses.replace(Continuum.PARAMS["rtol"], optional=True, unset=f"{Continuum().rtol:g}"),
     "distance": Model.PARAMS["distance"],
     "volume": Model.PARAMS["volume"],
-    "tolerance": Fast.PARAMS["tolerance"],
-    "interacting": Fast.PARAMS["interacting"],
     "record": RUN_ARGUMENTS["record"],
     "snapshots": RUN_ARGUMENTS["snapshots"],
 }
+#: The ``[run]`` keys of scene files written before 0.3's ``[engine]`` table: still read, into ``[engine]``.
+OLD_RUN_KEYS = {"engine": "kind", "rtol": "rtol", "tolerance": "tolerance", "interacting": "interacting"}
 #: Run settings as a scene file states them: key -> (file kind, comment).
 RUN = file_schema(RUN_PARAMS)
 #: Top-level keys.
@@ -133,33 +131,20 @@ def _name_key(message: str, keys) -> str:
 @dataclass(frozen=True)
 class RunSettings:
     """What `planarize.anodize` is asked to do, as a scene file's ``[run]`` table: the thickness, the
-    `planarize.Model` (``step``, ``k_exp``, ``distance``, ``volume``, ``rule``), the engine and its settings
-    (``rtol`` is the continuum engine's, ``tolerance`` and ``interacting`` the fast engine's), the
-    records and snapshots."""
+    `planarize.Model` (``step``, ``k_exp``, ``distance``, ``volume``, ``rule``), the records and snapshots.
+    The engine that computes it is the scene's (`PlanarizeScene.engine`)."""
 
     thickness: float = 1.0
     step: float = 0.01
     k_exp: float = 2.3
-    engine: str = "continuum"
     rule: str = "thesis"
-    rtol: float | None = None
     distance: str = "thesis"
     volume: str = "exact"
-    tolerance: float | None = None
-    interacting: str = "wait"
     record: int | list = 50
     snapshots: list | None = None
 
     def __post_init__(self):
         check_fields(self, RUN_PARAMS)
-        if self.engine != "fast" and (self.tolerance is not None or self.interacting != "wait"):
-            raise InputError(f"tolerance and interacting are settings of the fast engine, not of engine "
-                             f"{self.engine!r}: leave them out")
-        if self.engine != "continuum" and self.rtol is not None:
-            raise InputError(f"rtol is a setting of the continuum engine, not of engine {self.engine!r}: leave it out")
-        if self.engine != "continuum" and self.rule != "thesis":
-            raise InputError(f"rule {self.rule!r} is computed by the continuum engine only, not by engine "
-                             f"{self.engine!r}")
         check_steps(self.thickness, self.step)
         thickness_targets(self.record, self.thickness, "record")
         if self.snapshots is not None:
@@ -169,19 +154,9 @@ class RunSettings:
         """The physics of the run."""
         return Model(k_exp=self.k_exp, step=self.step, distance=self.distance, volume=self.volume, rule=self.rule)
 
-    def engine_settings(self):
-        """The engine and its settings (`planarize.engines.Fast`, `Reference` or `Matlab`)."""
-        settings = engine_settings(self.engine)
-        if isinstance(settings, Fast):
-            settings = Fast(tolerance=self.tolerance, interacting=self.interacting)
-        if isinstance(settings, Continuum) and self.rtol is not None:
-            settings = Continuum(rtol=self.rtol)
-        return settings
-
     def options(self) -> dict:
-        """Keyword arguments of `planarize.anodize` (all but the surface and ``progress``)."""
-        return {"thickness": self.thickness, "model": self.model(), "engine": self.engine_settings(),
-                "record": self.record, "snapshots": self.snapshots}
+        """Keyword arguments of `planarize.anodize` (all but the surface, the engine and ``progress``)."""
+        return {"thickness": self.thickness, "model": self.model(), "record": self.record, "snapshots": self.snapshots}
 
 
 @dataclass(frozen=True)
@@ -195,17 +170,24 @@ class PlanarizeScene:
         Seeds ``"random_roughness"`` surfaces.
     surface : SurfaceSpec
     run : RunSettings
+    engine : Continuum, Fast, Reference or Matlab
+        The engine's settings (`planarize.engines`), or an engine's name for its defaults; default `Continuum`.
     """
 
     name: str = "scene"
     seed: int = 0
     surface: SurfaceSpec = field(default_factory=SurfaceSpec)
     run: RunSettings = field(default_factory=RunSettings)
+    engine: Continuum | Fast | Reference | Matlab = field(default_factory=Continuum)
 
     def __post_init__(self):
         check_fields(self, TOP_PARAMS)
         if not isinstance(self.surface, SurfaceSpec) or not isinstance(self.run, RunSettings):
             raise InputError("surface must be a SurfaceSpec and run a RunSettings")
+        object.__setattr__(self, "engine", engine_settings(self.engine))
+        if self.run.rule != "thesis" and self.engine.name != "continuum":
+            raise InputError(f"run.rule {self.run.rule!r} is computed by the continuum engine only, not by engine "
+                             f"{self.engine.name!r}")
 
     def build_surface(self) -> Surface:
         """The starting metal surface."""
@@ -214,12 +196,19 @@ class PlanarizeScene:
     def anodize(self, *, progress: bool = False, **options) -> Anodization:
         """Run the scene (`planarize.anodize`); ``options`` replace its arguments for this call (e.g.
         ``snapshots``, ``observer``, ``max_seconds``)."""
-        return anodize(self.build_surface(), progress=progress, **{**self.run.options(), **options})
+        return anodize(self.build_surface(), progress=progress,
+                       **{**self.run.options(), "engine": self.engine, **options})
 
     def replace(self, **changes) -> PlanarizeScene:
-        """A copy with top-level fields (or ``run`` settings given as a dict) replaced."""
+        """A copy with top-level fields replaced: ``run`` settings may be given as a dict of the ones that change,
+        ``engine`` as settings, a name (that engine's defaults) or a dict (an ``[engine]`` table with its
+        ``kind``, or without it the settings of this scene's engine that change)."""
         if isinstance(changes.get("run"), dict):
             changes["run"] = dataclasses.replace(self.run, **changes["run"])
+        engine = changes.get("engine")
+        if isinstance(engine, dict):
+            table = engine if "kind" in engine else {**engine_to_dict(self.engine), **engine}
+            changes["engine"] = engine_from_dict(table)
         return dataclasses.replace(self, **changes)
 
     def quick(self, fraction: float) -> PlanarizeScene:
@@ -232,11 +221,11 @@ class PlanarizeScene:
         if "refine" in params:
             params["refine"] = max(1, round(params["refine"] * fraction))
         run = {"step": float(f"{self.run.step / fraction:.12g}")}
-        if self.run.engine == "continuum":
-            rtol = Continuum().rtol if self.run.rtol is None else self.run.rtol
-            run["rtol"] = min(1.0, float(f"{rtol / fraction:.12g}"))
+        engine = self.engine
+        if isinstance(engine, Continuum):
+            engine = dataclasses.replace(engine, rtol=min(1.0, float(f"{engine.rtol / fraction:.12g}")))
         return self.replace(name=f"{self.name} quick {fraction:g}", surface=SurfaceSpec(self.surface.kind, params),
-                            run=run)
+                            run=run, engine=engine)
 
 
 # -- named scenes ------------------------------------------------------------------------------
@@ -261,5 +250,5 @@ def get_scene(name: str) -> PlanarizeScene:
     return SCENES[name]
 
 
-__all__ = ["PlanarizeScene", "SurfaceSpec", "RunSettings", "SCENES", "SURFACE_KINDS", "SURFACES", "RUN_PARAMS", "RUN",
+__all__ = ["PlanarizeScene", "SurfaceSpec", "RunSettings", "SCENES", "SURFACE_KINDS", "SURFACES", "RUN_PARAMS", "RUN", "OLD_RUN_KEYS",
            "TOP_PARAMS", "TOP", "get_scene"]

@@ -333,7 +333,7 @@ def test_the_input_scene_file_is_never_written_over(tmp_path, capsys):
     text = hill.read_text()
     run_ok(planarize_main, ["run", str(hill), "--engine", "reference", "--out", str(out)], capsys)
     assert hill.read_text() == text
-    assert 'engine = "reference"' in (hill.parent / "hill_quick_0.25.ran.toml").read_text()
+    assert '[engine]\nkind = "reference"' in (hill.parent / "hill_quick_0.25.ran.toml").read_text()
 
 
 def test_stale_temporary_files_are_cleared_by_the_next_run(tmp_path, capsys):

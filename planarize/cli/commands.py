@@ -197,7 +197,7 @@ def import_scene(path: Path, *, thickness: float, step: float | None = None, nam
     per artefact found or removed (`planarize.levelling`).
 
     ``options`` are `planarize.io.load_heights` arguments (``unit``,
-    ``spacing``, ``level``, ...) and run settings (``k_exp``, ``engine``,
+    ``spacing``, ``level``, ...) and run settings (``k_exp``, ``distance``,
     ...); None values are left out. The scene's ``level`` is the list of
     corrections that were applied (``"auto"`` resolved), so that the scene
     file reproduces the same surface. Maps read as they are (``.npy``, text)

@@ -102,13 +102,12 @@ def _sweep_runner(quick: float | None):
 
 def _prepare(scene, args):
     """The scene with the command-line overrides applied."""
-    if args.engine is not None:  # another engine: the other engines' settings do not apply to it
-        fast_only = {} if args.engine == "fast" else {"tolerance": None, "interacting": "wait"}
-        continuum_only = {} if args.engine == "continuum" else {"rtol": None}
-        scene = scene.replace(run={"engine": args.engine, **fast_only, **continuum_only})
-    for key in ("rtol", "rule"):
-        if getattr(args, key) is not None:
-            scene = scene.replace(run={key: getattr(args, key)})
+    if args.engine is not None and args.engine != scene.engine.name:  # another engine, at its defaults
+        scene = scene.replace(engine=args.engine)
+    if args.rtol is not None:
+        scene = scene.replace(engine={"rtol": args.rtol})
+    if args.rule is not None:
+        scene = scene.replace(run={"rule": args.rule})
     if args.quick is not None:
         scene = scene.quick(args.quick)
     return scene

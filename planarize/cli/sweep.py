@@ -2,7 +2,7 @@
 
 The engine is `labrig.sweeps` (local cores or a Dask cluster, resumable, one
 table); this module supplies the runner. A run's parameters are a scene
-file's (`planarize.io.scenefile`: ``name``, ``seed``, ``[surface]``, ``[run]``),
+file's (`planarize.io.scenefile`: ``name``, ``seed``, ``[surface]``, ``[run]``, ``[engine]``),
 checked like one (an unknown key is an error naming it, e.g. ``run.k_exps``)
 and completed with every default before anything runs.
 
@@ -36,6 +36,7 @@ from labrig.sweeps import load_sweep_file
 from labrig.sweeps.files import SweepFile
 from labrig.validate import InputError
 
+from ..engines import engine_to_dict
 from ..io.scenefile import load_scene, scene_from_dict
 from ..scene import RUN, SCENES, PlanarizeScene
 
@@ -52,7 +53,8 @@ def scene_to_dict(scene: PlanarizeScene) -> dict:
     """
     surface = {key: value for key, value in scene.surface.params.items() if value is not None}
     run = {key: getattr(scene.run, key) for key in RUN if getattr(scene.run, key) is not None}
-    return {"name": scene.name, "seed": scene.seed, "surface": {"kind": scene.surface.kind, **surface}, "run": run}
+    return {"name": scene.name, "seed": scene.seed, "surface": {"kind": scene.surface.kind, **surface}, "run": run,
+            "engine": engine_to_dict(scene.engine)}
 
 
 @dataclass(frozen=True)
@@ -93,13 +95,21 @@ class AnodizeRunner:
 
 
 def _read_base(name: str, base_dir: Path) -> dict:
-    """``base = "hill"`` (a built-in scene) or ``base = "my-scene.toml"`` (a scene file beside the sweep)."""
+    """``base = "hill"`` (a built-in scene) or ``base = "my-scene.toml"`` (a scene file beside the sweep).
+
+    Its engine's settings are those it sets away from their defaults, so that an axis ``engine.kind`` switches
+    engine (an engine refuses another's settings; a base that sets one says so).
+    """
     if name in SCENES:
-        return scene_to_dict(SCENES[name])
-    path = base_dir / name
-    if not path.is_file() and not name.endswith(".toml"):
-        raise InputError(f"base {name!r} is neither a built-in scene ({', '.join(SCENES)}) nor a scene file")
-    return scene_to_dict(load_scene(path))
+        scene = SCENES[name]
+    else:
+        path = base_dir / name
+        if not path.is_file() and not name.endswith(".toml"):
+            raise InputError(f"base {name!r} is neither a built-in scene ({', '.join(SCENES)}) nor a scene file")
+        scene = load_scene(path)
+    declared = type(scene.engine).PARAMS
+    return {**scene_to_dict(scene),
+            "engine": {"kind": scene.engine.name, **{k: v for k, v in scene.engine.options().items() if k in declared}}}
 
 
 def load_sweep(path: str | os.PathLike) -> SweepFile:

@@ -23,6 +23,8 @@ from __future__ import annotations
 import importlib
 from typing import TYPE_CHECKING, Any, cast
 
+from labrig.params import Param
+from labrig.tomlfile import as_table, check_keys
 from labrig.validate import InputError
 
 if TYPE_CHECKING:
@@ -36,6 +38,9 @@ HOMES = {"continuum": (".continuum", "Continuum"), "fast": (".fast", "Fast"), "r
          "matlab": (".reference", "Matlab")}
 #: The engines' names, the default first.
 NAMES = tuple(HOMES)
+#: Declaration of ``kind``, the key of a scene file's ``[engine]`` table that names the engine its other keys set.
+KIND = Param("str", choices=NAMES, doc='the engine ("continuum": the thesis rule\'s converged limit, with its error; '
+                                      '"fast": the thesis algorithm batched; "reference": the thesis algorithm, slow)')
 
 
 def __getattr__(name: str) -> Any:
@@ -60,4 +65,38 @@ def engine_settings(engine) -> Continuum | Fast | Reference | Matlab:
                      f"(planarize.engines.Fast(...)), got {engine!r}")
 
 
-__all__ = ["ENGINES", "NAMES", "Continuum", "Fast", "Reference", "Matlab", "engine_settings"]
+def engine_params(engine) -> dict[str, Param]:
+    """The declarations of an ``[engine]`` table holding ``engine`` (a name or settings): `KIND`, then the fields
+    its settings class declares (``PARAMS``)."""
+    return {"kind": KIND, **type(engine_settings(engine)).PARAMS}
+
+
+def engine_to_dict(engine) -> dict:
+    """An engine's settings as a scene file's ``[engine]`` table: ``kind`` and every declared field (unset ones,
+    None, left out)."""
+    settings = engine_settings(engine)
+    values = {key: getattr(settings, key) for key in type(settings).PARAMS}
+    return {"kind": settings.name, **{key: value for key, value in values.items() if value is not None}}
+
+
+def engine_from_dict(table: dict, where: str = "engine") -> Continuum | Fast | Reference | Matlab:
+    """The settings an ``[engine]`` table states: its ``kind`` (default the first of `NAMES`) and that engine's
+    declared settings. A key of another engine is refused with the engine it belongs to; errors name the key as
+    ``where.KEY``."""
+    table = as_table(where, table)
+    kind = KIND.check(f"{where}.kind", table.get("kind", NAMES[0]))
+    engines = __getattr__("ENGINES")
+    declared = engines[kind].PARAMS
+    for key in table:
+        if key == "kind" or key in declared:
+            continue
+        owners = [name for name, cls in engines.items() if key in cls.PARAMS]
+        if owners:
+            raise InputError(f"{where}.{key} is a setting of the {owners[0]} engine, not of engine {kind!r}: leave it "
+                             "out")
+        check_keys(where, [key], ["kind", *declared])
+    values = {key: declared[key].check(f"{where}.{key}", value) for key, value in table.items() if key != "kind"}
+    return engines[kind](**values)
+
+
+__all__ = ["ENGINES", "NAMES", "KIND", "engine_params", "engine_to_dict", "engine_from_dict", "Continuum", "Fast", "Reference", "Matlab", "engine_settings"]

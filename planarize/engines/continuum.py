@@ -74,7 +74,7 @@ class Continuum:
     threads: int | None = None
 
     name = "continuum"
-    #: The declarations of the settings a scene file takes (`labrig.params.Param`).
+    #: The declarations of the settings a scene file's ``[engine]`` table takes (`labrig.params.Param`).
     PARAMS: ClassVar[dict[str, Param]] = {
         "rtol": Param("float", 1e-4, 1.0, doc="relative discretization error aimed at (continuum engine)"),
     }

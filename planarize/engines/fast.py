@@ -90,7 +90,7 @@ class Fast:
     threads: int | None = None
 
     name = "fast"
-    #: The declarations of the settings a scene file takes (`labrig.params.Param`).
+    #: The declarations of the settings a scene file's ``[engine]`` table takes (`labrig.params.Param`).
     PARAMS: ClassVar[dict[str, Param]] = {
         "tolerance": Param("float", 0.0, 1e6, unit="nm", optional=True, doc="batch tolerance (fast engine)",
                            unset="step / 10"),

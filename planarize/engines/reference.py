@@ -27,8 +27,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
+
+from labrig.params import Param
 
 from .base import Engine, run_sweeps
 from .kernels import closest_sets
@@ -200,6 +203,8 @@ class Reference:
     name = "reference"
     #: The engine class `build` makes.
     engine = ReferenceEngine
+    #: The settings a scene file's ``[engine]`` table takes: none.
+    PARAMS: ClassVar[dict[str, Param]] = {}
 
     def build(self, metal, oxide, model) -> ReferenceEngine:
         """The engine for ``metal`` (and ``oxide``) under ``model``."""

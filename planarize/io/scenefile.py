@@ -1,25 +1,31 @@
 """TOML scene files for planarize: a `planarize.scene.PlanarizeScene` as a file.
 
-A scene file holds top-level ``name`` and ``seed``, a ``[surface]`` table (``kind`` and that kind's
-parameters) and a ``[run]`` table (the arguments of `planarize.anodize`); every key is declared in
-`planarize.scene`. Every key but ``surface.path`` of a ``"file"`` surface is optional: a missing key
-takes its default. `scene_to_toml` writes every key with units and allowed ranges in comments; floats
-are written with ``repr`` and read back exactly, so ``load_scene(save_scene(s)) == s``. Unknown keys,
-wrong types and out-of-range values raise a `labrig.validate.InputError` naming the file and the full
-key (e.g. ``run.step``); the TOML reading, writing and key checks are `labrig.tomlfile`'s. A relative
+A scene file holds top-level ``name`` and ``seed``, a ``[surface]`` table (``kind`` and that kind's parameters), a
+``[run]`` table (the thickness, the model, the records: `planarize.scene.RunSettings`) and an ``[engine]`` table
+(``kind`` and that engine's settings, declared by its settings class: ``rtol`` for ``"continuum"``, ``tolerance``
+and ``interacting`` for ``"fast"``); every key is declared in `planarize.scene` and `planarize.engines`. Files
+written before 0.3 held the engine's name and settings in ``[run]`` (``engine``, ``rtol``, ``tolerance``,
+``interacting``): they are still read, into ``[engine]``, with a `FutureWarning`. Every key but ``surface.path`` of
+a ``"file"`` surface is optional: a missing key takes its default. `scene_to_toml` writes every key with units and
+allowed ranges in comments; floats are written with ``repr`` and read back exactly, so ``load_scene(save_scene(s))
+== s``. Unknown keys, wrong types and out-of-range values raise a `labrig.validate.InputError` naming the file and
+the full key (e.g. ``run.step``); the TOML reading, writing and key checks are `labrig.tomlfile`'s. A relative
 ``surface.path`` is relative to the scene file's directory.
 """
 
 from __future__ import annotations
 
 import os
+import warnings
 from pathlib import Path
 
 from labrig.files import write_text_atomic
+from labrig.params import file_schema
 from labrig.tomlfile import as_table, check_keys, from_source, parse_toml, read_toml, toml_line, top_level
 from labrig.validate import InputError, typed
 
-from ..scene import RUN, SURFACES, TOP, PlanarizeScene, RunSettings, SurfaceSpec
+from ..engines import KIND, engine_from_dict
+from ..scene import OLD_RUN_KEYS, RUN, SURFACES, TOP, PlanarizeScene, RunSettings, SurfaceSpec
 
 # -- TOML --------------------------------------------------------------------------------------
 
@@ -33,6 +39,9 @@ def scene_to_toml(scene: PlanarizeScene) -> str:
     schema = SURFACES[kind][1]
     lines += [toml_line(key, scene.surface.params.get(key), note) for key, (_, note) in schema.items()]
     lines += ["", "[run]"] + [toml_line(key, getattr(scene.run, key), note) for key, (_, note) in RUN.items()]
+    engine = scene.engine
+    lines += ["", "[engine]", toml_line("kind", engine.name, KIND.comment())]
+    lines += [toml_line(key, getattr(engine, key), note) for key, (_, note) in file_schema(type(engine).PARAMS).items()]
     return "\n".join(lines) + "\n"
 
 
@@ -51,9 +60,19 @@ def scene_from_dict(data: dict, base_dir: str | os.PathLike | None = None) -> Pl
     ValueError
         Naming the full key of an unknown key, a wrong type or an out-of-range value.
     """
-    top = top_level(data, TOP, ["surface", "run"])
+    top = top_level(data, TOP, ["surface", "run", "engine"])
     surface = as_table("surface", data.get("surface", {}))
-    run = as_table("run", data.get("run", {}))
+    run = dict(as_table("run", data.get("run", {})))
+    engine = dict(as_table("engine", data.get("engine", {})))
+    old = [key for key in OLD_RUN_KEYS if key in run]
+    if old:
+        if "engine" in data:
+            raise InputError(f"run.{old[0]}: the engine and its settings are the [engine] table's: write it as "
+                             f"engine.{OLD_RUN_KEYS[old[0]]}")
+        engine = {OLD_RUN_KEYS[key]: run.pop(key) for key in old}
+        warnings.warn(f"{', '.join('run.' + key for key in old)}: since 0.3 the engine and its settings are an "
+                      f"[engine] table (kind = the engine); this file is read as such, and will not be in the release "
+                      f"after 0.3 (save the scene again to write it)", FutureWarning, stacklevel=2)
     params = {k: v for k, v in surface.items() if k != "kind"}
     kind = typed("surface.kind", surface.get("kind", "hill"), "str")
     if kind not in SURFACES:
@@ -65,7 +84,12 @@ def scene_from_dict(data: dict, base_dir: str | os.PathLike | None = None) -> Pl
         run_settings = RunSettings(**run)
     except ValueError as exc:
         raise InputError(f"run.{exc}") from None
-    return PlanarizeScene(**top, surface=SurfaceSpec(kind, params), run=run_settings)
+    where = "run" if old else "engine"  # an old file's keys named as it wrote them
+    try:
+        settings = engine_from_dict(engine, where)
+    except InputError as exc:
+        raise InputError(str(exc).replace(f"{where}.kind", f"{where}.engine") if old else str(exc)) from None
+    return PlanarizeScene(**top, surface=SurfaceSpec(kind, params), run=run_settings, engine=settings)
 
 
 def scene_from_toml(text: str, source: str = "<string>", base_dir=None) -> PlanarizeScene:

@@ -2,6 +2,7 @@
 
 import csv
 import re
+import warnings
 
 import numpy as np
 import pytest
@@ -120,11 +121,24 @@ def test_bad_input_is_one_line_and_exit_code_2(tmp_path, capsys, argv, match):
     ("thickness = 0.1\nstep = 5.0", r"step \(5 nm\) must not exceed thickness \(0.1 nm\)"),
     ("record = []", r"run.record"),
     ("thickness = inf", r"run.thickness"),
-    ("engine = 'reference'\ntolerance = 0.1", r"settings of the fast engine"),
+    ("thickness = 1.0\n[engine]\nkind = 'reference'\ntolerance = 0.1", r"engine.tolerance is a setting of the fast "
+                                                                       r"engine, not of engine 'reference'"),
 ])
 def test_planarize_parameters_out_of_range_are_one_line_errors(tmp_path, capsys, run_table, message):
     error = refused_run(main, tmp_path / "bad.toml", f"[run]\n{run_table}\n", capsys, "planarize")
     assert re.search(message, error)
+
+
+def test_a_scene_file_with_the_engine_in_its_run_table_runs_with_a_one_line_note(tmp_path, capsys):
+    path = tmp_path / "old.toml"
+    path.write_text("name = 'old'\n[surface]\nrefine = 1\n[run]\nthickness = 0.1\nengine = 'fast'\n")
+    with warnings.catch_warnings():  # the suite makes warnings errors; the command shows this one as a note
+        warnings.simplefilter("always", FutureWarning)
+        assert main(["run", str(path), "--out", str(tmp_path / "out")]) == 0
+    notes = [line for line in capsys.readouterr().err.splitlines() if "since 0.3" in line]
+    assert notes == [notes[0]] and notes[0].startswith("planarize: note: run.engine: since 0.3 the engine"), notes
+    written = (tmp_path / "out" / "old" / "old.toml").read_text()
+    assert '[engine]\nkind = "fast"' in written and "\nengine =" not in written
 
 
 def test_help_and_commands(capsys):

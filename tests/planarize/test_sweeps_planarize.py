@@ -93,3 +93,15 @@ def test_command_line(tmp_path, capsys):
     path.write_text('base = "hill"\n[axes]\n"run.kexp" = [1.5]\n')
     assert main(["sweep", str(path)]) == 2
     assert "unknown key 'run.kexp'" in capsys.readouterr().err
+
+
+def test_an_axis_of_engines_switches_the_engine_of_a_named_base(tmp_path):
+    (tmp_path / "engines.toml").write_text('base = "hill"\n[axes]\n"engine.kind" = ["fast", "reference"]\n'
+                                           '"run.thickness" = [0.05]\n')
+    sweep = load_sweep(tmp_path / "engines.toml").sweep
+    runs = sweep.runs(AnodizeRunner(quick=0.25).canonical)
+    assert [run.params["engine"] for run in runs] == [{"kind": "fast", "interacting": "wait"}, {"kind": "reference"}]
+    (tmp_path / "old.toml").write_text('base = "hill"\n[axes]\n"run.engine" = ["fast"]\n')
+    with pytest.raises(ValueError, match=r"axes.run.engine: run.engine: the engine and its settings are the \[engine\] "
+                                         r"table's: write it as engine.kind"):
+        load_sweep(tmp_path / "old.toml").sweep.runs(AnodizeRunner().canonical)

@@ -82,11 +82,10 @@ def test_the_planarize_scenes_are_bit_identical_to_0_2(reference, name, engine):
     from planarize.engines import Continuum
     from planarize.scene import get_scene
 
-    scene = get_scene(name).replace(run={"engine": engine}).quick(0.25)
-    options = {}
-    if engine == "continuum" and name in GRID_OF_0_2:
-        options["engine"] = Continuum(rtol=scene.run.engine_settings().rtol, refine=GRID_OF_0_2[name])
-    run = scene.anodize(**options)
+    scene = get_scene(name).replace(engine=engine).quick(0.25)
+    if isinstance(scene.engine, Continuum) and name in GRID_OF_0_2:
+        scene = scene.replace(engine=Continuum(rtol=scene.engine.rtol, refine=GRID_OF_0_2[name]))
+    run = scene.anodize()
     for grid in ("metal", "oxide", "distances"):
         value = getattr(run, grid)
         got = np.asarray(getattr(value, "z", value))
