@@ -36,7 +36,7 @@ from .report import Headline, Note, Table, cli
 
 #: The code this benchmark measures (besides itself): a commit to it after a run marks the run's section as
 #: older than its code (`benchmarks.staleness`).
-MEASURED_CODE = ("qdots/micrograph", "qdots/engine", "qdots/forces", "qdots/experiment.py", "qdots/protocols.py",
+MEASURED_CODE = ("qdots/micrograph", "qdots/engine", "qdots/forces", "qdots/experiment.py", "qdots/deposition.py",
                  "qdots/analysis")
 
 TEM = Path(__file__).resolve().parents[2] / "shared" / "data" / "micrographs" / "nanoparticle_film_tem.png"

@@ -222,14 +222,14 @@ def slug(name: str) -> str:
 
 
 def __getattr__(name: str):
-    """``OutputSet``, imported from here until 0.3 (it is `labrig.outputset.OutputSet`; importing it here made
+    """``OutputSet``, imported from here until 0.4 (it is `labrig.outputset.OutputSet`; importing it here made
     the two modules import each other)."""
     if name == "OutputSet":
         import warnings
 
         from .outputset import OutputSet
 
-        warnings.warn("labrig.files.OutputSet is labrig.outputset.OutputSet; importing it from labrig.files will stop "
-                      "working in the release after 0.3", DeprecationWarning, stacklevel=2)
+        warnings.warn("labrig.files.OutputSet is labrig.outputset.OutputSet; importing it from labrig.files stops "
+                      "working in 0.4", DeprecationWarning, stacklevel=2)
         return OutputSet
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

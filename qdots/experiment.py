@@ -22,10 +22,10 @@ import numpy as np
 from labrig.params import Param, check_fields
 from labrig.validate import MAX_SEED, InputError, real
 
+from .deposition import GAP, MASS_MODELS, MAX_INTERVAL, MAX_MASS_EXPONENT, deposit, deposit_around_centre, ring_radius
 from .engine import Chipmunk, Settings
 from .forces import Force, ThermalKicks, VanDerWaals, force_from_dict
 from .placement import MAX_TRIES
-from .protocols import GAP, MASS_MODELS, MAX_INTERVAL, MAX_MASS_EXPONENT, deposit, deposit_around_centre, ring_radius
 from .restitution import Restitution
 from .scene import MAX_DOTS, MAX_LENGTH, MAX_MASS, MIN_DIAMETER, Scene
 from .simulation import MAX_STEPS, Simulation
@@ -69,7 +69,7 @@ class Board:
 
 @dataclass(frozen=True)
 class Deposition:
-    """How the dots arrive (`qdots.protocols`).
+    """How the dots arrive (`qdots.deposition`).
 
     Parameters
     ----------
@@ -85,7 +85,7 @@ class Deposition:
     sigma : float
         Standard deviation of the diameter as a fraction of the mean, [0, 1).
     mass_model : {"equal", "area", "volume", "bimodal", "power"}
-        See `qdots.protocols.dot_masses`; "equal" is the thesis's figure default.
+        See `qdots.deposition.dot_masses`; "equal" is the thesis's figure default.
     heavy_mass : float
         Mass of the heavy dots of the bimodal model (> 0; thesis 2).
     mass_exponent : float, optional

@@ -17,12 +17,12 @@ import qdots
 from labrig.figures import MAX_DPI
 from qdots.analysis import lqe, lqe_thesis, packing, report, structure
 from qdots.analysis.forster import TAU_NS, exciton_network
+from qdots.deposition import deposit
 from qdots.diagnostics import hard_cases
 from qdots.engine import Chipmunk
 from qdots.geometry import MAX_DISTANCES, MAX_PAIRS, segment_distances
 from qdots.placement import MAX_CANDIDATES, MAX_LATTICE_SIZE, draw_candidates, hexagonal_lattice
 from qdots.presets import get_preset
-from qdots.protocols import deposit
 from qdots.render import save_png
 from qdots.scene import MAX_DOTS, MAX_SEGMENTS, Scene, grating_segments
 from qdots.simulation import MAX_STEPS

@@ -23,9 +23,9 @@ from labrig.widgets import require_widgets, widget_figure  # noqa: E402
 from planarize.interactive import ThicknessExplorer, nearest_snapshot  # noqa: E402
 from qdots.analysis import packing_summary  # noqa: E402
 from qdots.analysis.structure import hexatic_order  # noqa: E402
+from qdots.deposition import deposit  # noqa: E402
 from qdots.interactive import LiveBoard  # noqa: E402
 from qdots.interactive.live import Knobs, LiveRun  # noqa: E402
-from qdots.protocols import deposit  # noqa: E402
 from qdots.scene import grating_segments  # noqa: E402
 
 

@@ -661,3 +661,13 @@ def test_a_ragged_row_of_an_earlier_summary_is_never_lost(tmp_path, capsys):
     assert qdots_main(["run", str(scene), "--out", str(out), "--seed", "3"]) == 0  # a good table: nothing set aside
     assert "warning" not in capsys.readouterr().err and sorted(p.name for p in out.glob("summary.csv*")) == [
         "summary.csv", "summary.csv.ragged"]
+
+
+def test_the_old_import_of_output_sets_still_works_until_0_4_and_says_so():
+    import labrig.files
+    import labrig.outputset
+
+    with pytest.warns(DeprecationWarning, match=r"labrig.files.OutputSet is labrig.outputset.OutputSet; .* in 0.4"):
+        assert labrig.files.OutputSet is labrig.outputset.OutputSet
+    with pytest.raises(AttributeError, match="no attribute 'Nothing'"):
+        labrig.files.Nothing  # noqa: B018

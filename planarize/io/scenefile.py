@@ -5,7 +5,7 @@ A scene file holds top-level ``name`` and ``seed``, a ``[surface]`` table (``kin
 (``kind`` and that engine's settings, declared by its settings class: ``rtol`` for ``"continuum"``, ``tolerance``
 and ``interacting`` for ``"fast"``); every key is declared in `planarize.scene` and `planarize.engines`. Files
 written before 0.3 held the engine's name and settings in ``[run]`` (``engine``, ``rtol``, ``tolerance``,
-``interacting``): they are still read, into ``[engine]``, with a `FutureWarning`. Every key but ``surface.path`` of
+``interacting``): they are read, into ``[engine]``, with a `FutureWarning` that says so. Every key but ``surface.path`` of
 a ``"file"`` surface is optional: a missing key takes its default. `scene_to_toml` writes every key with units and
 allowed ranges in comments; floats are written with ``repr`` and read back exactly, so ``load_scene(save_scene(s))
 == s``. Unknown keys, wrong types and out-of-range values raise a `labrig.validate.InputError` naming the file and
@@ -71,8 +71,8 @@ def scene_from_dict(data: dict, base_dir: str | os.PathLike | None = None) -> Pl
                              f"engine.{OLD_RUN_KEYS[old[0]]}")
         engine = {OLD_RUN_KEYS[key]: run.pop(key) for key in old}
         warnings.warn(f"{', '.join('run.' + key for key in old)}: since 0.3 the engine and its settings are an "
-                      f"[engine] table (kind = the engine); this file is read as such, and will not be in the release "
-                      f"after 0.3 (save the scene again to write it)", FutureWarning, stacklevel=2)
+                      f"[engine] table (kind = the engine); this file is read as such (save the scene again to write it "
+                      f"so)", FutureWarning, stacklevel=2)
     params = {k: v for k, v in surface.items() if k != "kind"}
     kind = typed("surface.kind", surface.get("kind", "hill"), "str")
     if kind not in SURFACES:

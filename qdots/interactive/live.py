@@ -12,7 +12,7 @@ Everything goes through the public `Scene` / `Simulation` / forces API:
   them, carrying over the time, the random stream and the forces, as `qdots.io.checkpoint.load`
   does. Velocities and positions are kept exactly.
 * Dots are dropped by the thesis's deposition protocol
-  (`qdots.protocols.deposit`) one at a time, ``interval`` seconds of board
+  (`qdots.deposition.deposit`) one at a time, ``interval`` seconds of board
   time apart, between frames: the same film as one ``deposit`` call with the
   same generator, while the board stays on screen.
 
@@ -33,6 +33,7 @@ from labrig.validate import InputError, choice, count, real
 
 from ..analysis.packing import packing_summary
 from ..analysis.structure import hexatic_order
+from ..deposition import deposit
 from ..engine import ENGINES, Chipmunk, Settings
 from ..engine.settings import DT_RANGE
 from ..forces import CentreGravity, Drag, Gravity, ThermalKicks, VanDerWaals
@@ -42,7 +43,6 @@ from ..forces.thermal import MAX_SCALE
 from ..forces.vdw import MAX_RANGE
 from ..geometry import worst_wall_overlap
 from ..io import checkpoint
-from ..protocols import deposit
 from ..restitution import Restitution
 from ..scene import MAX_DOTS, Scene, grating_segments
 from ..simulation import Simulation
@@ -259,7 +259,7 @@ class LiveRun:
 
     def drop(self, n_dots: int, mean_diameter: float = 15.0, sigma: float = 0.0, interval: float = 1.0,
              mass_model: str = "equal") -> None:
-        """Queue ``n_dots`` dots for deposition by `qdots.protocols.deposit`, ``interval`` s apart.
+        """Queue ``n_dots`` dots for deposition by `qdots.deposition.deposit`, ``interval`` s apart.
 
         They are placed during the next `advance` calls, as the board time
         reaches each one's turn (the first at once). Arguments as `deposit`; the board, with the

@@ -15,7 +15,7 @@ The parameters, each sampled uniformly between its bounds by the prior of the in
 
 * ``kick``: log10 of the thermal kick speed in units of the thesis's (`qdots.forces.ThermalKicks`
   ``scale``); the van der Waals pull is the thesis's, so this is the kick strength relative to the pull.
-* ``mass_exponent``: masses ``(d / mean d)^p`` (`qdots.protocols.dot_masses`, model ``"power"``):
+* ``mass_exponent``: masses ``(d / mean d)^p`` (`qdots.deposition.dot_masses`, model ``"power"``):
   0 the thesis's figures, 2 its text, 3 its Java code.
 * ``restitution``: the mean coefficient of restitution of dot-dot impacts (`qdots.Restitution`).
   Below 0.7 the event engine meets inelastic collapse (a film of 150 dots at 0.5 took 240 s against

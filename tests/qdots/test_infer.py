@@ -10,6 +10,7 @@ from PIL import Image
 
 from labrig.validate import InputError
 from qdots.cli.main import main
+from qdots.deposition import dot_masses
 from qdots.experiment import Deposition, Experiment
 from qdots.micrograph.film import film_state
 from qdots.micrograph.forward import (
@@ -24,7 +25,6 @@ from qdots.micrograph.forward import (
 )
 from qdots.micrograph.library import build_library, library_size, observation, prior_point, training_arrays
 from qdots.micrograph.synthetic import superlattice_board
-from qdots.protocols import dot_masses
 
 
 def test_power_masses_follow_the_exponent_and_match_the_named_models():

@@ -15,8 +15,8 @@ from movie_probe import assert_playable, probe, read_frames
 
 import qdots
 from qdots import cli
+from qdots.deposition import dot_masses
 from qdots.placement import random_sequential
-from qdots.protocols import dot_masses
 from qdots.render import MovieWriter, add_key, draw_state, heavy_dots, key_label, save_png, size_colours, size_range
 
 

@@ -7,9 +7,9 @@ import pytest
 from helpers import TimeRecorder, worst_overlap
 
 import qdots
+from qdots.deposition import HEX_PACKING, deposit, deposit_around_centre, dot_masses, draw_diameters, ring_radius
 from qdots.experiment import Board, Deposition, Experiment, run_experiment
 from qdots.presets import GRATING_WIDTH, PRESETS, get_preset
-from qdots.protocols import HEX_PACKING, deposit, deposit_around_centre, dot_masses, draw_diameters, ring_radius
 
 
 def empty_sim(box=(100.0, 100.0), forces=(), segments=None, seed=1):
@@ -217,3 +217,15 @@ def test_forces_are_stored_in_full_and_quick_scales_the_board():
     assert quick.deposition.interval == 0.25 and quick.deposition.settle == 25.0
     with pytest.raises(ValueError, match=r"factor must be in \(0, 1\]"):
         exp.quick(1.5)
+
+
+def test_the_old_module_name_still_works_until_0_4_and_says_so():
+    import importlib
+    import sys
+
+    import qdots.deposition
+
+    sys.modules.pop("qdots.protocols", None)
+    with pytest.warns(DeprecationWarning, match=r"qdots.protocols is now qdots.deposition .* goes in 0.4"):
+        old = importlib.import_module("qdots.protocols")
+    assert old.deposit is qdots.deposition.deposit and old.MASS_MODELS is qdots.deposition.MASS_MODELS
