@@ -1,10 +1,10 @@
 """What a picture of a film can tell: the film measures against each deposition parameter, beside their seed spread.
 
 Around the thesis's values (thermal kicks 1x the thesis's, equal masses, restitution 0.8, no drag) at the
-shared micrograph's size spread (15 %) and coverage (0.336), each parameter of `qdots.micrograph.forward`
+shared micrograph's size spread (15 %) and coverage (0.336), each parameter of `qdots.inference.forward`
 is moved one step (both ways where the prior allows) with the others held, and ``SEEDS`` films of 150
-dots are run at every point (`qdots.micrograph.library.run_points`: the sweep machinery, 2 workers).
-Every measure of `qdots.micrograph.forward.MEASURES` is tabulated as its change over the step in units of
+dots are run at every point (`qdots.inference.library.run_points`: the sweep machinery, 2 workers).
+Every measure of `qdots.inference.forward.MEASURES` is tabulated as its change over the step in units of
 its seed standard deviation (one film's spread: |z| < 1 means one picture cannot see the step), with the
 standard error of that z from the seeds.
 
@@ -26,8 +26,8 @@ import time
 
 import numpy as np
 
-from qdots.micrograph.forward import CONDITIONS, MEASURES, PARAMETERS, SUMMARIES
-from qdots.micrograph.library import run_points
+from qdots.inference.forward import CONDITIONS, MEASURES, PARAMETERS, SUMMARIES
+from qdots.inference.library import run_points
 
 from .report import Headline, Note, Table, cli
 

@@ -1,12 +1,12 @@
 """qdots infer: one inference on the shared micrograph cold and with the library built, the calibration of its
 credible intervals on held-out synthetic micrographs, and the films' speed-up on a Dask LocalCluster.
 
-* **One inference** (`qdots.micrograph.infer.infer_image` at its defaults: 1,000 training films of 150 dots,
+* **One inference** (`qdots.inference.infer.infer_image` at its defaults: 1,000 training films of 150 dots,
   3 networks, 24 films in the predictive check, 2 local workers) on the shared TEM micrograph, with a new
   library (cold: every film runs, the networks train), then again with the library built (nothing runs,
   the posterior loads). The library is kept in the system's temporary folder (``qdots-infer-library``) for
   notebook 06, which loads it.
-* **Calibration**: ``FILMS`` held-out films (`qdots.micrograph.calibration`: drawn from the prior, none in the
+* **Calibration**: ``FILMS`` held-out films (`qdots.inference.calibration`: drawn from the prior, none in the
   training, nor among the library films that calibrated the intervals), drawn as micrographs, measured, and the
   posterior's 90 % intervals counted against the truth, per parameter; beside it the same from each film's
   board (no picture), and the networks' own intervals before their calibration.
@@ -25,12 +25,12 @@ from pathlib import Path
 
 import numpy as np
 
-from qdots.micrograph.calibration import calibration_films, coverage_table
-from qdots.micrograph.conformal import describe_factor
-from qdots.micrograph.forward import PARAMETERS
-from qdots.micrograph.infer import infer_image
-from qdots.micrograph.library import build_library, prior_point, run_points
-from qdots.micrograph.posterior import load_or_train
+from qdots.inference.calibration import calibration_films, coverage_table
+from qdots.inference.conformal import describe_factor
+from qdots.inference.forward import PARAMETERS
+from qdots.inference.infer import infer_image
+from qdots.inference.library import build_library, prior_point, run_points
+from qdots.inference.posterior import load_or_train
 
 from .report import Headline, Note, Table, cli
 

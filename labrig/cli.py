@@ -23,6 +23,7 @@ from dataclasses import dataclass
 from typing import TypeVar
 
 from .launch import INTERRUPTED, interrupted_line
+from .params import Param
 from .validate import InputError, count, printable, real
 
 T = TypeVar("T")
@@ -69,6 +70,20 @@ def float_in(low: float, high: float, low_open: bool = False, high_open: bool = 
     """Argument type: a finite number in the interval from ``low`` to ``high`` (open or closed ends)."""
     return _argument(lambda text: real("", _number(text, float), low, high, low_open=low_open,
                                        high_open=high_open))
+
+
+def param_type(param: Param) -> Callable[[str], float | int]:
+    """Argument type: a number its declaration accepts (a ``"float"`` or ``"int"`` `labrig.params.Param`), so that an
+    option and the file key it overrides take the same values and say so in the same words."""
+    if param.kind not in ("float", "int"):
+        raise ValueError(f"param_type takes a float or int declaration, got kind {param.kind!r}")
+    kind = float if param.kind == "float" else int
+    return _argument(lambda text: param.check("", _number(text, kind)))
+
+
+def param_help(param: Param, default=None) -> str:
+    """An option's help from its declaration: what it is, its unit and range, and its default."""
+    return param.comment() + ("" if default is None else f" (default {default:g})")
 
 
 #: ``--quick F``: a fraction in (0, 1].

@@ -11,6 +11,7 @@ import sys
 import types
 
 from labrig import __version__  # noqa: F401 (one version for the distribution)
+from labrig.lazy import exports
 
 #: Where each public name lives (imported when first used, so that ``planarize --help`` loads no engine).
 _NAMES = {"Anodization": "anodize", "Snapshot": "anodize", "Continuum": "engines", "Fast": "engines",
@@ -22,19 +23,7 @@ __all__ = ["Surface", "Model", "anodize", "Anodization", "Snapshot", "Continuum"
            "z_range", "surfaces", "engines"]
 
 
-def __getattr__(name: str):
-    if name in _NAMES:
-        value = getattr(importlib.import_module(f".{_NAMES[name]}", __name__), name)
-    elif name in _MODULES:
-        value = importlib.import_module(f".{name}", __name__)
-    else:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted({*globals(), *__all__})
+__getattr__, __dir__ = exports(__name__, _NAMES, _MODULES)
 
 
 class _Package(types.ModuleType):

@@ -12,10 +12,10 @@ does not load the simulators.
 
 from __future__ import annotations
 
-import importlib
 import warnings
 
 from labrig import __version__  # noqa: F401 (one version for the distribution)
+from labrig.lazy import exports
 
 #: Where each public name lives.
 _NAMES = {
@@ -47,19 +47,15 @@ __all__ = [
 ]
 
 
+_lazy_getattr, __dir__ = exports(__name__, _NAMES, _MODULES)
+
+
 def __getattr__(name: str):
-    if name in _NAMES:
-        value = getattr(importlib.import_module(f".{_NAMES[name]}", __name__), name)
-    elif name in _MODULES:
-        value = importlib.import_module(f".{name}", __name__)
-    elif name == "EngineSettings":
+    if name == "EngineSettings":
         warnings.warn("qdots.EngineSettings is deprecated since 0.3 and goes in 0.4: use qdots.Chipmunk(...) or "
                       "qdots.Event(...)", DeprecationWarning, stacklevel=2)
         return _engine_settings
-    else:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    globals()[name] = value
-    return value
+    return _lazy_getattr(name)
 
 
 def _engine_settings(**settings):
@@ -69,7 +65,3 @@ def _engine_settings(**settings):
     from .io.old_spellings import current_engine
 
     return engine_from_dict(current_engine(settings))
-
-
-def __dir__() -> list[str]:
-    return sorted({*globals(), *__all__, *_MODULES})

@@ -16,6 +16,7 @@ batch size part of the random stream.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 
@@ -99,22 +100,34 @@ def dot_masses(diameters, mean_diameter: float, model: str = "equal", heavy_mass
     ndarray, shape (N,)
     """
     d = np.asarray(diameters, dtype=float)
-    mean_diameter = real("mean_diameter", mean_diameter, 0.0, MAX_LENGTH, low_open=True, unit="px")
     if d.ndim != 1 or not (np.isfinite(d).all() and (d > 0).all()):
         raise InputError("diameters must be a 1-D array of finite values > 0 px")
+    return mass_rule(mean_diameter, model, heavy_mass, rng, exponent)(d)
+
+
+def mass_rule(mean_diameter: float, model: str = "equal", heavy_mass: float = 2.0,
+              rng: np.random.Generator | None = None,
+              exponent: float | None = None) -> Callable[[np.ndarray], np.ndarray]:
+    """The mass model of `dot_masses`, checked once: a function from diameters (px, > 0) to masses.
+
+    A deposition checks its mass model with this before its first dot, and each dot's mass is then the
+    function's value, with nothing checked again.
+    """
+    mean_diameter = real("mean_diameter", mean_diameter, 0.0, MAX_LENGTH, low_open=True, unit="px")
     if model == "equal":
-        return np.ones(len(d))
+        return lambda d: np.ones(len(d))
     if model in ("area", "volume"):
-        return (d / mean_diameter) ** (2 if model == "area" else 3)
-    if model == "bimodal":
-        heavy_mass = real("heavy_mass", heavy_mass, 0.0, MAX_MASS, low_open=True)
-        if rng is None:
-            raise InputError("mass model 'bimodal' needs an rng")
-        return np.where(rng.random(len(d)) < 0.5, heavy_mass, 1.0)
+        return lambda d: (d / mean_diameter) ** (2 if model == "area" else 3)
     if model == "power":
         if exponent is None:
             raise InputError("mass model 'power' needs an exponent (deposition.mass_exponent)")
-        return (d / mean_diameter) ** real("mass_exponent", exponent, 0.0, MAX_MASS_EXPONENT)
+        p = real("mass_exponent", exponent, 0.0, MAX_MASS_EXPONENT)
+        return lambda d: (d / mean_diameter) ** p
+    if model == "bimodal":
+        heavy = real("heavy_mass", heavy_mass, 0.0, MAX_MASS, low_open=True)
+        if rng is None:
+            raise InputError("mass model 'bimodal' needs an rng")
+        return lambda d: np.where(rng.random(len(d)) < 0.5, heavy, 1.0)
     raise InputError(f"mass model must be one of {MASS_MODELS}, got {model!r}")
 
 
@@ -143,8 +156,7 @@ def _sequential(sim, n, mean_diameter, mass_model, heavy_mass, interval, max_tri
     """
     n, max_tries = count("n_dots", n, 0, MAX_DOTS), count("max_tries", max_tries, 1, MAX_TRIES)
     interval = real("interval", interval, 0.0, MAX_INTERVAL, unit="s")
-    if mass_model not in MASS_MODELS:
-        raise InputError(f"mass_model must be one of {MASS_MODELS}, got {mass_model!r}")
+    masses = mass_rule(mean_diameter, mass_model, heavy_mass, rng, mass_exponent)
     if sim.n_dots + n > MAX_DOTS:
         raise InputError(f"n_dots = {n:,} would bring the board to {sim.n_dots + n:,} dots ({sim.n_dots:,} on it), "
                          f"more than the {MAX_DOTS:,} allowed")
@@ -167,8 +179,7 @@ def _sequential(sim, n, mean_diameter, mass_model, heavy_mass, interval, max_tri
                                  f"for the next one overlapped a dot or wall or did not fit {where}; the "
                                  f"dots cover an area fraction {fraction:.3f} of it")
             diameters[i] = 2.0 * r[hit]
-            mass = dot_masses(diameters[i : i + 1], mean_diameter, mass_model, heavy_mass, rng, mass_exponent)
-            sim.add_dots(pos[hit][None, :], r[hit : hit + 1], masses=mass)
+            sim.add_dots(pos[hit][None, :], r[hit : hit + 1], masses=masses(diameters[i : i + 1]))
             sim.run(interval)
             bar.update(1)
     return diameters

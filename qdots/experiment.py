@@ -132,7 +132,8 @@ class Deposition:
     def __post_init__(self) -> None:
         check_fields(self, self.PARAMS, "deposition.")
         if self.mass_model == "power" and self.mass_exponent is None:
-            raise InputError("deposition.mass_exponent must be set (in [0, 6]) for mass_model 'power'")
+            raise InputError(f"deposition.mass_exponent must be set ({self.PARAMS['mass_exponent'].bounds()}) for "
+                             "mass_model 'power'")
 
 
 def default_forces() -> tuple[dict, ...]:
@@ -140,14 +141,14 @@ def default_forces() -> tuple[dict, ...]:
     return (VanDerWaals().to_dict(), ThermalKicks().to_dict())
 
 
-def _canonical_force(k: int, spec) -> dict:
-    """``spec`` (a Force or a ``to_dict()`` table) as the full dict of its force, checked."""
+def _checked_force(k: int, spec) -> Force:
+    """``spec`` (a Force, taken as it is, or a ``to_dict()`` table, checked once as it is built) as a Force."""
     if isinstance(spec, Force):
-        return spec.to_dict()
+        return spec
     if not isinstance(spec, dict):
         raise InputError(f"forces[{k}] must be a table (dict) with a 'type' key, got {spec!r}")
     try:
-        return force_from_dict(dict(spec)).to_dict()
+        return force_from_dict(dict(spec))
     except (TypeError, ValueError) as exc:
         raise InputError(f"forces[{k}]: {exc}") from None
 
@@ -209,22 +210,23 @@ class Experiment:
                 raise InputError(f"{key} must be a {what}, got {type(getattr(self, key)).__name__}")
         if isinstance(self.forces, (dict, str, Force)) or not hasattr(self.forces, "__iter__"):
             raise InputError(f"forces must be a sequence of force tables, got {self.forces!r}")
-        _set(self, "forces", tuple(_canonical_force(k, f) for k, f in enumerate(self.forces)))
-        self._check_geometry()
+        forces = [_checked_force(k, f) for k, f in enumerate(self.forces)]
+        _set(self, "forces", tuple(force.to_dict() for force in forces))
+        self._check_geometry(forces)
 
     def __hash__(self) -> int:
         # The force tables are dicts: hash their types only (equal experiments still hash equal).
         return hash((self.name, self.seed, self.board, self.grating, self.deposition, self.restitution,
                      self.engine, tuple(spec["type"] for spec in self.forces)))
 
-    def _check_geometry(self) -> None:
+    def _check_geometry(self, forces: list[Force]) -> None:
         b, dep = self.board, self.deposition
         steps = (dep.n_dots * dep.interval + dep.settle) / self.engine.dt
         if steps > MAX_STEPS:
             raise InputError(f"deposition.n_dots x deposition.interval + deposition.settle = "
                              f"{dep.n_dots * dep.interval + dep.settle:g} s at engine.dt = {self.engine.dt:g} s is "
                              f"{steps:,.0f} steps, more than the {MAX_STEPS:,} a run may take")
-        for k, force in enumerate(self.build_forces()):
+        for k, force in enumerate(forces):
             try:
                 force.check_run(self.engine.dt, math.ceil(steps))
                 force.check_rule(self.restitution)

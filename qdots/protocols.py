@@ -1,16 +1,5 @@
-"""The deprecated name of `qdots.deposition` (the thesis's deposition protocols), until 0.4.
+"""Deprecated name of `qdots.deposition` (since 0.3; goes in 0.4)."""
 
-Importing it warns; every name is `qdots.deposition`'s.
-"""
+from labrig.lazy import moved_module
 
-import warnings
-
-from . import deposition
-
-warnings.warn("qdots.protocols is now qdots.deposition (the same names); qdots.protocols goes in 0.4",
-              DeprecationWarning, stacklevel=2)
-
-
-def __getattr__(name: str):
-    """``qdots.protocols.NAME`` is ``qdots.deposition.NAME``."""
-    return getattr(deposition, name)
+__getattr__, __dir__ = moved_module(__name__, "qdots.deposition", since="0.3", goes_in="0.4")

@@ -51,6 +51,27 @@ def test_a_value_that_starts_with_a_dash_is_checked_as_a_value(capsys, tmp_path,
     assert "expected one argument" not in one_line_error(capsys)
 
 
+@pytest.mark.parametrize(("option", "declared", "value"), [
+    ("--rtol", ("engines", "rtol"), "1.5"), ("--k-exp", ("model", "k_exp"), "7"), ("--step", ("model", "step"), "2e3"),
+])
+def test_planarize_options_take_their_bounds_and_help_from_the_declarations(option, declared, value, capsys, tmp_path,
+                                                                            monkeypatch):
+    """An option and the file key it stands for accept the same values and say so in the same words (issue 64,
+    item 3: the command line's bounds were written out by hand, and --k-exp took 7 that the model refuses)."""
+    from planarize.engines import PARAMS
+    from planarize.model import Model
+
+    param = PARAMS["continuum"]["rtol"] if declared[0] == "engines" else Model.PARAMS[declared[1]]
+    monkeypatch.chdir(tmp_path)
+    argv = ["run", "x.toml", option, value] if option == "--rtol" else ["import", "x.xyz", "--thickness", "1",
+                                                                          option, value]
+    assert planarize_main(argv) == 2
+    said = one_line_error(capsys, "planarize")
+    assert f"argument {option}: must be {param.bounds()}" in said and f"got {float(value)!r}" in said
+    assert planarize_main([argv[0], "--help"]) == 0
+    assert " ".join(param.bounds().split()) in " ".join(capsys.readouterr().out.split())
+
+
 def test_pictures_that_cannot_be_read_are_refused_at_once(picture, capsys, tmp_path):
     loop = tmp_path / "loop.png"
     os.symlink(loop, loop)
@@ -120,7 +141,7 @@ def test_infer_says_the_extra_is_missing_before_any_work(picture, capsys, tmp_pa
 
 
 def test_compare_says_when_a_matched_value_was_capped():
-    from qdots.micrograph.compare import MAX_COVERAGE, table_rows
+    from qdots.inference.compare import MAX_COVERAGE, table_rows
 
     table = [{"metric": "coverage", "label": "coverage", "image": 0.747, "simulation": 0.547, "standard_error": 0.002,
               "seeds": 3, "matched": True},

@@ -2,6 +2,7 @@
 no private name and make no cycle (ARCHITECTURE.md)."""
 
 import ast
+import re
 import subprocess
 import sys
 import textwrap
@@ -186,3 +187,65 @@ def test_the_type_checker_covers_every_package_and_excuses_no_module():
     assert sorted(config["files"]) == sorted(PACKAGES)
     excused = [o["module"] for o in config.get("overrides", []) if o.get("ignore_errors")]
     assert not excused, f"modules excused from type checking: {excused}"
+
+
+#: Modules kept under an old name for a deprecation period: one line, ``moved_module(__name__, NEW, ...)``.
+MOVED = {name: found[1] for name, path in MODULES.items()
+         if (found := re.search(r'^__getattr__, __dir__ = moved_module\(__name__, "([\w.]+)"', path.read_text(), re.M))}
+
+
+def test_the_modules_that_moved_are_listed_and_import_by_their_old_names_with_a_warning():
+    import importlib
+
+    assert {"qdots.protocols", "qdots.micrograph.infer", "qdots.micrograph.write"} <= set(MOVED)
+    stability = (ROOT / "docs" / "stability.md").read_text()
+    for old, new in MOVED.items():
+        assert f"`{old}`" in stability and f"`{new}`" in stability, f"docs/stability.md does not list {old}"
+        sys.modules.pop(old, None)
+        with pytest.warns(DeprecationWarning, match=rf"^{old} is {new} since 0\.3 .* goes in 0\.4$"):
+            module = importlib.import_module(old)
+        target = importlib.import_module(new)
+        public = [n for n in vars(target) if not n.startswith("_")]
+        assert public and all(getattr(module, n) is getattr(target, n) for n in public), old
+        assert dir(module) == dir(target)
+
+
+MEASURING_ALONE = textwrap.dedent("""
+    import importlib, importlib.abc, sys
+
+    class Blocked(importlib.abc.MetaPathFinder):
+        def find_spec(self, name, path=None, target=None):
+            if name.split(".")[0] in {"pymunk", "torch", "sbi"} or name.startswith("qdots.inference"):
+                raise ModuleNotFoundError(f"{name} is blocked in this test", name=name)
+            return None
+
+    sys.meta_path.insert(0, Blocked())
+    import qdots.micrograph as micrograph
+    for name in sys.argv[1:]:
+        importlib.import_module(name)
+    for name in micrograph.__all__:
+        getattr(micrograph, name)
+    print("ok")
+""")
+
+
+def test_measuring_pictures_needs_neither_the_simulator_nor_the_inference():
+    """qdots.micrograph, every module but the old names of moved ones, imports with pymunk, torch, sbi and
+    qdots.inference unavailable (ARCHITECTURE.md); the inference builds on it, not the other way round."""
+    measuring = [name for name in MODULES if name.startswith("qdots.micrograph.") and name not in MOVED]
+    assert len(measuring) >= 15
+    done = subprocess.run([sys.executable, "-c", MEASURING_ALONE, *measuring], capture_output=True, text=True,
+                          timeout=300)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.strip().endswith("ok")
+
+
+def test_the_side_by_side_figure_is_the_inference_s_and_its_old_name_says_so():
+    import qdots.inference.plots as plots
+    import qdots.micrograph.overlay as overlay
+
+    for name in ("save_side_by_side", "side_by_side_figure"):
+        with pytest.warns(DeprecationWarning, match=rf"overlay.{name} is qdots.inference.plots.{name} .* 0\.4"):
+            assert getattr(overlay, name) is getattr(plots, name)
+    with pytest.raises(AttributeError, match="no attribute 'nothing'"):
+        overlay.nothing  # noqa: B018

@@ -22,7 +22,7 @@ number of workers and the order in which runs finish. Physics lives in the
 runners: `qdots.cli.sweep` and `planarize.cli.sweep`.
 """
 
-import importlib
+from ..lazy import exports
 
 #: Where each public name lives (imported when first used: the command lines register the sweep commands
 #: without loading the sweep machinery).
@@ -34,13 +34,4 @@ __all__ = ["Sweep", "Run", "run_id", "run_sweep", "SweepResult", "SweepFile", "l
            "read_table", "summarize", "plot_sweep", "save_sweep_plot"]
 
 
-def __getattr__(name: str):
-    if name not in _NAMES:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(f".{_NAMES[name]}", __name__), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted({*globals(), *__all__})
+__getattr__, __dir__ = exports(__name__, _NAMES)

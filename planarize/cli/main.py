@@ -17,7 +17,7 @@ import math
 import sys
 from pathlib import Path
 
-from labrig.cli import Command, UsageError, command_line, float_in, fraction
+from labrig.cli import Command, UsageError, command_line, float_in, fraction, param_help, param_type
 from labrig.sweeps.command import plot_command, sweep_command
 
 _positive = float_in(0.0, math.inf, low_open=True)
@@ -26,6 +26,7 @@ _positive = float_in(0.0, math.inf, low_open=True)
 def _add_outputs(p, out_default: str) -> None:
     """Options shared by the commands that run: output directory, engine, quick mode, movie."""
     from ..engines import NAMES as ENGINES
+    from ..engines import PARAMS, RTOL
     from ..model import RULES
 
     p.add_argument("--out", type=Path, default=Path(out_default), metavar="DIR",
@@ -34,9 +35,8 @@ def _add_outputs(p, out_default: str) -> None:
                    help="override the scene's engine: continuum (the thesis rule's converged limit, with its "
                         "error; the default), fast (the thesis algorithm, batched) or reference (the thesis "
                         "algorithm, slow)")
-    p.add_argument("--rtol", type=float_in(1e-4, 1.0, high_open=False), default=None, metavar="R",
-                   help="continuum engine: relative discretization error of RMS and z-range to aim at "
-                        "(default 0.02)")
+    p.add_argument("--rtol", type=param_type(PARAMS["continuum"]["rtol"]), default=None, metavar="R",
+                   help=param_help(PARAMS["continuum"]["rtol"], RTOL))
     p.add_argument("--rule", choices=list(RULES), default=None,
                    help="where the oxide grows: thesis (each bit of metal turns into oxide at its nearest oxide "
                         "point) or conformal (the metal recedes at one speed, the oxide is its conformal coat); "
@@ -64,6 +64,8 @@ def _add_scene(p) -> None:
 
 
 def _add_import(p) -> None:
+    from ..model import Model
+
     p.add_argument("file", type=Path, metavar="FILE", help="height map")
     p.add_argument("--thickness", type=float_in(0.0, math.inf), required=True, metavar="NM",
                    help="oxide thickness to grow, nm")
@@ -78,11 +80,12 @@ def _add_import(p) -> None:
     p.add_argument("--channel", default=None,
                    help="channel: a .gwy channel's number or title, an instrument file's channel name "
                         "(default: the height channel)")
-    p.add_argument("--step", type=_positive, default=None, metavar="NM",
-                   help="metal consumed per oxidation, nm (default: z-range / 100)")
-    p.add_argument("--k-exp", type=float_in(1.0, math.inf), default=2.3, metavar="K",
-                   help="oxide volume per metal volume (default 2.3, Ta)")
-    p.add_argument("--distance", choices=["thesis", "exact"], default="thesis", help="distance kind (default thesis)")
+    p.add_argument("--step", type=param_type(Model.PARAMS["step"]), default=None, metavar="NM",
+                   help=param_help(Model.PARAMS["step"]) + " (default: z-range / 100)")
+    p.add_argument("--k-exp", type=param_type(Model.PARAMS["k_exp"]), default=2.3, metavar="K",
+                   help=param_help(Model.PARAMS["k_exp"], 2.3))
+    p.add_argument("--distance", choices=Model.PARAMS["distance"].choices, default="thesis",
+                   help=param_help(Model.PARAMS["distance"]) + " (default thesis)")
     p.add_argument("--save", type=Path, default=None, metavar="FILE.toml",
                    help="only write the scene file for this import, do not run")
     _add_outputs(p, "planarize-import")

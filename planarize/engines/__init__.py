@@ -42,6 +42,25 @@ NAMES = tuple(HOMES)
 KIND = Param("str", choices=NAMES, doc='the engine ("continuum": the thesis rule\'s converged limit, with its error; '
                                       '"fast": the thesis algorithm batched; "reference": the thesis algorithm, slow)')
 
+#: The continuum engine's default tolerance: the relative discretization error of RMS and z-range a run aims at.
+RTOL = 0.02
+#: Interacting candidates of a fast engine's batch: wait for the next batch, or go together (faster, within the
+#: tolerance).
+INTERACTING = ("wait", "together")
+#: The settings each engine's ``[engine]`` table takes, declared once: its settings class checks its fields with
+#: them (``Continuum.PARAMS`` is ``PARAMS["continuum"]``), and the command line's options and help come from them
+#: without importing an engine.
+PARAMS: dict[str, dict[str, Param]] = {
+    "continuum": {"rtol": Param("float", 1e-4, 1.0, doc="relative discretization error of RMS and z-range aimed "
+                                                         "at (continuum engine)")},
+    "fast": {"tolerance": Param("float", 0.0, 1e6, unit="nm", optional=True, doc="batch tolerance (fast engine)",
+                                unset="step / 10"),
+             "interacting": Param("str", choices=INTERACTING, doc='interacting candidates of a batch (fast engine; '
+                                                                  '"together" is faster, within the tolerance)')},
+    "reference": {},
+    "matlab": {},
+}
+
 
 def __getattr__(name: str) -> Any:
     """``ENGINES`` (the engines by name, each as its settings class; default settings: ``ENGINES[name]()``) and

@@ -28,6 +28,7 @@ from labrig.validate import InputError, count, real
 from ..heightfield import Surface, volume_weights
 from ..model import Model
 from ..recording import Anodization
+from . import PARAMS, RTOL
 from .flow import GHOST, fill_ghosts, metal_rate, surface_area
 from .offset import coat, extremes, surface_moments
 from .resolution import converge
@@ -36,8 +37,6 @@ from .resolution import converge
 MAX_REFINE = 16
 #: Most threads.
 MAX_THREADS = 256
-#: Default tolerance: the relative discretization error of RMS and z-range a run aims at.
-RTOL = 0.02
 #: Largest time step, in grid spacings of the internal grid (the hyperbolic part's Courant number).
 COURANT = 0.5
 
@@ -75,9 +74,7 @@ class Continuum:
 
     name = "continuum"
     #: The declarations of the settings a scene file's ``[engine]`` table takes (`labrig.params.Param`).
-    PARAMS: ClassVar[dict[str, Param]] = {
-        "rtol": Param("float", 1e-4, 1.0, doc="relative discretization error aimed at (continuum engine)"),
-    }
+    PARAMS: ClassVar[dict[str, Param]] = PARAMS["continuum"]
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "rtol", self.PARAMS["rtol"].check("rtol", self.rtol))

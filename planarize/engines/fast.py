@@ -37,6 +37,7 @@ from labrig.params import Param
 from labrig.threads import available_threads, run_in_threads
 from labrig.validate import InputError, count
 
+from . import PARAMS
 from .base import Engine, run_sweeps
 from .closer import TreeSearch, below_raised
 from .features import oxide_reach
@@ -44,8 +45,6 @@ from .kernels import closest_sets, search_radii, star_reach, within
 from .pyramid import BallCache, HeightPyramid
 from .sets import OxideSets
 
-#: What the fast engine does with interacting candidates of a batch: one after the other, or together.
-INTERACTING = ("wait", "together")
 #: Candidate pairs evaluated per kernel call (bounds memory: 33 distances each in exact mode).
 CHUNK_PAIRS = 400_000
 #: Fewest points per thread worth a thread of their own (below, the hand-over costs more than it saves).
@@ -91,12 +90,7 @@ class Fast:
 
     name = "fast"
     #: The declarations of the settings a scene file's ``[engine]`` table takes (`labrig.params.Param`).
-    PARAMS: ClassVar[dict[str, Param]] = {
-        "tolerance": Param("float", 0.0, 1e6, unit="nm", optional=True, doc="batch tolerance (fast engine)",
-                           unset="step / 10"),
-        "interacting": Param("str", choices=INTERACTING, doc='interacting candidates of a batch (fast engine; '
-                                                             '"together" is faster, within the tolerance)'),
-    }
+    PARAMS: ClassVar[dict[str, Param]] = PARAMS["fast"]
 
     def __post_init__(self) -> None:
         for key, param in self.PARAMS.items():

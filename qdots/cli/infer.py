@@ -55,8 +55,8 @@ def check_extra() -> None:
 
 def run(args: argparse.Namespace, stem: str) -> int:
     """Infer, write the files, print the intervals, the check and the timings."""
-    from ..micrograph.infer import check_rows, interval_rows
-    from ..micrograph.write import infer
+    from ..inference.infer import check_rows, interval_rows
+    from .files import infer
 
     new_library = not args.library.exists()
     try:

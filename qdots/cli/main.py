@@ -221,7 +221,7 @@ def _run_measure(args: argparse.Namespace) -> int:
     from labrig.cli import print_table
 
     from ..micrograph.measure import summary_rows
-    from ..micrograph.write import measure
+    from .files import measure
 
     film = measure(args.image, args.out, name=args.name, nm_per_px=args.nm_per_px, scale_bar=args.scale_bar,
                    polarity=args.polarity, profile=args.profile, page=args.page, lqe=not args.no_lqe,
@@ -263,8 +263,8 @@ def _run_compare(args: argparse.Namespace) -> int:
     check_image_arguments(args)
     from labrig.cli import print_table
 
-    from ..micrograph.compare import table_rows
-    from ..micrograph.write import compare
+    from ..inference.compare import table_rows
+    from .files import compare
 
     comparison = compare(args.image, args.out, name=args.name, nm_per_px=args.nm_per_px, scale_bar=args.scale_bar,
                          polarity=args.polarity, profile=args.profile, page=args.page, seeds=args.seeds,

@@ -3,7 +3,7 @@
 `measure_image` reads the image (`read_micrograph`), settles its scale (the file's own, else the one
 given, else the scale bar's), finds the dots (`detect_dots`), and measures the film (`film_metrics`,
 with the film's LQE from the thesis's trap model), and returns a `MeasuredFilm`: it writes nothing.
-`qdots.micrograph.overlay` draws it and `qdots.micrograph.write` writes ``qdots measure``'s files
+`qdots.micrograph.overlay` draws it and `qdots.cli.files` writes ``qdots measure``'s files
 (``NAME.npz``, a qdots state file that ``qdots analyze`` and ``qdots render`` read,
 ``NAME_detections.png`` and ``NAME_summary.csv``).
 """

@@ -2,14 +2,13 @@
 
 `overlay_figure` draws what `qdots.micrograph.measure.measure_image` found on the image (circles coloured
 by size on viridis with a labelled colour bar, cut dots dashed, what was left out hatched, the scale bar
-outlined, a scale bar in nm); `side_by_side_figure` sets it beside the first simulated film of a
-`qdots.micrograph.compare.Comparison` at the same nm scale. The ``save_*`` functions write them atomically.
+outlined, a scale bar in nm); `save_overlay` writes it atomically. The image beside a simulated film is
+`qdots.inference.plots.side_by_side_figure`.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -20,9 +19,7 @@ from matplotlib.patches import Circle, Rectangle
 
 from labrig.figures import save_figure
 
-from ..presets import MEAN_DIAMETER
-from ..render import add_key, draw_state, nice_length, robust_size_range, size_colours
-from .compare import Comparison
+from ..render import add_key, nice_length, robust_size_range, size_colours
 from .film import film_state
 from .measure import MeasuredFilm
 
@@ -161,49 +158,13 @@ def overlay_figure(film: MeasuredFilm, refused: list[str] | None = None):
     return fig
 
 
-def save_side_by_side(comparison: Comparison, path, dpi: int = 120) -> Path:
-    """`side_by_side_figure`, written atomically to ``path``."""
+def __getattr__(name: str):
+    """``save_side_by_side`` and ``side_by_side_figure`` are `qdots.inference.plots`'s since 0.3 (here until 0.4)."""
+    if name in ("save_side_by_side", "side_by_side_figure"):
+        import importlib
+        import warnings
 
-    return save_figure(side_by_side_figure(comparison), path, dpi=dpi)
-
-
-def side_by_side_figure(comparison: Comparison):
-    """The image with its detections beside the first simulated film, both at the same nm scale (a
-    matplotlib Figure)."""
-
-    film = comparison.film
-    h, w = film.image.shape
-    nm = film.nm_per_px if film.nm_per_px is not None else 1.0
-    unit = "nm" if film.nm_per_px is not None else "image px"
-    scale = comparison.nm_per_board_px if math.isfinite(comparison.nm_per_board_px) else film.summary[
-        "mean_diameter_px"] / MEAN_DIAMETER
-    state = comparison.states[0]
-    board = replace(state, positions=state.positions * scale, radii=state.radii * scale,
-                    box=(state.box[0] * scale, state.box[1] * scale), walls=state.walls * scale)
-    extent = max(w * nm, h * nm, *board.box)
-    low, high = overlay_range(film)
-    sim_low, sim_high = robust_size_range(board.radii)
-    shared = (min(low * nm, sim_low), max(high * nm, sim_high))  # one colour scale, nm, for both panels
-    fig = Figure(figsize=(14, 8.6))
-    FigureCanvasAgg(fig)
-    left, right = fig.subplots(1, 2)
-    save_overlay_axes(film, left, extent_nm=(w * nm, h * nm), diameters=(shared[0] / nm, shared[1] / nm))
-    left.set_xlim(0, extent)
-    left.set_ylim(extent, 0)
-    left.set_title(f"{film.image.source}: {film.summary['dots']} dots measured", fontsize="medium")
-    draw_state(board, ax=right, show_time=False, colours=size_colours(board.radii, shared))
-    right.set_xlim(0, extent)
-    right.set_ylim(0, extent)
-    exp = comparison.experiment
-    right.set_title(f"simulated: {exp.deposition.n_dots} dots, sigma {exp.deposition.sigma:.3f}, masses ~ d^3, "
-                    f"{exp.engine.kind} engine, seed {exp.seed}", fontsize="medium")
-    for ax in (left, right):
-        ax.set_aspect("equal")
-        ax.set_xlabel(unit)
-        ax.set_ylabel(unit)
-    add_key(right, board, unit, diameters=shared)
-    detected = film.detection
-    sized = film_state(detected.centres[~detected.cut] * nm, detected.diameters[~detected.cut] * nm, (h * nm, w * nm))
-    add_key(left, sized, unit, diameters=shared)
-    fig.subplots_adjust(left=0.06, right=0.98, top=0.94, bottom=0.2, wspace=0.15)
-    return fig
+        warnings.warn(f"qdots.micrograph.overlay.{name} is qdots.inference.plots.{name} since 0.3; the old name goes "
+                      "in 0.4", DeprecationWarning, stacklevel=2)
+        return getattr(importlib.import_module("qdots.inference.plots"), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

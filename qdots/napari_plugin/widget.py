@@ -39,10 +39,10 @@ from labrig.files import slug
 from labrig.outputset import OutputSet
 from labrig.validate import InputError
 
+from ..cli.files import write_measurement
 from ..micrograph.admit import NotAFilm
 from ..micrograph.choices import MAX_NM_PER_PX, MIN_NM_PER_PX, POLARITIES, PROFILES
 from ..micrograph.measure import MeasuredFilm, measure_image, summary_rows
-from ..micrograph.write import write_measurement
 from .layers import film_from_points, points_data, shapes_data
 
 #: The names of the layers the widget makes (and replaces on each measurement).

@@ -1,4 +1,4 @@
-"""The split-conformal calibration of ``qdots infer``'s intervals (`qdots.micrograph.conformal`), on toy posteriors
+"""The split-conformal calibration of ``qdots infer``'s intervals (`qdots.inference.conformal`), on toy posteriors
 whose miscalibration is known: pure numpy, no network."""
 
 from __future__ import annotations
@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from qdots.micrograph.conformal import (
+from qdots.inference.conformal import (
     CALIBRATION_SHARE,
     MIN_CALIBRATION_FILMS,
     central_quantiles,

@@ -219,13 +219,36 @@ def test_forces_are_stored_in_full_and_quick_scales_the_board():
         exp.quick(1.5)
 
 
-def test_the_old_module_name_still_works_until_0_4_and_says_so():
-    import importlib
-    import sys
+def test_an_experiment_checks_each_force_once_and_a_simulation_builds_it_once_more(monkeypatch):
+    """Values are checked once where they enter: a force given as an object is taken as it is, a table is built
+    (and so checked) once; only the simulation builds its own (issue 64: the inference's films built their
+    thermal kicks 4 times each)."""
+    import functools
 
-    import qdots.deposition
+    from qdots.experiment import build_simulation
+    from qdots.forces import ThermalKicks
+    from qdots.inference.forward import film_experiment
+    from qdots.inference.library import prior_point
 
-    sys.modules.pop("qdots.protocols", None)
-    with pytest.warns(DeprecationWarning, match=r"qdots.protocols is now qdots.deposition .* goes in 0.4"):
-        old = importlib.import_module("qdots.protocols")
-    assert old.deposit is qdots.deposition.deposit and old.MASS_MODELS is qdots.deposition.MASS_MODELS
+    built = []
+    original = ThermalKicks.__init__
+
+    @functools.wraps(original)  # the signature stays: a force's params() reads it
+    def counting(self, *args, **kwargs):
+        built.append(1)
+        original(self, *args, **kwargs)
+
+    monkeypatch.setattr(ThermalKicks, "__init__", counting)
+    exp = film_experiment(prior_point(0))
+    assert len(built) == 1
+    build_simulation(exp)
+    assert len(built) == 2
+    Experiment(forces=[{"type": "ThermalKicks", "scale": 2.0}])
+    assert len(built) == 3
+
+
+def test_a_power_mass_model_is_checked_before_the_first_dot():
+    sim = empty_sim()
+    with pytest.raises(ValueError, match=r"mass_exponent must be in \[0, 6\], got 7"):
+        deposit(sim, 5, mass_model="power", mass_exponent=7.0, rng=np.random.default_rng(0))
+    assert sim.n_dots == 0

@@ -487,7 +487,7 @@ OWN_KD_TREES = {
     "qdots/analysis/forster.py": "the exciton network's minimum-image pairs on a periodic box (cKDTree boxsize)",
     "qdots/analysis/structure.py": "the nearest-neighbour spacing that scales Voronoi edges (cKDTree.query)",
     "qdots/micrograph/synthetic.py": "scoring a detection: the nearest true dot of each found one and back (cKDTree.query)",
-    "qdots/micrograph/forward.py": "a film's mean gap to each dot's nearest neighbour (cKDTree.query)",
+    "qdots/inference/forward.py": "a film's mean gap to each dot's nearest neighbour (cKDTree.query)",
 }
 
 

@@ -12,8 +12,7 @@ from labrig.validate import InputError
 from qdots.cli.main import main
 from qdots.deposition import dot_masses
 from qdots.experiment import Deposition, Experiment
-from qdots.micrograph.film import film_state
-from qdots.micrograph.forward import (
+from qdots.inference.forward import (
     CONDITIONS,
     PARAMETERS,
     SUMMARIES,
@@ -23,7 +22,8 @@ from qdots.micrograph.forward import (
     film_measures,
     peak_position,
 )
-from qdots.micrograph.library import build_library, library_size, observation, prior_point, training_arrays
+from qdots.inference.library import build_library, library_size, observation, prior_point, training_arrays
+from qdots.micrograph.film import film_state
 from qdots.micrograph.synthetic import superlattice_board
 
 
@@ -77,7 +77,7 @@ def test_points_are_checked_and_build_the_thesis_deposition():
 def test_a_film_past_its_wall_time_budget_stops_and_one_within_it_is_unchanged():
     """The budget stops a film (one point must not stall a library) and, attached, changes nothing of a film."""
     from qdots.experiment import run_experiment
-    from qdots.micrograph.forward import FilmTooSlow, simulate_film
+    from qdots.inference.forward import FilmTooSlow, simulate_film
 
     small = point(n_dots=12, seed=5)
     plain = run_experiment(film_experiment(small)).state()
@@ -141,7 +141,7 @@ def test_the_library_runs_only_the_films_it_lacks(tmp_path):
 
 
 def test_films_that_fail_are_replaced_so_the_training_gets_the_films_asked_for(tmp_path, monkeypatch):
-    import qdots.micrograph.library as library
+    import qdots.inference.library as library
 
     asked = []
 
@@ -204,7 +204,7 @@ def test_a_film_outside_the_trained_conditions_is_refused_before_any_simulation(
 def test_infer_without_the_extra_says_how_to_install_it(monkeypatch):
     import sys
 
-    from qdots.micrograph.posterior import require_sbi
+    from qdots.inference.posterior import require_sbi
 
     monkeypatch.setitem(sys.modules, "sbi", None)
     with pytest.raises(InputError, match=r"pip install torch==2.13.0 'nanodisorder\[infer\]'"):
@@ -219,7 +219,7 @@ def test_the_posterior_recovers_a_known_linear_model_and_is_calibrated(tmp_path,
     user = tmp_path / "user"
     user.mkdir()
     monkeypatch.chdir(user)
-    from qdots.micrograph.posterior import credible_intervals, load_or_train
+    from qdots.inference.posterior import credible_intervals, load_or_train
 
     rng = np.random.default_rng(0)
     low = np.array([p.low for p in PARAMETERS])
@@ -261,8 +261,8 @@ def test_a_small_calibration_on_synthetic_micrographs(tmp_path):
     - the calibrated intervals hold the truth in at least 70 % of the films (90 % expected; 30 films give a
       binomial SE of 5.5 points), the networks' own in at least 60 %."""
     pytest.importorskip("sbi")
-    from qdots.micrograph.calibration import calibration_films, coverage_table, truths
-    from qdots.micrograph.posterior import load_or_train
+    from qdots.inference.calibration import calibration_films, coverage_table, truths
+    from qdots.inference.posterior import load_or_train
 
     lib = build_library(tmp_path / "lib", 300, workers=2, progress=False, n_dots=60)
     posterior, _ = load_or_train(tmp_path / "lib", lib.theta, lib.x, lib.ids)  # the default ensemble
