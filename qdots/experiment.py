@@ -25,6 +25,7 @@ from labrig.validate import MAX_SEED, InputError, real
 from .deposition import GAP, MASS_MODELS, MAX_INTERVAL, MAX_MASS_EXPONENT, deposit, deposit_around_centre, ring_radius
 from .engine import Chipmunk, Settings
 from .forces import Force, ThermalKicks, VanDerWaals, force_from_dict
+from .limits import SIGMA
 from .placement import MAX_TRIES
 from .restitution import Restitution
 from .scene import MAX_DOTS, MAX_LENGTH, MAX_MASS, MIN_DIAMETER, Scene
@@ -115,8 +116,7 @@ class Deposition:
                                                         'grating channel, "centre": on a ring around the centre)'),
         "n_dots": Param("int", 0, MAX_DOTS, doc="dots deposited"),
         "mean_diameter": Param("float", MIN_DIAMETER, MAX_LENGTH, unit="px", doc="mean dot diameter"),
-        "sigma": Param("float", 0.0, 1.0, high_open=True,
-                       doc="standard deviation of the diameter as a fraction of the mean"),
+        "sigma": SIGMA,
         "mass_model": Param("str", choices=MASS_MODELS, doc='dot masses ("equal", ~ d^2 "area", ~ d^3 "volume", '
                                                             'half the dots heavy_mass "bimodal", ~ d^p "power")'),
         "heavy_mass": Param("float", 0.0, MAX_MASS, low_open=True, unit="mean-dot masses",

@@ -5,6 +5,8 @@ classes that check them (`qdots.Scene`, `qdots.geometry.VerletPairs`, the engine
 command line can state and check them without importing the simulators (numba, scipy, pymunk).
 """
 
+from labrig.params import Param
+
 #: Most dots a scene holds (Chipmunk needs about 1 kB per dot).
 MAX_DOTS = 1_000_000
 #: Most static segments besides the box edges.
@@ -28,3 +30,5 @@ MAX_FORSTER_RADII = 1000.0
 MAX_FORSTER_PX = MAX_FORSTER_RADII * MAX_LENGTH
 #: Most trap draws `qdots.analysis.lqe.film_lqe` averages (as ``qdots analyze --draws``).
 MAX_DRAWS = 10_000
+#: Declaration of a deposition's size spread (`qdots.experiment.Deposition`'s ``sigma``, ``qdots demo --sigma``).
+SIGMA = Param("float", 0.0, 1.0, high_open=True, doc="standard deviation of the diameter as a fraction of the mean")

@@ -207,3 +207,14 @@ def test_measure_in_a_pipe_says_its_stages_once_it_runs_long(capsys, tmp_path, m
     said = capsys.readouterr().err.splitlines()
     assert said and all(line.startswith("qdots measure: ") for line in said)
     assert any(line.startswith("qdots measure: finding the dots (") for line in said)
+
+
+def test_qdots_demo_sigma_is_the_deposition_s_declaration(capsys, tmp_path, monkeypatch):
+    from qdots.experiment import Deposition
+
+    sigma = Deposition.PARAMS["sigma"]
+    monkeypatch.chdir(tmp_path)
+    assert main(["demo", "--sigma", "1"]) == 2
+    assert f"argument --sigma: must be {sigma.bounds()}, got 1.0" in one_line_error(capsys)
+    assert main(["demo", "--help"]) == 0
+    assert " ".join(sigma.comment().split()) in " ".join(capsys.readouterr().out.split())

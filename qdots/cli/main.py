@@ -19,7 +19,7 @@ import sys
 import time
 from pathlib import Path
 
-from labrig.cli import Command, command_line, float_in, fraction, int_in
+from labrig.cli import Command, command_line, float_in, fraction, int_in, param_help, param_type
 from labrig.sweeps.command import plot_command, sweep_command
 from labrig.validate import MAX_SEED
 
@@ -46,6 +46,8 @@ RESUME_RULE = (
 
 
 def _demo_arguments(p) -> None:
+    from ..limits import SIGMA
+
     p.add_argument("--out", type=Path, default=Path("qdots-demo"), metavar="DIR",
                    help="output directory, created if missing (default ./qdots-demo)")
     p.add_argument("--seed", type=int_in(0, MAX_SEED), default=1, help="random seed (default 1)")
@@ -53,8 +55,7 @@ def _demo_arguments(p) -> None:
                    help="number of dots (default 150)")
     p.add_argument("--seconds", type=float_in(0.0, math.inf, low_open=True), default=20.0, metavar="T",
                    help="simulated time, s (default 20)")
-    p.add_argument("--sigma", type=float_in(0.0, 1.0), default=0.05, metavar="F",
-                   help="diameter spread as a fraction of the mean (default 0.05)")
+    p.add_argument("--sigma", type=param_type(SIGMA), default=0.05, metavar="F", help=param_help(SIGMA, 0.05))
     p.add_argument("--no-movie", action="store_true", help="skip demo.mp4 (faster)")
 
 
