@@ -23,6 +23,7 @@ from labrig.cli import Command, command_line, float_in, fraction, int_in, param_
 from labrig.sweeps.command import plot_command, sweep_command
 from labrig.validate import MAX_SEED
 
+from ..limits import SIGMA
 from ..presets import NAMES as PRESET_NAMES  # the names only: the presets are made when first used
 
 #: Demo board, px, and mean dot diameter, px (the thesis's diameter on a quarter of its board).
@@ -46,13 +47,10 @@ RESUME_RULE = (
 
 
 def _demo_arguments(p) -> None:
-    from ..limits import SIGMA
-
     p.add_argument("--out", type=Path, default=Path("qdots-demo"), metavar="DIR",
                    help="output directory, created if missing (default ./qdots-demo)")
     p.add_argument("--seed", type=int_in(0, MAX_SEED), default=1, help="random seed (default 1)")
-    p.add_argument("--dots", type=int_in(1, DEMO_MAX_DOTS), default=150, metavar="N",
-                   help="number of dots (default 150)")
+    p.add_argument("--dots", type=int_in(1, DEMO_MAX_DOTS), default=150, metavar="N", help="number of dots (default 150)")
     p.add_argument("--seconds", type=float_in(0.0, math.inf, low_open=True), default=20.0, metavar="T",
                    help="simulated time, s (default 20)")
     p.add_argument("--sigma", type=param_type(SIGMA), default=0.05, metavar="F", help=param_help(SIGMA, 0.05))
