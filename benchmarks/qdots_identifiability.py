@@ -26,21 +26,25 @@ import time
 
 import numpy as np
 
-from qdots.inference.forward import CONDITIONS, MEASURES, PARAMETERS, SUMMARIES
+from qdots.inference.forward import CONDITIONS, MASS_KEY, MEASURES, PARAMETERS, SUMMARIES, Parameter
 from qdots.inference.library import run_points
 
 from .report import Headline, Note, Table, cli
 
 #: The code this benchmark measures (besides itself): a commit to it after a run marks the run's section as
 #: older than its code (`benchmarks.staleness`).
-MEASURED_CODE = ("qdots/micrograph", "qdots/engine", "qdots/forces", "qdots/experiment.py", "qdots/protocols.py",
+MEASURED_CODE = ("qdots/inference", "qdots/engine", "qdots/forces", "qdots/experiment.py", "qdots/deposition.py",
                  "qdots/analysis")
 
 #: The base point: the thesis's values at the shared micrograph's size spread and coverage.
-BASE = {"kick": 0.0, "mass_exponent": 0.0, "restitution": 0.8, "drag": -3.0, "sigma": 0.15, "coverage": 0.336}
+BASE = {"kick": 0.0, "mass_exponent": 0.0, "restitution": 0.8, "drag": -3.0, "attraction": 0.0, "sigma": 0.15,
+        "coverage": 0.336}
 #: The steps: (key, values tried besides the base).
 STEPS = (("kick", (-0.3, 0.3)), ("mass_exponent", (3.0,)), ("restitution", (0.75, 0.85)), ("drag", (-1.0,)),
-         ("sigma", (0.10, 0.20)), ("coverage", (0.28, 0.40)))
+         ("attraction", (-0.3, 0.3)), ("sigma", (0.10, 0.20)), ("coverage", (0.28, 0.40)))
+#: The axes of the Fisher analysis: the continuous parameters and the mass exponent, taken as continuous between the
+#: mass models' 0 and 3 (locally: the step from equal masses to masses ~ d^3).
+AXES = (*PARAMETERS, Parameter(MASS_KEY, "mass exponent p (m ~ d^p)", 0.0, 3.0, 0.0, "masses (d / mean d)^p"))
 #: Films per point (full, quick).
 SEEDS, QUICK_SEEDS = 16, 4
 
@@ -50,7 +54,7 @@ def points(seeds: int) -> list[dict]:
     out = []
     for key, value in [(None, None)] + [(key, v) for key, values in STEPS for v in values]:
         for s in range(seeds):
-            point = dict(BASE, n_dots=150, seed=1000 + s)
+            point: dict = dict(BASE, n_dots=150, seed=1000 + s)
             if key is not None:
                 point[key] = value
             out.append(point)
@@ -90,7 +94,7 @@ def fisher(rows: list[dict], seeds: int, effects: dict) -> tuple[np.ndarray, np.
     keep = sd > 0  # a summary that never moved between seeds carries no usable information here
     cov = 0.5 * cov + 0.5 * np.diag(np.diag(cov))
     jac = []
-    for p in PARAMETERS:
+    for p in AXES:
         slopes = [effects[(p.key, v)]["slope"][use] for v in dict(STEPS)[p.key]]
         jac.append(np.mean(slopes, axis=0))
     jac = np.array(jac).T[keep]  # (summaries, parameters)
@@ -120,17 +124,17 @@ def run(quick: bool) -> list:
                   + f". {len(rows)} films, {failed} failed, {wall:.0f} s on 2 workers.")
     info, _ = fisher(rows, seeds, effects)
     bound = np.sqrt(np.diag(np.linalg.pinv(info)))
-    prior_sd = np.array([(p.high - p.low) / math.sqrt(12.0) for p in PARAMETERS])
+    prior_sd = np.array([(p.high - p.low) / math.sqrt(12.0) for p in AXES])
     ident = Table("What one film of 150 dots can pin down: the Cramér-Rao bound on each parameter against its "
                   "prior's SD (linearised at the base point)",
                   ["parameter", "prior range", "prior SD", "smallest posterior SD (one film)", "bound / prior SD",
                    "one picture"])
-    for p, b, s in zip(PARAMETERS, bound, prior_sd):
+    for p, b, s in zip(AXES, bound, prior_sd):
         verdict = "identified" if b < 0.35 * s else ("weakly" if b < 0.8 * s else "not identified")
         ident.rows.append([p.label, f"[{p.low:g}, {p.high:g}]", f"{s:.3g}", f"{b:.3g}", f"{b / s:.2f}", verdict])
     scaled = info * np.outer(prior_sd, prior_sd)  # information in units of the prior's SDs
     eigenvalues, vectors = np.linalg.eigh(scaled)
-    weak = ", ".join(f"{value:.3g} along ({', '.join(f'{c:+.2f} {p.key}' for c, p in zip(vectors[:, k], PARAMETERS))})"
+    weak = ", ".join(f"{value:.3g} along ({', '.join(f'{c:+.2f} {p.key}' for c, p in zip(vectors[:, k], AXES))})"
                      for k, value in enumerate(eigenvalues[:2]))
     note = Note(f"Eigenvalues of one film's Fisher information in prior-SD units: "
                 f"{', '.join(f'{v:.3g}' for v in eigenvalues)}; the two weakest directions: {weak}. An eigenvalue "
@@ -139,7 +143,7 @@ def run(quick: bool) -> list:
                 "is why the inference takes them from the micrograph.")
     head = Headline("qdots infer: identifiability (sensitivity of the film measures, Fisher bound)",
                     f"{wall / len(rows):.2f} s per film (2 workers)",
-                    ", ".join(f"{p.key} {b / s:.2f}" for p, b, s in zip(PARAMETERS, bound, prior_sd))
+                    ", ".join(f"{p.key} {b / s:.2f}" for p, b, s in zip(AXES, bound, prior_sd))
                     + " (bound / prior SD)")
     return [head, table, ident, note]
 

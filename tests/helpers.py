@@ -34,6 +34,17 @@ type = "Gravity"
 
 # -- oracles and boards ---------------------------------------------------------------------------
 
+def has_avx512() -> bool:
+    """Whether this CPU has AVX-512 (numpy's own record of its features; unknown counts as yes, so that a comparison
+    is strict). Without it numpy's vectorized math takes other code paths that may round differently in the last
+    bit, which the collisions of a polydisperse film amplify."""
+    try:
+        from numpy._core._multiarray_umath import __cpu_features__
+    except ImportError:
+        return True
+    return bool(__cpu_features__.get("AVX512F", False))
+
+
 def worst_overlap(positions, radii):
     """Worst (r_i + r_j - d) / ((r_i + r_j)/2) over all pairs (a test oracle, brute force for small N)."""
     positions = np.asarray(positions)

@@ -97,29 +97,31 @@ def compare(path: str | os.PathLike, out: str | os.PathLike | None = None, *, na
 
 def infer(path: str | os.PathLike, out: str | os.PathLike | None = None, *, library: str | os.PathLike,
           name: str | None = None, nm_per_px=None, scale_bar: str | None = None, polarity: str = "auto",
-          profile: str = "auto", page: int = 0, **options):
-    """`qdots.inference.infer.infer_image`, then write as one set into ``out`` (default beside the image), folder
-    ``NAME_infer``: the measurement's files, ``NAME_posterior.csv`` (the draws), ``NAME_intervals.csv`` (median and
-    90 % interval per parameter), ``NAME_check.csv`` (each measure: micrograph, best film, predicted band),
-    ``NAME_corner.png``, ``NAME_best.png`` (the micrograph beside the best-fitting film, both measure tables),
-    ``NAME_check.png`` (the predictive check) and ``NAME_best-film.npz`` (that film's board). ``options`` are
-    `qdots.inference.infer.infer_film`'s keywords. The library is kept in ``library``."""
+          profile: str = "auto", page: int = 0, also=(), **options):
+    """`qdots.inference.infer.infer_image` (of ``path`` and the pictures ``also`` of the same sample), then write
+    as one set into ``out`` (default beside the image), folder ``NAME_infer``: the measurement's files,
+    ``NAME_posterior.csv`` (the draws), ``NAME_intervals.csv`` (median and 90 % interval per parameter),
+    ``NAME_mass_models.csv`` (each mass model's probability), ``NAME_check.csv`` (each measure: micrograph, best
+    film, predicted band), ``NAME_corner.png``, ``NAME_best.png`` (the micrograph beside the best-fitting film,
+    both measure tables), ``NAME_check.png`` (the predictive check) and ``NAME_best-film.npz`` (that film's
+    board). ``options`` are `qdots.inference.infer.infer_film`'s keywords. The library is kept in ``library``."""
     from labrig.figures import save_figure
 
-    from ..inference.forward import parameter_keys
+    from ..inference.forward import MASS_KEY, parameter_keys
     from ..inference.infer import infer_image
     from ..inference.plots import best_film_figure, check_figure, corner_figure
 
     path = Path(path)
     stem = slug(name if name is not None else path.stem)
-    result = infer_image(path, library, nm_per_px=nm_per_px, scale_bar=scale_bar, polarity=polarity,
-                         profile=profile, page=page, **options)
+    result = infer_image([path, *also] if also else path, library, nm_per_px=nm_per_px, scale_bar=scale_bar,
+                         polarity=polarity, profile=profile, page=page, **options)
     out = path.parent if out is None else Path(out)
     with OutputSet(out, f"{stem}_infer") as files:
         write_measurement(result.film, files, stem)
         write_csv(files.stage(f"{stem}_posterior.csv"),
                   [dict(zip(parameter_keys(), (float(v) for v in row))) for row in result.samples])
         write_csv(files.stage(f"{stem}_intervals.csv"), result.intervals)
+        write_csv(files.stage(f"{stem}_mass_models.csv"), result.mass_models)
         best = result.best
         write_csv(files.stage(f"{stem}_check.csv"),
                   [{**row, "best_film": best.get(row["measure"])} for row in result.check])
@@ -128,5 +130,6 @@ def infer(path: str | os.PathLike, out: str | os.PathLike | None = None, *, libr
         save_figure(check_figure(result), files.stage(f"{stem}_check.png"), dpi=100)
         checkpoint.save_board(best["state"], files.stage(f"{stem}_best-film.npz"),
                               {"best_film_of": result.film.image.source,
-                               "point": {k: best[k] for k in (*parameter_keys(), "sigma", "coverage", "n_dots", "seed")}})
+                               "point": {k: best[k] for k in (*parameter_keys(), MASS_KEY, "sigma", "coverage", "n_dots",
+                                                               "seed")}})
     return result

@@ -19,6 +19,8 @@ MODELS = ("thesis", "hamaker")
 CONTACTS = ("zero", "hold")
 #: Largest range R0 and gap, px (the thesis's R0 is 15 px, one mean diameter).
 MAX_RANGE = 1000.0
+#: Largest multiplier of the pull (`VanDerWaals.scale`).
+MAX_SCALE = 1000.0
 #: Largest Hamaker constant, mean-dot mass px^2/s^2 (the default is about 2e4).
 MAX_STRENGTH = 1e12
 
@@ -180,6 +182,10 @@ class VanDerWaals(Force):
         together at every step (each press an impact of the collision rule); it deepens the pair well by
         the force at ``min_gap`` times ``min_gap``, about 2 % of the well. (Until 0.3 "hold" was the
         default, to keep Chipmunk's contacts from chattering under a Python callback per re-contact.)
+    scale : float
+        Multiplies the pull of either model (default 1, the thesis's): how strongly the ligands and the
+        solvent let the dots attract (``qdots infer``'s ``attraction`` is its log10). The proxy's cap scales
+        with it as the pull does (``dv = min(s a dt/2, sqrt(g s a)/2)``).
     offset : float, optional
         The thesis proxy's offset ``b``, px. Default: as the Java computes it from ``r0``, ``min_gap`` and
         the sticking speed of the simulation's collision rule (`thesis_offset`; -5.49 px for the
@@ -199,6 +205,7 @@ class VanDerWaals(Force):
         "max_gap": Param("float", 0.0, 2 * MAX_RANGE, low_open=True, unit="px", optional=True,
                          doc="no force beyond this gap", rule="above min_gap", unset="2 r0"),
         "contact": Param("str", choices=CONTACTS, doc='force below min_gap ("zero": none, "hold": the force at min_gap)'),
+        "scale": Param("float", 0.0, MAX_SCALE, doc="multiplies the pull (1: the thesis's)"),
         "offset": Param("float", -MAX_RANGE, MAX_RANGE, unit="px", optional=True, doc="the proxy's b",
                         rule="below min_gap", unset="from restitution.sticking_speed"),
     }
@@ -213,6 +220,7 @@ class VanDerWaals(Force):
         max_gap: float | None = None,
         contact: str = "zero",
         offset: float | None = None,
+        scale: float = 1.0,
     ):
         p = self.PARAMS
         model = p["model"].check("VanDerWaals.model", model)
@@ -235,9 +243,12 @@ class VanDerWaals(Force):
         self.max_gap = float(max_gap)
         self.contact = contact
         self.strength = p["strength"].check("VanDerWaals.strength", strength)
+        self.scale = p["scale"].check("VanDerWaals.scale", scale)
 
     def params(self) -> dict:
         params = super().params()
+        if self.scale == 1.0:  # the thesis's pull: scene files written before the scale existed stay as they were
+            del params["scale"]
         return {key: (None if key in self._unset else value) for key, value in params.items()}
 
     def check_rule(self, restitution) -> None:
@@ -267,7 +278,8 @@ class VanDerWaals(Force):
         proxy's offset and the Hamaker constant (`qdots.engine.pair_scheme.PairLaw`)."""
         assert ctx.restitution is not None  # the engine hands each step the collision rule
         offset = self.proxy_offset(ctx.restitution.sticking_speed)
-        return {"inv_mass": np.ascontiguousarray(1.0 / ctx.masses, dtype=float), "offset": offset,
+        # the pull enters every kick and the proxy's cap as pull / mass: its scale rides on the inverse masses
+        return {"inv_mass": np.ascontiguousarray(self.scale / ctx.masses, dtype=float), "offset": offset,
                 "strength": self.hamaker_strength(offset)}
 
     def add_pair_kicks(self, constants: dict, x, y, i, j, radii, gap_to: float, fade_from: float, fade_to: float,

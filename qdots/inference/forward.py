@@ -1,28 +1,33 @@
 """The forward model of ``qdots infer``: deposition parameters in, the measures of the film they make out.
 
-A point is a flat dict: the four model parameters (`PARAMETERS`), the two conditions taken from the
-micrograph (`CONDITIONS`: the size spread sigma and the coverage), the dots of the simulated film and
-its seed. `film_experiment` turns it into the thesis's deposition (random arrival one dot per second,
-100 s to settle, van der Waals attraction as the thesis's proxy and thermal kicks, on the event engine)
-on a closed square board whose side gives the coverage, as `qdots.inference.compare` does.
-`film_measures` measures a film the way a micrograph is measured: the neighbourhood measures over the
-dots whose whole neighbourhood is inside the picture (for a simulated board: away from its walls), and
-every measure intensive (a share, a mean, a length in mean diameters), so films of different sizes
-compare. `FilmRunner` runs a point for the sweep machinery (`labrig.sweeps.run_sweep`): one row of
-measures per film.
+A point is a flat dict: the four continuous model parameters (`PARAMETERS`), the mass exponent of one of
+the mass models (`MASS_MODELS`, the model choice), the two conditions taken from the micrograph (`CONDITIONS`:
+the size spread sigma and the coverage), the dots of the simulated film and its seed. `film_experiment` turns
+it into the thesis's deposition (random arrival one dot per second, 100 s to settle, van der Waals attraction
+as the thesis's proxy and thermal kicks, on the event engine) on a closed square board whose side gives the
+coverage, as `qdots.inference.compare` does. `film_measures` measures a film the way a micrograph is
+measured: the neighbourhood measures over the dots whose whole neighbourhood is inside the picture (for a
+simulated board: away from its walls), and every measure intensive (a share, a mean, a length in mean
+diameters), so films of different sizes compare. `FilmRunner` runs a point for the sweep machinery
+(`labrig.sweeps.run_sweep`): one row of measures per film.
 
-The parameters, each sampled uniformly between its bounds by the prior of the inference:
+The continuous parameters, each sampled uniformly between its bounds by the prior of the inference:
 
 * ``kick``: log10 of the thermal kick speed in units of the thesis's (`qdots.forces.ThermalKicks`
-  ``scale``); the van der Waals pull is the thesis's, so this is the kick strength relative to the pull.
-* ``mass_exponent``: masses ``(d / mean d)^p`` (`qdots.deposition.dot_masses`, model ``"power"``):
-  0 the thesis's figures, 2 its text, 3 its Java code.
+  ``scale``).
 * ``restitution``: the mean coefficient of restitution of dot-dot impacts (`qdots.Restitution`).
   Below 0.7 the event engine meets inelastic collapse (a film of 150 dots at 0.5 took 240 s against
   2 s at 0.8, measured on a 2-core machine), so the prior starts there.
 * ``drag``: log10 of the substrate's linear friction ``f1`` (1/s) of `qdots.forces.Drag`, its quadratic
   part ``f1 / 30`` 1/px in the thesis's ratio; the thesis's figures have none (10^-3/s damps a dot by
   0.2 % over the whole run), its code's default is 0.025/s (-1.6).
+* ``attraction``: log10 of the van der Waals pull over the thesis's (`qdots.forces.VanDerWaals` ``scale``),
+  which the ligands and the solvent set: from a quarter to four times the thesis's.
+
+The mass model, one of three with equal prior probability (`MASS_MODELS`): masses ``(d / mean d)^p``
+(`qdots.deposition.dot_masses`, model ``"power"``) with p = 0 (the thesis's figures), 2 (its text) or 3 (its
+Java code). The thesis's question, mass or damping, is a choice between such hypotheses, so the inference
+gives each model's posterior probability rather than an interval on p.
 """
 
 from __future__ import annotations
@@ -38,6 +43,7 @@ from labrig.validate import InputError, count, real
 
 from ..analysis.packing import INTERIOR_MIN_NEIGHBOURS, neighbour_counts
 from ..analysis.structure import clusters, hexatic_order, radial_distribution
+from ..deposition import MAX_MASS_EXPONENT
 from ..engine import Event
 from ..experiment import Board, Deposition, Experiment, build_simulation, populate
 from ..forces import Drag, ThermalKicks, VanDerWaals
@@ -59,17 +65,38 @@ class Parameter:
     doc: str
 
 
-#: The model parameters the picture is asked about.
+#: The continuous model parameters the picture is asked about (the posterior's networks).
 PARAMETERS = (
     Parameter("kick", "log10 kick / thesis kick", -1.0, 0.7, 0.0, "thermal kick speed over the thesis's, log10"),
-    Parameter("mass_exponent", "mass exponent p (m ~ d^p)", 0.0, 3.0, 0.0, "masses (d / mean d)^p"),
     Parameter("restitution", "restitution", 0.7, 0.95, 0.8, "mean coefficient of restitution of dot-dot impacts"),
     Parameter("drag", "log10 drag f1 (1/s)", -3.0, 0.0, -3.0, "linear substrate friction f1, 1/s, log10"),
+    Parameter("attraction", "log10 pull / thesis pull", -0.6, 0.6, 0.0,
+              "van der Waals pull over the thesis's, log10 (`qdots.forces.VanDerWaals` scale)"),
 )
-#: What the micrograph gives and the simulation is built to match (sampled over these ranges in training).
+
+
+@dataclass(frozen=True)
+class MassModel:
+    """One hypothesis on the dots' masses, ``m ~ (d / mean d)^exponent``: the model choice of the inference."""
+
+    key: str
+    label: str
+    exponent: float
+
+
+#: The mass models the picture is asked to choose between, each a third of the prior: equal masses (the
+#: thesis's figures), masses ~ d^2 (its text) and ~ d^3 (its Java code, a dot's volume).
+MASS_MODELS = (MassModel("equal", "equal masses (p = 0)", 0.0), MassModel("area", "masses ~ d^2 (p = 2)", 2.0),
+               MassModel("volume", "masses ~ d^3 (p = 3)", 3.0))
+#: The point's key of the mass exponent (any value in [0, `MAX_MASS_EXPONENT`] simulates; the prior draws
+#: only those of `MASS_MODELS`).
+MASS_KEY = "mass_exponent"
+#: What the micrograph gives and the simulation is built to match (sampled over these ranges in training). The
+#: coverage runs from sparse films to dense monolayers: a closed board of 150 dots takes about 2 s at 0.05 as at
+#: 0.7 (2-core machine); 0.7 is about where random arrival still places every dot without a jam.
 CONDITIONS = (
     Parameter("sigma", "size spread sigma", 0.03, 0.25, 0.15, "standard deviation of the diameter over its mean"),
-    Parameter("coverage", "coverage", 0.2, 0.5, 0.336, "share of the area the dots cover"),
+    Parameter("coverage", "coverage", 0.05, 0.7, 0.336, "share of the area the dots cover"),
 )
 #: Every measure of a film (`film_measures`), with its label; the inference uses `SUMMARIES` of them.
 MEASURES = {
@@ -94,9 +121,22 @@ MEASURES = {
 SUMMARIES = ("interior_fraction", "mean_neighbours", "psi6_local", "low_share", "single_share", "small_share")
 
 
+#: The mass exponent as a point's value is checked: any exponent in the deposition's range simulates.
+MASS_PARAMETER = Parameter(MASS_KEY, "mass exponent p (m ~ d^p)", 0.0, MAX_MASS_EXPONENT, 0.0, "masses (d / mean d)^p")
+
+
 def parameter_keys() -> tuple[str, ...]:
     """The keys of the model parameters, in order."""
     return tuple(p.key for p in PARAMETERS)
+
+
+def mass_model_index(exponent: float) -> int:
+    """The index in `MASS_MODELS` of the model with this ``exponent``; `InputError` for any other."""
+    for k, model in enumerate(MASS_MODELS):
+        if float(exponent) == model.exponent:
+            return k
+    raise InputError(f"{MASS_KEY} {exponent!r} is none of the mass models' "
+                     f"({', '.join(f'{m.exponent:g}' for m in MASS_MODELS)})")
 
 
 def condition_keys() -> tuple[str, ...]:
@@ -108,7 +148,7 @@ def check_point(point: dict) -> dict:
     """``point`` checked (every key known, each value in its prior's range) and as plain floats and ints."""
     if not isinstance(point, dict):
         raise InputError(f"a film point must be a dict, got {type(point).__name__}")
-    known = {p.key: p for p in (*PARAMETERS, *CONDITIONS)}
+    known = {p.key: p for p in (*PARAMETERS, MASS_PARAMETER, *CONDITIONS)}
     unknown = sorted(set(point) - set(known) - {"n_dots", "seed"})
     if unknown:
         raise InputError(f"unknown key {unknown[0]!r} in a film point (known: {', '.join([*known, 'n_dots', 'seed'])})")
@@ -128,9 +168,9 @@ def film_experiment(point: dict) -> Experiment:
     n, sigma = point["n_dots"], point["sigma"]
     side = math.sqrt(n * math.pi * MEAN_DIAMETER**2 * (1.0 + sigma**2) / (4.0 * point["coverage"]))
     f1 = 10.0 ** point["drag"]
-    forces = (VanDerWaals(), ThermalKicks(scale=10.0 ** point["kick"]), Drag(linear=f1, quadratic=f1 / 30.0))
+    forces = (VanDerWaals(scale=10.0 ** point["attraction"]), ThermalKicks(scale=10.0 ** point["kick"]), Drag(linear=f1, quadratic=f1 / 30.0))
     deposition = Deposition(protocol="random", n_dots=n, mean_diameter=MEAN_DIAMETER, sigma=sigma,
-                            mass_model="power", mass_exponent=point["mass_exponent"], interval=1.0, settle=100.0)
+                            mass_model="power", mass_exponent=point[MASS_KEY], interval=1.0, settle=100.0)
     return Experiment(name="film of qdots infer", seed=point["seed"], board=Board(side, side, True),
                       deposition=deposition, restitution=Restitution(mean=point["restitution"]), forces=forces,
                       engine=Event())
@@ -217,9 +257,39 @@ def image_point(film) -> dict:
     return out
 
 
-def image_measures(film) -> dict:
-    """`film_measures` of a measured film: its board and the dots whose neighbourhood is in the picture."""
-    return film_measures(film.state, film.complete)
+def image_measures(film, complete: np.ndarray | None = None) -> dict:
+    """`film_measures` of a measured film: its board and the dots whose neighbourhood is in the picture (or those
+    of them in ``complete``, a part of the picture: `image_parts`)."""
+    return film_measures(film.state, film.complete if complete is None else film.complete & complete)
+
+
+#: Fewest dots with their whole neighbourhood in a part of a picture for it to count as an observation.
+MIN_PART_DOTS = 40
+
+
+def image_parts(film, dots: int = FILM_DOTS) -> list[np.ndarray]:
+    """A picture cut into parts of about ``dots`` measured dots each: a grid of rectangles over the region its
+    measured dots span, as square as that region allows, one bool mask (N,) per part of the dots whose whole neighbourhood is in the
+    picture and whose centre is in that part; every dot takes part as a neighbour.
+
+    The library's films hold `FILM_DOTS` dots: a picture of thousands of dots is, to the posterior, many such
+    films, each an independent observation of the same deposition (the measures are local: a dot's neighbours,
+    its cluster's size). A picture with fewer than twice ``dots`` such dots is one part; parts with fewer than
+    `MIN_PART_DOTS` are merged into no other and left out."""
+    complete = np.asarray(film.complete, dtype=bool)
+    total = int(complete.sum())
+    parts = max(1, int(round(total / max(1, dots))))
+    if parts < 2:
+        return [complete]
+    x, y = np.asarray(film.state.positions, dtype=float).T
+    x0, x1, y0, y1 = x[complete].min(), x[complete].max(), y[complete].min(), y[complete].max()
+    w, h = max(x1 - x0, 1e-9), max(y1 - y0, 1e-9)  # the region the measured dots span
+    cols = max(1, int(round(math.sqrt(parts * w / h))))
+    rows = max(1, int(round(parts / cols)))
+    col = np.clip(((x - x0) / w * cols).astype(int), 0, cols - 1)
+    row = np.clip(((y - y0) / h * rows).astype(int), 0, rows - 1)
+    masks = [complete & (col == c) & (row == r) for r in range(rows) for c in range(cols)]
+    return [m for m in masks if m.sum() >= MIN_PART_DOTS] or [complete]
 
 
 #: Most wall seconds a film may take (checked every simulated second). A typical film of 150 dots takes about
@@ -233,17 +303,33 @@ class FilmTooSlow(RuntimeError):
     """A film ran past its wall-time budget (`MAX_FILM_SECONDS`)."""
 
 
+#: The simulated seconds a film runs before its wall-time budget starts (by then its first dots have met, and every
+#: compiled kernel a film calls has been compiled or loaded), and the most wall seconds that start may take
+#: (numba's first compilation on a new install, two workers at once on a busy machine).
+WARM_SECONDS, MAX_WARM_WALL_SECONDS = 5.0, 600.0
+
+
 class WallBudget:
-    """A run writer that stops the run, raising `FilmTooSlow`, once ``seconds`` of wall time have passed."""
+    """A run writer that stops the run, raising `FilmTooSlow`, once ``seconds`` of wall time have passed since the
+    film reached `WARM_SECONDS` of simulated time: the compilation the first films of a new worker pay never counts
+    against a film. Bounded all the same: a film that has not reached it within `MAX_WARM_WALL_SECONDS` is stopped
+    too."""
 
     def __init__(self, seconds: float):
         self.seconds = seconds
-        self.deadline = time.perf_counter() + seconds
+        self.started = time.perf_counter()
+        self.deadline: float | None = None
 
     def write(self, state) -> None:
-        if time.perf_counter() > self.deadline:
+        now = time.perf_counter()
+        if self.deadline is None and state.time >= WARM_SECONDS:
+            self.deadline = now + self.seconds
+        if self.deadline is not None and now > self.deadline:
             raise FilmTooSlow(f"the film ran past its budget of {self.seconds:g} wall s at t = {state.time:.0f} s "
                               "(inelastic collapse is the usual cause: weak kicks, dissipative impacts)")
+        if self.deadline is None and now > self.started + MAX_WARM_WALL_SECONDS:
+            raise FilmTooSlow(f"the film's first {WARM_SECONDS:g} simulated s took over {MAX_WARM_WALL_SECONDS:g} wall "
+                              "s (compilation included)")
 
 
 def simulate_film(point: dict, max_seconds: float | None = None):

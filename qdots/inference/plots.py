@@ -62,13 +62,22 @@ def corner_figure(inference: Inference, bins: int = 30):
                 ax.set_ylabel(pi.label, fontsize="small")
             elif j > 0:
                 ax.set_yticklabels([])
+    ax = axes[0, k - 1]  # the mass models' probabilities, in the empty corner
+    ax.set_axis_on()
+    names = [m["key"] for m in inference.mass_models]
+    ax.barh(names, [m["probability"] for m in inference.mass_models], color="tab:blue", alpha=0.8)
+    ax.axvline(1.0 / len(names), color="tab:red", ls=":", lw=1.2)
+    ax.set_xlim(0.0, 1.0)
+    ax.invert_yaxis()
+    ax.tick_params(labelsize="small")
+    ax.set_title("mass model: probability", fontsize="small")
     c = inference.conditions
-    factors = inference.calibration.factors
+    factors = np.array([row["calibration_spread"] for row in inference.intervals], dtype=float)  # as applied
     spread = (f"spread x{factors.min():.2f}-{factors.max():.2f} by the calibration, clipped to the prior's box"
               if np.isfinite(factors).all() else "no calibration fitted: intervals are the prior's")
     fig.suptitle(f"{inference.film.image.source}: posterior of the deposition parameters (sigma {c['sigma']:.3f}, "
                  f"coverage {c['coverage']:.3f};\n{len(samples):,} draws, {inference.films:,} training films; "
-                 f"{spread}).\nDashed: 90 % interval; dotted red: the thesis's value", fontsize="medium")
+                 f"{spread}).\nDashed: 90 % interval; dotted red: the thesis's value (mass models: their prior)", fontsize="medium")
     fig.subplots_adjust(left=0.08, right=0.98, bottom=0.08, top=0.88, wspace=0.08, hspace=0.12)
     return fig
 

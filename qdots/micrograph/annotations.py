@@ -206,17 +206,26 @@ def label_strokes(image: np.ndarray, bar: ScaleBar) -> np.ndarray:
     along, across = length // 2, length // 2
     horizontal = x1 - x0 >= y1 - y0
     reach_x, reach_y = (along, across) if horizontal else (across, along)
-    near = np.zeros(image.shape, dtype=bool)
-    near[max(0, y0 - reach_y):y1 + reach_y, max(0, x0 - reach_x):x1 + reach_x] = True
-    ink = (image <= low + LABEL_INK * (high - low)) if bar.dark else (image >= high - LABEL_INK * (high - low))
-    labels, n = ndimage.label(ink & near)
+    h, w = image.shape
+    rows = slice(max(0, y0 - reach_y), min(h, y1 + reach_y))
+    cols = slice(max(0, x0 - reach_x), min(w, x1 + reach_x))
+    part = image[rows, cols]
+    ink = (part <= low + LABEL_INK * (high - low)) if bar.dark else (part >= high - LABEL_INK * (high - low))
+    # only the box beside the bar is searched: cut out, with a row or column of background on each side that is not
+    # the image's edge, it gives the letters the whole image would (their depth is measured to that background, and
+    # only the image's own edge marks a frame)
+    pad = ((int(rows.start > 0), int(rows.stop < h)), (int(cols.start > 0), int(cols.stop < w)))
+    labels, n = ndimage.label(np.pad(ink, pad))
+    out = np.zeros(image.shape, dtype=bool)
     if n == 0:
-        return np.zeros(image.shape, dtype=bool)
+        return out
     big = np.array([max(sl[0].stop - sl[0].start, sl[1].stop - sl[1].start) > LABEL_SIZE * length
                     for sl in ndimage.find_objects(labels)])
     letter = glyphs(labels, n, max(1.0, float(bar.thickness)))
     letter[1:] &= ~big
-    return letter[labels]
+    found = letter[labels]
+    out[rows, cols] = found[pad[0][0]:found.shape[0] - pad[0][1], pad[1][0]:found.shape[1] - pad[1][1]]
+    return out
 
 
 def same_line(labels: np.ndarray, letter: np.ndarray) -> np.ndarray:

@@ -27,8 +27,9 @@ MAX_SEEDS, MAX_COMPARE_DOTS, MAX_WORKERS = 100, 5000, 64
 FILM_DOTS, MAX_FILM_DOTS = 150, 2000
 #: Posterior draws by default, and the films of the predictive check (and the most of those).
 SAMPLES, CHECK_FILMS, MAX_CHECK_FILMS = 4000, 24, 1000
-#: Films of a library by default, the fewest a posterior is trained on, and the most a library may hold.
-LIBRARY_FILMS, MIN_TRAINING_FILMS, MAX_LIBRARY_FILMS = 1000, 20, MAX_RUNS
+#: Films of a library by default (those of 150 dots are shipped with the package: `qdots.inference.library.SHIPPED`),
+#: the fewest a posterior is trained on, and the most a library may hold.
+LIBRARY_FILMS, MIN_TRAINING_FILMS, MAX_LIBRARY_FILMS = 3000, 20, MAX_RUNS
 #: Most posterior samples drawn at once.
 MAX_SAMPLES = 1_000_000
 

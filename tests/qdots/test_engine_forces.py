@@ -179,6 +179,21 @@ def test_thesis_proxy_mass_dependence():
     assert kick_speed(force, 2.0, 1e-3, masses=(2.0, 1.0)) == pytest.approx(a / 2 * 1e-3 / 2, rel=1e-12)
 
 
+@pytest.mark.parametrize("model", ["thesis", "hamaker"])
+def test_the_pulls_scale_multiplies_it_cap_included(model):
+    """``scale`` multiplies the pull of either model; the thesis proxy's cap sqrt(g a)/2 scales as the pull does;
+    a scale of 1 is the force as it was, and stays out of its parameters (old scene files unchanged)."""
+    force, double = qdots.VanDerWaals(model), qdots.VanDerWaals(model, scale=2.0)
+    assert kick_speed(double, 2.0, 1e-3) == pytest.approx(2.0 * kick_speed(force, 2.0, 1e-3), rel=1e-12)
+    if model == "thesis":
+        a = (15.0 / (2.0 - force.proxy_offset(1.0))) ** 7
+        assert kick_speed(double, 2.0, 10.0, pairs=EVERY_STEP) == pytest.approx(np.sqrt(2.0 * 2.0 * a) / 2, rel=1e-12)
+    assert "scale" not in force.params() and double.params()["scale"] == 2.0
+    assert qdots.forces.force_from_dict(double.to_dict()).scale == 2.0
+    with pytest.raises(InputError, match=r"VanDerWaals.scale"):
+        qdots.VanDerWaals(scale=-1.0)
+
+
 def test_vdw_range_and_contact_rules():
     hold, zero = qdots.VanDerWaals(contact="hold"), qdots.VanDerWaals(contact="zero")
 

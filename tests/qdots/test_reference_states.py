@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import has_avx512
 
 import qdots
 from qdots.experiment import run_experiment
@@ -32,15 +33,7 @@ from qdots.presets import PRESETS, get_preset
 DATA = Path(__file__).resolve().parents[1] / "data"
 
 
-def _has_avx512() -> bool:
-    try:
-        from numpy._core._multiarray_umath import __cpu_features__  # (numpy's own record of the CPU's features)
-    except ImportError:
-        return True  # unknown: the comparison is strict
-    return bool(__cpu_features__.get("AVX512F", False))
-
-
-AVX512 = _has_avx512()
+AVX512 = has_avx512()
 COUNTERS = ("dot_dot", "dot_wall", "sticking", "draws", "key")
 
 
