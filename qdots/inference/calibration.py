@@ -102,7 +102,7 @@ def calibration_films(posterior: Posterior, films: int, folder: str | os.PathLik
                 film = measure_image(path, lqe=False)
             except InputError as exc:  # refused as a user's image would be: left out, and said
                 if left_out is not None:
-                    left_out.append((point, f"the micrograph: {exc}"))
+                    left_out.append((point, f"the micrograph: {str(exc).replace(str(path), path.name)}"))
                 continue
             try:
                 image_x = observation(image_measures(film), {"sigma": film.summary["size_spread"],
