@@ -205,9 +205,9 @@ class VanDerWaals(Force):
         "max_gap": Param("float", 0.0, 2 * MAX_RANGE, low_open=True, unit="px", optional=True,
                          doc="no force beyond this gap", rule="above min_gap", unset="2 r0"),
         "contact": Param("str", choices=CONTACTS, doc='force below min_gap ("zero": none, "hold": the force at min_gap)'),
-        "scale": Param("float", 0.0, MAX_SCALE, doc="multiplies the pull (1: the thesis's)"),
         "offset": Param("float", -MAX_RANGE, MAX_RANGE, unit="px", optional=True, doc="the proxy's b",
                         rule="below min_gap", unset="from restitution.sticking_speed"),
+        "scale": Param("float", 0.0, MAX_SCALE, doc="multiplies the pull (1: the thesis's)"),
     }
 
     def __init__(
