@@ -49,6 +49,7 @@ import numpy as np
 from scipy import ndimage
 
 from labrig.compiled import jit
+from labrig.threads import by_rows
 from labrig.validate import InputError, choice
 
 from ..geometry import nearest_ratio
@@ -63,10 +64,13 @@ from .segment import (
     background_level,
     blob_seeds,
     blob_skewness,
+    broad_blur,
     decide_polarity,
     edge_curvature,
     fill_small_holes,
     grain_noise,
+    grow_labels,
+    inside_distance,
     label_maxima,
     middle_window,
     pixel_noise,
@@ -75,6 +79,7 @@ from .segment import (
     signal_to_noise,
     spaced_maxima,
     split_fused,
+    stretch,
     typical_radius,
 )
 from .settle import FIRST_BLUR, samples_hold, settle_profile
@@ -282,9 +287,9 @@ def first_look(unit: np.ndarray, ignore: np.ndarray, smoothing: float):
     radius, px at full resolution."""
     from skimage.filters import threshold_otsu
 
-    smooth = ndimage.gaussian_filter(unit, smoothing)
+    smooth = by_rows(lambda part: ndimage.gaussian_filter(part, smoothing), unit, math.ceil(4.0 * smoothing) + 1)
     half = (slice(None, None, 2), slice(None, None, 2))
-    first = smooth[half] - ndimage.gaussian_filter(smooth[half], max(unit.shape) / 12.0, mode="nearest")
+    first = smooth[half] - broad_blur(smooth[half], max(unit.shape) / 12.0)
     first += float(np.mean(smooth[half]))
     mask = (first < threshold_otsu(first[~ignore[half]])) & ~ignore[half]
     return smooth, first, mask, 2.0 * typical_radius(ndimage.distance_transform_edt(mask))
@@ -293,7 +298,7 @@ def first_look(unit: np.ndarray, ignore: np.ndarray, smoothing: float):
 def _detect(image: np.ndarray, polarity: str, profile: str, ignore: np.ndarray, step) -> Detection:
     """`detect_dots` on an image without a frame; ``cut`` marks the dots whose watershed region touches its edge."""
     from skimage.filters import threshold_otsu
-    from skimage.segmentation import expand_labels, watershed
+    from skimage.segmentation import watershed
 
     unit = scaled(image, ignore)
     if float(np.ptp(unit[~ignore])) < 1e-6:
@@ -305,7 +310,7 @@ def _detect(image: np.ndarray, polarity: str, profile: str, ignore: np.ndarray, 
     dark, how = decide_polarity(*edge_curvature(unit[look], ignore[look], noise, sigma), skew, sigma, polarity)
     # the dots are measured on the unclipped image (clipping would flatten the darkest cores and the noise), the
     # pixels to ignore left out (NaN); dots are dark in every image below
-    target = ndimage.gaussian_filter(scaled(image, ignore, clip=False), 1.0)
+    target = by_rows(lambda part: ndimage.gaussian_filter(part, 1.0), scaled(image, ignore, clip=False), 5)
     target[ignore] = np.nan
     if not dark:
         unit, target = 1.0 - unit, 1.0 - target
@@ -326,15 +331,13 @@ def _detect(image: np.ndarray, polarity: str, profile: str, ignore: np.ndarray, 
     away = ~ndimage.binary_dilation(mask, iterations=max(1, int(0.15 * radius))) & ~ignore[half]
     if away.any():
         coarse = background_level(smooth[half], away, 4.0 * radius)
-        rows = np.minimum(np.arange(image.shape[0]) / 2.0, coarse.shape[0] - 1)
-        cols = np.minimum(np.arange(image.shape[1]) / 2.0, coarse.shape[1] - 1)
-        level = ndimage.map_coordinates(coarse, np.meshgrid(rows, cols, indexing="ij"), order=1, mode="nearest")
+        level = stretch(coarse, np.arange(image.shape[0]) / 2.0, np.arange(image.shape[1]) / 2.0)
     else:
         level = np.full(image.shape, float(np.median(smooth)))
     flat = smooth / np.maximum(level, 1e-6)
     threshold = threshold_otsu(flat[~ignore])
     mask = fill_small_holes((flat < threshold) & ~ignore, 0.03 * math.pi * radius**2)
-    distance = ndimage.distance_transform_edt(mask)
+    distance = inside_distance(mask, max(64.0, 4.0 * radius))
     radius = typical_radius(distance)
     if sigma > 0 and smoothing == 1.0:  # touching small dots merged into one network: the blobs give their radius
         blobs = 2.0 * typical_radius(ndimage.distance_transform_edt(
@@ -371,7 +374,7 @@ def _detect(image: np.ndarray, polarity: str, profile: str, ignore: np.ndarray, 
     start[touches] = deepest[touches] + 0.5
     # fit each dot's radial profile
     grow = max(2, math.ceil(0.6 * radius))
-    regions = expand_labels(labels, distance=grow)
+    regions = grow_labels(labels, grow)
     n_bins = math.ceil(FIT_HIGH * 1.2 * start.max() / BIN) + 1
     sums, counts, rhos = radial_profiles(target, regions, centres, n_bins)
     whole = np.flatnonzero(~touches)
@@ -421,7 +424,7 @@ def _detect(image: np.ndarray, polarity: str, profile: str, ignore: np.ndarray, 
             near = np.min(np.hypot(*(start[:, None, :] - extra[None, :, :]).T), axis=0) <= reach
             refined = refine_dots(target, start, np.concatenate([refined.radius, np.full(more, np.nan)]),
                                   np.concatenate([refined.contrast, np.zeros(more)]), typical, shape, blur, level,
-                                  move=True, active=near)
+                                  move=True, active=near, model=refined.model)
         how_shape += f"; {more} faint dots the threshold missed found in the fit's residual"
     if np.ptp(blur) > 0.05:
         how_shape += f"; the blur {np.min(blur):.2f}-{np.max(blur):.2f} px across the film (uneven focus)"

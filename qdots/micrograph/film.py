@@ -95,10 +95,10 @@ def size_populations(diameters) -> dict:
     """Whether the diameters fall into two populations (a two-size sample: large particles among small seeds), and
     each population's share, mean and spread (SD / mean).
 
-    A mixture of two normal distributions of ``log d`` (expectation-maximisation from the quartiles) is preferred to
-    one when its Bayesian information criterion is lower by `BIMODAL_BIC`, its two means are at least `BIMODAL_GAP`
-    times the larger of their deviations apart (two modes, not a skewed one), and the smaller population holds at
-    least `BIMODAL_SHARE` of the dots and 5 of them. Returns ``size_populations`` (1 or 2) and, for two,
+    A mixture of two normal distributions of ``log d`` (expectation-maximisation from the quartiles, until its
+    parameters change by under 1e-10) is preferred to one when its Bayesian information criterion is lower by
+    `BIMODAL_BIC`, its two means are at least `BIMODAL_GAP` times the larger of their deviations apart (two modes, not
+    a skewed one), and the smaller population holds at least `BIMODAL_SHARE` of the dots and 5 of them. Returns ``size_populations`` (1 or 2) and, for two,
     ``small_share``, ``small_mean_diameter_px``, ``small_spread`` and the same for ``large`` (NaN for one)."""
     out: dict[str, float] = {"size_populations": 1}
     for part in ("small", "large"):
@@ -120,9 +120,12 @@ def size_populations(diameters) -> dict:
         counts = share.sum(axis=0)
         if np.any(counts < 2):
             return out
+        before = np.concatenate([weight, mean, sd])
         weight = counts / n
         mean = (share * x[:, None]).sum(axis=0) / counts
         sd = np.sqrt(np.maximum((share * (x[:, None] - mean) ** 2).sum(axis=0) / counts, 1e-8))
+        if np.max(np.abs(np.concatenate([weight, mean, sd]) - before)) < 1e-10:  # converged
+            break
     two = float(np.sum(np.log(np.maximum(total[:, 0], 1e-300))))
     bic_one, bic_two = -2 * one + 2 * math.log(n), -2 * two + 5 * math.log(n)
     small, large = np.argsort(mean)

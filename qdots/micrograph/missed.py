@@ -90,5 +90,5 @@ def missed_dots(image, refined, level_map, typical: float, shape: float, blur, n
                         np.concatenate([refined.contrast, np.zeros(more)]), typical, shape,
                         np.concatenate([blurs, np.full(more, float(np.median(blurs)))]),
                         np.concatenate([refined.background, level_map[rows, cols]]), passes=2, keep_profiles=False,
-                        active=np.arange(n + more) >= n)
+                        active=np.arange(n + more) >= n, model=refined.model.copy())  # the new dots start with none
     return extra[trial.radius[n:] >= ROUND * typical]

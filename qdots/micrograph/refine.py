@@ -277,7 +277,7 @@ def profile_reach(radii, typical: float) -> np.ndarray:
 
 def refine_dots(image, centres, radii, contrast, typical: float, shape: float, blur: float | np.ndarray, level,
                 passes: int = PASSES, reach=None, wide: bool = True, keep_profiles: bool = True,
-                move: bool = False, active=None, threads: int | None = None) -> Refined:
+                move: bool = False, active=None, threads: int | None = None, model=None) -> Refined:
     """Fit every dot again on ``image`` with its neighbours' model added back, ``passes`` times (`refine_pass`:
     the first searches radii widely, the later ones near each dot's own).
 
@@ -312,6 +312,9 @@ def refine_dots(image, centres, radii, contrast, typical: float, shape: float, b
     threads : int, optional
         Threads the passes run in (default: every CPU this process may use; `strip_schedule`: the result is the same
         whatever their number). 1 where the caller runs fits side by side itself.
+    model : ndarray (H, W), optional
+        The model of the dots as given (`model_image`, or a `Refined.model` whose dots these are), updated in place;
+        default: painted here.
     """
     table = profile_table(shape)
     centres = np.array(centres, dtype=float)
@@ -324,7 +327,7 @@ def refine_dots(image, centres, radii, contrast, typical: float, shape: float, b
     background = base.copy()
     residual = np.full(n, np.inf)
     blurs = per_dot(blur, n)
-    model = model_image(image.shape, centres, radius, contrast, table, blurs)
+    model = model_image(image.shape, centres, radius, contrast, table, blurs) if model is None else model
     active = np.ones(n, dtype=bool) if active is None else np.asarray(active, dtype=bool)
     for k in range(passes):
         first = wide and k == 0
@@ -353,5 +356,6 @@ def repeat_errors(image, centres, refined: Refined, typical: float, shape: float
     active = np.zeros(n, dtype=bool)
     active[::max(1, math.ceil(n / REPEAT_DOTS))] = True
     second = refine_dots(again, refined.centres, refined.radius, refined.contrast, typical, shape, blur, level,
-                         passes=2, reach=refined.reach, wide=False, keep_profiles=False, move=True, active=active)
+                         passes=2, reach=refined.reach, wide=False, keep_profiles=False, move=True, active=active,
+                         model=refined.model.copy())
     return np.where(active, np.abs(second.radius - refined.radius) / np.sqrt(2.0), np.nan)
