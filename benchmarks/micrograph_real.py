@@ -98,8 +98,7 @@ def measure_entry(entry: dict, folder: Path, overlays: Path | None = None) -> di
     row["seconds"] = time.perf_counter() - start
     det, s = film.detection, film.summary
     whole = ~det.cut
-    row.update(verdict="measured", dots=int(whole.sum()), mean=float(np.mean(det.diameters[whole])),
-               half_width=float(np.mean(det.half_widths()[whole])),
+    row.update(verdict="measured", dots=int(whole.sum()), mean=s["mean_diameter_px"], half_width=s["mean_half_width_px"],
                spread=s["size_spread"], robust=s["size_spread_robust"], scale=film.nm_per_px,
                how_scale=s["scale"], profile=s["profile_p"])
     truth_scale = entry.get("scale_nm_per_px")
@@ -178,9 +177,11 @@ def table(rows: list[dict], half: str) -> Table:
                   "d against the source's own sizes", "sigma", "reference sigma", "sigma (IQR)", "overlapping pairs",
                   "threshold tool's d error", "time (s)", "goal"], body,
                  note="Scale error: the scale qdots measure read (from the file, or the bar with its written length) "
-                      "against the file's or the bar measured by hand. Mean d: the diameter qdots measure reports (the fitted "
-                      "profile's, a flat disc's or a projected sphere's); half-depth width: where that profile has lost "
-                      "half its contrast, what line profiles and thresholds measure. Reference: the size the source "
+                      "against the file's or the bar measured by hand. Mean d: the mean diameter qdots measure reports (the "
+                      "fitted profile's, a flat disc's or a projected sphere's; over the whole dots, those stacked on a "
+                      "neighbour and sizes over 4.5 robust deviations left out, as for sigma); half-depth width: where "
+                      "that profile has lost half its contrast, what line profiles and thresholds measure (over the "
+                      "same dots). Reference: the size the source "
                       "states (a threshold tool's), else the full width at half depth of hand line profiles through its "
                       "own particles, scored against the half-depth width; the source's own outlines or boxes sit "
                       "5-17 % outside that edge, and are set against d in the next column. Recall / precision: reference particles with a "

@@ -58,6 +58,16 @@ def complete_neighbourhood(state, window: tuple[float, float, float, float] | No
     return (x - reach >= x0) & (x + reach <= x1) & (y - reach >= y0) & (y + reach <= y1)
 
 
+def size_inliers(diameters) -> np.ndarray:
+    """Which ``diameters`` the size statistics keep: those within `OUTLIER` robust deviations (the interquartile range
+    over 1.349) of the median (all of fewer than 2)."""
+    d = np.asarray(diameters, dtype=float)
+    if d.size < 2:
+        return np.ones(d.size, dtype=bool)
+    iqr = float(np.subtract(*np.percentile(d, [75, 25]))) / 1.349
+    return np.abs(d - np.median(d)) <= OUTLIER * max(iqr, 1e-9 * float(np.median(d)))
+
+
 def size_spread(diameters, errors=None) -> dict:
     """The size spread sigma (SD / mean) of ``diameters``, honest about the measurement error and about a few false
     detections.
@@ -78,7 +88,7 @@ def size_spread(diameters, errors=None) -> dict:
                 "size_spread_robust": math.nan, "size_outliers": 0, "size_mean": float(d.mean()) if d.size else math.nan}
     e = np.asarray(errors, dtype=float) if errors is not None else np.full(d.size, np.nan)
     iqr = float(np.subtract(*np.percentile(d, [75, 25]))) / 1.349
-    inlier = np.abs(d - np.median(d)) <= OUTLIER * max(iqr, 1e-9 * float(np.median(d)))
+    inlier = size_inliers(d)
     kept, kept_errors = d[inlier], e[inlier]
     kept_errors = kept_errors[np.isfinite(kept_errors)]
     mean, sd = float(kept.mean()), float(kept.std(ddof=1)) if kept.size > 1 else 0.0

@@ -26,7 +26,7 @@ from ..state import State
 from .admit import NotAFilm, check_picture, film_verdict
 from .annotations import Annotations, find_annotations
 from .detect import STAGES, Detection, detect_dots
-from .film import OUTLIER, complete_neighbourhood, film_metrics, film_state
+from .film import OUTLIER, complete_neighbourhood, film_metrics, film_state, size_inliers
 from .read import Micrograph, read_micrograph
 from .scale import ScaleBar, check_nm_per_px, parse_length, scale_from_bar
 from .shapes import STACKED
@@ -226,7 +226,8 @@ def measured_film(image: Micrograph, detection: Detection, scale: float | None, 
                "doubts": "; ".join(doubts)}
     summary.update(film_metrics(state, measured=~detection.cut & ~stacked, complete=complete, nm_per_px=scale,
                                 errors=detection.errors))
-    half = detection.half_widths()[~detection.cut & ~stacked]
+    sized = ~detection.cut & ~stacked  # the half-depth widths of the dots the mean diameter is of, outliers left out
+    half = detection.half_widths()[sized][size_inliers(detection.diameters[sized])]
     summary["mean_half_width_px"] = float(half.mean()) if half.size else math.nan
     if scale is not None:
         summary["mean_half_width_nm"] = summary["mean_half_width_px"] * scale
