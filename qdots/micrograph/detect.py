@@ -189,15 +189,19 @@ class Detection:
 
 
 @jit
-def paint_labels(labels, centres, radii):
-    """Set the pixels of ``labels`` inside dot k's disc to k + 1 (a later dot over an earlier one)."""
-    h, w = labels.shape
+def discs_cover(mask, centres, radii, out):
+    """Set ``out[k]`` where dot k's disc holds a pixel of ``mask`` (each disc looked at whole, whatever its
+    neighbours cover)."""
+    h, w = mask.shape
     for k in range(len(radii)):
         x, y, r = centres[k, 0], centres[k, 1], radii[k]
         for row in range(max(0, int(y - r)), min(h, int(y + r) + 2)):
             for col in range(max(0, int(x - r)), min(w, int(x + r) + 2)):
-                if (col + 0.5 - x) ** 2 + (row + 0.5 - y) ** 2 <= r * r:
-                    labels[row, col] = k + 1
+                if mask[row, col] and (col + 0.5 - x) ** 2 + (row + 0.5 - y) ** 2 <= r * r:
+                    out[k] = True
+                    break
+            if out[k]:
+                break
 
 
 @jit
@@ -273,10 +277,8 @@ def cut_dots(centres: np.ndarray, diameters: np.ndarray, window: tuple[int, int,
     r = 0.5 * np.asarray(diameters, dtype=float)
     x0, y0, x1, y1 = window
     cut = (centres[:, 0] - r < x0) | (centres[:, 1] - r < y0) | (centres[:, 0] + r > x1) | (centres[:, 1] + r > y1)
-    if ignore is not None and ignore.any() and len(r):
-        labels = np.zeros(ignore.shape, dtype=np.int64)
-        paint_labels(labels, np.ascontiguousarray(centres), r)
-        cut[np.unique(labels[ignore & (labels > 0)]) - 1] = True
+    if ignore is not None and ignore.any() and len(r):  # every disc looked at whole: a dot stacked under another too
+        discs_cover(np.ascontiguousarray(ignore, dtype=np.bool_), np.ascontiguousarray(centres), r, cut)
     return cut
 
 
