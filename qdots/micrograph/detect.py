@@ -48,13 +48,13 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy import ndimage
 
-from labrig.compiled import jit
 from labrig.threads import by_rows
 from labrig.validate import InputError, choice
 
 from ..geometry import nearest_ratio
 from .annotations import find_strips
 from .choices import POLARITIES, PROFILES
+from .discs import discs_cover, paint_discs
 from .missed import missed_dots
 from .profiles import BIN, FIT_HIGH, FIT_LOW, FIT_STEP, fit_profiles, half_depth_radius, profile_table, radial_profiles
 from .refine import refine_dots, repeat_errors
@@ -186,34 +186,6 @@ class Detection:
         covered = np.zeros(self.image_shape, dtype=np.bool_)
         paint_discs(covered, np.ascontiguousarray(self.centres, dtype=float), 0.5 * np.asarray(self.diameters, float))
         return float(covered.mean())
-
-
-@jit
-def discs_cover(mask, centres, radii, out):
-    """Set ``out[k]`` where dot k's disc holds a pixel of ``mask`` (each disc looked at whole, whatever its
-    neighbours cover)."""
-    h, w = mask.shape
-    for k in range(len(radii)):
-        x, y, r = centres[k, 0], centres[k, 1], radii[k]
-        for row in range(max(0, int(y - r)), min(h, int(y + r) + 2)):
-            for col in range(max(0, int(x - r)), min(w, int(x + r) + 2)):
-                if mask[row, col] and (col + 0.5 - x) ** 2 + (row + 0.5 - y) ** 2 <= r * r:
-                    out[k] = True
-                    break
-            if out[k]:
-                break
-
-
-@jit
-def paint_discs(covered, centres, radii):
-    """Set the pixels of ``covered`` whose centres lie inside any disc (``centres`` (x, y), ``radii``, px)."""
-    h, w = covered.shape
-    for k in range(len(radii)):
-        x, y, r = centres[k, 0], centres[k, 1], radii[k]
-        for row in range(max(0, int(y - r)), min(h, int(y + r) + 2)):
-            for col in range(max(0, int(x - r)), min(w, int(x + r) + 2)):
-                if (col + 0.5 - x) ** 2 + (row + 0.5 - y) ** 2 <= r * r:
-                    covered[row, col] = True
 
 
 def detect_dots(image, polarity: str = "auto", profile: str = "auto", ignore: np.ndarray | None = None,

@@ -16,6 +16,7 @@ import math
 import numpy as np
 from scipy import ndimage
 
+from .discs import paint_discs
 from .refine import refine_dots
 from .segment import broad_blur, spaced_maxima
 
@@ -57,8 +58,6 @@ def missed_dots(image, refined, level_map, typical: float, shape: float, blur, n
     noise : float
         The pixel noise's standard deviation, in the image's units.
     """
-    from .detect import paint_discs  # (the detector imports this module)
-
     ok = np.isfinite(refined.contrast) & (refined.contrast > 0)
     if not ok.any() or not 0 < typical <= LARGEST * min(image.shape):  # dots that big leave no room to search
         return np.zeros((0, 2))
