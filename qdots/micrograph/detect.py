@@ -56,9 +56,20 @@ from .annotations import find_strips
 from .choices import POLARITIES, PROFILES
 from .discs import discs_cover, paint_discs
 from .missed import missed_dots
-from .profiles import BIN, FIT_HIGH, FIT_LOW, FIT_STEP, fit_profiles, half_depth_radius, profile_table, radial_profiles
+from .profiles import (
+    BIN,
+    FIT_HIGH,
+    FIT_LOW,
+    FIT_STEP,
+    fit_profiles,
+    half_depth_radius,
+    measured_half_widths,
+    profile_table,
+    radial_profiles,
+)
 from .refine import refine_dots, repeat_errors
 from .segment import (
+    GRAIN_SIZES,
     MIN_INSCRIBED,
     MIN_SIGNAL,
     background_level,
@@ -150,6 +161,9 @@ class Detection:
     shapes : ndarray, shape (N, 3)
         The elongation, outline and neck of the region each dot was found in (`qdots.micrograph.shapes`; NaN for
         the faint dots found in the fit's residual).
+    widths : ndarray, shape (N,), optional
+        Each dot's full width at half depth read on its own profile, px (`half_widths`; NaN where it could not be
+        read; None: not read, the fitted profile's is used).
     """
 
     centres: np.ndarray
@@ -166,20 +180,25 @@ class Detection:
     window: tuple[int, int, int, int]
     errors: np.ndarray
     shapes: np.ndarray
+    widths: np.ndarray | None = None
 
     @property
     def n_dots(self) -> int:
         return len(self.diameters)
 
     def half_widths(self) -> np.ndarray:
-        """Each dot's full width at half depth, px: where its fitted profile (`shape`, blurred by `blur`) has lost half
-        its central contrast, what a line profile by hand or a threshold halfway between the dot and its background
-        measures (`qdots.micrograph.profiles.half_depth_radius`; a flat disc's is its diameter, a projected sphere's
-        0.87 of it unblurred)."""
+        """Each dot's full width at half depth, px, what a line profile by hand measures: read on the dot's own
+        profile, its neighbours taken out, halfway from its core to its crest (`widths`,
+        `qdots.micrograph.profiles.measured_half_widths`); where that could not be read, where its fitted profile
+        (`shape`, blurred by `blur`) has lost half its central contrast (`qdots.micrograph.profiles.half_depth_radius`;
+        a flat disc's is its diameter, a projected sphere's 0.87 of it unblurred)."""
         if not np.isfinite(self.shape):
-            return self.diameters.copy()
-        radii = 0.5 * self.diameters
-        return self.diameters * half_depth_radius(self.shape, self.blur / np.maximum(radii, 1e-9))
+            fitted = self.diameters.copy()
+        else:
+            fitted = self.diameters * half_depth_radius(self.shape, self.blur / np.maximum(0.5 * self.diameters, 1e-9))
+        if self.widths is None:
+            return fitted
+        return np.where(np.isfinite(self.widths), self.widths, fitted)
 
     def coverage(self) -> float:
         """Fraction of the image inside the fitted discs (their union, on the pixel grid)."""
@@ -407,8 +426,10 @@ def _detect(image: np.ndarray, polarity: str, profile: str, ignore: np.ndarray, 
     contrast = refined.contrast / np.maximum(background, 1e-12)  # in units of the background, as Detection has it
     good = np.isfinite(fitted) & (contrast > 0)
     assert refined.profiles is not None  # refine_dots keeps the profiles unless told not to
-    sums, counts, _ = refined.profiles
-    grain = grain_noise(np.nan_to_num(target[half], nan=float(np.nanmedian(target))), mask[half], 0.5 * typical)
+    sums, counts, rhos = refined.profiles
+    grains = grain_noise(np.nan_to_num(target[half], nan=float(np.nanmedian(target))), mask[half], 0.5 * typical,
+                         GRAIN_SIZES)
+    grain = np.interp(fitted[good] / typical, GRAIN_SIZES, grains)  # the grain at each dot's own size
     score = signal_to_noise(sums[good], counts[good], fitted[good], background[good], noise, grain)
     good[good] = score >= MIN_SIGNAL
     if not good.any():
@@ -419,10 +440,11 @@ def _detect(image: np.ndarray, polarity: str, profile: str, ignore: np.ndarray, 
     rejected += int(np.count_nonzero(~good))
     step("measuring each diameter again")
     errors = 2.0 * repeat_errors(target, centres, refined, typical, shape, blur, level, level_map)
-    centres, fitted, contrast, touches, errors, shapes = (part[good] for part in (centres, fitted, contrast, touches,
-                                                                                 errors, shapes))
+    widths = measured_half_widths(sums, counts, rhos, fitted)
+    centres, fitted, contrast, touches, errors, shapes, widths = (
+        part[good] for part in (centres, fitted, contrast, touches, errors, shapes, widths))
     return Detection(centres, 2.0 * fitted, touches, contrast, dark, how, float(shape), how_shape,
-                     float(np.median(blur)), rejected, (h, w), (0, 0, w, h), errors, shapes)
+                     float(np.median(blur)), rejected, (h, w), (0, 0, w, h), errors, shapes, widths)
 
 
 def _empty(shape, how: str, rejected: int) -> Detection:

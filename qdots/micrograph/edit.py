@@ -81,7 +81,9 @@ def edited_film(film: MeasuredFilm, centres, diameters, *, lqe: bool = False) ->
                      cut=np.where(kept, det.cut[index] if det.n_dots else False, edge_cut),
                      contrast=np.where(kept, det.contrast[index] if det.n_dots else np.nan, np.nan),
                      errors=np.where(kept, det.errors[index] if det.n_dots else error, error),
-                     shapes=np.where(kept[:, None], det.shapes[index] if det.n_dots else np.nan, np.nan))
+                     shapes=np.where(kept[:, None], det.shapes[index] if det.n_dots else np.nan, np.nan),
+                     widths=None if det.widths is None else np.where(kept, det.widths[index] if det.n_dots else np.nan,
+                                                                      np.nan))
     changed = int(np.count_nonzero(~kept))
     deleted = det.n_dots - len(np.unique(index[kept]))
     refusals, doubts = film_verdict(edited)

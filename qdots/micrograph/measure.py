@@ -264,7 +264,7 @@ def summary_rows(summary: dict) -> list[tuple[str, str]]:
         ("coverage", f"{s['coverage']:.3f}"),
         ("mean diameter +- SD", size),
         ("half-depth width", (f"{s['mean_half_width_nm']:.1f} nm" if nm else f"{s['mean_half_width_px']:.2f} px")
-         + " (the width at half contrast, as line profiles and thresholds measure it)"),
+         + " (each dot's width at half depth on its own profile, as a line profile measures it)"),
         ("size spread sigma (SD / mean)", (f"{100 * s['size_spread']:.1f} % (measured {100 * s['size_spread_measured']:.1f} %, "
                                            f"of which {100 * s['size_spread_error']:.1f} % is each diameter's "
                                            f"measurement error; from the interquartile range "

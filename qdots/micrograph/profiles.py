@@ -23,6 +23,10 @@ COARSE = 6
 BIN = 0.5
 #: The centre of a dot, where its curvature is measured (`central_curvature`), in radii.
 CENTRE = 0.5
+#: A dot's half-depth width read on its own profile (`measured_half_widths`): its core is the mean of its pixels
+#: within CORE radii (at least 1 px), its crest the profile's highest bin from CREST[0] radii to CREST[1] radii plus
+#: CREST_PAD px, and the crossing of half depth is sought beyond FROM radii.
+CORE, CREST, CREST_PAD, FROM = 0.25, (0.7, 1.4), 2.0, 0.3
 
 
 @functools.cache
@@ -260,3 +264,44 @@ def radial_profiles(image, regions, centres, n_bins: int):
     counts = np.bincount(index, None, n * n_bins).reshape(n, n_bins)
     rhos = np.bincount(index, rho[keep], n * n_bins).reshape(n, n_bins)
     return sums, counts, rhos
+
+
+@jit
+def measured_half_widths(sums, counts, rhos, radius) -> np.ndarray:
+    """Each dot's full width at half depth read on its own profile, px, as a line profile by hand reads it: twice
+    the radius where the profile (``sums / counts`` at the mean radius ``rhos / counts`` of each bin, the dot's
+    neighbours taken out: `qdots.micrograph.refine.Refined.profiles`) first rises halfway from its core to its crest
+    (`CORE`, `CREST`: the crest is the background beside the dot, or a bright fringe around it), linearly
+    interpolated between bins. ``radius`` (px, the fitted one) says where to look. NaN where the radius is unknown
+    or the profile never rises halfway."""
+    n, n_bins = sums.shape
+    out = np.full(n, np.nan)
+    for k in range(n):
+        r = radius[k]
+        if not r > 0.0:
+            continue
+        core, core_n, crest = 0.0, 0.0, -np.inf
+        for b in range(n_bins):
+            if counts[k, b] > 0.0:
+                rho = rhos[k, b] / counts[k, b]
+                if rho < max(CORE * r, 1.0):
+                    core += sums[k, b]
+                    core_n += counts[k, b]
+                elif CREST[0] * r <= rho <= CREST[1] * r + CREST_PAD:
+                    crest = max(crest, sums[k, b] / counts[k, b])
+        if core_n == 0.0 or not crest > core / core_n:
+            continue
+        half = 0.5 * (core / core_n + crest)
+        last_rho, last_value = -1.0, 0.0
+        for b in range(n_bins):
+            if counts[k, b] == 0.0:
+                continue
+            rho, value = rhos[k, b] / counts[k, b], sums[k, b] / counts[k, b]
+            if rho > FROM * r and value >= half:
+                if last_rho >= 0.0 and value > last_value:
+                    out[k] = 2.0 * (last_rho + (half - last_value) / (value - last_value) * (rho - last_rho))
+                else:
+                    out[k] = 2.0 * rho
+                break
+            last_rho, last_value = rho, value
+    return out

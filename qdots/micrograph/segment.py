@@ -42,6 +42,8 @@ SUBSAMPLE = 3
 #: The support's grain (`grain_noise`) is read on the pixels at least GRAIN_CLEAR radii from every dot, when they are
 #: GRAIN_SHARE of the picture, against its average over GRAIN_BROAD radii.
 GRAIN_CLEAR, GRAIN_SHARE, GRAIN_BROAD = 2.0, 0.05, 6.0
+#: Dot sizes, in typical radii, at which the grain is read (`grain_noise`); a dot's own is interpolated between them.
+GRAIN_SIZES = (0.5, 0.7, 1.0, 1.4, 2.0)
 #: An object is a dot when its inscribed radius is at least this share of the typical radius.
 MIN_INSCRIBED = 1.0 / 3.0
 #: A region whose area is more than this many times the disc of its inscribed radius, and whose long axis is
@@ -154,36 +156,41 @@ def pixel_noise(image: np.ndarray, ignore: np.ndarray) -> float:
     return 1.4826 * float(np.median(np.abs(residual - np.median(residual)))) / 6.0
 
 
-def signal_to_noise(sums, counts, radius, background, noise: float, mean_noise: float = 0.0) -> np.ndarray:
+def signal_to_noise(sums, counts, radius, background, noise: float, mean_noise=0.0) -> np.ndarray:
     """How clearly each dot stands out of the noise: its background less its mean within 0.7 radii, over the
     noise of that mean, ``noise / sqrt(pixels)`` for white noise (a matched filter whose score grows with the dot's
     area; blobs of noise alone score about 1, `MIN_SIGNAL`); or, where it says more, over the deviation of that mean
-    that the support shows (``mean_noise``, `grain_noise`: a grain correlated over pixels averages out more slowly),
-    scaled so that `GRAIN_SIGNAL` of those deviations scores `MIN_SIGNAL`."""
+    that the support shows (``mean_noise``, one value or one per dot, `grain_noise`: a grain correlated over pixels
+    averages out more slowly), scaled so that `GRAIN_SIGNAL` of those deviations scores `MIN_SIGNAL`."""
     rho = (np.arange(sums.shape[1]) + 0.5) * BIN
     inner = rho[None, :] < 0.7 * radius[:, None]
     n = (counts * inner).sum(axis=1)
     mean = (sums * inner).sum(axis=1) / np.maximum(n, 1)
-    grain = mean_noise * GRAIN_SIGNAL / MIN_SIGNAL
+    grain = np.asarray(mean_noise, dtype=float) * GRAIN_SIGNAL / MIN_SIGNAL
     return (background - mean) / np.maximum(max(noise, 1e-12) / np.sqrt(np.maximum(n, 1)), grain)
 
 
-def grain_noise(image: np.ndarray, dots: np.ndarray, radius: float) -> float:
-    """The noise of a dot's mean as the picture's own background shows it, whatever its correlation: the robust
-    deviation (1.4826 MAD) of ``image`` averaged by a Gaussian of 0.35 ``radius`` (as a disc of 0.7 radii averages
-    white noise), less its average over `GRAIN_BROAD` radii (the illumination's slow change; both with the edges
-    mirrored: an edge row repeated as far as the broad kernel reaches would be read as grain), over the pixels at
-    least `GRAIN_CLEAR` radii from every pixel of the ``dots`` (a boolean image). 0 where under `GRAIN_SHARE` of the
-    picture is that clear (a dense film: its gaps hold dots' edges, not the support)."""
+def grain_noise(image: np.ndarray, dots: np.ndarray, radius: float, sizes=(1.0,)) -> np.ndarray:
+    """The noise of a dot's mean as the picture's own background shows it, whatever its correlation, for dots of
+    ``sizes`` times ``radius`` (the typical radius, px): the robust deviation (1.4826 MAD) of ``image`` averaged by a
+    Gaussian of 0.35 of the dot's radius (as a disc of 0.7 radii averages white noise), less its average over
+    `GRAIN_BROAD` typical radii (the illumination's slow change; both with the edges mirrored: an edge row repeated
+    as far as the broad kernel reaches would be read as grain), over the pixels at least `GRAIN_CLEAR` typical radii
+    from every pixel of the ``dots`` (a boolean image). A grain averages out less over a smaller dot: a dot half the
+    typical size must stand out of a deviation about twice as large. 0 where under `GRAIN_SHARE` of the picture is
+    that clear (a dense film: its gaps hold dots' edges, not the support)."""
+    sizes = np.asarray(sizes, dtype=float)
     if not radius > 0:
-        return 0.0
+        return np.zeros(sizes.shape)
     clear = ndimage.distance_transform_edt(~dots) >= GRAIN_CLEAR * radius
     if np.count_nonzero(clear) < max(100, GRAIN_SHARE * clear.size):
-        return 0.0
-    band = (ndimage.gaussian_filter(image, 0.35 * radius, mode="reflect")
-            - broad_blur(image, GRAIN_BROAD * radius, mode="reflect"))
-    values = band[clear]
-    return 1.4826 * float(np.median(np.abs(values - np.median(values))))
+        return np.zeros(sizes.shape)
+    broad = broad_blur(image, GRAIN_BROAD * radius, mode="reflect")[clear]
+    out = np.empty(sizes.shape)
+    for k, size in enumerate(sizes.flat):
+        values = ndimage.gaussian_filter(image, 0.35 * size * radius, mode="reflect")[clear] - broad
+        out.flat[k] = 1.4826 * float(np.median(np.abs(values - np.median(values))))
+    return out
 
 
 def fill_small_holes(mask: np.ndarray, largest: float) -> np.ndarray:

@@ -101,6 +101,46 @@ def test_the_half_depth_width_of_discs_and_spheres():
     assert half_depth_radius(0.5, 0.2) == pytest.approx(float(np.interp(-0.5 * row[0], -row, u)), abs=0.005)
 
 
+def oracle_half_width(values, rho, pixels, radius):
+    """`measured_half_widths` for one profile, written again with numpy (the test's oracle)."""
+    inner = rho < max(0.25 * radius, 1.0)
+    core = np.average(values[inner], weights=pixels[inner])
+    crest = values[(rho >= 0.7 * radius) & (rho <= 1.4 * radius + 2.0)].max()
+    half = 0.5 * (core + crest)
+    j = int(np.flatnonzero((rho > 0.3 * radius) & (values >= half))[0])
+    return 2.0 * float(np.interp(half, values[j - 1:j + 1], rho[j - 1:j + 1]))
+
+
+@pytest.mark.parametrize("shape, fringe", [(0.0, 0.0), (0.5, 0.0), (0.5, 0.3)])
+def test_a_dots_half_depth_width_is_read_on_its_own_profile(shape, fringe):
+    """A dot's half-depth width is where its profile rises halfway from its core to its crest: a flat disc's is its
+    diameter, a projected sphere's 0.87 of it (`half_depth_radius`, blur included); a bright fringe around the dot
+    (the crest above the background) moves it out, as a line profile by hand reads it. Checked against a numpy
+    oracle."""
+    from qdots.micrograph.profiles import BIN, measured_half_widths, radial_profiles
+
+    r, blur, n = 14.0, 1.5, 96
+    centre = np.array([[n / 2 + 0.3, n / 2 - 0.2]])
+    rows, cols = np.indices((n, n))
+    rho = np.hypot(cols + 0.5 - centre[0, 0], rows + 0.5 - centre[0, 1])
+    dot = np.clip(1.0 - (rho / r) ** 2, 0.0, None) ** shape * (rho < r)
+    ring = fringe * np.exp(-0.5 * ((rho - r - 2.0) / 1.5) ** 2)
+    image = ndimage.gaussian_filter(1.0 - 0.4 * dot + 0.4 * ring, blur)
+    n_bins = int(1.4 * r / BIN) + 12
+    sums, counts, rhos = radial_profiles(image, np.ones((n, n), dtype=int), centre, n_bins)
+    width = float(measured_half_widths(sums, counts, rhos, np.array([r]))[0])
+    ok = counts[0] > 0
+    assert width == pytest.approx(oracle_half_width(sums[0][ok] / counts[0][ok], rhos[0][ok] / counts[0][ok], counts[0][ok],
+                                                    r),
+                                  rel=1e-9)
+    expected = 2.0 * r * float(half_depth_radius(shape, blur / r))
+    if fringe:
+        assert width > 1.02 * expected  # halfway to the fringe's crest lies further out
+    else:
+        assert width == pytest.approx(expected, rel=0.02)
+    assert np.isnan(measured_half_widths(sums, counts, rhos, np.array([np.nan]))[0])
+
+
 def test_a_few_false_sizes_do_not_move_sigma_and_two_sizes_are_two_populations():
     rng = np.random.default_rng(5)
     d = rng.normal(20.0, 1.0, 500)
