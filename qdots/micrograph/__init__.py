@@ -13,7 +13,7 @@ from labrig.lazy import exports
 _NAMES = {
     "Micrograph": "read", "read_micrograph": "read",
     "MeasuredFilm": "measure", "measure_image": "measure", "summary_rows": "measure",
-    "Detection": "detect", "detect_dots": "detect",
+    "Detection": "detection", "detect_dots": "detect",
     "ScaleBar": "scale", "find_scale_bar": "scale", "parse_length": "scale", "scale_from_bar": "scale",
     "Annotations": "annotations", "find_annotations": "annotations",
     "NotAFilm": "admit", "check_picture": "admit",
