@@ -18,7 +18,7 @@ class Detection:
     Attributes
     ----------
     centres : ndarray, shape (N, 2)
-        ``(x, y)`` = (column, row) of each centre, image px (see the module docstring).
+        ``(x, y)`` = (column, row) of each centre, image px (see `qdots.micrograph.detect`).
     diameters : ndarray, shape (N,)
         Fitted diameter of each dot, px.
     cut : ndarray of bool, shape (N,)
