@@ -141,6 +141,23 @@ def test_a_dots_half_depth_width_is_read_on_its_own_profile(shape, fringe):
     assert np.isnan(measured_half_widths(sums, counts, rhos, np.array([np.nan]))[0])
 
 
+@pytest.mark.parametrize("diameter, noise", [(8.0, 0.2), (16.0, 0.1)])
+def test_the_half_depth_widths_read_on_a_noisy_film_are_the_rendered_ones(diameter, noise):
+    """The widths read dot by dot keep their accuracy in noise (the crest is a highest bin, which noise lifts): the
+    film's mean within 3 % of the rendered profiles' half-depth width (measured: +2.6 % and -1.3 %; the fitted
+    profile's +0.7 % and -2.1 %)."""
+    from scipy.spatial import cKDTree
+
+    centres, diameters = sparse_board(512, 512, diameter, 0.05, coverage=0.15, seed=1)
+    image = render_micrograph(centres, diameters, (512, 512), noise=noise, seed=2, blur=1.0, profile=0.5)
+    detection = detect_dots(image)
+    distance, index = cKDTree(centres).query(detection.centres)
+    found = (distance < 0.3 * detection.diameters) & ~detection.cut
+    truth = diameters[index[found]] * half_depth_radius(0.5, 2.0 / diameters[index[found]])
+    assert detection.widths is not None and found.sum() >= 50
+    assert float(np.mean(detection.widths[found])) == pytest.approx(float(truth.mean()), rel=0.03)
+
+
 def test_a_few_false_sizes_do_not_move_sigma_and_two_sizes_are_two_populations():
     rng = np.random.default_rng(5)
     d = rng.normal(20.0, 1.0, 500)
