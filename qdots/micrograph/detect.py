@@ -67,7 +67,7 @@ from .profiles import (
     profile_table,
     radial_profiles,
 )
-from .refine import refine_dots, repeat_errors
+from .refine import per_dot, refine_dots, repeat_errors
 from .segment import (
     GRAIN_SIZES,
     MIN_INSCRIBED,
@@ -356,7 +356,7 @@ def _detect(image: np.ndarray, polarity: str, profile: str, ignore: np.ndarray, 
     rejected += int(np.count_nonzero(~good))
     step("measuring each diameter again")
     errors = 2.0 * repeat_errors(target, centres, refined, typical, shape, blur, level, level_map)
-    widths = measured_half_widths(sums, counts, rhos, fitted)
+    widths = measured_half_widths(sums, counts, rhos, fitted, per_dot(blur, len(fitted)))
     centres, fitted, contrast, touches, errors, shapes, widths = (
         part[good] for part in (centres, fitted, contrast, touches, errors, shapes, widths))
     return Detection(centres, 2.0 * fitted, touches, contrast, dark, how, float(shape), how_shape,

@@ -24,9 +24,10 @@ BIN = 0.5
 #: The centre of a dot, where its curvature is measured (`central_curvature`), in radii.
 CENTRE = 0.5
 #: A dot's half-depth width read on its own profile (`measured_half_widths`): its core is the mean of its pixels
-#: within CORE radii (at least 1 px), its crest the profile's highest bin from CREST[0] radii to CREST[1] radii plus
-#: CREST_PAD px, and the crossing of half depth is sought beyond FROM radii.
-CORE, CREST, CREST_PAD, FROM = 0.25, (0.7, 1.4), 2.0, 0.3
+#: within CORE radii (at least 1 px), its crest the profile's highest bin from CREST[0] radii to CREST[1] radii or its
+#: radius plus CREST_BLUR blurs, whichever is farther, plus CREST_PAD px (a blurred edge levels off two blurs out),
+#: and the crossing of half depth is sought beyond FROM radii.
+CORE, CREST, CREST_BLUR, CREST_PAD, FROM = 0.25, (0.7, 1.4), 2.0, 2.0, 0.3
 
 
 @functools.cache
@@ -267,13 +268,13 @@ def radial_profiles(image, regions, centres, n_bins: int):
 
 
 @jit
-def measured_half_widths(sums, counts, rhos, radius) -> np.ndarray:
+def measured_half_widths(sums, counts, rhos, radius, blur) -> np.ndarray:
     """Each dot's full width at half depth read on its own profile, px, as a line profile by hand reads it: twice
     the radius where the profile (``sums / counts`` at the mean radius ``rhos / counts`` of each bin, the dot's
     neighbours taken out: `qdots.micrograph.refine.Refined.profiles`) first rises halfway from its core to its crest
     (`CORE`, `CREST`: the crest is the background beside the dot, or a bright fringe around it), linearly
-    interpolated between bins. ``radius`` (px, the fitted one) says where to look. NaN where the radius is unknown
-    or the profile never rises halfway."""
+    interpolated between bins. ``radius`` and ``blur`` (px, the fitted ones, one per dot) say where to look. NaN
+    where the radius is unknown or the profile never rises halfway."""
     n, n_bins = sums.shape
     out = np.full(n, np.nan)
     for k in range(n):
@@ -287,8 +288,10 @@ def measured_half_widths(sums, counts, rhos, radius) -> np.ndarray:
                 if rho < max(CORE * r, 1.0):
                     core += sums[k, b]
                     core_n += counts[k, b]
-                elif CREST[0] * r <= rho <= CREST[1] * r + CREST_PAD:
-                    crest = max(crest, sums[k, b] / counts[k, b])
+                elif CREST[0] * r <= rho <= max(CREST[1] * r, r + CREST_BLUR * blur[k]) + CREST_PAD:
+                    low, high = max(b - 1, 0), min(b + 2, n_bins)  # three bins pooled: noise lifts a highest bin
+                    pooled = counts[k, low:high].sum()
+                    crest = max(crest, sums[k, low:high].sum() / pooled)
         if core_n == 0.0 or not crest > core / core_n:
             continue
         half = 0.5 * (core / core_n + crest)

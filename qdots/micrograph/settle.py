@@ -35,8 +35,9 @@ LEVEL_SCAN = (0.9, 1.0, 1.1, 1.25, 1.45, 1.7, 2.0)
 #: synthetic projected spheres within a few %).
 SHAPES, CURVATURE_MARGIN, SPHERE_MATCH = (0.0, 0.5), 0.05, 0.25
 #: Blurs searched, px (the detector smooths every image by 1 px first, so none is under 1 px); the first one
-#: tried (also the blur of the lone fits that start everything).
-BLURS, FIRST_BLUR = (1.0, 5.0), 1.5
+#: tried (also the blur of the lone fits that start everything); the blurs the first pattern may start from (the
+#: best of them at the best ``k``: a film blurred by 4 px is not reached from 1.5 px in steps).
+BLURS, FIRST_BLUR, BLUR_SCAN = (1.0, 5.0), 1.5, (1.5, 2.5, 4.0)
 #: The first 3 x 3 pattern of blurs (px) and background factors: its steps.
 FOCUS_STEP = (0.3, 0.04)
 #: Most dots the shape, blur and background are settled on; the film is cut in TILES x TILES tiles, each
@@ -44,6 +45,9 @@ FOCUS_STEP = (0.3, 0.04)
 SAMPLE, TILES, TILE_DOTS = 100, 3, 50
 #: Passes of each fit while settling (from a state fitted at the middle of the pattern).
 SAMPLE_PASSES = 2
+#: Most times the first pattern moves on when its minimum lies on its border (`Sample.descend`): moves of up to two
+#: steps of `FOCUS_STEP` reach the largest of `BLURS` from `FIRST_BLUR`.
+MOVES = 6
 
 
 def choice_sample(centres, whole, typical: float, point=None):
@@ -113,6 +117,22 @@ class Sample:
         values = np.concatenate(list(values)).astype(float)
         return quadratic_minimum(points, values, low, high)[0], float(values.min())
 
+    def descend(self, shape, centre, step) -> tuple[np.ndarray, float]:
+        """`pattern` again around its own minimum while that lies on the pattern's border or beyond it (a step or
+        more from its centre) short of the search's bounds (`BLURS`, `LEVEL_RANGE`), at most `MOVES` more times. A
+        pattern trusts its surface only within two steps of its centre: without moving on, the blur of a film
+        blurred by 3 px or more stopped short of it (at 2.55 px from `FIRST_BLUR`, the narrower patterns adding
+        1.5 steps), and the radii paid for it. Returns the last pattern's minimum and least residual."""
+        bounds = np.array([[BLURS[0], LEVEL_RANGE[0]], [BLURS[1], LEVEL_RANGE[1]]])
+        found, least = self.pattern(shape, centre, step)
+        for _ in range(MOVES):
+            border = np.abs(found - centre) >= step * (1.0 - 1e-9)
+            inside = (found > bounds[0] + 1e-9) & (found < bounds[1] - 1e-9)
+            if not np.any(border & inside):
+                break
+            centre, (found, least) = found, self.pattern(shape, found, step)
+        return found, least
+
 
 def split(items, parts: int) -> list:
     """``items`` in ``parts`` consecutive runs (fewer when there are fewer items), for threads."""
@@ -177,13 +197,17 @@ def settle_profile(image, centres, radii, contrast, background, typical: float, 
 
     The background is ``k`` times a quadratic surface through the lone fits' ``background`` (`smooth_level`).
     Each candidate shape (`SHAPES` for ``profile="auto"``, else the one given) is fitted at 3 x 3 blurs and ``k`` `FOCUS_STEP` apart
-    around `FIRST_BLUR` and the best ``k`` of `LEVEL_SCAN`, from a state fitted at the middle one, and again
+    around the best ``k`` of `LEVEL_SCAN` (at `FIRST_BLUR`) and the best blur of `BLUR_SCAN` (at that ``k``), from a
+    state fitted at the middle one, and again
     around the minimum of the quadratic surface through the nine residuals (`quadratic_minimum`) at half the
-    steps. For ``profile="auto"`` the shape is then the one whose predicted central curvature
+    steps; the first pattern moves on while its minimum lies on its border (`Sample.descend`). For ``profile="auto"``
+    the shape is then the one whose predicted central curvature
     (`qdots.micrograph.profiles.predicted_curvature`, at its blur) matches the curvature measured on the
     neighbour-corrected profiles (`qdots.micrograph.profiles.central_curvature`): the flat disc unless the sphere
     matches within `SPHERE_MATCH` and by `CURVATURE_MARGIN` more (the residual itself hardly tells a sphere from a
-    disc on real particles, which are neither exactly). A last pattern at a quarter of the steps settles the blur and ``k``
+    disc on real particles, which are neither exactly). Where both match within `CURVATURE_MARGIN` of each other
+    (dots blurred by a third of their radius or more), the lower residual decides, and the message says that the
+    shape is hardly seen. A last pattern at a quarter of the steps settles the blur and ``k``
     of the shape taken, then each tile of the film (`settle_tiles`). Returns (p, the blur at each dot, px, the
     level at each dot, the level map, how p was chosen).
     """
@@ -194,9 +218,13 @@ def settle_profile(image, centres, radii, contrast, background, typical: float, 
     step = np.array(FOCUS_STEP)
     scan = [v for part in run_in_threads(lambda ks: [patch.misfit(patch.fit(shapes[-1], FIRST_BLUR, k), k) for k in ks],
                                          split(LEVEL_SCAN, available_threads())) for v in part]
-    start = np.array([FIRST_BLUR, LEVEL_SCAN[int(np.argmin(scan))]])
-    found = {shape: patch.pattern(shape, start, step)[0] for shape in shapes}
-    found = {shape: patch.pattern(shape, found[shape], 0.5 * step)[0] for shape in shapes}
+    k = LEVEL_SCAN[int(np.argmin(scan))]
+    scan = [v for part in run_in_threads(lambda bs: [patch.misfit(patch.fit(shapes[-1], b, k), k) for b in bs],
+                                         split(BLUR_SCAN, available_threads())) for v in part]
+    start = np.array([BLUR_SCAN[int(np.argmin(scan))], k])
+    found = {shape: patch.descend(shape, start, step)[0] for shape in shapes}
+    settled = {shape: patch.pattern(shape, found[shape], 0.5 * step) for shape in shapes}
+    found = {shape: settled[shape][0] for shape in shapes}
     how = f"{profile} (given)"
     shape = shapes[0]
     inner = patch.inner
@@ -210,10 +238,18 @@ def settle_profile(image, centres, radii, contrast, background, typical: float, 
             predicted[p] = predicted_curvature(p, found[p][0] / float(np.nanmedian(radius)))
         miss = {p: abs(measured[p] - predicted[p]) if np.isfinite(measured[p]) else np.inf for p in shapes}
         sphere = miss[0.5] <= SPHERE_MATCH * predicted[0.5] and miss[0.0] - miss[0.5] >= CURVATURE_MARGIN
-        shape = 0.5 if sphere else 0.0
+        # blurred over a third of their radius or more, a sphere and a disc both match their curvature: the
+        # residual, the only evidence left, decides
+        tied = miss[0.5] <= SPHERE_MATCH * predicted[0.5] and abs(miss[0.0] - miss[0.5]) < CURVATURE_MARGIN
+        shape = 0.5 if sphere or (tied and settled[0.5][1] < settled[0.0][1]) else 0.0
         how = (f"p = {shape:g} from the curvature of {patch.size} dots' centres ({measured[shape]:.3f} r^2 measured, "
                f"{predicted[shape]:.3f} for p = {shape:g}; a sphere would give {predicted[0.5]:.3f} against "
                f"{measured[0.5]:.3f} measured, a flat disc {predicted[0.0]:.3f} against {measured[0.0]:.3f})")
+        if tied:
+            how += (f"; both match, so the lower residual chose (sphere {settled[0.5][1]:.4g}, disc "
+                    f"{settled[0.0][1]:.4g}): blurred by {found[shape][0]:.1f} px, the dots' shape is hardly seen, and "
+                    "the diameter depends on it (a sphere's is some 10-20 % wider than a disc's); the half-depth width "
+                    "does not")
     blur, k = patch.pattern(shape, found[shape], 0.25 * step)[0]
     blurs, levels, level_map = settle_tiles(image, centres, radii, contrast, field, whole_map, typical, whole, shape,
                                             np.array([blur, k]))
