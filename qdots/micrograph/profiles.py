@@ -24,7 +24,8 @@ BIN = 0.5
 #: The centre of a dot, where its curvature is measured (`central_curvature`), in radii.
 CENTRE = 0.5
 #: A dot's half-depth width read on its own profile (`measured_half_widths`): its core is the mean of its pixels
-#: within CORE radii (at least 1 px), its crest the profile's highest bin from CREST[0] radii to CREST[1] radii or its
+#: within CORE radii (at least 1 px), its crest the profile's highest point (three bins pooled) from CREST[0] radii to
+#: CREST[1] radii or its
 #: radius plus CREST_BLUR blurs, whichever is farther, plus CREST_PAD px (a blurred edge levels off two blurs out),
 #: and the crossing of half depth is sought beyond FROM radii.
 CORE, CREST, CREST_BLUR, CREST_PAD, FROM = 0.25, (0.7, 1.4), 2.0, 2.0, 0.3

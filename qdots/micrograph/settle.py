@@ -117,6 +117,12 @@ class Sample:
         values = np.concatenate(list(values)).astype(float)
         return quadratic_minimum(points, values, low, high)[0], float(values.min())
 
+    def best(self, shape, pairs) -> tuple[float, float]:
+        """The (blur, ``k``) of ``pairs`` whose fit leaves the least residual, the fits run side by side in threads."""
+        misfits = [v for part in run_in_threads(lambda chosen: [self.misfit(self.fit(shape, b, k), k) for b, k in chosen],
+                                                split(pairs, available_threads())) for v in part]
+        return pairs[int(np.argmin(misfits))]
+
     def descend(self, shape, centre, step) -> tuple[np.ndarray, float]:
         """`pattern` again around its own minimum while that lies on the pattern's border or beyond it (a step or
         more from its centre) short of the search's bounds (`BLURS`, `LEVEL_RANGE`), at most `MOVES` more times. A
@@ -216,12 +222,8 @@ def settle_profile(image, centres, radii, contrast, background, typical: float, 
     patch = Sample(image, centres, radii, contrast, field, whole_map, typical, whole)
     shapes = SHAPES if profile == "auto" else (cast(float, PROFILES[profile]),)  # only "auto" maps to None
     step = np.array(FOCUS_STEP)
-    scan = [v for part in run_in_threads(lambda ks: [patch.misfit(patch.fit(shapes[-1], FIRST_BLUR, k), k) for k in ks],
-                                         split(LEVEL_SCAN, available_threads())) for v in part]
-    k = LEVEL_SCAN[int(np.argmin(scan))]
-    scan = [v for part in run_in_threads(lambda bs: [patch.misfit(patch.fit(shapes[-1], b, k), k) for b in bs],
-                                         split(BLUR_SCAN, available_threads())) for v in part]
-    start = np.array([BLUR_SCAN[int(np.argmin(scan))], k])
+    k = patch.best(shapes[-1], [(FIRST_BLUR, k) for k in LEVEL_SCAN])[1]
+    start = np.array(patch.best(shapes[-1], [(b, k) for b in BLUR_SCAN]))
     found = {shape: patch.descend(shape, start, step)[0] for shape in shapes}
     settled = {shape: patch.pattern(shape, found[shape], 0.5 * step) for shape in shapes}
     found = {shape: settled[shape][0] for shape in shapes}
