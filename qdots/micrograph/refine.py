@@ -35,6 +35,10 @@ REPEAT_DOTS = 2000
 #: Radius search of the first pass, in units of the film's typical radius; of the later ones, of the dot's own,
 #: by steps of POLISH_STEP of it (`qdots.micrograph.profiles.polish_dot`).
 WIDE, NARROW, POLISH_STEP = (0.45, 1.8), (0.85, 1.18), 0.02
+#: A later pass's radius within PINNED (relative) of an end of its `NARROW` search stopped there, short of its minimum
+#: (a dot the first pass put far off, fitted among neighbours not yet fitted themselves): after a wide pass it walks on
+#: from there, at most WALKS more times, within `WIDE` times the typical radius (`refine_pass`).
+PINNED, WALKS = 0.015, 8
 #: A dot's profile reaches REACH times its radius (or the typical one, if larger) plus REACH_PAD px.
 REACH, REACH_PAD = 1.4, 4.0
 
@@ -159,10 +163,11 @@ def centre_shift(image, model, x, y, r, c, table, blur, level):
 
 @jit
 def refine_pass(image, model, centres, radius, contrast, background, residual, level, free, table, blurs, reach,
-                n_bins, typical, wide, move, active):
+                n_bins, typical, wide, move, active, walk=False):
     """One pass over the ``active`` dots in order, each fitted on ``image + model - own model`` and its model
     replaced in ``model`` at once (Gauss-Seidel: the next dot sees it). ``wide``: radii searched over `WIDE` times
-    ``typical``; else near the dot's own (`qdots.micrograph.profiles.polish_dot`). ``move``: each centre first
+    ``typical``; else near the dot's own (`qdots.micrograph.profiles.polish_dot`), and with ``walk`` on from where that
+    search stopped at its end (`PINNED`). ``move``: each centre first
     moved to where its darkness balances (`centre_shift`). Updates the arrays in place."""
     sums = np.zeros(n_bins)
     counts = np.zeros(n_bins)
@@ -190,6 +195,14 @@ def refine_pass(image, model, centres, radius, contrast, background, residual, l
         else:
             r, big, c, error = polish_dot(sums, counts, rhos, level[k], free, table, blur, old_r, POLISH_STEP,
                                           NARROW[0], NARROW[1])
+            start = old_r
+            walks = 0
+            while walk and walks < WALKS and r > 0.0 and WIDE[0] * typical < r < WIDE[1] * typical \
+                    and not (start * (NARROW[0] + PINNED) < r < start * (NARROW[1] - PINNED)):
+                start = r
+                r, big, c, error = polish_dot(sums, counts, rhos, level[k], free, table, blur, start, POLISH_STEP,
+                                              NARROW[0], NARROW[1])
+                walks += 1
         new_c = c if (r > 0.0 and c > 0.0) else 0.0
         replace_dot(model, x, y, old_r, old_c, x, y, r if r > 0.0 else 0.0, new_c, table, blur)
         radius[k] = r
@@ -335,7 +348,7 @@ def refine_dots(image, centres, radii, contrast, typical: float, shape: float, b
                                    available_threads() if threads is None else threads):
             run_in_threads(lambda chosen, first=first: refine_pass(
                 image, model, centres, radius, contrast, background, residual, base, level is None, table, blurs,
-                reach, n_bins, float(typical), first, move and not first and level is not None, chosen), part)
+                reach, n_bins, float(typical), first, move and not first and level is not None, chosen, wide), part)
     profiles = dot_profiles(image, model, centres, np.nan_to_num(radius), contrast, table, blurs, reach, n_bins,
                             BIN, -1) if keep_profiles else None
     return Refined(centres, radius, background, contrast, residual, profiles, model, reach)

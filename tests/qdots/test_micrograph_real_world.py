@@ -23,7 +23,7 @@ from qdots.micrograph.refine import refine_dots
 from qdots.micrograph.scale import find_scale_bar
 from qdots.micrograph.segment import broad_blur, stretch
 from qdots.micrograph.shapes import region_shapes
-from qdots.micrograph.synthetic import dense_board, render_micrograph, score_detection, sparse_board
+from qdots.micrograph.synthetic import dense_board, render_micrograph, score_detection, sparse_board, superlattice_board
 
 
 def disc_labels(shape, centres, radii):
@@ -91,6 +91,22 @@ def test_the_fits_are_the_same_whatever_the_number_of_threads():
     for run in runs[1:]:
         np.testing.assert_array_equal(run.radius, runs[0].radius)
         np.testing.assert_array_equal(run.centres, runs[0].centres)
+
+
+def test_a_dot_the_first_pass_put_far_off_walks_back_to_its_size():
+    """First fits 45 % too large and too dark (a sphere's fit of discs) on a square superlattice of 1 px gaps: the
+    wide first pass, among neighbours still unfitted, put many dots at its floor, and each later pass could move them
+    only 18 %. On a real square PbSe superlattice 593 of 3,667 dots sat at one diameter 12 % under the others. They now
+    walk on from the end of the search."""
+    centres, diameters = superlattice_board(400, 400, 18.0, 0.04, 1.0, lattice="square", seed=1)
+    image = render_micrograph(centres, diameters, (400, 400), profile=0.0, noise=0.02, seed=2)
+    background = float(np.percentile(image, 99.5))
+    run = refine_dots(image, centres, 1.45 * diameters / 2, np.full(len(diameters), 1.5 * background), 1.45 * 9.0,
+                      0.0, 2.0, np.full(len(diameters), background))
+    inner = np.all((centres > 30) & (centres < 370), axis=1)
+    ratio = (run.radius / (diameters / 2))[inner]
+    assert abs(float(np.median(ratio)) - 1.0) < 0.02  # 0.938 before
+    assert np.mean(np.abs(ratio - 1.0) > 0.05) < 0.10  # 62 % before
 
 
 def test_the_half_depth_width_of_discs_and_spheres():
