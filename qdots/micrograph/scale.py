@@ -29,7 +29,7 @@ BAR_TOLERANCE = 0.05
 #: there and MIN_SHARE of the image's range (`bar_contrast`). Measured on the development half of the real
 #: micrographs: drawn bars 6.2-97 noise deviations (infinitely many in noiseless graphics) and 0.37-1 of the range;
 #: what was taken for a bar on pictures without one: bright noise pixels joined by the closing, 1.5 and 2.9 deviations
-#: (0.05 and 0.02 of the range), a bright crystal's edge and a stain's, 14 and 5.5 deviations (0.12 of the range).
+#: (0.05 and 0.01 of the range), a bright crystal's edge and a stain's, 14 and 5.5 deviations (0.12 of the range).
 MIN_CONTRAST, MIN_SHARE = 4.0, 0.2
 #: Lengths a scale bar can state, nm: 0.01 nm to 1 cm.
 MIN_BAR_NM, MAX_BAR_NM = 1e-2, 1e7
