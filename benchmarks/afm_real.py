@@ -138,8 +138,9 @@ def run(quick: bool = False) -> list:
         read, *tables,
         Note("Each engine run is on a crop, grown to the crop's z-range of oxide. The stated error is the run's own "
              "(history columns `*_error_nm`: Richardson's estimate at the order observed over its grid and the two "
-             "coarser ones, where that order lies in [0.7, 3]; otherwise the run states no number and says the "
-             "quantity is not asymptotic); the true error its difference from the converged answer. These scans "
+             "coarser ones, or at 1.5 where that order is higher, where it lies in [0.7, 3]; otherwise the run "
+             "states no number and says the quantity is not asymptotic); the true error its difference from the "
+             "converged answer. These scans "
              "hold pixel-scale noise, whose z-range converges slowly and unevenly as the grid refines: that is "
              "where the runs state no number. A crop whose default run chose the finest grid the converged answer "
              "was computed from (8x, where its 8x run took longer than FINEST_AFTER_S and 16x was left out) has no "

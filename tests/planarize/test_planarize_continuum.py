@@ -236,7 +236,8 @@ def history_at(surface, thickness, factor, record):
 
 def test_the_stated_error_is_richardsons_at_the_order_observed_over_three_grids():
     """The hill's default run (4x here): its error columns recomputed by hand from runs at 1x, 2x and 4x made
-    outside the driver: the observed order from the three, Richardson's estimate from the two finest."""
+    outside the driver: the observed order from the three, Richardson's estimate from the two finest at that order,
+    or at 1.5 where it is higher (`ORDER_CAP`)."""
     hill = surfaces.hill()
     run = anodize(hill, 1.0, record=10)
     p = run.parameters
@@ -248,7 +249,8 @@ def test_the_stated_error_is_richardsons_at_the_order_observed_over_three_grids(
         order = np.log2(np.linalg.norm(middle[column] - coarse[column]) / np.linalg.norm(fine[column] - middle[column]))
         assert 0.7 <= order <= 3.0 and order == pytest.approx(p["orders"][column], rel=1e-9)
         np.testing.assert_allclose(run.history[column.replace("_nm", "_error_nm")],
-                                   np.abs(fine[column] - middle[column]) / (2 ** order - 1), rtol=1e-9, atol=1e-15)
+                                   np.abs(fine[column] - middle[column]) / (2 ** min(order, 1.5) - 1), rtol=1e-9,
+                                   atol=1e-15)
 
 
 def test_a_quantity_that_does_not_converge_steadily_gets_no_number():
@@ -328,9 +330,10 @@ def converged_history(surface, thickness, factors, record):
 @pytest.mark.timeout(1800)
 @pytest.mark.parametrize("name", ["hill", "depression", "random", "ta"])
 def test_the_stated_error_is_near_the_true_error(name):
-    """The goal is a factor 2; measured with the observed-order estimate, the ratio of stated to true error on these
-    four surfaces lies in 0.34-2.24 (the Ta film's z-range at 2x: 0.15-0.20 % stated, 0.44 % true; the random
-    surface's oxide z-range at 4x: 1.30 % stated, 0.58 % true), so the bound checked is 0.3-2.5."""
+    """The goal is a factor 2; measured with the observed-order estimate (at most 1.5), the ratio of stated to true
+    error on these four surfaces lies in 0.58-2.24 (the Ta film's z-range at 2x; the random surface's oxide z-range at
+    4x: 1.30 % stated, 0.58 % true; at the observed order uncapped the Ta film's z-range was 0.34-0.46), so the bound
+    checked is 0.5-2.5."""
     surface, thickness, factors = {
         "hill": (surfaces.hill(), 1.0, (4, 8, 16)),
         "depression": (surfaces.depression(), 1.0, (4, 8, 16)),
@@ -343,7 +346,7 @@ def test_the_stated_error_is_near_the_true_error(name):
     assert run.parameters["rtol_met"]
     for column in truth:
         true, stated = largest_relative(run, truth, column)
-        assert 0.3 * true < stated < 2.5 * true and true < 0.02, (column, true, stated)
+        assert 0.5 * true < stated < 2.5 * true and true < 0.02, (column, true, stated)
     if name == "ta":  # the thesis's Ta film: within 0.5 % of the converged RMS from 40 nm on, 0.6 % at 20 nm
         for column in ("metal_rms_nm", "oxide_rms_nm"):
             error = np.abs(run.history[column] / truth[column] - 1)
