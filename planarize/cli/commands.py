@@ -142,7 +142,7 @@ def _accuracy(summary: dict) -> str:
     if error is None or not math.isfinite(error):
         return "not estimated (the run stopped before its error estimate)"
     text = (f"at most {100 * error:.2g} % of RMS and z-range (Richardson's estimate at the order observed over runs at "
-            "1/4, 1/2 and 1 times the resolution)")
+            "1/4, 1/2 and 1 times the resolution, taken at most as 1 unless it was 1.5 or more twice running)")
     if summary["rtol_met"]:
         return f"{text}; meets rtol {100 * summary['rtol']:.2g} %"
     return (f"{text}, volume balance off by up to {100 * summary['volume_error_largest']:.2g} %; does NOT meet rtol "

@@ -3,6 +3,8 @@ the thesis's algorithm as that one's grid refines, and its stated error against 
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 from helpers import refused
@@ -235,22 +237,33 @@ def history_at(surface, thickness, factor, record):
 
 
 def test_the_stated_error_is_richardsons_at_the_order_observed_over_three_grids():
-    """The hill's default run (4x here): its error columns recomputed by hand from runs at 1x, 2x and 4x made
-    outside the driver: the observed order from the three, Richardson's estimate from the two finest at that order,
-    or at 1.5 where it is higher (`ORDER_CAP`)."""
+    """The hill's default run (4x here): its error columns recomputed by hand from runs at 1/2, 1x, 2x and 4x made
+    outside the driver: the observed order from the three finest, Richardson's estimate from the two finest at that
+    order, or at 1.5 where it is higher and the order one grid coarser reached 1.5 too (`ORDER_CAP`), or at 1
+    where it is higher and that one did not (`ROUGH_ORDER`)."""
     hill = surfaces.hill()
     run = anodize(hill, 1.0, record=10)
     p = run.parameters
     assert p["refine"] == 4 and p["rtol_met"] and p["asymptotic"] and p["not_asymptotic"] == []
     assert [level["factor"] for level in p["levels"]] == [0.25, 0.5, 1, 2, 4]
-    coarse, middle, fine = (history_at(hill, 1.0, f, 10) for f in (1, 2, 4))
+    half, coarse, middle, fine = (history_at(hill, 1.0, f, 10) for f in (0.5, 1, 2, 4))
     for column in ("metal_rms_nm", "oxide_rms_nm", "metal_zrange_nm", "oxide_zrange_nm"):
         np.testing.assert_allclose(run.history[column], fine[column], rtol=1e-12)
         order = np.log2(np.linalg.norm(middle[column] - coarse[column]) / np.linalg.norm(fine[column] - middle[column]))
+        before = np.log2(np.linalg.norm(coarse[column] - half[column]) / np.linalg.norm(middle[column] - coarse[column]))
         assert 0.7 <= order <= 3.0 and order == pytest.approx(p["orders"][column], rel=1e-9)
+        q = min(order, 1.5) if order >= 1.5 and before >= 1.5 else min(order, 1.0)  # (4x: both orders known)
         np.testing.assert_allclose(run.history[column.replace("_nm", "_error_nm")],
-                                   np.abs(fine[column] - middle[column]) / (2 ** min(order, 1.5) - 1), rtol=1e-9,
-                                   atol=1e-15)
+                                   np.abs(fine[column] - middle[column]) / (2 ** q - 1), rtol=1e-9, atol=1e-15)
+
+
+def test_the_estimate_takes_a_high_order_only_where_it_was_observed_twice_running():
+    from planarize.engines.resolution import estimate_order
+
+    assert estimate_order(2.2, 1.8) == 1.5  # a smooth surface in its asymptotic regime
+    assert estimate_order(2.2, 1.2) == estimate_order(1.3, 2.5) == 1.0
+    assert estimate_order(2.2, math.nan) == 1.5 and estimate_order(1.3, math.nan) == 1.3  # no order one grid coarser
+    assert estimate_order(0.8, 2.0) == 0.8  # a low order is taken as it is
 
 
 def test_a_quantity_that_does_not_converge_steadily_gets_no_number():
@@ -315,14 +328,17 @@ def test_bad_settings_are_refused_in_one_line():
 
 
 def converged_history(surface, thickness, factors, record):
-    """Each estimated column's converged values: the finest run plus Richardson's correction at the order
-    observed over the three runs ``factors`` (coarse to fine)."""
+    """Each estimated column's converged values: the finest run plus Richardson's correction at the order of the
+    last three refinements, the least-squares slope of the logarithms of their changes over the four runs
+    ``factors`` (coarse to fine; of three runs, their one ratio: one ratio scatters where the grids are
+    coarse, `benchmarks.planarize_continuum`)."""
     runs = [anodize(surface, thickness, record=record, engine=Continuum(refine=f)).history for f in factors]
     truth = {}
     for column in ("metal_rms_nm", "oxide_rms_nm", "metal_zrange_nm", "oxide_zrange_nm"):
-        a, b, c = (np.asarray(h[column]) for h in runs)
-        p = np.clip(np.log2(np.linalg.norm(a - b) / np.linalg.norm(b - c)), 0.5, 4.0)
-        truth[column] = c + (c - b) / (2 ** p - 1)
+        values = [np.asarray(h[column]) for h in runs]
+        changes = [np.linalg.norm(b - a) for a, b in zip(values, values[1:])]
+        p = np.clip(-np.polyfit(np.arange(len(changes)), np.log2(changes), 1)[0], 0.5, 4.0)
+        truth[column] = values[-1] + (values[-1] - values[-2]) / (2 ** p - 1)
     return truth
 
 
@@ -330,23 +346,27 @@ def converged_history(surface, thickness, factors, record):
 @pytest.mark.timeout(1800)
 @pytest.mark.parametrize("name", ["hill", "depression", "random", "ta"])
 def test_the_stated_error_is_near_the_true_error(name):
-    """The goal is a factor 2; measured with the observed-order estimate (at most 1.5), the ratio of stated to true
-    error on these four surfaces lies in 0.58-2.24 (the Ta film's z-range at 2x; the random surface's oxide z-range at
-    4x: 1.30 % stated, 0.58 % true; at the observed order uncapped the Ta film's z-range was 0.34-0.46), so the bound
-    checked is 0.5-2.5."""
+    """The goal is a factor 2. Measured with the estimate at most 1.5 where a high order was observed twice running
+    and at most 1 otherwise (`resolution.estimate_order`): the RMS's ratio of stated to true error on these four
+    surfaces lies within 0.5-2.5, and no quantity is under-stated; the z-range of the depression and of the random
+    surface, which converges at order about 1.5 but not twice running at 1.5 or more, is over-stated 3.96x and
+    3.71x (with the order at most 1.5 throughout, every ratio was within 0.58-2.24, but real AFM maps were
+    under-stated down to 0.38: docs/planarize_continuum.md). So the bounds checked are 0.5-2.5 for the RMS and
+    0.5-4.5 for the z-range."""
     surface, thickness, factors = {
-        "hill": (surfaces.hill(), 1.0, (4, 8, 16)),
-        "depression": (surfaces.depression(), 1.0, (4, 8, 16)),
+        "hill": (surfaces.hill(), 1.0, (2, 4, 8, 16)),
+        "depression": (surfaces.depression(), 1.0, (2, 4, 8, 16)),
         "random": (surfaces.random_roughness(8.0, thickness=4.0, scales=((2.0, 0.5),), boundary="periodic", seed=3),
-                   1.0, (4, 8, 16)),  # (its z-range converges irregularly below 8x)
-        "ta": (surfaces.random_roughness(seed=1), 200.0, (1, 2, 4)),
+                   1.0, (2, 4, 8, 16)),  # (its z-range converges irregularly below 8x)
+        "ta": (surfaces.random_roughness(seed=1), 200.0, (1, 2, 4)),  # (three runs: one ratio)
     }[name]
     run = anodize(surface, thickness, record=10)
     truth = converged_history(surface, thickness, factors, 10)
     assert run.parameters["rtol_met"]
     for column in truth:
         true, stated = largest_relative(run, truth, column)
-        assert 0.5 * true < stated < 2.5 * true and true < 0.02, (column, true, stated)
+        over = 2.5 if "rms" in column else 4.5
+        assert 0.5 * true < stated < over * true and true < 0.02, (column, true, stated)
     if name == "ta":  # the thesis's Ta film: within 0.5 % of the converged RMS from 40 nm on, 0.6 % at 20 nm
         for column in ("metal_rms_nm", "oxide_rms_nm"):
             error = np.abs(run.history[column] / truth[column] - 1)
