@@ -52,6 +52,7 @@ def check_report(tmp_path: Path, names: list[str]) -> dict:
     return store
 
 
+@pytest.mark.slow
 def test_a_quick_run_writes_the_report_and_only_keeps_other_sections(tmp_path):
     names = ["engine_overhead", "analysis", "sweeps"]
     run = harness("--quick", "--only", "engine_overhead", "sweeps", "--out", str(tmp_path))

@@ -138,6 +138,7 @@ def test_a_qdots_run_killed_at_any_step_of_its_switch_leaves_the_old_set_or_the_
     assert all(r["visible"] == ["grav", "summary.csv"] for r in results)
 
 
+@pytest.mark.slow
 def test_a_planarize_run_killed_at_any_step_of_its_switch_leaves_the_old_set_or_the_new_one(tmp_path, capsys):
     out = tmp_path / "out"
     run_ok(planarize_main, ["scene", "hill", "--quick", "0.25", "--out", str(out), "--movie"], capsys)

@@ -46,6 +46,7 @@ def check_report(out: Path, keys) -> dict:
     return store
 
 
+@pytest.mark.slow
 def test_one_item_then_another_keeps_the_first(tmp_path):
     run = reproduce("--quick", "--only", "fig3-8", "--out", str(tmp_path))
     assert run.returncode == 0, run.stderr[-3000:]

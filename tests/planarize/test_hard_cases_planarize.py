@@ -84,7 +84,7 @@ def test_tilted_planes_stay_planes(slope, engine):
         np.testing.assert_allclose(coef[:2], slope, atol=0.01 * tilt)
 
 
-@pytest.mark.parametrize("engine", ["continuum", "fast"])
+@pytest.mark.parametrize("engine", [pytest.param("continuum", marks=pytest.mark.slow), "fast"])  # (continuum: 17 s)
 def test_very_steep_random_surface(engine):
     rng = np.random.default_rng(11)
     run = anodize(Surface(rng.uniform(0, 3, (9, 9)), 0.25), 0.5, record=3,

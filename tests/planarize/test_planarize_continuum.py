@@ -344,7 +344,8 @@ def converged_history(surface, thickness, factors, record):
 
 @pytest.mark.slow
 @pytest.mark.timeout(1800)
-@pytest.mark.parametrize("name", ["hill", "depression", "random", "ta"])
+@pytest.mark.parametrize("name", ["hill", "depression", "random",
+                                  pytest.param("ta", marks=pytest.mark.release)])  # (3 minutes: not in CI)
 def test_the_stated_error_is_near_the_true_error(name):
     """The goal is a factor 2. Measured with the estimate at most 1.5 where a high order was observed twice running
     and at most 1 otherwise (`resolution.estimate_order`): the RMS's ratio of stated to true error on these four

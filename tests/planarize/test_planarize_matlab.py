@@ -63,6 +63,7 @@ def test_search_windows_are_the_listings(seed):
     np.testing.assert_allclose(engine.D, expected, rtol=1e-12, atol=0)
 
 
+@pytest.mark.slow
 def test_the_listings_shortcuts_cost_a_few_percent_and_break_flatness_and_symmetry():
     """What the engine exists to measure: on the thesis hill its metal RMS stays within 4 % of the
     reference's up to 0.5 nm (+18 % before its windows were the listing's), and a flat film or a

@@ -251,6 +251,7 @@ def test_infer_without_the_extra_says_how_to_install_it(monkeypatch):
         require_sbi()
 
 
+@pytest.mark.slow
 def test_the_posterior_recovers_a_known_linear_model_and_is_calibrated(tmp_path, monkeypatch):
     """The NPE wrapper on a toy model with a known answer: x = A theta + a shift by the mass model + noise (8
     numbers, as the films give). The posterior medians track the truth and calibrated 90 % intervals hold it in
@@ -402,6 +403,7 @@ def test_model_choice_tables_count_what_was_chosen_against_the_truth():
 
 
 @pytest.mark.slow
+@pytest.mark.release
 @pytest.mark.timeout(1800)
 def test_a_small_calibration_on_synthetic_micrographs(tmp_path):
     """A small version of the calibration (benchmarks.qdots_infer): a library of 300 films of 60 dots, 30 held-out

@@ -192,6 +192,8 @@ def test_pictures_that_are_not_films_are_refused_in_one_line(kind, tmp_path, cap
         assert "picture_refused.png" in message and "--force" in message
 
 
+@pytest.mark.slow
+@pytest.mark.release
 def test_enlarged_scanned_text_is_refused_as_lines_of_text(tmp_path, capsys):
     """Regression: text drawn at 3x with noise passed every other look (its letters fitted as 6 px discs, alike
     within 20-30 %, measured the same twice within 1.6 %). Its objects lie in lines: a third of the bands between

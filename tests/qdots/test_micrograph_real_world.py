@@ -307,6 +307,7 @@ def rods_picture(path, seed: int = 3) -> None:
     Image.fromarray(np.clip(image * 220, 0, 255).astype(np.uint8)).save(path)
 
 
+@pytest.mark.slow
 def test_rods_are_refused_with_their_shape_what_was_found_is_shown_and_force_measures(tmp_path, capsys):
     path = tmp_path / "rods.png"
     rods_picture(path)
