@@ -122,6 +122,7 @@ def test_the_widget_measures_shows_takes_corrections_and_exports_as_the_command_
         viewer.screenshot(os.path.join(os.environ[SCREENSHOT_DIR], "napari_plugin.png"), canvas_only=False)
 
     # the same files as qdots measure, with the same numbers
+    widget.out.setText(str(tmp_path / "exported"))  # (its default, ./qdots-measure, is the working folder's)
     exported = widget.export()
     assert sorted(p.name for p in exported.iterdir()) == ["film.npz", "film_detections.png", "film_summary.csv"]
     assert main(["measure", str(tmp_path / "film.png"), "--nm-per-px", "0.5", "--out", str(tmp_path / "cli")]) == 0
