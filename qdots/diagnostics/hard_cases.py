@@ -193,7 +193,7 @@ CASES = [
              fall_speed(750 * math.sqrt(2), 300)),
     HardCase("grating corners, gravity x10 into the corners", grating_corners(10.0), 2.0,
              fall_speed(7500 * math.sqrt(2), 300)),
-    HardCase("centre gravity x30", centre_pack(30.0), 2.0, 2 * fall_speed(22500, 424, 0.01)),
+    HardCase("centre gravity x30", centre_pack(30.0), 2.0, 2 * fall_speed(22500, 424, 0.01), slow=True),
     HardCase("centre gravity x100, substeps 2", centre_pack(100.0), 1.5, 2 * fall_speed(75000, 424, 0.01),
              {"substeps": 2}, slow=True),
     HardCase("centre gravity x100, defaults", centre_pack(100.0), 2.0, 2 * fall_speed(75000, 424, 0.01), slow=True),

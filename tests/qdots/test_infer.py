@@ -152,6 +152,7 @@ def test_the_library_runs_only_the_films_it_lacks(tmp_path):
     assert all(row[k] == lib.rows[0][k] or (math.isnan(row[k]) and math.isnan(lib.rows[0][k])) for k in row)
 
 
+@pytest.mark.slow
 def test_the_shipped_films_are_those_the_current_code_makes():
     """The training and replicate films shipped with the package (`SHIPPED`, `SHIPPED_REPLICATES`) are the prior's
     draws of this release, and three of them (first, middle, last), simulated again, give the same measures to the

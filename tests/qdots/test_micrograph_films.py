@@ -170,7 +170,8 @@ def board_png(path):
     return save_png(film_state(centres, diameters, (200, 200)), path)
 
 
-@pytest.mark.parametrize("kind", ["plot", "text", "drawing", "board", "noisy text", "noisy drawing"])
+@pytest.mark.parametrize("kind", ["plot", "text", "drawing", "board", pytest.param("noisy text", marks=pytest.mark.slow),
+                                  "noisy drawing"])
 def test_pictures_that_are_not_films_are_refused_in_one_line(kind, tmp_path, capsys):
     path = tmp_path / "picture.png"
     if kind == "board":
@@ -238,6 +239,7 @@ def test_the_refusal_names_its_reason():
     refused(lambda: check_picture(flat, find_annotations(flat), "square.png"), "square.png", "flat colour")
 
 
+@pytest.mark.slow
 def test_a_touching_superlattice_without_vacancies_is_measured_to_two_percent():
     """No background shows anywhere but between three touching dots: the faint dots the threshold misses
     (`qdots.micrograph.missed`) and a background field that followed each dot's neighbours pulled the mean
