@@ -8,6 +8,8 @@ import select
 import shutil
 import subprocess
 import sys
+import tempfile
+import time
 
 import numpy as np
 import pytest
@@ -20,14 +22,18 @@ napari = pytest.importorskip("napari")
 QT_PROBE = "import napari; napari.Viewer(show=False).close(); print('ok')"
 
 
-def qt_starts(display: str | None) -> bool:
-    """Whether a napari viewer opens on ``display``, tried in a child process."""
+def qt_fails(display: str | None) -> str:
+    """Why a napari viewer does not open on ``display`` (Qt's first warning), tried in a child process; empty when it
+    opens."""
     env = dict(os.environ, **({"DISPLAY": display} if display else {}))
     try:
         done = subprocess.run([sys.executable, "-c", QT_PROBE], env=env, capture_output=True, text=True, timeout=120)
     except subprocess.TimeoutExpired:
-        return False
-    return done.returncode == 0 and done.stdout.strip().endswith("ok")
+        return "it did not open within 120 s"
+    if done.returncode == 0 and done.stdout.strip().endswith("ok"):
+        return ""
+    said = [line for line in done.stderr.splitlines() if line.startswith(("WARNING", "qt.", "Error"))]
+    return said[0] if said else f"exit {done.returncode}"
 
 
 @pytest.fixture(scope="module")
@@ -35,28 +41,42 @@ def display():
     """The display the viewers open on: ``DISPLAY`` when set (or not on Linux), else a virtual one (Xvfb) started for
     this module and stopped after it; the tests skip when there is neither, or when Qt cannot start on it."""
     if os.environ.get("DISPLAY") or not sys.platform.startswith("linux"):
-        if not qt_starts(os.environ.get("DISPLAY")):
-            pytest.skip("a napari viewer does not open here (Qt cannot start)")
+        why = qt_fails(os.environ.get("DISPLAY"))
+        if why:
+            pytest.skip(f"a napari viewer does not open here: {why}")
         yield os.environ.get("DISPLAY")
         return
     if shutil.which("Xvfb") is None:
         pytest.skip("the napari viewer needs a display, or Xvfb to make one")
     read, write = os.pipe()
+    log = tempfile.TemporaryFile()  # Xvfb's messages, for a skip that says why
     server = subprocess.Popen(["Xvfb", "-displayfd", str(write), "-screen", "0", "1600x1000x24", "-nolisten", "tcp"],
-                              pass_fds=(write,), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+                              pass_fds=(write,), stdout=log, stderr=log)
     os.close(write)
-    ready = select.select([read], [], [], 60)[0]  # Xvfb writes its display number once it accepts clients
-    number = os.read(read, 64).decode().strip() if ready else ""
-    os.close(read)
+    # Xvfb writes its display number, then a newline, once it accepts clients; the pipe stays open until the server
+    # stops: closed after the number alone, the newline's write failed and the server ended ("Cannot write display
+    # number to fd"), now and then, measured
+    said, deadline = b"", time.monotonic() + 60
+    while not said.endswith(b"\n") and select.select([read], [], [], max(deadline - time.monotonic(), 0))[0]:
+        chunk = os.read(read, 64)
+        if not chunk:
+            break
+        said += chunk
+    number = said.decode().strip()
     try:
         if not number.isdigit():
-            pytest.skip("Xvfb did not start")
-        if not qt_starts(f":{number}"):
-            pytest.skip("a napari viewer does not open on Xvfb (Qt's xcb platform libraries missing?)")
+            log.seek(0)
+            said = log.read().decode(errors="replace").strip().splitlines()
+            pytest.skip(f"Xvfb did not start{': ' + said[-1] if said else ''}")
+        why = qt_fails(f":{number}")
+        if why:
+            pytest.skip(f"a napari viewer does not open on Xvfb :{number}: {why}")
         yield f":{number}"
     finally:
         server.terminate()
         server.wait(timeout=30)
+        os.close(read)
+        log.close()
 
 
 from helpers import disc_film_png  # noqa: E402
