@@ -66,8 +66,8 @@ def display():
     try:
         if not number.isdigit():
             log.seek(0)
-            said = log.read().decode(errors="replace").strip().splitlines()
-            pytest.skip(f"Xvfb did not start{': ' + said[-1] if said else ''}")
+            messages = log.read().decode(errors="replace").strip().splitlines()
+            pytest.skip(f"Xvfb did not start{': ' + messages[-1] if messages else ''}")
         why = qt_fails(f":{number}")
         if why:
             pytest.skip(f"a napari viewer does not open on Xvfb :{number}: {why}")
