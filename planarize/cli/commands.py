@@ -27,7 +27,7 @@ from labrig.validate import InputError
 
 from .. import render
 from ..anodize import Anodization
-from ..engines.resolution import ORDER_HIGH, ORDER_LOW
+from ..engines.resolution import ASYMPTOTIC_CHANGE, ORDER_HIGH, ORDER_LOW
 from ..io.heights import load_levelled
 from ..io.results import save_history_csv, save_run
 from ..io.scenefile import save_scene
@@ -137,12 +137,15 @@ def _accuracy(summary: dict) -> str:
     cost = f"; the next finer grid, {summary['finer_grid']}" if summary.get("finer_grid") else ""
     if summary.get("not_asymptotic"):
         return (f"not stated: {summary['not_asymptotic']} not yet converging at a steady order at the finest grid "
-                f"tried, {summary['resolution']} (observed order outside [{ORDER_LOW:g}, {ORDER_HIGH:g}]); its last "
+                f"tried, {summary['resolution']} (observed order outside [{ORDER_LOW:g}, {ORDER_HIGH:g}], or a change of "
+                f"more than {100 * ASYMPTOTIC_CHANGE:g} %); its last "
                 f"refinement changed RMS and z-range by up to {100 * summary['last_change']:.3g} %{cost}")
     if error is None or not math.isfinite(error):
         return "not estimated (the run stopped before its error estimate)"
-    text = (f"at most {100 * error:.2g} % of RMS and z-range (Richardson's estimate at the order observed over runs at "
-            "1/4, 1/2 and 1 times the resolution, taken at most as 1 unless it was 1.5 or more twice running)")
+    rule = ("taken as 1.8 where it was 1.2 or more twice running, on a map its pixels resolve" if summary.get("smooth")
+            else "taken at most as 1 unless it was 1.5 or more twice running")
+    text = (f"at most {100 * error:.2g} % of RMS and z-range (Richardson's estimate at the order observed over the "
+            f"three finest grids, {rule})")
     if summary["rtol_met"]:
         return f"{text}; meets rtol {100 * summary['rtol']:.2g} %"
     return (f"{text}, volume balance off by up to {100 * summary['volume_error_largest']:.2g} %; does NOT meet rtol "
@@ -173,7 +176,7 @@ def summarize(scene: PlanarizeScene, run: Anodization) -> dict:
         continuum = {"rule": p["rule"], "rtol": p["rtol"], "estimated_error": p["estimated_error"],
                      "rtol_met": p["rtol_met"], "volume_error_largest": p["volume_error"],
                      "resolution": "its own grid" if factor == 1 else f"{factor:g}x its grid",
-                     "asymptotic": p["asymptotic"], "last_change": p["change"],
+                     "asymptotic": p["asymptotic"], "last_change": p["change"], "smooth": p.get("smooth", False),
                      "not_asymptotic": ", ".join(f"{c.replace('_nm', '').replace('_', ' ')} (order {p['orders'][c]:.2g})"
                                                  for c in p["not_asymptotic"]),
                      "finer_grid": p["finer"],

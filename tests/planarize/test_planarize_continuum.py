@@ -238,23 +238,52 @@ def history_at(surface, thickness, factor, record):
 
 def test_the_stated_error_is_richardsons_at_the_order_observed_over_three_grids():
     """The hill's default run (4x here): its error columns recomputed by hand from runs at 1/2, 1x, 2x and 4x made
-    outside the driver: the observed order from the three finest, Richardson's estimate from the two finest at that
-    order, or at 1.5 where it is higher and the order one grid coarser reached 1.5 too (`ORDER_CAP`), or at 1
-    where it is higher and that one did not (`ROUGH_ORDER`)."""
+    outside the driver: the observed order from the three finest, Richardson's estimate from the two finest at 1.8
+    where that order and the one a grid coarser both reach 1.2 (the hill's `pixel_curvature` is 1.07: a map its
+    pixels resolve), else at most 1.5 where both reach 1.5, else at most 1."""
+    from planarize.metrics import pixel_curvature
+
     hill = surfaces.hill()
     run = anodize(hill, 1.0, record=10)
     p = run.parameters
     assert p["refine"] == 4 and p["rtol_met"] and p["asymptotic"] and p["not_asymptotic"] == []
+    assert pixel_curvature(hill) == pytest.approx(1.071, abs=1e-3) and p["smooth"]
     assert [level["factor"] for level in p["levels"]] == [0.25, 0.5, 1, 2, 4]
     half, coarse, middle, fine = (history_at(hill, 1.0, f, 10) for f in (0.5, 1, 2, 4))
+    taken = []
     for column in ("metal_rms_nm", "oxide_rms_nm", "metal_zrange_nm", "oxide_zrange_nm"):
         np.testing.assert_allclose(run.history[column], fine[column], rtol=1e-12)
         order = np.log2(np.linalg.norm(middle[column] - coarse[column]) / np.linalg.norm(fine[column] - middle[column]))
         before = np.log2(np.linalg.norm(coarse[column] - half[column]) / np.linalg.norm(middle[column] - coarse[column]))
         assert 0.7 <= order <= 3.0 and order == pytest.approx(p["orders"][column], rel=1e-9)
-        q = min(order, 1.5) if order >= 1.5 and before >= 1.5 else min(order, 1.0)  # (4x: both orders known)
+        q = 1.8 if min(order, before) >= 1.2 else min(order, 1.5) if min(order, before) >= 1.5 else min(order, 1.0)
+        taken.append(q)
         np.testing.assert_allclose(run.history[column.replace("_nm", "_error_nm")],
                                    np.abs(fine[column] - middle[column]) / (2 ** q - 1), rtol=1e-9, atol=1e-15)
+    assert 1.8 in taken and min(taken) < 1.8  # (both branches: the metal RMS observed 0.39 at 2x)
+
+
+def test_on_a_map_with_pixel_scale_features_the_estimate_takes_the_observed_order_at_most_1_or_1_5():
+    """White noise of 0.3 nm on 9 x 9 points (`pixel_curvature` 4.9, a rough map): the default run (8x here)
+    recomputed by hand from runs at 1x, 2x, 4x and 8x: the order at 8x and 4x observed, Richardson's estimate at
+    most 1.5 where both reach 1.5 (`ORDER_CAP`) and at most 1 otherwise (`ROUGH_ORDER`); the RMS, whose changes do
+    not shrink steadily, gets no number."""
+    from planarize.metrics import pixel_curvature
+
+    noise = Surface(5.0 + 0.3 * np.random.default_rng(1).standard_normal((9, 9)), 1.0)
+    run = anodize(noise, 1.0, record=10)
+    p = run.parameters
+    assert pixel_curvature(noise) > 4 and not p["smooth"] and p["refine"] == 8
+    assert p["not_asymptotic"] == ["metal_rms_nm", "oxide_rms_nm"]
+    half, coarse, middle, fine = (history_at(noise, 1.0, f, 10) for f in (1, 2, 4, 8))
+    for column in ("metal_zrange_nm", "oxide_zrange_nm"):
+        order = np.log2(np.linalg.norm(middle[column] - coarse[column]) / np.linalg.norm(fine[column] - middle[column]))
+        before = np.log2(np.linalg.norm(coarse[column] - half[column]) / np.linalg.norm(middle[column] - coarse[column]))
+        assert order == pytest.approx(p["orders"][column], rel=1e-9)
+        q = min(order, 1.5) if order >= 1.5 and before >= 1.5 else min(order, 1.0)
+        np.testing.assert_allclose(run.history[column.replace("_nm", "_error_nm")],
+                                   np.abs(fine[column] - middle[column]) / (2 ** q - 1), rtol=1e-9, atol=1e-15)
+    assert np.isnan(run.history["metal_rms_error_nm"]).all()
 
 
 def test_the_estimate_takes_a_high_order_only_where_it_was_observed_twice_running():
@@ -264,6 +293,53 @@ def test_the_estimate_takes_a_high_order_only_where_it_was_observed_twice_runnin
     assert estimate_order(2.2, 1.2) == estimate_order(1.3, 2.5) == 1.0
     assert estimate_order(2.2, math.nan) == 1.5 and estimate_order(1.3, math.nan) == 1.3  # no order one grid coarser
     assert estimate_order(0.8, 2.0) == 0.8  # a low order is taken as it is
+    # on a map its pixels resolve, an order of 1.2 or more twice running (once on the reported grid) is taken as 1.8
+    assert estimate_order(1.25, 1.3, smooth=True) == estimate_order(2.9, math.nan, smooth=True) == 1.8
+    assert estimate_order(1.25, 1.1, smooth=True) == 1.0 and estimate_order(0.9, math.nan, smooth=True) == 0.9
+
+
+def test_a_quantity_that_changed_by_more_than_a_tenth_is_not_asymptotic_whatever_its_order():
+    """Richardson's expansion is one of small changes: a quantity the last refinement moved by more than
+    `ASYMPTOTIC_CHANGE` (0.1) of its value gets no number even at a steady order (a one-pixel checkerboard stated
+    117-125 % where the truth was 30-46 %); one moved by less keeps its estimate."""
+    from planarize.engines.resolution import ASYMPTOTIC_CHANGE, error_columns
+    from planarize.metrics import ESTIMATED
+
+    assert ASYMPTOTIC_CHANGE == 0.1
+    fine = {c: np.array([10.0, 8.0]) for c in ESTIMATED}
+    middle = {c: np.array([10.0, 8.0 + d]) for c, d in zip(ESTIMATED, (0.4, 0.79, 0.81, 3.0))}
+    orders = dict.fromkeys(ESTIMATED, 1.0)
+    errors = error_columns(fine, middle, orders, 2.0)
+    np.testing.assert_allclose(errors["metal_rms_error_nm"], [0.0, 0.4])
+    np.testing.assert_allclose(errors["metal_zrange_error_nm"], [0.0, 0.79])  # (9.9 % of 8)
+    assert np.isnan(errors["oxide_rms_error_nm"]).all() and np.isnan(errors["oxide_zrange_error_nm"]).all()
+    steep = error_columns(fine, middle, dict.fromkeys(ESTIMATED, 3.5), 2.0)  # an order past ORDER_HIGH: none either
+    assert all(np.isnan(column).all() for column in steep.values())
+
+
+def test_pixel_curvature_tells_a_map_its_pixels_resolve_from_one_with_pixel_scale_features():
+    """About 1 on the thesis's surfaces, 2 on a step, about 4.5 on noise and on a one-pixel pit, inf on a one-pixel
+    checkerboard (curvature without slope) and on a map with no interior point, 0 on a plane; a map and its copy
+    scaled in all three directions agree, and an anisotropic spacing enters as the geometric mean of the two."""
+    from planarize.metrics import pixel_curvature
+
+    assert 1.0 < pixel_curvature(surfaces.hill()) < 1.1 and 1.0 < pixel_curvature(surfaces.depression()) < 1.1
+    step = np.full((17, 17), 4.0)
+    step[:, 8:] = 7.0
+    assert pixel_curvature(Surface(step.T, 0.25)) == pytest.approx(2.0)
+    pit = np.full((17, 17), 4.0)
+    pit[8, 8] = 0.0
+    assert pixel_curvature(Surface(pit, 0.25)) == pytest.approx(np.sqrt(20.0))
+    checkerboard = 4.0 + 0.5 * (np.add.outer(np.arange(17), np.arange(17)) % 2)
+    assert pixel_curvature(Surface(checkerboard, 0.25)) == math.inf
+    assert pixel_curvature(Surface(np.array([[4.0, 0.0], [0.0, 0.0]]))) == math.inf
+    x, y = np.meshgrid(np.arange(9.0), np.arange(9.0), indexing="ij")
+    assert pixel_curvature(Surface(0.3 * x + 0.2 * y, 1.0)) < 1e-12
+    bowl = x ** 2 + y ** 2
+    assert pixel_curvature(Surface(bowl, 1.0)) == pytest.approx(pixel_curvature(Surface(100 * bowl, 10.0)))
+    stretched = Surface(np.add.outer(np.arange(9.0) ** 2, np.zeros(12)), (1.0, 3.0))
+    assert pixel_curvature(stretched) == pytest.approx(pixel_curvature(Surface(np.arange(9.0)[:, None] ** 2
+                                                                                + np.zeros((9, 12)), 1.0)) * np.sqrt(3))
 
 
 def test_a_quantity_that_does_not_converge_steadily_gets_no_number():
@@ -347,13 +423,12 @@ def converged_history(surface, thickness, factors, record):
 @pytest.mark.parametrize("name", ["hill", "depression", "random",
                                   pytest.param("ta", marks=pytest.mark.release)])  # (3 minutes: not in CI)
 def test_the_stated_error_is_near_the_true_error(name):
-    """The goal is a factor 2. Measured with the estimate at most 1.5 where a high order was observed twice running
-    and at most 1 otherwise (`resolution.estimate_order`): the RMS's ratio of stated to true error on these four
-    surfaces lies within 0.5-2.5, and no quantity is under-stated; the z-range of the depression and of the random
-    surface, which converges at order about 1.5 but not twice running at 1.5 or more, is over-stated 3.96x and
-    3.71x (with the order at most 1.5 throughout, every ratio was within 0.58-2.24, but real AFM maps were
-    under-stated down to 0.38: docs/planarize_continuum.md). So the bounds checked are 0.5-2.5 for the RMS and
-    0.5-4.5 for the z-range."""
+    """The goal is a factor 2. Measured with the estimate at 1.8 where the order reached 1.2 twice running on these
+    maps its pixels resolve, and otherwise at most 1.5 where a high order was observed twice running and at most 1
+    (`resolution.estimate_order`): the RMS's ratio of stated to true error on these four surfaces lies within
+    0.6-1.9; the z-range's within 0.53-1.71 but for the random surface's oxide, whose order at 4x (1.30) followed
+    1.15 one grid coarser and which is over-stated 3.5x (docs/planarize_continuum.md). So the bounds checked are
+    0.5-2.5 for the RMS and 0.5-4 for the z-range."""
     surface, thickness, factors = {
         "hill": (surfaces.hill(), 1.0, (2, 4, 8, 16)),
         "depression": (surfaces.depression(), 1.0, (2, 4, 8, 16)),
@@ -366,7 +441,7 @@ def test_the_stated_error_is_near_the_true_error(name):
     assert run.parameters["rtol_met"]
     for column in truth:
         true, stated = largest_relative(run, truth, column)
-        over = 2.5 if "rms" in column else 4.5
+        over = 2.5 if "rms" in column else 4.0
         assert 0.5 * true < stated < over * true and true < 0.02, (column, true, stated)
     if name == "ta":  # the thesis's Ta film: within 0.5 % of the converged RMS from 40 nm on, 0.6 % at 20 nm
         for column in ("metal_rms_nm", "oxide_rms_nm"):
