@@ -180,6 +180,24 @@ def test_bright_noise_near_saturation_is_no_scale_bar_and_a_drawn_bar_on_it_is_o
     assert bar is not None and bar.box == (200, 280, 260, 284) and bar.length_px == pytest.approx(60, abs=1)
 
 
+def test_a_bar_shorter_than_a_twentieth_of_the_picture_is_no_scale_bar():
+    """A scale bar is drawn to be read (a tenth to a quarter of the picture's side on the real pictures measured):
+    a bright 10 px run on a sphere's rim and a particle cut by the edge were taken for bars before. On a 544 x 512
+    film a drawn bar of 26 px (under 27.2) is none, one of 28 px is; on a 200 px picture the 10 px floor holds."""
+    from qdots.micrograph.scale import shortest_bar
+
+    assert shortest_bar((512, 544)) == pytest.approx(27.2) and shortest_bar((150, 200)) == 10.0
+    centres, diameters = sparse_board(544, 512, 15.0, 0.05, seed=3)
+    image = render_micrograph(centres, diameters, (512, 544), noise=0.02, seed=3)
+    short = image.copy()
+    short[490:494, 500:526] = image.min() - 0.2
+    assert find_scale_bar(short) is None
+    image[490:494, 500:528] = image.min() - 0.2
+    bar = find_scale_bar(image)
+    assert bar is not None and bar.box == (500, 490, 528, 494)
+    refused(lambda: scale_from_bar(None, "20nm"), "0.05 of the picture's longer side")
+
+
 @pytest.mark.parametrize("text", ["200", "nm", "-5nm", "0nm", "200 parsec", "1e999nm", "1e-300nm", "1e300 um"])
 def test_bad_scale_bar_lengths_are_refused(text):
     refused(lambda: parse_length(text), "scale_bar")
