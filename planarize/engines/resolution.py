@@ -349,8 +349,6 @@ def _max_steps(engine: ContinuumEngine, thickness: float) -> int:
 
 
 __all__ = ["converge", "error_columns", "observed_orders", "relative_error", "volume_error", "predicted_seconds",
-           "TooCostly", "ORDER_LOW", "ORDER_HIGH", "ASYMPTOTIC_CHANGE", "ORDER_CAP", "ROUGH_ORDER", "SMOOTH_CURVATURE", "SMOOTH_STEADY",
-           "SMOOTH_ORDER",
-           "estimate_order", "FLOOR", "BUDGET_S",
-           "SECONDS_PER_POINT_STEP",
+           "estimate_order", "TooCostly", "ORDER_LOW", "ORDER_HIGH", "ASYMPTOTIC_CHANGE", "ORDER_CAP", "ROUGH_ORDER",
+           "SMOOTH_CURVATURE", "SMOOTH_STEADY", "SMOOTH_ORDER", "FLOOR", "BUDGET_S", "SECONDS_PER_POINT_STEP",
            "LEVEL_GROWTH", "MIN_LEVEL_S", "SETTLE_S"]
