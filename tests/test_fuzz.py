@@ -22,6 +22,7 @@ from hypothesis import strategies as st
 import qdots
 from labrig.validate import InputError
 from planarize.cli import main as planarize_main
+from planarize.recording import Stalled
 from qdots.cli import main as qdots_main
 from qdots.io.experiment_file import experiment_from_dict
 
@@ -261,7 +262,11 @@ def check_height_map(tmp_path, capsys, rows, suffix, header) -> None:
     scene = load_scene(tmp_path / "imported.toml")
     surface = scene.build_surface()
     if surface.z.size <= 36 and scene.run.thickness / scene.run.step <= 1000:  # small enough to run
-        run = scene.anodize()
+        try:
+            run = scene.anodize()
+        except Stalled as exc:  # far steeper than the grid resolves: a one-line refusal naming what to try
+            assert "\n" not in str(exc) and "--engine fast" in str(exc)
+            return
         assert np.isfinite(run.oxide.z).all() and np.isfinite(run.distances).all()
 
 
@@ -270,7 +275,11 @@ HEADERS = st.sampled_from(["", "# Width: 4 nm\n# Height: 4 nm\n# Value units: nm
 HEIGHT_ARGS = dict(rows=GRIDS, suffix=st.sampled_from([".csv", ".txt", ".xyz", ".npy"]), header=HEADERS)
 
 
-test_height_maps, test_height_maps_many = fuzz_tests(check_height_map, **HEIGHT_ARGS)
+#: Found by the random test: a 3 x 3 map whose heights reach 8e5 nm on a 1.3 nm grid stalls the continuum engine.
+STEEP_MAP = dict(rows=[[838457, 3.917760261978877, 4.7283560223576], [838457, 3.917760261978877, 4.7283560223576],
+                       [-174884, -0.5, -688065]], suffix=".txt", header="# Width: 4 nm\n# Height: 4 nm\n# Value units: nm\n")
+
+test_height_maps, test_height_maps_many = fuzz_tests(check_height_map, STEEP_MAP, **HEIGHT_ARGS)
 
 
 # -- sweep files ---------------------------------------------------------------------------------------
