@@ -173,6 +173,7 @@ test_experiment_files, test_experiment_files_many = fuzz_tests(
     dict(mutations=[("forces.0.r0", False)]),  # found by CI: a key inside the list of forces
     dict(mutations=[("forces", 5), ("forces.1.scale", 2.0)]),  # a list made a value, then one of its tables
     dict(mutations=[("forces.1.interval", 1e-300)]),  # found by a user's run: a kick per 1e-300 s looped for ever
+    dict(mutations=[("restitution.sticking_speed", 1e-300)]),  # found by the random test: b overflowed to -inf
     mutations=MUTATIONS)
 
 

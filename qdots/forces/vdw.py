@@ -23,6 +23,9 @@ MAX_RANGE = 1000.0
 MAX_SCALE = 1000.0
 #: Largest Hamaker constant, mean-dot mass px^2/s^2 (the default is about 2e4).
 MAX_STRENGTH = 1e12
+#: Least sticking speed, px/s, the thesis proxy's offset ``b`` is derived from (`VanDerWaals.check_rule`): far below
+#: it ``b`` overflows to -inf in floating point (about 1e-155 px/s at the thesis's gap and range).
+MIN_PROXY_STICKING = 1e-150
 
 def thesis_offset(r0: float, min_gap: float, sticking_speed: float) -> float:
     """The offset ``b`` of the thesis proxy, px.
@@ -252,11 +255,13 @@ class VanDerWaals(Force):
         return {key: (None if key in self._unset else value) for key, value in params.items()}
 
     def check_rule(self, restitution) -> None:
-        """`InputError` when the offset ``b`` would come from a sticking speed of 0 (it would be -inf: no pull)."""
+        """`InputError` when the offset ``b`` would come from a sticking speed under `MIN_PROXY_STICKING` (0, or
+        so small that ``b`` overflows to -inf in floating point: no pull)."""
         if self.offset is None and (self.model == "thesis" or self.strength is None) \
-                and restitution.sticking_speed <= 0.0:
+                and not restitution.sticking_speed >= MIN_PROXY_STICKING:
             raise InputError("VanDerWaals derives the thesis proxy's offset b from restitution.sticking_speed, which "
-                             "is 0 (b would be -inf, no pull): give a sticking speed > 0 or VanDerWaals.offset")
+                             f"is {restitution.sticking_speed:g} (b would be -inf, no pull): give a sticking speed "
+                             f"of at least {MIN_PROXY_STICKING:g} px/s, or VanDerWaals.offset")
 
     def proxy_offset(self, sticking_speed: float) -> float:
         """The offset ``b`` of the thesis proxy, px: `offset`, else `thesis_offset` at ``sticking_speed`` px/s."""

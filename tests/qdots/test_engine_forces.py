@@ -149,6 +149,21 @@ def test_a_rule_that_never_sticks_and_the_thesis_proxy():
     assert given.state().velocities[0, 0] > 0.0  # pulled toward the other dot
 
 
+@pytest.mark.parametrize("speed", [1e-300, 1e-160])
+def test_a_sticking_speed_too_small_for_the_proxy_is_refused(speed):
+    """A sticking speed so small that the proxy's offset b overflows to -inf (found by the random test of
+    experiment files: 1e-300 ended in a ZeroDivisionError inside the first step) is refused in one line naming
+    the least one, as 0 is; the least one runs."""
+    scene = qdots.Scene(box=(100.0, 100.0), positions=[[30.0, 50.0], [60.0, 50.0]], radii=[7.5, 7.5])
+    with pytest.raises(InputError, match=r"which is 1e-[0-9]+ \(b would be -inf, no pull\): give a sticking "
+                                         r"speed of at least 1e-150 px/s"):
+        qdots.Simulation(scene, [qdots.VanDerWaals()], restitution=qdots.Restitution(sticking_speed=speed), seed=0)
+    least = qdots.Simulation(scene, [qdots.VanDerWaals()], restitution=qdots.Restitution(sticking_speed=1e-150),
+                             seed=0)
+    least.run(0.05)
+    assert np.isfinite(least.state().velocities).all()
+
+
 def kick_speed(force, gap, dt=1e-3, masses=(1.0, 1.0), time=0.0, pairs=None, restitution=None):
     """Speed change of dot 0 toward dot 1 in one step from ``time``, two 7.5 px dots at surface gap `gap`, under the
     pair scheme ``pairs`` (default `qdots.engine.PairScheme`) and collision rule ``restitution`` (default the thesis's)."""
