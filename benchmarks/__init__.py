@@ -22,6 +22,7 @@ BENCHMARKS = [
     "micrograph",
     "micrograph_films",
     "micrograph_real",
+    "micrograph_emps",
     "micrograph_twins",
     "qdots_identifiability",
     "qdots_infer",

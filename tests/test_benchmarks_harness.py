@@ -1,5 +1,6 @@
 """The benchmark harness keeps working: the report it writes, ``--only`` merging, the registration
-list, the settings every benchmark names, the marks of sections older than their code, and the Pareto rule; under
+list, the settings every benchmark names, the marks of sections older than their code, the Pareto rule and the EMPS
+strata read off hand-drawn labels; under
 ``-m slow``, the whole ``python -m benchmarks --quick`` within `QUICK_LIMIT` (about 3 minutes measured on a 2-core
 machine), each benchmark within `QUICK_EACH`.
 """
@@ -12,6 +13,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 import qdots
@@ -211,3 +213,41 @@ def test_the_report_marks_the_sections_older_than_their_code():
     assert "| [analysis](#analysis) | full | 1 | 2026-01-01T00:00:00+00:00 | unchanged since |" in text
     assert "1 of 2 sections are older than the code they measure: lqe." in text
     assert text.count("This section is older than its code") == 1
+
+
+def ellipse_labels(shape, centres, axes):
+    """Regions 1 .. n: ellipses of half-axes ``axes`` (a, b) along x and y at ``centres`` (x, y)."""
+    rows, cols = np.indices(shape)
+    labels = np.zeros(shape, dtype=np.int64)
+    for k, ((x, y), (a, b)) in enumerate(zip(centres, axes), start=1):
+        labels[((cols + 0.5 - x) / a) ** 2 + ((rows + 0.5 - y) / b) ** 2 <= 1.0] = k
+    return labels
+
+
+def test_the_emps_strata_read_off_the_labels():
+    """Round discs are a film to measure, ellipses of axis ratio 2 one to refuse; fewer than 10 whole particles, or
+    particles cut by the edge, are neither."""
+    from benchmarks.micrograph_emps import label_shapes, stratum
+
+    centres = [(30 + 60 * i, 30 + 60 * j) for i in range(4) for j in range(3)]
+    discs = label_shapes(ellipse_labels((200, 260), centres, [(15, 15)] * 12))
+    assert discs["particles"] == 12 and abs(discs["diameter"] - 30) < 1 and discs["aspect"] < 1.05
+    assert stratum(discs) == "round"
+    rods = label_shapes(ellipse_labels((200, 260), centres, [(20, 10)] * 12))
+    assert abs(rods["aspect"] - 2) < 0.1 and stratum(rods) == "not round"
+    assert stratum(label_shapes(ellipse_labels((200, 260), centres[:9], [(15, 15)] * 9))) is None
+    cut = label_shapes(ellipse_labels((200, 260), [(x - 30, y) for x, y in centres], [(15, 15)] * 12))
+    assert cut["particles"] == 9  # the first column crosses the edge
+
+
+def test_an_emps_file_that_is_not_the_manifests_is_not_kept(tmp_path, monkeypatch):
+    """Fetching from a folder: a picture whose sha256 is not the manifest's is reported and not written."""
+    from benchmarks import micrograph_emps
+
+    monkeypatch.setenv("NANODISORDER_REAL_MICROGRAPHS", str(tmp_path / "cache"))
+    first = micrograph_emps.manifest()["image"][0]["file"]
+    (tmp_path / "clone" / "images").mkdir(parents=True)
+    (tmp_path / "clone" / "images" / first).write_bytes(b"not the picture")
+    done = dict(micrograph_emps.fetch(tmp_path / "clone"))
+    assert done[first].startswith("failed: ValueError: sha256")
+    assert not (micrograph_emps.folder() / first).exists()
