@@ -26,9 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from labrig.files import atomic_path
-
-from .real_data import cache_folder, download, sha256
+from .real_data import cache_folder, fetch_one
 from .report import Headline, Note, Table, cli_with_options
 
 MEASURED_CODE = ("qdots/micrograph",)
@@ -73,17 +71,9 @@ def fetch(source: Path | None = None) -> list[tuple[str, str]]:
         for name, sub, base, digest in ((e["file"], "images", table["source"]["images"], e["sha256"]),
                                         (labels_name(e["file"]), "segmaps", table["source"]["labels"],
                                          e["labels_sha256"])):
-            path = target / name
-            if path.exists() and sha256(path.read_bytes()) == digest:
-                done.append((name, "present"))
-                continue
             try:
-                data = (source / sub / e["file"]).read_bytes() if source is not None else download(base + e["file"])
-                if sha256(data) != digest:
-                    raise ValueError(f"sha256 {sha256(data)[:12]}... is not the manifest's {digest[:12]}...")
-                with atomic_path(path) as tmp:
-                    tmp.write_bytes(data)
-                done.append((name, "copied" if source is not None else "downloaded"))
+                done.append((name, fetch_one(name, base + e["file"], digest, target,
+                                             None if source is None else source / sub, source_name=e["file"])))
             except (OSError, ValueError) as exc:
                 done.append((name, f"failed: {type(exc).__name__}: {exc}"))
     return done

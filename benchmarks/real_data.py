@@ -63,14 +63,15 @@ def download(url: str) -> bytes:
 
 
 def fetch_one(name: str, url: str, digest: str, folder: Path, source: Path | None, member: str | None = None,
-              member_digest: str | None = None) -> str:
-    """Put the file ``name`` in ``folder``: copied from ``source`` (a folder) or downloaded from ``url`` (a zip's
-    ``member`` when given), its sha256 checked. Returns what was done, in words."""
+              member_digest: str | None = None, source_name: str | None = None) -> str:
+    """Put the file ``name`` in ``folder``: copied from ``source`` (a folder; the file ``source_name`` there, default
+    ``name``) or downloaded from ``url`` (a zip's ``member`` when given), its sha256 checked. Returns what was done,
+    in words."""
     target = folder / name
     if target.exists() and sha256(target.read_bytes()) == digest:
         return "present"
     if source is not None:
-        data = (source / name).read_bytes()
+        data = (source / (source_name or name)).read_bytes()
     else:
         data = download(url)
         if member is not None:

@@ -1,8 +1,7 @@
 """The benchmark harness keeps working: the report it writes, ``--only`` merging, the registration
 list, the settings every benchmark names, the marks of sections older than their code, the Pareto rule and the EMPS
-strata read off hand-drawn labels; under
-``-m slow``, the whole ``python -m benchmarks --quick`` within `QUICK_LIMIT` (about 3 minutes measured on a 2-core
-machine), each benchmark within `QUICK_EACH`.
+strata read off hand-drawn labels; under ``-m slow``, the whole ``python -m benchmarks --quick`` within `QUICK_LIMIT`
+(about 3 minutes measured on a 2-core machine), each benchmark within `QUICK_EACH`.
 """
 
 import ast
@@ -249,5 +248,5 @@ def test_an_emps_file_that_is_not_the_manifests_is_not_kept(tmp_path, monkeypatc
     (tmp_path / "clone" / "images").mkdir(parents=True)
     (tmp_path / "clone" / "images" / first).write_bytes(b"not the picture")
     done = dict(micrograph_emps.fetch(tmp_path / "clone"))
-    assert done[first].startswith("failed: ValueError: sha256")
+    assert done[first].startswith(f"failed: ValueError: {first}: sha256")
     assert not (micrograph_emps.folder() / first).exists()
