@@ -90,9 +90,10 @@ def check_picture(image: np.ndarray, found: Annotations, source: str) -> None:
         raise NotAFilm(f"{source}: not a micrograph: {reason}", [reason])
 
 
-def film_verdict(detection) -> tuple[list[str], list[str]]:
+def film_verdict(detection, max_outline: float = MAX_OUTLINE) -> tuple[list[str], list[str]]:
     """Why the dots found are not a film of round particles (empty when they are), and what makes their measurement
-    doubtful (see the module), each in words with its numbers."""
+    doubtful (see the module), each in words with its numbers. ``max_outline``: the largest median outline of round
+    objects (`MAX_OUTLINE`; stricter where the picture was smoothed, which rounds every outline)."""
     whole = ~detection.cut
     n = int(np.count_nonzero(whole))
     if n < MIN_FILM_DOTS:
@@ -115,9 +116,9 @@ def film_verdict(detection) -> tuple[list[str], list[str]]:
     outline = shapes[np.isfinite(shapes[:, 1]), 1]
     if outline.size >= MIN_OUTLINES:
         wander, elongation = float(np.median(outline)), float(np.nanmedian(shapes[:, 0]))
-        if wander > MAX_OUTLINE:
+        if wander > max_outline:
             refusals.append(f"the objects are not round: their outlines wander {100 * wander:.0f} % from one radius "
-                            f"(median; round and faceted particles: under {100 * MAX_OUTLINE:.0f} %; a square's is 11 %, "
+                            f"(median; round and faceted particles: under {100 * max_outline:.0f} %; a square's is 11 %, "
                             "a triangle's 17 %): plates, cubes, cells?")
         elif elongation > MAX_ELONGATION and wander > ROUND_OUTLINE:
             refusals.append(f"the objects are elongated: their long axis is {elongation:.2f} times the short one "

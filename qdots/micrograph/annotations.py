@@ -47,6 +47,8 @@ MIN_STROKE, GLYPH_FILL, LABEL_INK = 8, 0.6, 0.15
 #: picture's width and height from a corner, at most PANEL_SIZE of its shorter side across; drawn flat, PANEL_FLAT of
 #: its pixels lie within 1 % of the range of the extreme.
 LABEL_SIZE, PANEL_CORNER, PANEL_SIZE, PANEL_FLAT = 0.35, 0.12, 0.15, 0.7
+#: The flat box a panel letter is printed on lies within PANEL_BOX of the picture's width and height from a corner.
+PANEL_BOX = 0.25
 
 
 @dataclass(frozen=True)
@@ -278,11 +280,39 @@ def panel_letters(image: np.ndarray, window: tuple[int, int, int, int]) -> np.nd
     return out
 
 
+def corner_boxes(image: np.ndarray, window: tuple[int, int, int, int]) -> tuple[tuple[int, int, int, int], ...]:
+    """Boxes in a corner of the picture ("(a)" on a white box in a journal figure's panel): a piece of flat colour
+    (`flatness`, within `FLAT` of the picture's range) in either extreme colour (within `LABEL_INK` of the range),
+    whose bounding box starts at a corner of the picture and lies within `PANEL_BOX` of its width and height, and
+    holds only the two extremes (at least `BOX_FILL` of its pixels, counting those within 2 px of the other: the
+    letters' anti-aliasing), of which at least `BOX_HOLES` the other (the ink). The letters may cut the box into pieces; each such piece is one (their union is
+    left out). ``(x0, y0, x1, y1)`` in image px."""
+    x0, y0, x1, y1 = window
+    picture = np.asarray(image, dtype=float)[y0:y1, x0:x1]
+    h, w = picture.shape
+    low, high = float(picture.min()), float(picture.max())
+    span = high - low
+    dark, light = picture <= low + LABEL_INK * span, picture >= high - LABEL_INK * span
+    flat = flatness(picture, FLAT * span)
+    boxes = []
+    for colour, ink in ((dark, light), (light, dark)):
+        labels, _ = ndimage.label(flat & colour)
+        for rows, cols in (b for b in ndimage.find_objects(labels) if b is not None):
+            corner = (rows.start == 0 or rows.stop == h) and (cols.start == 0 or cols.stop == w)
+            small = rows.stop - rows.start <= PANEL_BOX * h and cols.stop - cols.start <= PANEL_BOX * w
+            if corner and small and min(rows.stop - rows.start, cols.stop - cols.start) >= MIN_BOX:
+                inked = ink[rows, cols]
+                drawn = colour[rows, cols] | ndimage.binary_dilation(inked, iterations=2)
+                if drawn.mean() >= BOX_FILL and inked.mean() >= BOX_HOLES:
+                    boxes.append((cols.start + x0, rows.start + y0, cols.stop + x0, rows.stop + y0))
+    return tuple(boxes)
+
+
 def find_annotations(image: np.ndarray) -> Annotations:
     """Strips, boxes and the scale bar of ``image`` (see the module), and the pixels to leave out."""
     image = np.asarray(image, dtype=float)
     window, strips = find_strips(image)
-    boxes = find_boxes(image, window)
+    boxes = find_boxes(image, window) + corner_boxes(image, window)
     bar = find_scale_bar(image)
     ignore = np.zeros(image.shape, dtype=bool)
     for x0, y0, x1, y1 in boxes:

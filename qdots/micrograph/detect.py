@@ -49,7 +49,7 @@ import numpy as np
 from scipy import ndimage
 
 from labrig.threads import by_rows
-from labrig.validate import InputError, choice
+from labrig.validate import InputError, choice, real
 
 from ..geometry import nearest_ratio
 from .annotations import find_strips
@@ -118,13 +118,15 @@ STAGES = ("settling the blur and background", "fitting dots with their neighbour
 #: objects grow 2.7-12 times and their pixels 0.1-1.1 times; on 13 other real films 0.6-1.25 times; synthetic touching
 #: films of 6-10 px dots without vacancies merge when smoothed (objects 1.3-6 times larger, pixels 1.1-1.9 times).
 TEXTURE_GROWTH, TEXTURE_AREA, COARSE_SMOOTH = 2.0, 1.15, 3.0
+#: The widest smoothing (px) that `detect_dots` takes.
+MAX_SMOOTHING = 256.0
 #: The blobs' scale and skewness (`blob_skewness`) are read on the middle SKEW_SIDE x SKEW_SIDE px (a quarter of the
 #: pixels the edges are read on: they need hundreds of dots, not thousands).
 SKEW_SIDE = 512
 
 
 def detect_dots(image, polarity: str = "auto", profile: str = "auto", ignore: np.ndarray | None = None,
-                window: tuple[int, int, int, int] | None = None, step=None) -> Detection:
+                window: tuple[int, int, int, int] | None = None, step=None, smoothing: float | None = None) -> Detection:
     """Every dot of a grey image, with sub-pixel centres and fitted diameters (see the module docstring).
 
     Parameters
@@ -146,6 +148,10 @@ def detect_dots(image, polarity: str = "auto", profile: str = "auto", ignore: np
         strips along its sides, `qdots.micrograph.annotations.find_strips`).
     step : callable, optional
         Called with the name of each stage as it begins (`STAGES`: a progress bar's).
+    smoothing : float, optional
+        Width (px) of the Gaussian the picture is smoothed by before it is thresholded into dot pixels (the fits are
+        made on the picture smoothed by 1 px whatever it is). Default: 1 px, or more where the picture's grain or
+        texture is finer than its dots (`TEXTURE_GROWTH`).
 
     Returns
     -------
@@ -154,6 +160,8 @@ def detect_dots(image, polarity: str = "auto", profile: str = "auto", ignore: np
     """
     polarity = choice("polarity", polarity, POLARITIES)
     profile = choice("profile", profile, tuple(PROFILES))
+    if smoothing is not None:
+        smoothing = real("smoothing", smoothing, 0.5, MAX_SMOOTHING)
     image = np.asarray(image, dtype=float)
     if image.ndim != 2 or min(image.shape) < 2:
         raise InputError(f"image must be a 2-D array of at least 2 x 2 px, got shape {image.shape}")
@@ -169,7 +177,7 @@ def detect_dots(image, polarity: str = "auto", profile: str = "auto", ignore: np
     if x1 - x0 < 2 or y1 - y0 < 2:
         return _empty((h, w), "no picture left inside the frame or strips", 0)
     inner = (slice(y0, y1), slice(x0, x1))
-    found = _detect(image[inner], polarity, profile, ignore[inner], step or (lambda stage: None))
+    found = _detect(image[inner], polarity, profile, ignore[inner], step or (lambda stage: None), smoothing)
     centres = found.centres + [x0, y0]
     cut = found.cut | cut_dots(centres, found.diameters, (x0, y0, x1, y1), ignore)
     return replace(found, centres=centres, cut=cut, image_shape=(h, w), window=(x0, y0, x1, y1))
@@ -204,11 +212,13 @@ def first_look(unit: np.ndarray, ignore: np.ndarray, smoothing: float):
     return smooth, first, mask, 2.0 * typical_radius(ndimage.distance_transform_edt(mask))
 
 
-def _detect(image: np.ndarray, polarity: str, profile: str, ignore: np.ndarray, step) -> Detection:
+def _detect(image: np.ndarray, polarity: str, profile: str, ignore: np.ndarray, step,
+            smoothing: float | None = None) -> Detection:
     """`detect_dots` on an image without a frame; ``cut`` marks the dots whose watershed region touches its edge."""
     from skimage.filters import threshold_otsu
     from skimage.segmentation import watershed
 
+    given = smoothing is not None
     unit = scaled(image, ignore)
     if float(np.ptp(unit[~ignore])) < 1e-6:
         return _empty(image.shape, polarity, 0)
@@ -227,14 +237,17 @@ def _detect(image: np.ndarray, polarity: str, profile: str, ignore: np.ndarray, 
     # the objects grow `TEXTURE_GROWTH` times or more while their pixels do not: fragments rejoin the particles they
     # belong to, where touching dots would merge and gain area), the picture is smoothed at a third of the coarser
     # look's radius instead
-    smoothing = 1.0
+    smoothing = 1.0 if smoothing is None else smoothing
     smooth, first, mask, radius = first_look(unit, ignore, smoothing)
     half = (slice(None, None, 2), slice(None, None, 2))
-    coarse = first_look(unit[half], ignore[half], COARSE_SMOOTH / 2.0)  # at a quarter of the resolution: its radius only
-    if 2.0 * coarse[3] >= TEXTURE_GROWTH * radius and coarse[2].mean() <= TEXTURE_AREA * mask.mean():
-        smoothing = float(np.clip(2.0 * coarse[3] / 3.0, COARSE_SMOOTH / 2.0, 2.0 * COARSE_SMOOTH))
-        smooth, first, mask, radius = first_look(unit, ignore, smoothing)
-        how += f"; smoothed by {smoothing:.1f} px (the picture's grain or texture is finer than its dots)"
+    if given:
+        how += f"; smoothed by {smoothing:.1f} px (given)"
+    else:
+        coarse = first_look(unit[half], ignore[half], COARSE_SMOOTH / 2.0)  # at a quarter of the resolution: its radius
+        if 2.0 * coarse[3] >= TEXTURE_GROWTH * radius and coarse[2].mean() <= TEXTURE_AREA * mask.mean():
+            smoothing = float(np.clip(2.0 * coarse[3] / 3.0, COARSE_SMOOTH / 2.0, 2.0 * COARSE_SMOOTH))
+            smooth, first, mask, radius = first_look(unit, ignore, smoothing)
+            how += f"; smoothed by {smoothing:.1f} px (the picture's grain or texture is finer than its dots)"
     if radius < 0.5 * MIN_DIAMETER:
         return _empty(image.shape, how, 0)
     away = ~ndimage.binary_dilation(mask, iterations=max(1, int(0.15 * radius))) & ~ignore[half]

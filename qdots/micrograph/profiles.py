@@ -242,7 +242,10 @@ def central_curvature(sums, counts, rhos, radius, level) -> float:
 def predicted_curvature(shape: float, relative_blur: float) -> float:
     """``kappa r^2`` (`central_curvature`) of a dot of profile ``shape`` blurred by ``relative_blur`` radii: its
     tabulated profile (`profile_table`) fitted by ``alpha - beta u^2`` within `CENTRE` radii, weighted by the
-    radius as pixels are. About 0 for a flat disc, 0.56 for a projected sphere."""
+    radius as pixels are. About 0 for a flat disc, 0.56 for a projected sphere; NaN for a blur that is not finite
+    (no dot of the sample kept a radius)."""
+    if not math.isfinite(relative_blur):
+        return math.nan
     table = profile_table(shape)
     row = table[min(round(relative_blur * 100), table.shape[0] - 1)]
     u = np.arange(row.size) / 200.0

@@ -58,6 +58,8 @@ def scaled(image: np.ndarray, ignore: np.ndarray | None = None, clip: bool = Tru
     low, high = np.percentile(values[::SUBSAMPLE], [0.5, 99.5])
     if high <= low:
         low, high = float(values.min()), float(values.max())
+    if high <= low:  # one grey value: no structure to scale
+        return np.zeros(image.shape)
     out = (image - low) / (high - low)
     return np.clip(out, 0.0, 1.0) if clip else out
 

@@ -237,7 +237,8 @@ def settle_profile(image, centres, radii, contrast, background, typical: float, 
             radius = state.radius[inner]
             sums, counts, rhos = (part_[inner] for part_ in state.profiles)
             measured[p] = central_curvature(sums, counts, rhos, radius, found[p][1] * patch.part[inner])
-            predicted[p] = predicted_curvature(p, found[p][0] / float(np.nanmedian(radius)))
+            kept = radius[np.isfinite(radius)]  # none kept on a picture smoothed far: no curvature to predict
+            predicted[p] = predicted_curvature(p, found[p][0] / float(np.median(kept))) if kept.size else math.nan
         miss = {p: abs(measured[p] - predicted[p]) if np.isfinite(measured[p]) else np.inf for p in shapes}
         sphere = miss[0.5] <= SPHERE_MATCH * predicted[0.5] and miss[0.0] - miss[0.5] >= CURVATURE_MARGIN
         # blurred over a third of their radius or more, a sphere and a disc both match their curvature: the

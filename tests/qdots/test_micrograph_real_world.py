@@ -14,7 +14,7 @@ from PIL import Image
 from scipy import ndimage
 
 from qdots.cli import main
-from qdots.micrograph.annotations import find_annotations, flatness
+from qdots.micrograph.annotations import corner_boxes, find_annotations, flatness
 from qdots.micrograph.detect import detect_dots
 from qdots.micrograph.film import size_populations, size_spread
 from qdots.micrograph.measure import measure_image
@@ -243,6 +243,31 @@ def test_letters_beside_a_bar_are_left_out():
     assert not inside.any()
 
 
+def test_a_panel_letter_on_a_box_in_a_corner_is_left_out_with_its_box():
+    """A journal figure's "(a)" printed on a white box in its corner, the letters reaching the box's lower edge so that
+    they cut it into pieces (a real SEM monolayer of the EMPS set: the box was taken for the light dots)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    image = bar_film()
+    fig = Figure(figsize=(4, 3), dpi=100)
+    FigureCanvasAgg(fig)
+    fig.text(0.02, 0.85, "(a)", fontsize=22, fontweight="bold")
+    fig.canvas.draw()
+    ink = np.asarray(fig.canvas.buffer_rgba())[..., 0].astype(float) / 255.0  # 0 on the letters, anti-aliased
+    rows, cols = np.nonzero(ink < 0.5)
+    bottom, right = rows.max() + 1, cols.max() + 6
+    low, high = image.min() - 0.2, image.max() + 0.2
+    image[:bottom, :right] = low + (high - low) * ink[:bottom, :right]
+    found = find_annotations(image)
+    assert found.ignore[:bottom, :right].mean() > 0.97
+    detection = detect_dots(image, ignore=found.ignore, window=found.window)
+    inside = (detection.centres[:, 0] < right) & (detection.centres[:, 1] < bottom)
+    assert not inside.any()
+    saturated = np.minimum(bar_film(), np.median(bar_film()))  # a background flat to the corners is no box
+    assert corner_boxes(saturated, (0, 0, saturated.shape[1], saturated.shape[0])) == ()
+
+
 def whole_image_label_strokes(image, bar):
     """The oracle of `label_strokes`: its rule applied to the whole image (the search box as a mask, as before the
     box was cut out; 24 times slower on real micrographs)."""
@@ -368,3 +393,69 @@ def test_a_2_by_2_picture_and_absurd_scales_are_one_line_errors(tmp_path, capsys
     message = last_error_line(capsys.readouterr().err)
     assert words in message
     assert not (tmp_path / "out").exists()
+
+
+def test_when_the_phase_chosen_holds_no_dot_the_other_is_tried(tmp_path, monkeypatch):
+    """Close-packed SEM spheres of the EMPS set: the automatic polarity took the dark interstices, found no dot and
+    the command ended there; only a refusal, not an empty detection, tried the other phase."""
+    from qdots.micrograph import measure
+
+    centres, diameters = sparse_board(400, 300, 16.0, 0.05, seed=5)
+    path = tmp_path / "film.png"
+    Image.fromarray(np.clip(render_micrograph(centres, diameters, (300, 400), noise=0.02, seed=5) * 200, 0, 255)
+                    .astype(np.uint8)).save(path)
+    found = measure.detect_dots
+
+    def wrong_phase_first(image, polarity="auto", **options):
+        if polarity == "auto":  # as if the light phase had been chosen, and held nothing
+            return found(np.random.default_rng(0).random((24, 24)), polarity="light")
+        return found(image, polarity=polarity, **options)
+
+    monkeypatch.setattr(measure, "detect_dots", wrong_phase_first)
+    film = measure_image(path, lqe=False)
+    assert film.detection.dark and film.state.n_dots >= 10
+    assert "no dots found" in film.summary["polarity"] and "these are" in film.summary["polarity"]
+
+
+def test_a_sample_with_no_radius_left_predicts_no_curvature():
+    """A picture smoothed by many px left a sample of dots with no fitted radius: the curvature predicted at a NaN
+    blur ended in "cannot convert float NaN to integer"; it is NaN, and the flat disc is kept."""
+    from qdots.micrograph.profiles import predicted_curvature
+
+    assert math.isnan(predicted_curvature(0.5, math.nan)) and math.isnan(predicted_curvature(0.0, math.inf))
+    assert predicted_curvature(0.5, 0.0) == pytest.approx(0.56, abs=0.05)
+
+
+@pytest.mark.slow  # 20 s: the picture is detected three times
+def test_particles_cut_into_pieces_by_their_texture_are_found_again_smoothed(tmp_path):
+    """Particles whose inner texture is coarser than the noise (as core-shell, porous or rough SEM particles of the
+    EMPS set): the threshold cuts each into pieces that are not round, and the picture was refused; smoothed by half
+    the pieces' diameter, the particles are found whole and measured."""
+    rng = np.random.default_rng(1)
+    shape = (400, 520)
+    centres, diameters = sparse_board(shape[1], shape[0], 44.0, 0.03, coverage=0.3, seed=2)
+    rows, cols = np.indices(shape)
+    inside = np.zeros(shape, dtype=bool)
+    for (x, y), d in zip(centres, diameters):
+        inside |= (cols + 0.5 - x) ** 2 + (rows + 0.5 - y) ** 2 <= (d / 2) ** 2
+    texture = 3.0 * ndimage.gaussian_filter(rng.standard_normal(shape), 1.5)
+    image = np.where(inside, 0.5 + texture, 1.0)
+    image = ndimage.gaussian_filter(image, 1.0) + 0.02 * rng.standard_normal(shape)
+    path = tmp_path / "textured.png"
+    Image.fromarray(np.clip(image * 200, 0, 255).astype(np.uint8)).save(path)
+    first = detect_dots(np.asarray(Image.open(path), dtype=float))
+    assert first.n_dots > 2 * len(centres)  # cut into pieces
+    film = measure_image(path, lqe=False)
+    assert "smoothed by" in film.summary["polarity"] and "not round" in film.summary["polarity"]
+    whole = ~film.detection.cut
+    truth = diameters[(centres[:, 0] > 25) & (centres[:, 0] < shape[1] - 25) & (centres[:, 1] > 25)
+                      & (centres[:, 1] < shape[0] - 25)]
+    assert abs(int(whole.sum()) - len(truth)) <= 0.15 * len(truth)
+    assert np.median(film.detection.diameters[whole]) == pytest.approx(np.median(diameters), rel=0.1)
+
+
+def test_a_picture_of_one_grey_value_has_no_dots_and_no_warning():
+    """Scaled by its percentiles, a flat picture divided by zero (a RuntimeWarning, then NaN everywhere)."""
+    for value in (0.0, 0.7):
+        detection = detect_dots(np.full((24, 30), value))
+        assert detection.n_dots == 0
