@@ -92,6 +92,7 @@ from .segment import (
     split_fused,
     stretch,
     typical_radius,
+    watershed_parts,
 )
 from .settle import FIRST_BLUR, samples_hold, settle_profile
 from .shapes import OVERLAP_SHARE, overlap_share, region_shapes
@@ -216,7 +217,6 @@ def _detect(image: np.ndarray, polarity: str, profile: str, ignore: np.ndarray, 
             smoothing: float | None = None) -> Detection:
     """`detect_dots` on an image without a frame; ``cut`` marks the dots whose watershed region touches its edge."""
     from skimage.filters import threshold_otsu
-    from skimage.segmentation import watershed
 
     given = smoothing is not None
     unit = scaled(image, ignore)
@@ -282,7 +282,7 @@ def _detect(image: np.ndarray, polarity: str, profile: str, ignore: np.ndarray, 
         return _empty(image.shape, how, rejected)
     markers = np.zeros(image.shape, dtype=np.int32)
     markers[tuple(peaks.T)] = np.arange(1, n + 1)
-    labels = split_fused(watershed(-response, markers, mask=mask), distance)
+    labels = split_fused(watershed_parts(-response, markers, mask), distance)
     props = region_properties(labels)
     shapes = region_shapes(labels)
     h, w = image.shape

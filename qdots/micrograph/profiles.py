@@ -14,6 +14,7 @@ import math
 import numpy as np
 
 from labrig.compiled import jit
+from labrig.threads import by_chunks
 
 #: Radius search of the profile fit, in units of the segmented radius, and its step.
 FIT_LOW, FIT_HIGH, FIT_STEP = 0.6, 1.5, 0.0025
@@ -69,6 +70,28 @@ def table_value(table, s, u):
     b = ui - j
     return ((1 - a) * ((1 - b) * table[i, j] + b * table[i, j + 1])
             + a * ((1 - b) * table[i + 1, j] + b * table[i + 1, j + 1]))
+
+
+@jit
+def blur_row(table, s, out):
+    """Fill ``out`` with `profile_table`'s profile at relative blur ``s`` (interpolated between its rows as
+    `table_value` does): `row_value` then reads it at any radius, for the many pixels of one dot."""
+    si = min(s * 100.0, 59.999) if s > 0.0 else 0.0
+    i = int(si)
+    a = si - i
+    for j in range(table.shape[1]):
+        out[j] = (1 - a) * table[i, j] + a * table[i + 1, j]
+
+
+@jit(inline=True)
+def row_value(row, u):
+    """Linear value of a `blur_row` at radius ``u`` (0 beyond it or at NaN)."""
+    ui = u * 200.0
+    if not (0.0 <= ui < 399.999):
+        return 0.0
+    j = int(ui)
+    b = ui - j
+    return (1 - b) * row[j] + b * row[j + 1]
 
 
 @jit
@@ -176,15 +199,27 @@ def polish_dot(sums, counts, rhos, level, free, table, blur, start, step, low, h
     return r, big, c, error
 
 
-@jit
 def fit_profiles(sums, counts, rhos, level, free, start, table, blur, low, high, step):
-    """Fit ``B - C F(rho / r)`` to each dot's radial profile (`fit_dot`); returns (r, B, C, residual) arrays.
+    """Fit ``B - C F(rho / r)`` to each dot's radial profile (`fit_dot`), chunks of dots side by side in threads
+    (`labrig.threads.by_chunks`); returns (r, B, C, residual) arrays.
 
     ``sums[i, b]``, ``counts[i, b]`` and ``rhos[i, b]`` are the summed values, pixel counts and summed radii
     (px) of dot ``i``'s bin ``b`` (`radial_profiles`; the model is taken at each bin's mean radius, not its
     middle, which matters for a centre on the pixel grid's symmetry points); ``start[i]`` is its segmented
     radius; ``level[i]`` its background (``B``, unless ``free``: then fitted). r runs over ``start * [low, high]``.
     """
+    level = np.ascontiguousarray(np.broadcast_to(np.asarray(level, dtype=float), (len(sums),)))
+    start = np.asarray(start, dtype=float)
+    pieces = by_chunks(lambda a, b: fit_profiles_part(sums[a:b], counts[a:b], rhos[a:b], level[a:b], free, start[a:b],
+                                                      table, blur, low, high, step), len(sums))
+    if not pieces:
+        return tuple(np.full(0, value) for value in (np.nan, np.nan, np.nan, np.inf))
+    return tuple(np.concatenate(part) for part in zip(*pieces))
+
+
+@jit
+def fit_profiles_part(sums, counts, rhos, level, free, start, table, blur, low, high, step):
+    """`fit_profiles` of these dots in this thread."""
     n = sums.shape[0]
     radius = np.full(n, np.nan)
     background = np.full(n, np.nan)
@@ -256,19 +291,33 @@ def predicted_curvature(shape: float, relative_blur: float) -> float:
 
 def radial_profiles(image, regions, centres, n_bins: int):
     """Summed values, pixel counts and summed radii (px) of each region's pixels in radial bins of `BIN` px
-    around its centre (NaN pixels left out)."""
-    rows, cols = np.nonzero(regions)
-    label = regions[rows, cols] - 1
-    rho = np.hypot(cols + 0.5 - centres[label, 0], rows + 0.5 - centres[label, 1])
-    b = (rho / BIN).astype(np.intp)
-    values = image[rows, cols]
-    keep = (b < n_bins) & np.isfinite(values)  # NaN: a pixel left out
-    index = label[keep] * n_bins + b[keep]
+    around its centre (NaN pixels left out): regions labelled 1 .. N in ``regions`` (0 none), ``centres`` (N, 2)."""
+    centres = np.ascontiguousarray(centres, dtype=float).reshape(-1, 2)
     n = len(centres)
-    sums = np.bincount(index, values[keep], n * n_bins).reshape(n, n_bins)
-    counts = np.bincount(index, None, n * n_bins).reshape(n, n_bins)
-    rhos = np.bincount(index, rho[keep], n * n_bins).reshape(n, n_bins)
+    sums, counts, rhos = np.zeros((n, n_bins)), np.zeros((n, n_bins)), np.zeros((n, n_bins))
+    region_bins(np.asarray(image, dtype=float), np.asarray(regions), centres, sums, counts, rhos)
     return sums, counts, rhos
+
+
+@jit
+def region_bins(image, regions, centres, sums, counts, rhos):
+    """Add each labelled pixel of ``image`` to its region's radial bin (`radial_profiles`), pixel after pixel in
+    row-major order."""
+    h, w = regions.shape
+    n_bins = sums.shape[1]
+    for row in range(h):
+        for col in range(w):
+            k = regions[row, col] - 1
+            if k < 0:
+                continue
+            rho = math.hypot(col + 0.5 - centres[k, 0], row + 0.5 - centres[k, 1])
+            b = int(rho / BIN)
+            value = image[row, col]
+            if b >= n_bins or not np.isfinite(value):  # NaN: a pixel left out
+                continue
+            sums[k, b] += value
+            counts[k, b] += 1.0
+            rhos[k, b] += rho
 
 
 @jit

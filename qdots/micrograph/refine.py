@@ -22,9 +22,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from labrig.compiled import jit
-from labrig.threads import available_threads, run_in_threads
+from labrig.threads import available_threads, by_chunks, run_in_threads
 
-from .profiles import BIN, FIT_STEP, fit_dot, polish_dot, profile_table, table_value
+from .profiles import BIN, FIT_STEP, blur_row, fit_dot, polish_dot, profile_table, row_value
 
 #: Fitting passes.
 PASSES = 3
@@ -50,31 +50,40 @@ def paint_dot(model, x, y, r, c, table, blur, sign):
 
 @jit
 def replace_dot(model, old_x, old_y, old_r, old_c, x, y, r, c, table, blur):
-    """Take a dot's old model (centre, radius, contrast) out of ``model`` and put its new one in, in one sweep
-    over the pixels either covers (out to twice its radius)."""
+    """Take a dot's old model (centre, radius, contrast) out of ``model`` and put its new one in (`add_disc`)."""
+    curve = np.empty(table.shape[1])
+    if old_r > 0.0 and old_c != 0.0:
+        blur_row(table, blur / old_r, curve)
+        add_disc(model, old_x, old_y, old_r, -old_c, curve)
+    if r > 0.0 and c != 0.0:
+        blur_row(table, blur / r, curve)
+        add_disc(model, x, y, r, c, curve)
+
+
+@jit(inline=True)
+def disc_columns(x, dy, reach, w):
+    """The columns (start, stop) of an image ``w`` px wide, on a row ``dy`` px from a centre at ``x``, that may lie
+    within ``reach`` px of it (an empty range where none can): a superset, each pixel still tested."""
+    if dy * dy >= reach * reach:
+        return 0, 0
+    half = math.sqrt(reach * reach - dy * dy)
+    return max(0, int(x - 0.5 - half)), min(w, int(x - 0.5 + half) + 2)
+
+
+@jit
+def add_disc(model, x, y, r, c, curve):
+    """Add ``c`` times the profile ``curve`` (a `qdots.micrograph.profiles.blur_row`) at radius ``r`` around (x, y) to
+    ``model``, out to twice the radius, row by row over the columns that distance reaches."""
     h, w = model.shape
-    old = old_r > 0.0 and old_c != 0.0
-    new = r > 0.0 and c != 0.0
-    if not old and not new:
-        return
-    reach = 2.0 * max(old_r if old else 0.0, r if new else 0.0)
-    mx = 0.5 * (old_x + x) if old and new else (x if new else old_x)
-    my = 0.5 * (old_y + y) if old and new else (y if new else old_y)
-    reach += 0.5 * math.sqrt((x - old_x) ** 2 + (y - old_y) ** 2) if old and new else 0.0
-    s_old = blur / old_r if old else 0.0
-    s_new = blur / r if new else 0.0
-    for row in range(max(0, int(my - reach)), min(h, int(my + reach) + 2)):
-        for col in range(max(0, int(mx - reach)), min(w, int(mx + reach) + 2)):
-            change = 0.0
-            if new:
-                rho = math.sqrt((col + 0.5 - x) ** 2 + (row + 0.5 - y) ** 2)
-                if rho < 2.0 * r:
-                    change += c * table_value(table, s_new, rho / r)
-            if old:
-                rho = math.sqrt((col + 0.5 - old_x) ** 2 + (row + 0.5 - old_y) ** 2)
-                if rho < 2.0 * old_r:
-                    change -= old_c * table_value(table, s_old, rho / old_r)
-            model[row, col] += change
+    reach = 2.0 * r
+    for line in range(max(0, int(y - reach)), min(h, int(y + reach) + 2)):
+        dy = line + 0.5 - y
+        start, stop = disc_columns(x, dy, reach, w)
+        for col in range(start, stop):
+            dx = col + 0.5 - x
+            rho = math.sqrt(dx * dx + dy * dy)
+            if rho < reach:
+                model[line, col] += c * row_value(curve, rho / r)
 
 
 @jit
@@ -94,12 +103,15 @@ def dot_profile(image, model, x, y, r, c, table, blur, far, bin_width, parity, s
     rhos[:] = 0.0
     h, w = image.shape
     own = r > 0.0 and c > 0.0
-    s = blur / r if own else 0.0
+    curve = np.empty(table.shape[1])
+    if own:
+        blur_row(table, blur / r, curve)
     n_bins = sums.shape[0]
     for row in range(max(0, int(y - far)), min(h, int(y + far) + 2)):
-        for col in range(max(0, int(x - far)), min(w, int(x + far) + 2)):
+        dy = row + 0.5 - y
+        start, stop = disc_columns(x, dy, far, w)
+        for col in range(start, stop):
             dx = col + 0.5 - x
-            dy = row + 0.5 - y
             rho = math.sqrt(dx * dx + dy * dy)
             b = int(rho / bin_width)
             if rho >= far or b >= n_bins:
@@ -110,24 +122,30 @@ def dot_profile(image, model, x, y, r, c, table, blur, far, bin_width, parity, s
             if not (v == v):  # a pixel left out (NaN)
                 continue
             if own:
-                v -= c * table_value(table, s, rho / r)
+                v -= c * row_value(curve, rho / r)
             sums[b] += v
             counts[b] += 1.0
             rhos[b] += rho
 
 
-@jit
 def dot_profiles(image, model, centres, radii, contrast, table, blurs, reach, n_bins, bin_width, parity):
     """`dot_profile` of every dot: (sums, counts, rhos) arrays of shape (N, n_bins), as
-    `qdots.micrograph.profiles.radial_profiles` gives."""
+    `qdots.micrograph.profiles.radial_profiles` gives; chunks of dots side by side in threads
+    (`labrig.threads.by_chunks`)."""
     n = len(radii)
-    sums = np.zeros((n, n_bins))
-    counts = np.zeros((n, n_bins))
-    rhos = np.zeros((n, n_bins))
-    for k in range(n):
+    sums, counts, rhos = np.zeros((n, n_bins)), np.zeros((n, n_bins)), np.zeros((n, n_bins))
+    by_chunks(lambda start, stop: dot_profiles_part(image, model, centres, radii, contrast, table, blurs, reach,
+                                                    bin_width, parity, start, stop, sums, counts, rhos), n)
+    return sums, counts, rhos
+
+
+@jit
+def dot_profiles_part(image, model, centres, radii, contrast, table, blurs, reach, bin_width, parity, start, stop,
+                      sums, counts, rhos):
+    """`dot_profiles` of dots ``start`` .. ``stop`` - 1, into rows of ``sums``, ``counts`` and ``rhos``."""
+    for k in range(start, stop):
         dot_profile(image, model, centres[k, 0], centres[k, 1], radii[k], contrast[k], table, blurs[k], reach[k],
                     bin_width, parity, sums[k], counts[k], rhos[k])
-    return sums, counts, rhos
 
 
 @jit
@@ -139,18 +157,20 @@ def centre_shift(image, model, x, y, r, c, table, blur, level):
     window = 0.9 * r
     if not (r > 0.0) or x - window < 0.0 or y - window < 0.0 or x + window > w or y + window > h:
         return 0.0, 0.0
-    s = blur / r
+    curve = np.empty(table.shape[1])
+    blur_row(table, blur / r, curve)
     sx = 0.0
     sy = 0.0
     total = 0.0
     for row in range(max(0, int(y - window)), min(h, int(y + window) + 2)):
-        for col in range(max(0, int(x - window)), min(w, int(x + window) + 2)):
+        dy = row + 0.5 - y
+        start, stop = disc_columns(x, dy, window, w)
+        for col in range(start, stop):
             dx = col + 0.5 - x
-            dy = row + 0.5 - y
             rho = math.sqrt(dx * dx + dy * dy)
             if rho >= window:
                 continue
-            dark = level - (image[row, col] + model[row, col] - c * table_value(table, s, rho / r))
+            dark = level - (image[row, col] + model[row, col] - c * row_value(curve, rho / r))
             if dark > 0.0:  # (False for a pixel left out: NaN)
                 sx += dark * dx
                 sy += dark * dy

@@ -9,6 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
+from labrig.threads import run_tasks
 from labrig.validate import InputError, real
 
 from .choices import MAX_NM_PER_PX, MIN_NM_PER_PX
@@ -164,10 +165,11 @@ def find_scale_bar(image: np.ndarray) -> ScaleBar | None:
     best = None
     h_img, w_img = image.shape
     shortest = shortest_bar(image.shape)
-    for dark, value in ((True, low), (False, high)):
-        colour = np.abs(image - value) <= BAR_TOLERANCE * span
-        closed = colour | ndimage.binary_closing(colour, np.ones((1, BAR_GAP))) | ndimage.binary_closing(
-            colour, np.ones((BAR_GAP, 1)))
+    colours = [np.abs(image - value) <= BAR_TOLERANCE * span for value in (low, high)]
+    closings = run_tasks([lambda colour=colour, line=line: ndimage.binary_closing(colour, np.ones(line))
+                          for colour in colours for line in ((1, BAR_GAP), (BAR_GAP, 1))])  # side by side in threads
+    for dark, colour, along, across in zip((True, False), colours, closings[::2], closings[1::2]):
+        closed = colour | along | across
         labels, _n = ndimage.label(closed)
         for k, box in enumerate(ndimage.find_objects(labels), start=1):
             if box is None:

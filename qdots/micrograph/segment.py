@@ -13,7 +13,7 @@ import numpy as np
 from scipy import ndimage
 
 from labrig.compiled import jit
-from labrig.threads import by_rows, run_in_threads
+from labrig.threads import BAND_ROWS, by_rows, run_in_threads, run_tasks
 
 from ..geometry import pairs_within
 from .profiles import BIN
@@ -141,7 +141,8 @@ def typical_radius(distance: np.ndarray) -> float:
     """The radius of a typical object, from the distance transform of the objects' pixels: the median of
     its maxima (over 5 x 5 px) that reach half the 90th percentile of them (text strokes and noise fall
     below), px."""
-    peaks = distance[(distance >= 1.0) & (distance == ndimage.maximum_filter(distance, size=5))]
+    peaks = distance[(distance >= 1.0) & (distance == by_rows(lambda part: ndimage.maximum_filter(part, size=5),
+                                                               distance, 2))]
     if peaks.size == 0:
         return 0.0
     high = np.percentile(peaks, 90)
@@ -206,6 +207,36 @@ def fill_small_holes(mask: np.ndarray, largest: float) -> np.ndarray:
     return mask | small[holes]
 
 
+def watershed_parts(surface: np.ndarray, markers: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """`skimage.segmentation.watershed` of ``surface`` from ``markers`` within ``mask`` (4-connected), the mask's
+    connected pieces flooded in groups side by side in threads (`labrig.threads.run_tasks`; scikit-image floods
+    without the GIL): the pieces that begin in each band of `labrig.threads.BAND_ROWS` rows, a group; an image of
+    fewer than two bands is flooded whole. A flood never leaves the piece of the mask it starts in, so each piece gets
+    the labels one watershed of the whole gives it, but for seeds of one piece at equal heights: scikit-image takes
+    those in an order its heap decides, which the other pieces in it sway, so the pixels halfway between two such seeds
+    may go to either. The groups do not depend on the number of threads, nor then the labels."""
+    from skimage.segmentation import watershed
+
+    if mask.shape[0] < 2 * BAND_ROWS:
+        return watershed(surface, markers, mask=mask)
+    pieces, n = ndimage.label(mask)
+    if n < 2:
+        return watershed(surface, markers, mask=mask)
+    found = cast(list[tuple[slice, slice]], ndimage.find_objects(pieces))  # every label 1 .. n is present
+    band = np.array([rows.start for rows, _ in found]) // BAND_ROWS
+    last = np.array([rows.stop for rows, _ in found])
+    jobs = []
+    for b in np.unique(band):
+        rows = slice(int(b) * BAND_ROWS, int(last[band == b].max()))
+        jobs.append((rows, np.concatenate([[False], band == b])[pieces[rows]]))
+    floods = run_tasks([lambda rows=rows, member=member: watershed(surface[rows], np.where(member, markers[rows], 0),
+                                                                   mask=member) for rows, member in jobs])
+    labels = np.zeros(mask.shape, dtype=floods[0].dtype)
+    for (rows, member), flood in zip(jobs, floods):
+        labels[rows][member] = flood[member]
+    return labels
+
+
 def split_fused(labels: np.ndarray, distance: np.ndarray) -> np.ndarray:
     """Split regions that are two or more fused dots with no neck between them.
 
@@ -266,9 +297,12 @@ def blob_skewness(image: np.ndarray, ignore: np.ndarray, noise: float) -> tuple[
     as is a border of two ``sigma``. Returns the skewness and the scale ``sigma``, px (0 and 0 with no structure
     above the noise)."""
     filled = np.where(ignore, float(np.median(image[~ignore])), image)
-    best, chosen = (0.0, 0.0, 0.0), 0.0
-    sigma = 1.0
-    while sigma <= min(image.shape) / 8.0:
+    sigmas: list[float] = []
+    while (sigmas[-1] * 1.25 if sigmas else 1.0) <= min(image.shape) / 8.0:
+        sigmas.append(sigmas[-1] * 1.25 if sigmas else 1.0)
+
+    def moments(sigma: float) -> tuple[float, float, float]:
+        """The response's variance less the noise's, its variance and third moment at ``sigma`` (0s: too few px)."""
         block = max(1, int(sigma / 2.0)) if sigma >= 4.0 else 1
         h, w = (side // block * block for side in image.shape)
         shrunk = filled[:h, :w].reshape(h // block, block, w // block, block).mean(axis=(1, 3))
@@ -280,13 +314,16 @@ def blob_skewness(image: np.ndarray, ignore: np.ndarray, noise: float) -> tuple[
         gain = float(np.sum((s * s * ndimage.gaussian_laplace(impulse, s, mode="constant")) ** 2))
         edge = math.ceil(2.0 * s)
         values = response[edge:-edge, edge:-edge][~hidden[edge:-edge, edge:-edge]]
-        if values.size >= 16:
-            centred = values - values.mean()
-            variance = float(np.mean(centred**2))
-            excess = variance - gain * (noise / block) ** 2
-            if excess > best[0]:
-                best, chosen = (excess, variance, float(np.mean(centred**3))), sigma
-        sigma *= 1.25
+        if values.size < 16:
+            return 0.0, 0.0, 0.0
+        centred = values - values.mean()
+        variance = float(np.mean(centred**2))
+        return variance - gain * (noise / block) ** 2, variance, float(np.mean(centred**3))
+
+    best, chosen = (0.0, 0.0, 0.0), 0.0
+    for sigma, found in zip(sigmas, run_tasks([lambda sigma=sigma: moments(sigma) for sigma in sigmas])):
+        if found[0] > best[0]:  # the first scale of the largest excess (the scales computed side by side in threads)
+            best, chosen = found, sigma
     excess, variance, third = best
     return (third / variance**1.5 if excess > 0 else 0.0), chosen
 
@@ -377,7 +414,15 @@ def disc_maximum(values: np.ndarray, radius: int) -> np.ndarray:
     time proportional to ``radius`` times the pixels and memory to the pixels. The same as
     ``scipy.ndimage.maximum_filter`` with that footprint for a radius under the image's shorter side (its
     "reflect" edges then add no value the disc does not hold), whose time grows with the footprint's area and
-    memory with its square (a radius of 120 px over 1200 x 1600 px: 116 s and 20 GB)."""
+    memory with its square (a radius of 120 px over 1200 x 1600 px: 116 s and 20 GB). A radius under a quarter of
+    `labrig.threads.BAND_ROWS` is computed on bands of rows side by side (`labrig.threads.by_rows`: exact)."""
+    if radius < BAND_ROWS // 4:
+        return by_rows(lambda part: disc_maximum_whole(part, radius), values, radius)
+    return disc_maximum_whole(values, radius)
+
+
+def disc_maximum_whole(values: np.ndarray, radius: int) -> np.ndarray:
+    """`disc_maximum` computed on the whole of ``values`` at once."""
     out = ndimage.maximum_filter1d(values, 2 * radius + 1, axis=1)
     for dy in range(1, min(radius, values.shape[0] - 1) + 1):
         row = ndimage.maximum_filter1d(values, 2 * math.isqrt(radius * radius - dy * dy) + 1, axis=1)
@@ -422,12 +467,31 @@ def region_properties(labels: np.ndarray) -> dict:
     """``label``, ``area``, ``centroid-0`` (row), ``centroid-1`` (column) and ``edge`` (touches the image's
     edge) of regions 1 .. max of ``labels``, by counting (as `skimage.measure.regionprops_table`, faster)."""
     n = int(labels.max())
-    flat = labels.ravel()
-    rows, cols = np.divmod(np.arange(flat.size), labels.shape[1])
-    area = np.bincount(flat, minlength=n + 1)[1:].astype(float)
-    safe = np.maximum(area, 1.0)
+    sums = label_moments(np.ascontiguousarray(labels, dtype=np.int64), n, 0.0)
+    safe = np.maximum(sums[0], 1.0)
     edge = np.zeros(n + 1, dtype=bool)
     edge[np.concatenate([labels[0], labels[-1], labels[:, 0], labels[:, -1]])] = True
-    return {"label": np.arange(1, n + 1), "area": area,
-            "centroid-0": np.bincount(flat, rows, n + 1)[1:] / safe,
-            "centroid-1": np.bincount(flat, cols, n + 1)[1:] / safe, "edge": edge[1:]}
+    return {"label": np.arange(1, n + 1), "area": sums[0], "centroid-0": sums[1] / safe, "centroid-1": sums[2] / safe,
+            "edge": edge[1:]}
+
+
+@jit
+def label_moments(labels, n, offset):
+    """Per region (1 .. n) of ``labels``, rows of: its pixel count and the sums of y, x, y^2, x^2 and xy over its
+    pixels (y = row + ``offset``, x = column + ``offset``, px), pixel after pixel in row-major order."""
+    sums = np.zeros((6, n))
+    h, w = labels.shape
+    for row in range(h):
+        y = row + offset
+        for col in range(w):
+            k = labels[row, col] - 1
+            if k < 0:
+                continue
+            x = col + offset
+            sums[0, k] += 1.0
+            sums[1, k] += y
+            sums[2, k] += x
+            sums[3, k] += y * y
+            sums[4, k] += x * x
+            sums[5, k] += y * x
+    return sums

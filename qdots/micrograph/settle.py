@@ -16,7 +16,7 @@ from typing import cast
 
 import numpy as np
 
-from labrig.threads import available_threads, run_in_threads
+from labrig.threads import run_tasks
 
 from .choices import PROFILES
 from .profiles import central_curvature, predicted_curvature
@@ -45,7 +45,7 @@ FOCUS_STEP = (0.3, 0.04)
 SAMPLE, TILES, TILE_DOTS = 100, 3, 50
 #: Passes of each fit while settling (from a state fitted at the middle of the pattern).
 SAMPLE_PASSES = 2
-#: Most times the first pattern moves on when its minimum lies on its border (`Sample.descend`): moves of up to two
+#: Most times the first pattern moves on when its minimum lies on its border (`descend`): moves of up to two
 #: steps of `FOCUS_STEP` reach the largest of `BLURS` from `FIRST_BLUR`.
 MOVES = 6
 
@@ -103,47 +103,55 @@ class Sample:
         area = self.area
         return float(np.nansum((self.image[area] - k * self.field_map[area] + state.model[area]) ** 2))
 
-    def pattern(self, shape, centre, step, move: bool = True) -> tuple[np.ndarray, float]:
-        """The 3 x 3 blurs and ``k`` ``step`` apart around ``centre``, each fitted from a state fitted at ``centre``:
-        the minimum of the quadratic surface through their residuals (`quadratic_minimum`, within two steps of
-        ``centre``), and the least residual."""
-        low = np.maximum([BLURS[0], LEVEL_RANGE[0]], centre - 2.0 * step)  # the surface is trusted near its points
-        high = np.minimum([BLURS[1], LEVEL_RANGE[1]], centre + 2.0 * step)
-        anchor = self.fit(shape, centre[0], centre[1])
-        points = np.clip(centre + step * np.array([(i, j) for i in (-1, 0, 1) for j in (-1, 0, 1)]), low, high)
-        values = np.array(run_in_threads(
-            lambda part: [self.misfit(self.fit(shape, b, k, anchor, SAMPLE_PASSES, move=move), k) for b, k in part],
-            split(points, available_threads())), dtype=object)
-        values = np.concatenate(list(values)).astype(float)
-        return quadratic_minimum(points, values, low, high)[0], float(values.min())
-
     def best(self, shape, pairs) -> tuple[float, float]:
         """The (blur, ``k``) of ``pairs`` whose fit leaves the least residual, the fits run side by side in threads."""
-        misfits = [v for part in run_in_threads(lambda chosen: [self.misfit(self.fit(shape, b, k), k) for b, k in chosen],
-                                                split(pairs, available_threads())) for v in part]
+        misfits = run_tasks([lambda b=b, k=k: self.misfit(self.fit(shape, b, k), k) for b, k in pairs])
         return pairs[int(np.argmin(misfits))]
 
-    def descend(self, shape, centre, step) -> tuple[np.ndarray, float]:
-        """`pattern` again around its own minimum while that lies on the pattern's border or beyond it (a step or
-        more from its centre) short of the search's bounds (`BLURS`, `LEVEL_RANGE`), at most `MOVES` more times. A
-        pattern trusts its surface only within two steps of its centre: without moving on, the blur of a film
-        blurred by 3 px or more stopped short of it (at 2.55 px from `FIRST_BLUR`, the narrower patterns adding
-        1.5 steps), and the radii paid for it. Returns the last pattern's minimum and least residual."""
-        bounds = np.array([[BLURS[0], LEVEL_RANGE[0]], [BLURS[1], LEVEL_RANGE[1]]])
-        found, least = self.pattern(shape, centre, step)
-        for _ in range(MOVES):
-            border = np.abs(found - centre) >= step * (1.0 - 1e-9)
-            inside = (found > bounds[0] + 1e-9) & (found < bounds[1] - 1e-9)
-            if not np.any(border & inside):
-                break
-            centre, (found, least) = found, self.pattern(shape, found, step)
-        return found, least
+
+def patterns(jobs) -> list[tuple[np.ndarray, float]]:
+    """For each job ``(sample, shape, centre, step, move)``: the 3 x 3 blurs and ``k`` ``step`` apart around
+    ``centre``, each fitted from a state fitted at ``centre`` (`Sample.fit`); the minimum of the quadratic surface
+    through their residuals (`quadratic_minimum`, within two steps of ``centre``), and the least residual. The states
+    at the centres are fitted side by side in threads, then every job's nine fits (`labrig.threads.run_tasks`)."""
+    anchors = run_tasks([lambda job=job: job[0].fit(job[1], job[2][0], job[2][1]) for job in jobs])
+    grids = []
+    for _, _, centre, step, _ in jobs:
+        low = np.maximum([BLURS[0], LEVEL_RANGE[0]], centre - 2.0 * step)  # the surface is trusted near its points
+        high = np.minimum([BLURS[1], LEVEL_RANGE[1]], centre + 2.0 * step)
+        points = np.clip(centre + step * np.array([(i, j) for i in (-1, 0, 1) for j in (-1, 0, 1)]), low, high)
+        grids.append((points, low, high))
+
+    def misfit(job, anchor, blur, k) -> float:
+        patch, shape, _, _, move = job
+        return patch.misfit(patch.fit(shape, blur, k, anchor, SAMPLE_PASSES, move=move), k)
+
+    values = np.array(run_tasks([lambda job=job, anchor=anchor, b=b, k=k: misfit(job, anchor, b, k)
+                                 for job, anchor, (points, _, _) in zip(jobs, anchors, grids) for b, k in points]),
+                      dtype=float).reshape(len(jobs), -1)
+    return [(quadratic_minimum(points, row, low, high)[0], float(row.min()))
+            for (points, low, high), row in zip(grids, values)]
 
 
-def split(items, parts: int) -> list:
-    """``items`` in ``parts`` consecutive runs (fewer when there are fewer items), for threads."""
-    parts = max(1, min(parts, len(items)))
-    return [items[len(items) * p // parts:len(items) * (p + 1) // parts] for p in range(parts)]
+def descend(patch: Sample, shapes, centre, step) -> dict:
+    """`patterns` of each of ``shapes`` again around its own minimum while that lies on the pattern's border or beyond
+    it (a step or more from its centre) short of the search's bounds (`BLURS`, `LEVEL_RANGE`), at most `MOVES` more
+    times, the shapes still moving side by side. A pattern trusts its surface only within two steps of its centre:
+    without moving on, the blur of a film blurred by 3 px or more stopped short of it (at 2.55 px from `FIRST_BLUR`,
+    the narrower patterns adding 1.5 steps), and the radii paid for it. Returns each shape's last minimum and least
+    residual."""
+    bounds = np.array([[BLURS[0], LEVEL_RANGE[0]], [BLURS[1], LEVEL_RANGE[1]]])
+    centres = {shape: np.asarray(centre, dtype=float) for shape in shapes}
+    found = dict(zip(shapes, patterns([(patch, shape, centres[shape], step, True) for shape in shapes])))
+    for _ in range(MOVES):
+        moving = [shape for shape in shapes if np.any((np.abs(found[shape][0] - centres[shape]) >= step * (1.0 - 1e-9))
+                                                      & (found[shape][0] > bounds[0] + 1e-9)
+                                                      & (found[shape][0] < bounds[1] - 1e-9))]
+        if not moving:
+            break
+        centres.update({shape: found[shape][0] for shape in moving})
+        found.update(zip(moving, patterns([(patch, shape, centres[shape], step, True) for shape in moving])))
+    return found
 
 
 def total_residual(residual) -> float:
@@ -206,7 +214,7 @@ def settle_profile(image, centres, radii, contrast, background, typical: float, 
     around the best ``k`` of `LEVEL_SCAN` (at `FIRST_BLUR`) and the best blur of `BLUR_SCAN` (at that ``k``), from a
     state fitted at the middle one, and again
     around the minimum of the quadratic surface through the nine residuals (`quadratic_minimum`) at half the
-    steps; the first pattern moves on while its minimum lies on its border (`Sample.descend`). For ``profile="auto"``
+    steps; the first pattern moves on while its minimum lies on its border (`descend`). For ``profile="auto"``
     the shape is then the one whose predicted central curvature
     (`qdots.micrograph.profiles.predicted_curvature`, at its blur) matches the curvature measured on the
     neighbour-corrected profiles (`qdots.micrograph.profiles.central_curvature`): the flat disc unless the sphere
@@ -224,16 +232,16 @@ def settle_profile(image, centres, radii, contrast, background, typical: float, 
     step = np.array(FOCUS_STEP)
     k = patch.best(shapes[-1], [(FIRST_BLUR, k) for k in LEVEL_SCAN])[1]
     start = np.array(patch.best(shapes[-1], [(b, k) for b in BLUR_SCAN]))
-    found = {shape: patch.descend(shape, start, step)[0] for shape in shapes}
-    settled = {shape: patch.pattern(shape, found[shape], 0.5 * step) for shape in shapes}
+    found = {shape: value[0] for shape, value in descend(patch, shapes, start, step).items()}
+    settled = dict(zip(shapes, patterns([(patch, shape, found[shape], 0.5 * step, True) for shape in shapes])))
     found = {shape: settled[shape][0] for shape in shapes}
     how = f"{profile} (given)"
     shape = shapes[0]
     inner = patch.inner
     if profile == "auto":
         measured, predicted = {}, {}
-        for p in shapes:
-            state = patch.fit(p, found[p][0], found[p][1], keep_profiles=True)
+        states = run_tasks([lambda p=p: patch.fit(p, found[p][0], found[p][1], keep_profiles=True) for p in shapes])
+        for p, state in zip(shapes, states):
             radius = state.radius[inner]
             sums, counts, rhos = (part_[inner] for part_ in state.profiles)
             measured[p] = central_curvature(sums, counts, rhos, radius, found[p][1] * patch.part[inner])
@@ -253,7 +261,7 @@ def settle_profile(image, centres, radii, contrast, background, typical: float, 
                     f"{settled[0.0][1]:.4g}): blurred by {found[shape][0]:.1f} px, the dots' shape is hardly seen, and "
                     "the diameter depends on it (a sphere's is some 10-20 % wider than a disc's); the half-depth width "
                     "does not")
-    blur, k = patch.pattern(shape, found[shape], 0.25 * step)[0]
+    blur, k = patterns([(patch, shape, found[shape], 0.25 * step, True)])[0][0]
     blurs, levels, level_map = settle_tiles(image, centres, radii, contrast, field, whole_map, typical, whole, shape,
                                             np.array([blur, k]))
     return float(shape), blurs, levels, level_map, how
@@ -290,12 +298,10 @@ def settle_tiles(image, centres, radii, contrast, field, field_map, typical: flo
     if not points:
         blur, k = settled
         return np.full(len(centres), blur), k * field, k * field_map
-    tile_middles, tile_values = [], []
-    for point in points:
-        patch = Sample(image, centres, radii, contrast, field, field_map, typical, whole, point)
-        tile_middles.append(np.median(patch.where[patch.inner] + patch.offset, axis=0))
-        tile_values.append(patch.pattern(shape, settled, 0.25 * np.array(FOCUS_STEP), move=False)[0])
-    middles, values = np.array(tile_middles), np.array(tile_values)
+    patches = [Sample(image, centres, radii, contrast, field, field_map, typical, whole, point) for point in points]
+    middles = np.array([np.median(patch.where[patch.inner] + patch.offset, axis=0) for patch in patches])
+    values = np.array([found for found, _ in patterns([(patch, shape, np.asarray(settled, dtype=float),
+                                                       0.25 * np.array(FOCUS_STEP), False) for patch in patches])])
     design = np.column_stack([np.ones(len(middles)), middles / [w, h]])
     planes = np.linalg.lstsq(design, values, rcond=None)[0]  # blur and k, each a plane over the film
 

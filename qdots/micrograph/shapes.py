@@ -25,6 +25,8 @@ import numpy as np
 
 from labrig.compiled import jit
 
+from .segment import label_moments
+
 #: Dots overlap when their centres are closer than OVERLAP times their mean diameter; a film whose dots with a close
 #: neighbour (within 1.5 diameters) overlap it over OVERLAP_SHARE of the time has discs larger than its particles. A dot
 #: whose nearest neighbour is closer than STACKED times their mean diameter overlaps it by over a third: in one layer no
@@ -78,15 +80,11 @@ def region_shapes(labels: np.ndarray) -> np.ndarray:
     n = int(labels.max())
     if n == 0:
         return np.zeros((0, 3))
-    rows, cols = np.indices(labels.shape)
-    flat = labels.ravel()
-    area = np.bincount(flat, minlength=n + 1)[1:].astype(float)
+    sums = label_moments(labels, n, 0.5)
+    area = sums[0]
     safe = np.maximum(area, 1.0)
-    y = np.bincount(flat, rows.ravel() + 0.5, n + 1)[1:] / safe
-    x = np.bincount(flat, cols.ravel() + 0.5, n + 1)[1:] / safe
-    yy = np.bincount(flat, (rows.ravel() + 0.5) ** 2, n + 1)[1:] / safe - y * y
-    xx = np.bincount(flat, (cols.ravel() + 0.5) ** 2, n + 1)[1:] / safe - x * x
-    xy = np.bincount(flat, (rows.ravel() + 0.5) * (cols.ravel() + 0.5), n + 1)[1:] / safe - x * y
+    y, x = sums[1] / safe, sums[2] / safe
+    yy, xx, xy = sums[3] / safe - y * y, sums[4] / safe - x * x, sums[5] / safe - x * y
     middle, half = 0.5 * (xx + yy), np.sqrt(0.25 * (xx - yy) ** 2 + xy * xy)
     elongation = np.sqrt((middle + half + 1.0 / 12.0) / np.maximum(middle - half + 1.0 / 12.0, 1e-12))
     s1, s2, count, first, second = _boundaries(labels, x, y)

@@ -1,0 +1,98 @@
+"""The measurement's compiled kernels against numpy oracles written here: radial bins, region moments, the dots'
+model and their neighbour-corrected profiles."""
+
+import math
+
+import numpy as np
+from scipy import ndimage
+
+from qdots.micrograph.profiles import BIN, profile_table, radial_profiles
+from qdots.micrograph.refine import dot_profiles, model_image
+from qdots.micrograph.segment import label_moments, region_properties
+
+
+def table_oracle(table, s, u):
+    """`profile_table` read bilinearly at relative blur ``s`` and radii ``u`` (0 past the table), in numpy."""
+    si = min(s * 100.0, 59.999) if s > 0 else 0.0
+    i, a = int(si), si - int(si)
+    ui = np.asarray(u, dtype=float) * 200.0
+    inside = (ui >= 0) & (ui < 399.999)
+    j = np.where(inside, ui, 0).astype(int)
+    b = np.where(inside, ui, 0) - j
+    value = (1 - a) * ((1 - b) * table[i, j] + b * table[i, j + 1]) + a * ((1 - b) * table[i + 1, j]
+                                                                          + b * table[i + 1, j + 1])
+    return np.where(inside, value, 0.0)
+
+
+def dots(n=40, side=120, seed=0):
+    rng = np.random.default_rng(seed)
+    return (rng.uniform(-5, side + 5, (n, 2)), rng.uniform(2.0, 9.0, n), rng.uniform(0.05, 0.4, n),
+            rng.uniform(0.5, 3.0, n))
+
+
+def test_radial_bins_are_numpys_bincount():
+    rng = np.random.default_rng(1)
+    image = rng.random((150, 170))
+    image[rng.random(image.shape) < 0.02] = np.nan  # pixels left out
+    regions, n = ndimage.label(ndimage.binary_opening(rng.random(image.shape) < 0.6))
+    centres = rng.uniform(0, 150, (n, 2))
+    sums, counts, rhos = radial_profiles(image, regions, centres, 30)
+    rows, cols = np.nonzero(regions)
+    label = regions[rows, cols] - 1
+    rho = np.hypot(cols + 0.5 - centres[label, 0], rows + 0.5 - centres[label, 1])
+    b = (rho / BIN).astype(int)
+    keep = (b < 30) & np.isfinite(image[rows, cols])
+    index = label[keep] * 30 + b[keep]
+    np.testing.assert_array_equal(sums.ravel(), np.bincount(index, image[rows, cols][keep], n * 30))
+    np.testing.assert_array_equal(counts.ravel(), np.bincount(index, None, n * 30))
+    np.testing.assert_array_equal(rhos.ravel(), np.bincount(index, rho[keep], n * 30))
+
+
+def test_region_moments_and_properties_are_numpys():
+    rng = np.random.default_rng(2)
+    labels, n = ndimage.label(ndimage.binary_opening(rng.random((90, 130)) < 0.55))
+    rows, cols = np.indices(labels.shape)
+    flat = labels.ravel()
+    sums = label_moments(labels.astype(np.int64), n, 0.5)
+    y, x = rows.ravel() + 0.5, cols.ravel() + 0.5
+    for got, weights in zip(sums, (None, y, x, y * y, x * x, y * x)):
+        np.testing.assert_allclose(got, np.bincount(flat, weights, n + 1)[1:], rtol=1e-12)
+    props = region_properties(labels)
+    area = np.bincount(flat, None, n + 1)[1:]
+    np.testing.assert_array_equal(props["area"], area)
+    np.testing.assert_allclose(props["centroid-0"], np.bincount(flat, rows.ravel(), n + 1)[1:] / area, rtol=1e-12)
+    np.testing.assert_allclose(props["centroid-1"], np.bincount(flat, cols.ravel(), n + 1)[1:] / area, rtol=1e-12)
+
+
+def test_the_dots_model_is_the_sum_of_their_blurred_profiles():
+    table = profile_table(0.5)
+    centres, radii, contrast, blurs = dots()
+    model = model_image((120, 120), centres, radii, contrast, table, blurs)
+    rows, cols = np.indices(model.shape)
+    expected = np.zeros(model.shape)
+    for (x, y), r, c, s in zip(centres, radii, contrast, blurs):
+        rho = np.hypot(cols + 0.5 - x, rows + 0.5 - y)
+        expected += np.where(rho < 2 * r, c * table_oracle(table, s / r, rho / r), 0.0)
+    np.testing.assert_allclose(model, expected, rtol=0, atol=1e-13)
+
+
+def test_each_dots_profile_is_the_image_plus_its_neighbours_model_in_radial_bins():
+    table = profile_table(0.0)
+    centres, radii, contrast, blurs = dots(seed=3)
+    rng = np.random.default_rng(3)
+    image = rng.random((120, 120))
+    image[rng.random(image.shape) < 0.02] = np.nan
+    model = model_image(image.shape, centres, radii, contrast, table, blurs)
+    reach = 1.4 * radii + 4.0
+    n_bins = math.ceil(reach.max() / BIN) + 1
+    sums, counts, rhos = dot_profiles(image, model, centres, radii, contrast, table, blurs, reach, n_bins, BIN, -1)
+    rows, cols = np.indices(image.shape)
+    for k, ((x, y), r, c, s) in enumerate(zip(centres, radii, contrast, blurs)):
+        rho = np.hypot(cols + 0.5 - x, rows + 0.5 - y)
+        own = np.where(rho < 2 * r, c * table_oracle(table, s / r, rho / r), 0.0)
+        value = image + model - own
+        take = (rho < reach[k]) & np.isfinite(value)
+        b = (rho[take] / BIN).astype(int)
+        np.testing.assert_allclose(sums[k], np.bincount(b, value[take], n_bins), rtol=0, atol=1e-9)
+        np.testing.assert_array_equal(counts[k], np.bincount(b, None, n_bins))
+        np.testing.assert_allclose(rhos[k], np.bincount(b, rho[take], n_bins), rtol=0, atol=1e-9)
