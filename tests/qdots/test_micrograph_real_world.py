@@ -93,6 +93,24 @@ def test_the_fits_are_the_same_whatever_the_number_of_threads():
         np.testing.assert_array_equal(run.centres, runs[0].centres)
 
 
+def test_a_whole_detection_is_the_same_whatever_the_number_of_threads(monkeypatch):
+    """Every step run side by side (the settling's tasks, the fits' strips, the chunks of profiles, the watershed's
+    bands of 512 rows: the film has 1,100) gives the same dots on one thread as on the machine's."""
+    import labrig.threads
+    import qdots.micrograph.refine
+
+    centres, diameters = dense_board(300, 1100, 12.0, 0.1, seed=5)
+    image = render_micrograph(centres, diameters, (1100, 300), noise=0.05, seed=6)
+    runs = [detect_dots(image)]
+    for module in (labrig.threads, qdots.micrograph.refine):
+        monkeypatch.setattr(module, "available_threads", lambda: 1)
+    runs.append(detect_dots(image))
+    assert runs[0].n_dots > 1000
+    np.testing.assert_array_equal(runs[1].centres, runs[0].centres)
+    np.testing.assert_array_equal(runs[1].diameters, runs[0].diameters)
+    np.testing.assert_array_equal(runs[1].errors, runs[0].errors)
+
+
 def test_a_dot_the_first_pass_put_far_off_walks_back_to_its_size():
     """First fits 45 % too large and too dark (a sphere's fit of discs) on a square superlattice of 1 px gaps: the
     wide first pass, among neighbours still unfitted, put many dots at its floor, and each later pass could move them
