@@ -57,6 +57,7 @@ from .choices import POLARITIES, PROFILES
 from .detection import Detection
 from .discs import discs_cover
 from .missed import missed_dots
+from .polarity import blob_skewness, decide_polarity, edge_curvature, middle_window
 from .profiles import (
     BIN,
     FIT_HIGH,
@@ -74,16 +75,12 @@ from .segment import (
     MIN_SIGNAL,
     background_level,
     blob_seeds,
-    blob_skewness,
     broad_blur,
-    decide_polarity,
-    edge_curvature,
     fill_small_holes,
     grain_noise,
     grow_labels,
     inside_distance,
     label_maxima,
-    middle_window,
     pixel_noise,
     region_properties,
     scaled,
