@@ -342,7 +342,7 @@ def test_the_half_depth_width_is_of_the_dots_the_mean_diameter_is_of(tmp_path):
 @pytest.mark.parametrize("shape", [0.0, 0.5])
 def test_a_film_blurred_by_four_pixels_is_settled_at_its_blur(shape):
     """Regression: each pattern of the blur search trusted its surface within two steps of its centre and the next
-    ones were narrower, so no blur past 2.55 px could be settled (`qdots.micrograph.settle.Sample.descend`): a film
+    ones were narrower, so no blur past 2.55 px could be settled (`qdots.micrograph.settle.descend`): a film
     of 30 px dots blurred by 4 px (4.1 px with the detector's own smoothing) settled at 2.55 px, its discs 2.5 % too
     wide and its spheres taken for discs 10 % too narrow. Measured now: the blur within 1 %, diameters within 0.1 %."""
     from qdots.micrograph.synthetic import sparse_board
