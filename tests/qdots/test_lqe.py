@@ -15,6 +15,8 @@ from qdots.analysis.forster import (
     dot_energies,
     draw_traps,
     exciton_network,
+    far_field_bound,
+    far_field_grid,
     truncation_bound,
 )
 from qdots.analysis.lqe import film_lqe, lqe_exact, lqe_monte_carlo
@@ -120,13 +122,63 @@ def test_truncation_bound_holds_and_bounds_the_dropped_rates():
         # The geometric part: tau * max dropped rate sum <= R_F^6 / (2 h^2 (R_c - h)^2).
         far = (d > cutoff)
         dropped = (far * np.where(far, (full.forster_radius / np.where(far, d, 1.0)) ** 6, 0.0)).sum(1).max()
-        assert dropped <= truncation_bound(full.forster_radius, cutoff, spacing)
-        assert cut.truncation_bound == pytest.approx(truncation_bound(full.forster_radius, cutoff, spacing))
+        disc = truncation_bound(full.forster_radius, cutoff, spacing)
+        counts, size = far_field_grid(positions, 0.5 * full.forster_radius)
+        grid = far_field_bound(counts, size, full.forster_radius, cutoff)
+        assert dropped <= disc and dropped <= grid
+        assert cut.truncation_bound == pytest.approx(min(disc, grid))
     # The default cutoff meets the default tolerance.
     default = exciton_network(b, traps=traps)
     assert default.truncation_bound <= 1e-3 + 1e-15
     assert abs(lqe_exact(default).lqe - reference.lqe) <= default.truncation_bound
     assert cutoff_for(15.0, 15.0, 1e-3) == pytest.approx(7.5 + (15.0**6 / (2 * 56.25 * 1e-3)) ** 0.25)
+
+
+def dropped_sums(positions, cutoff, box=None):
+    """sum_{R_ij > cutoff} R_ij^-6 of each dot, by all pairs (minimum images in a periodic box)."""
+    delta = positions[:, None] - positions[None]
+    if box is not None:
+        delta -= box * np.round(delta / box)
+    d = np.sqrt((delta**2).sum(-1))
+    far = d > cutoff
+    return np.where(far, np.where(far, d, 1.0) ** -6.0, 0.0).sum(1)
+
+
+def test_far_field_bound_holds_where_the_disc_bound_is_loose():
+    """A measured film with one close pair (two detections 2.5 px apart): the disc bound, set by that pair, sends
+    the cutoff out to 9 R_F; the count-grid bound, which sees the film's density, to under half that. Both bound
+    the dropped rates, and the LQE moves by less than the bound the network states."""
+    rng = np.random.default_rng(3)
+    positions, radii = random_sequential(500, (400.0, 400.0), sigma=0.1, rng=4)
+    positions = np.vstack([positions, positions[0] + [2.5, 0.0]])
+    radii = np.append(radii, radii[0])
+    b = board(positions, radii)
+    traps = draw_traps(len(radii), seed=rng)
+    net = exciton_network(b, traps=traps)
+    disc = cutoff_for(net.forster_radius, 2.5, 1e-3)
+    assert net.cutoff < 0.5 * disc and net.truncation_bound <= 1e-3
+    counts, size = far_field_grid(positions, 0.5 * net.forster_radius)
+    for cutoff in (20.0, 40.0, net.cutoff, 150.0):
+        exact = dropped_sums(positions, cutoff).max() * net.forster_radius**6
+        assert exact <= far_field_bound(counts, size, net.forster_radius, cutoff) <= 20 * exact
+    reference = lqe_exact(exciton_network(b, traps=traps, cutoff=1e4))
+    assert abs(lqe_exact(net).lqe - reference.lqe) <= net.truncation_bound
+
+
+@pytest.mark.parametrize("box", [(200.0, 200.0), (210.0, 130.0)])
+def test_far_field_bound_holds_in_a_periodic_box(box):
+    box = np.array(box)
+    positions = np.random.default_rng(7).random((300, 2)) * box
+    counts, size = far_field_grid(positions, 6.0, box)
+    assert counts.sum() == 300 and size * counts.shape == pytest.approx(box)
+    for cutoff in (15.0, 30.0, 60.0):
+        exact = dropped_sums(positions, cutoff, box).max() * 10.0**6
+        assert exact <= far_field_bound(counts, size, 10.0, cutoff)
+    # Two dots near the facing sides of cells three apart are 2 cells (20.2 px), not 3, apart.
+    pair = np.array([[9.9, 5.0], [30.1, 5.0]])
+    counts, size = far_field_grid(pair, 10.0, np.array([100.0, 100.0]))
+    exact = dropped_sums(pair, 15.0, 100.0).max()
+    assert exact == pytest.approx(20.2**-6) and far_field_bound(counts, size, 1.0, 15.0) >= exact
 
 
 # --------------------------------------------------------------------------- the thesis scheme's law
