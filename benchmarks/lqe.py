@@ -65,7 +65,7 @@ def exact_row(n: int) -> dict:
 
 
 def reference_cutoff(film, tolerance: float) -> float:
-    from qdots.analysis.forster import cutoff_for
+    from qdots.analysis.cutoff import cutoff_for
 
     return cutoff_for(DIAMETER, DIAMETER, tolerance)
 

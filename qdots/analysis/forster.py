@@ -16,38 +16,7 @@ quenches an exciton at once. The thesis sets all energies equal (then
 Units: distances px (the thesis's R_F = 15 = one mean diameter), times ns,
 rates 1/ns, energies eV.
 
-Pair cutoff and its error
--------------------------
-Only pairs closer than a cutoff ``R_c`` get a rate. Dropping the others changes
-the LQE by at most (`truncation_bound`)::
-
-    |LQE - LQE_cut| <= eta tau max_i sum_{R_ij > R_c} W_ij <= eta R_F^6 / (2 h^2 (R_c - h)^4),
-
-where ``h`` is half the smallest centre distance on the board. First
-inequality: run both chains on the same random clocks; they differ only if a
-dropped hop fires before the exciton dies, and the expected number of such
-firings is the dropped rate times the expected lifetime, at most ``eta tau``
-(the Boltzmann factor is at most 1). Second: discs of radius ``h`` around the
-dots do not overlap, and ``|y|^-6`` is subharmonic in the plane, so each
-dot's ``R^-6`` is at most its mean over its disc; the discs beyond ``R_c``
-lie outside radius ``R_c - h``, where ``|y|^-6`` integrates to
-``pi / (2 (R_c - h)^4)``. With the default tolerance 1e-3 and the thesis's
-``R_F = 2 h`` this gives ``R_c = 7.2`` diameters (about 170 partners per dot
-in a close-packed film).
-
-That bound rests on the board's one closest pair. On a measured film, where
-two detections can sit a few px apart, it sends the cutoff far out (16 R_F on
-a 2048 px film, 680 partners per dot). A second rigorous bound uses where the
-dots are (`far_field_bound`): counted on a grid of cells of side ``s``, a dot
-in cell ``a`` is at least ``d_min(a, b)`` from every dot in cell ``b``, and a
-pair beyond ``R_c`` is dropped only if the cells' farthest points are beyond it
-too, so ``sum_{R_ij > R_c} R_ij^-6 <= sum_b n_b max(d_min(a, b), R_c)^-6`` over
-the cells ``b`` whose farthest point from ``a`` is beyond ``R_c``: one FFT
-convolution of the counts. The network states the smaller of the two bounds,
-and the default cutoff is the smallest (within 1 %) where it meets the
-tolerance: 115 px instead of 231 px on that film. Both are rigorous but loose:
-the far hops that they count mostly land on dots of similar yield (tests
-measure the true change, ~20x smaller).
+Only pairs closer than a cutoff get a rate; `qdots.analysis.cutoff` bounds the error that makes.
 """
 
 from __future__ import annotations
@@ -64,6 +33,14 @@ from labrig.validate import InputError, number
 
 from ..limits import MAX_FORSTER_PX, MAX_FORSTER_RADII  # noqa: F401 (public here too)
 from ..units import THESIS_TEMPERATURE, PhysicalScale
+from .cutoff import (  # noqa: F401 (CUTOFF_TOLERANCE, truncation_bound: public here too)
+    CUTOFF_TOLERANCE,
+    cutoff_for,
+    far_field_bound,
+    far_field_grid,
+    smallest_cutoff,
+    truncation_bound,
+)
 from .packing import state_arrays
 
 #: Radiative lifetime of a dot, ns (thesis: ``radLife = 26.0``).
@@ -72,12 +49,6 @@ TAU_NS = 26.0
 KB_EV = 8.617333262e-5
 #: Default fraction of trap dots (thesis section 2.3.2).
 TRAP_FRACTION = 1.0 / 3.0
-#: Default bound on the LQE error from the pair cutoff (absolute).
-CUTOFF_TOLERANCE = 1e-3
-#: Cells per side of `far_field_bound`'s count grid, at most (its FFTs are 2x that: 30 ms for a default cutoff).
-FAR_FIELD_CELLS = 128
-#: The default cutoff is sought to within this factor (`exciton_network`).
-CUTOFF_SEARCH_RATIO = 1.01
 #: Smallest ``forster_radius`` accepted in px, in mean radii: below it a number meant as radii or
 #: diameters was most likely given as px (hops to a neighbour at one diameter would be < 1/4096 of
 #: the radiative rate). Such radii can still be asked for as ``forster_radii``.
@@ -120,106 +91,6 @@ def dot_energies(radii, nm_per_px: float = PhysicalScale().nm_per_px) -> np.ndar
         raise InputError("radii and nm_per_px must be finite and > 0")
     confinement = _CONFINEMENT_EV_NM2 * (1 / CDSE_ELECTRON_MASS + 1 / CDSE_HOLE_MASS) / r**2
     return CDSE_BANDGAP_EV + confinement - 1.786 * _COULOMB_EV_NM / (CDSE_PERMITTIVITY * r)
-
-
-def truncation_bound(forster_radius: float, cutoff: float, spacing: float, efficiency: float = 1.0) -> float:
-    """Bound on the LQE error from dropping hops longer than ``cutoff`` (see the module docstring).
-
-    Parameters
-    ----------
-    forster_radius, cutoff : float
-        ``R_F`` and ``R_c``, px.
-    spacing : float
-        Smallest centre distance on the board, px (``2 h``).
-    efficiency : float
-        Intrinsic efficiency ``eta`` of a radiative dot (the lifetime is ``eta tau``).
-
-    Returns
-    -------
-    float
-        ``eta R_F^6 / (2 h^2 (R_c - h)^4)`` (inf if ``cutoff <= h``).
-    """
-    h = 0.5 * spacing
-    if cutoff <= h:
-        return math.inf
-    try:
-        return efficiency * forster_radius**6 / (2.0 * h * h * (cutoff - h) ** 4)
-    except (OverflowError, ZeroDivisionError):  # beyond a float: no bound
-        return math.inf
-
-
-def cutoff_for(forster_radius: float, spacing: float, tolerance: float, efficiency: float = 1.0) -> float:
-    """Smallest cutoff, px, whose `truncation_bound` is at most ``tolerance``."""
-    h = 0.5 * spacing
-    try:
-        return h + (efficiency * forster_radius**6 / (2.0 * h * h * tolerance)) ** 0.25
-    except (OverflowError, ZeroDivisionError):  # beyond a float: every pair is within the cutoff
-        return math.inf
-
-
-def far_field_grid(positions: np.ndarray, cell: float, box: np.ndarray | None = None
-                   ) -> tuple[np.ndarray, np.ndarray]:
-    """The dots counted on a grid for `far_field_bound`.
-
-    Parameters
-    ----------
-    positions : ndarray, shape (N, 2)
-        px (in ``[0, box)`` when ``box`` is given).
-    cell : float
-        Side of a cell, px (> 0); at least the span over `FAR_FIELD_CELLS` is taken.
-    box : ndarray, shape (2,), optional
-        Periodic box, px: the grid covers it exactly, and offsets wrap.
-
-    Returns
-    -------
-    counts : ndarray, shape (M, K)
-        Dots per cell; an open board's grid is padded to twice its cells, so that circular offsets are plain ones.
-    size : ndarray, shape (2,)
-        The cells' sides, px.
-    """
-    if box is None:
-        low, span = positions.min(axis=0), np.ptp(positions, axis=0)
-        cell = max(cell, float(span.max()) / FAR_FIELD_CELLS)
-        cells = (span // cell).astype(int) + 1
-        index = np.minimum(((positions - low) // cell).astype(int), cells - 1)
-        shape, size = 2 * cells, np.array([cell, cell])
-    else:
-        cell = max(cell, float(box.max()) / FAR_FIELD_CELLS)
-        shape = np.maximum(np.ceil(box / cell).astype(int), 1)
-        size = box / shape
-        index = np.minimum((positions // size).astype(int), shape - 1)
-    counts = np.zeros(tuple(shape))
-    np.add.at(counts, (index[:, 0], index[:, 1]), 1.0)
-    return counts, size
-
-
-def far_field_bound(counts: np.ndarray, size: np.ndarray, forster_radius: float, cutoff: float,
-                    efficiency: float = 1.0) -> float:
-    """Bound on the LQE error from dropping hops longer than ``cutoff``, from where the dots are.
-
-    ``eta R_F^6 max_a sum_b n_b max(d_min(a, b), R_c)^-6`` over the cells ``b`` whose farthest point from
-    cell ``a`` is beyond ``R_c``, ``a`` a cell holding a dot (see the module docstring).
-
-    Parameters
-    ----------
-    counts, size
-        From `far_field_grid`.
-    forster_radius, cutoff : float
-        ``R_F`` and ``R_c``, px.
-    efficiency : float
-        Intrinsic efficiency ``eta`` of a radiative dot.
-    """
-    offsets = [np.minimum(np.arange(m), m - np.arange(m)) for m in counts.shape]  # cells apart, either way round
-    near = [np.maximum(k - 1, 0) * side for k, side in zip(offsets, size)]
-    far = [(k + 1) * side for k, side in zip(offsets, size)]
-    nearest = np.maximum(near[0][:, None] ** 2 + near[1][None, :] ** 2, cutoff * cutoff)
-    reach = far[0][:, None] ** 2 + far[1][None, :] ** 2 > cutoff * cutoff
-    kernel = np.where(reach, nearest ** -3.0, 0.0)
-    sums = np.fft.irfft2(np.fft.rfft2(counts) * np.fft.rfft2(kernel), s=counts.shape)
-    try:
-        return efficiency * forster_radius**6 * float(sums[counts > 0].max()) * (1.0 + 1e-9)  # FFT round-off
-    except OverflowError:
-        return math.inf
 
 
 @dataclass(frozen=True, eq=False)
@@ -372,7 +243,7 @@ def exciton_network(state, forster_radius: float | None = None, trap_fraction: f
     temperature : float
         K (> 0; thesis 297).
     cutoff : float, optional
-        Pair cutoff, px. Default: the smallest (within `CUTOFF_SEARCH_RATIO`) where the
+        Pair cutoff, px. Default: the smallest (`qdots.analysis.cutoff.smallest_cutoff`) where the
         smaller of `truncation_bound` and `far_field_bound` is at most ``tolerance``.
     tolerance : float
         Bound on the LQE error from the cutoff when ``cutoff`` is not given.
@@ -431,11 +302,8 @@ def exciton_network(state, forster_radius: float | None = None, trap_fraction: f
     if cutoff is None:
         cutoff = cutoff_for(forster_radius, spacing, tolerance, efficiency)
         high = min(cutoff, extent * (1 + 1e-12) + 1e-9, math.inf if box is None else box.min() / 2 * (1 - 1e-12))
-        if bound_at(high) <= tolerance:  # the smallest cutoff within 1 % that meets it: the bounds fall as it grows
-            low, cutoff = spacing, high
-            while cutoff > low * CUTOFF_SEARCH_RATIO:
-                middle = math.sqrt(low * cutoff)
-                low, cutoff = (low, middle) if bound_at(middle) <= tolerance else (middle, cutoff)
+        if bound_at(high) <= tolerance:
+            cutoff = smallest_cutoff(bound_at, spacing, high, tolerance)
     elif not (isinstance(cutoff, (int, float)) and cutoff > spacing):
         raise InputError(f"cutoff must exceed the smallest centre distance {spacing:.4g} px, got {cutoff!r}")
     if box is not None and cutoff >= box.min() / 2:  # periodic

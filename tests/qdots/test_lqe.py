@@ -8,17 +8,8 @@ import numpy as np
 import pytest
 
 import qdots
-from qdots.analysis.forster import (
-    KB_EV,
-    TAU_NS,
-    cutoff_for,
-    dot_energies,
-    draw_traps,
-    exciton_network,
-    far_field_bound,
-    far_field_grid,
-    truncation_bound,
-)
+from qdots.analysis.cutoff import cutoff_for, far_field_bound, far_field_grid, truncation_bound
+from qdots.analysis.forster import KB_EV, TAU_NS, dot_energies, draw_traps, exciton_network
 from qdots.analysis.lqe import film_lqe, lqe_exact, lqe_monte_carlo
 from qdots.analysis.lqe_thesis import _event_table, step_probabilities
 from qdots.placement import hexagonal_lattice, random_sequential
