@@ -12,7 +12,8 @@ its rates are in `qdots.analysis.forster`. Three ways to compute it, all on one
   by ``exp(-E_i / 2kT)`` (detailed balance) and diagonally dominant, so
   conjugate gradients (Jacobi-preconditioned) solve it to round-off; the
   residual gives a rigorous error bound (Varah: ``|x - x*|_inf <= |r|_inf / m``,
-  ``m`` the smallest diagonal surplus, at least ``k_r + k_nr``).
+  ``m`` the smallest diagonal surplus, at least ``k_r + k_nr``). The solver is
+  `qdots.analysis.chain`; `film_lqe`'s trap draws are solved side by side.
 * ``scheme="thesis"``: the same for the thesis's fixed-``dt`` algorithm,
   using its exact step law (`qdots.analysis.lqe_thesis.step_probabilities`). The
   difference between the two is the thesis method's ``dt`` bias, free of noise.
@@ -29,12 +30,12 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy import sparse
-from scipy.sparse.linalg import LinearOperator, cg, spsolve
 from tqdm.auto import tqdm
 
 from labrig.validate import InputError, count
 
 from ..limits import MAX_DRAWS  # noqa: F401 (public here too)
+from .chain import absorbing_yields
 from .forster import KB_EV, TRAP_FRACTION, ExcitonNetwork, draw_traps, exciton_network
 from .lqe_thesis import check_dt, check_walks, drop_trapped, step_probabilities, thesis_walks
 
@@ -45,6 +46,8 @@ THESIS_DT_FRACTION = 0.01
 MAX_EXCITONS = 10_000_000
 METHODS = ("gillespie", "thesis")
 SCHEMES = ("continuous", "thesis")
+#: Trap draws `film_lqe` solves side by side (`qdots.analysis.chain`): each product reads the hop matrix once for two.
+DRAW_BLOCK = 8
 
 
 @dataclass(frozen=True)
@@ -91,40 +94,6 @@ def _check_network(network) -> ExcitonNetwork:
     return network
 
 
-def _absorbing_chain(network: ExcitonNetwork, out: np.ndarray, hop: sparse.csr_matrix, emit: np.ndarray,
-                     scale: np.ndarray | None) -> tuple[np.ndarray, float]:
-    """Emission probability of each dot of a chain that leaves dot i at total weight ``out[i]``.
-
-    Solves ``out_i x_i - sum_{j radiative} hop_ij x_j = emit_i`` on the radiative
-    dots (``x = 0`` on traps). With ``scale``, the system is symmetric after
-    ``y = scale * x`` and is solved by Jacobi-preconditioned conjugate
-    gradients; otherwise (or if CG fails) by a sparse LU factorisation.
-
-    Returns the yields and the Varah bound on their error (from the residual).
-    """
-    n = network.n_dots
-    good = ~network.traps
-    rows = np.repeat(np.arange(n), np.diff(hop.indptr))
-    inner = sparse.csr_matrix((hop.data * (good[rows] & good[hop.indices]), hop.indices, hop.indptr), shape=(n, n))
-    rhs = np.where(good, emit, 0.0)
-
-    def apply(x):
-        return out * x - inner @ x
-
-    x = None
-    if scale is not None:
-        op = LinearOperator((n, n), matvec=lambda y: scale * apply(y / scale), dtype=float)
-        y, info = cg(op, scale * rhs, rtol=1e-13, atol=0.0, maxiter=20 * n + 100,
-                     M=sparse.diags(1.0 / out))
-        x = y / scale if info == 0 else None
-    if x is None:
-        x = np.atleast_1d(spsolve((sparse.diags(out) - inner).tocsc(), rhs))
-    x[~good] = 0.0
-    residual = np.abs(rhs - apply(x))[good]
-    surplus = (out - np.asarray(abs(inner).sum(axis=1)).ravel())[good]
-    return x, float(residual.max() / surplus.min()) if good.any() else 0.0
-
-
 def lqe_exact(network: ExcitonNetwork, scheme: str = "continuous", dt: float | None = None) -> LQEResult:
     """The LQE of a network, exactly (for its traps and pairs).
 
@@ -146,23 +115,29 @@ def lqe_exact(network: ExcitonNetwork, scheme: str = "continuous", dt: float | N
     network = _check_network(network)
     if scheme not in SCHEMES:
         raise InputError(f"scheme must be one of {SCHEMES}, got {scheme!r}")
-    n = network.n_dots
-    if n == 0:
+    if network.n_dots == 0:
         raise InputError("the board has no dots")
+    return _exact_draws(network, ~network.traps[:, None], scheme, dt)[0]
+
+
+def _exact_draws(network: ExcitonNetwork, good: np.ndarray, scheme: str = "continuous",
+                 dt: float | None = None) -> list[LQEResult]:
+    """`lqe_exact` of ``network`` with the radiative dots of each column of ``good`` (N, M), solved side by side."""
+    n = network.n_dots
     if scheme == "continuous":
         scale = np.ones(n) if network.energies is None else \
             np.exp(-(network.energies - network.energies.mean()) / (2 * KB_EV * network.temperature))
-        yields, bound = _absorbing_chain(network, network.total_rates(), network.rates,
-                                         np.full(n, network.radiative_rate), scale)
+        yields, bounds = absorbing_yields(network.total_rates(), network.rates, np.full(n, network.radiative_rate),
+                                          good, scale)
         step = None
     else:
         step = _thesis_dt(network, dt)
         hop, nonradiative, radiative = step_probabilities(network, step)
         out = radiative + nonradiative + np.asarray(hop.sum(axis=1)).ravel()
-        yields, bound = _absorbing_chain(network, out, hop, radiative, None)
-    solver = bound * float(np.mean(~network.traps))
-    return LQEResult(float(yields.mean()), 0.0, network.truncation_bound + solver,
-                     "exact" if scheme == "continuous" else "exact-thesis", 0, yields, step)
+        yields, bounds = absorbing_yields(out, hop, radiative, good, None)
+    method = "exact" if scheme == "continuous" else "exact-thesis"
+    return [LQEResult(float(yields[:, c].mean()), 0.0, network.truncation_bound + bounds[c] * float(np.mean(good[:, c])),
+                      method, 0, np.ascontiguousarray(yields[:, c]), step) for c in range(good.shape[1])]
 
 
 def _hop_keys(rates: sparse.csr_matrix) -> np.ndarray:
@@ -295,7 +270,8 @@ def film_lqe(state, draws: int = 8, seed=0, **network_options) -> TrapAverage:
 
     The pairs and rates are built once (`qdots.analysis.forster.exciton_network`,
     which takes ``network_options``) and only the traps are redrawn, each
-    from its own child of ``numpy.random.SeedSequence(seed)``.
+    from its own child of ``numpy.random.SeedSequence(seed)``; up to `DRAW_BLOCK`
+    draws are solved side by side (`qdots.analysis.chain.absorbing_yields`).
     """
     draws = count("draws", draws, 1, MAX_DRAWS)
     if "traps" in network_options:
@@ -304,10 +280,11 @@ def film_lqe(state, draws: int = 8, seed=0, **network_options) -> TrapAverage:
     base = exciton_network(state, seed=children[0], **network_options)
     fraction = network_options.get("trap_fraction", TRAP_FRACTION)
     results, solution = [], []
-    for k, child in enumerate(children):
-        net = base if k == 0 else base.with_traps(draw_traps(base.n_dots, fraction, child))
-        results.append(lqe_exact(net))
-        solution.append(net.solution_lqe)
+    for first in range(0, draws, DRAW_BLOCK):  # a block of draws solved side by side (`qdots.analysis.chain`)
+        traps = np.column_stack([base.traps if k == 0 else draw_traps(base.n_dots, fraction, children[k])
+                                 for k in range(first, min(first + DRAW_BLOCK, draws))])
+        results += _exact_draws(base, ~traps)
+        solution += [base.with_traps(column).solution_lqe for column in traps.T]
     values = np.array([r.lqe for r in results])
     se = float(values.std(ddof=1) / math.sqrt(draws)) if draws > 1 else math.nan
     return TrapAverage(float(values.mean()), se, values, max(r.error_bound for r in results),

@@ -23,6 +23,7 @@ import numpy as np
 from scipy import ndimage
 
 from labrig.compiled import jit
+from labrig.threads import run_tasks
 
 from .scale import ScaleBar, find_scale_bar
 
@@ -312,12 +313,14 @@ def find_annotations(image: np.ndarray) -> Annotations:
     """Strips, boxes and the scale bar of ``image`` (see the module), and the pixels to leave out."""
     image = np.asarray(image, dtype=float)
     window, strips = find_strips(image)
-    boxes = find_boxes(image, window) + corner_boxes(image, window)
-    bar = find_scale_bar(image)
+    # the bar beside the boxes and letters, in a second thread (each is numpy's and scipy's filters, which release the GIL)
+    bar, (boxes, letters) = run_tasks([
+        lambda: find_scale_bar(image),
+        lambda: (find_boxes(image, window) + corner_boxes(image, window), panel_letters(image, window))])
     ignore = np.zeros(image.shape, dtype=bool)
     for x0, y0, x1, y1 in boxes:
         ignore[max(0, y0 - 2):y1 + 2, max(0, x0 - 2):x1 + 2] = True
-    ignore |= ndimage.binary_dilation(panel_letters(image, window), iterations=2)
+    ignore |= ndimage.binary_dilation(letters, iterations=2)
     if bar is not None:
         ignore |= bar.mask(image.shape)
         bx0, by0, bx1, by1 = bar.box

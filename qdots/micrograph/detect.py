@@ -48,7 +48,7 @@ from dataclasses import replace
 import numpy as np
 from scipy import ndimage
 
-from labrig.threads import by_rows
+from labrig.threads import by_rows, run_tasks
 from labrig.validate import InputError, choice, real
 
 from ..geometry import nearest_ratio
@@ -235,12 +235,15 @@ def _detect(image: np.ndarray, polarity: str, profile: str, ignore: np.ndarray, 
     # belong to, where touching dots would merge and gain area), the picture is smoothed at a third of the coarser
     # look's radius instead
     smoothing = 1.0 if smoothing is None else smoothing
-    smooth, first, mask, radius = first_look(unit, ignore, smoothing)
     half = (slice(None, None, 2), slice(None, None, 2))
+    # the look and (unless the smoothing is given) the coarser one side by side in threads
+    looks = run_tasks([lambda: first_look(unit, ignore, smoothing)]
+                      + [lambda: first_look(unit[half], ignore[half], COARSE_SMOOTH / 2.0)] * (not given))
+    smooth, first, mask, radius = looks[0]
     if given:
         how += f"; smoothed by {smoothing:.1f} px (given)"
     else:
-        coarse = first_look(unit[half], ignore[half], COARSE_SMOOTH / 2.0)  # at a quarter of the resolution: its radius
+        coarse = looks[1]  # at a quarter of the resolution: its radius
         if 2.0 * coarse[3] >= TEXTURE_GROWTH * radius and coarse[2].mean() <= TEXTURE_AREA * mask.mean():
             smoothing = float(np.clip(2.0 * coarse[3] / 3.0, COARSE_SMOOTH / 2.0, 2.0 * COARSE_SMOOTH))
             smooth, first, mask, radius = first_look(unit, ignore, smoothing)
@@ -269,7 +272,8 @@ def _detect(image: np.ndarray, polarity: str, profile: str, ignore: np.ndarray, 
     if radius < BLOB_RADIUS:
         peaks, response = blob_seeds(unit / np.maximum(level, 1e-6), mask, radius)
     else:
-        peaks = spaced_maxima(ndimage.gaussian_filter(distance, 1.0), max(2, round(0.6 * radius)), 0.5)
+        peaks = spaced_maxima(by_rows(lambda part: ndimage.gaussian_filter(part, 1.0), distance, 5),
+                              max(2, round(0.6 * radius)), 0.5)
         response = distance
     deep = distance[tuple(peaks.T)] >= MIN_INSCRIBED * radius
     rejected = int(np.count_nonzero(~deep))
@@ -318,7 +322,11 @@ def _detect(image: np.ndarray, polarity: str, profile: str, ignore: np.ndarray, 
                              "flat discs")
         refined = refine_dots(target, centres, first[0], first[2], typical, shape, blur, level, move=True)
     step("seeking faint dots the threshold missed")
-    extra = missed_dots(target, refined, level_map, typical, shape, blur, noise)
+    # the grain of the support (of the picture alone) beside the search, in a second thread
+    extra, grains = run_tasks([
+        lambda: missed_dots(target, refined, level_map, typical, shape, blur, noise),
+        lambda: grain_noise(np.nan_to_num(target[half], nan=float(np.nanmedian(target))), mask[half], 0.5 * typical,
+                            GRAIN_SIZES)])
     if len(extra):  # dots the threshold missed: fitted, and the film settled again with them if they are in its samples
         more, n = len(extra), len(centres)
         centres = np.vstack([centres, extra])
@@ -353,8 +361,6 @@ def _detect(image: np.ndarray, polarity: str, profile: str, ignore: np.ndarray, 
     good = np.isfinite(fitted) & (contrast > 0)
     assert refined.profiles is not None  # refine_dots keeps the profiles unless told not to
     sums, counts, rhos = refined.profiles
-    grains = grain_noise(np.nan_to_num(target[half], nan=float(np.nanmedian(target))), mask[half], 0.5 * typical,
-                         GRAIN_SIZES)
     grain = np.interp(fitted[good] / typical, GRAIN_SIZES, grains)  # the grain at each dot's own size
     score = signal_to_noise(sums[good], counts[good], fitted[good], background[good], noise, grain)
     good[good] = score >= MIN_SIGNAL

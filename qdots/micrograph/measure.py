@@ -12,12 +12,14 @@ from __future__ import annotations
 
 import math
 import os
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 
 from labrig.progress import StageLines, progress_bar
+from labrig.threads import run_tasks
 from labrig.validate import InputError
 
 from ..analysis.lqe import film_lqe
@@ -259,17 +261,20 @@ def measured_film(image: Micrograph, detection: Detection, scale: float | None, 
                "coverage": detection.coverage(),
                "left_out": found.describe(float(image.pixels.min()), float(image.pixels.max())),
                "doubts": "; ".join(doubts)}
-    summary.update(film_metrics(state, measured=~detection.cut & ~stacked, complete=complete, nm_per_px=scale,
-                                errors=detection.errors))
+    draws = lqe_draws(state.n_dots) if lqe else 0
+    tasks: list[Callable[[], Any]] = [  # the film LQE beside the metrics, in a second thread (its products release the GIL)
+        lambda: film_lqe(state, draws=draws, seed=0) if lqe else None,
+        lambda: film_metrics(state, measured=~detection.cut & ~stacked, complete=complete, nm_per_px=scale,
+                             errors=detection.errors)]
+    average, metrics = run_tasks(tasks)
+    summary.update(metrics)
     sized = ~detection.cut & ~stacked  # the half-depth widths of the dots the mean diameter is of, outliers left out
     half = detection.half_widths()[sized][size_inliers(detection.diameters[sized])]
     summary["mean_half_width_px"] = float(half.mean()) if half.size else math.nan
     if scale is not None:
         summary["mean_half_width_nm"] = summary["mean_half_width_px"] * scale
     summary["scale_check"] = scale_check(summary)
-    if lqe:
-        draws = lqe_draws(state.n_dots)
-        average = film_lqe(state, draws=draws, seed=0)
+    if average is not None:
         summary.update(lqe=average.mean, lqe_standard_error=average.standard_error, lqe_trap_draws=draws)
     return MeasuredFilm(image, detection, state, complete, scale, how, bar, summary, found, stacked)
 

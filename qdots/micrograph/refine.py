@@ -374,6 +374,19 @@ def refine_dots(image, centres, radii, contrast, typical: float, shape: float, b
     return Refined(centres, radius, background, contrast, residual, profiles, model, reach)
 
 
+def rolled(image: np.ndarray, shift: tuple[int, int]) -> np.ndarray:
+    """``np.roll(image, shift, axis=(0, 1))`` in one copy (numpy's rolls axis by axis, a copy each), ``shift`` each
+    within the image's side."""
+    dy, dx = shift[0] % image.shape[0], shift[1] % image.shape[1]
+    out = np.empty_like(image)
+    rows = ((slice(dy, None), slice(None, image.shape[0] - dy)), (slice(None, dy), slice(image.shape[0] - dy, None)))
+    cols = ((slice(dx, None), slice(None, image.shape[1] - dx)), (slice(None, dx), slice(image.shape[1] - dx, None)))
+    for to_rows, from_rows in rows:
+        for to_cols, from_cols in cols:
+            out[to_rows, to_cols] = image[from_rows, from_cols]
+    return out
+
+
 def repeat_errors(image, centres, refined: Refined, typical: float, shape: float, blur, level, level_map,
                   shift: tuple[int, int] = REPEAT_SHIFT) -> np.ndarray:
     """Each radius's measurement error, px, by measuring the film again on a second image of the same film:
@@ -383,7 +396,7 @@ def repeat_errors(image, centres, refined: Refined, typical: float, shape: float
     its difference over ``sqrt(2)``, whose root mean square over the dots is ``e``. Up to `REPEAT_DOTS` dots,
     evenly chosen, are measured again (the others' errors are NaN): the error is a statistic of the film."""
     clean = level_map - refined.model
-    again = clean + np.nan_to_num(np.roll(image - clean, shift, axis=(0, 1)))
+    again = clean + np.nan_to_num(rolled(image - clean, shift))
     again[np.isnan(image)] = np.nan
     n = len(refined.radius)
     active = np.zeros(n, dtype=bool)

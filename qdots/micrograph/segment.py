@@ -82,6 +82,10 @@ def stretch(coarse: np.ndarray, rows: np.ndarray, cols: np.ndarray) -> np.ndarra
     """``coarse`` interpolated linearly at every pair of fractional ``rows`` and ``cols`` (its own px; clipped to it):
     an image ``len(rows)`` x ``len(cols)``. The same values as `scipy.ndimage.map_coordinates` at order 1 on the grid
     of those pairs, in two passes of one axis each (a 2048 px image in a tenth of the time)."""
+    rows = np.asarray(rows, dtype=float)
+    if len(rows) >= 2 * BAND_ROWS:  # bands of rows side by side in threads: each output row is its own
+        return np.concatenate(run_tasks([lambda part=part: stretch(coarse, part, cols)
+                                         for part in np.array_split(rows, 2)]))
     out = np.asarray(coarse, dtype=float)
     for axis, where in ((0, rows), (1, cols)):
         where = np.clip(np.asarray(where, dtype=float), 0, out.shape[axis] - 1)

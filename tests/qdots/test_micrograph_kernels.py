@@ -4,10 +4,11 @@ model and their neighbour-corrected profiles."""
 import math
 
 import numpy as np
+import pytest
 from scipy import ndimage
 
 from qdots.micrograph.profiles import BIN, profile_table, radial_profiles
-from qdots.micrograph.refine import dot_profiles, model_image
+from qdots.micrograph.refine import dot_profiles, model_image, rolled
 from qdots.micrograph.segment import label_moments, region_properties
 
 
@@ -96,3 +97,10 @@ def test_each_dots_profile_is_the_image_plus_its_neighbours_model_in_radial_bins
         np.testing.assert_allclose(sums[k], np.bincount(b, value[take], n_bins), rtol=0, atol=1e-9)
         np.testing.assert_array_equal(counts[k], np.bincount(b, None, n_bins))
         np.testing.assert_allclose(rhos[k], np.bincount(b, rho[take], n_bins), rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize("shape", [(7, 5), (1, 4), (64, 64)])
+@pytest.mark.parametrize("shift", [(0, 0), (1, 2), (-2, 5), (37, 61), (7, -11)])
+def test_rolled_equals_numpys_roll(shape, shift):
+    image = np.random.default_rng(1).random(shape)
+    np.testing.assert_array_equal(rolled(image, shift), np.roll(image, shift, axis=(0, 1)))
