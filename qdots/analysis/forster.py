@@ -29,6 +29,7 @@ import numpy as np
 from scipy import sparse
 from scipy.spatial import cKDTree
 
+from labrig.compiled import jit
 from labrig.validate import InputError, number
 
 from ..limits import MAX_FORSTER_PX, MAX_FORSTER_RADII  # noqa: F401 (public here too)
@@ -211,6 +212,45 @@ def resolve_forster_radius(radii, forster_radius: float | None = None, forster_r
     return float(forster_radius)
 
 
+@jit
+def transposed_buckets(n, i, j, forward, backward):
+    """The matrix with ``forward[p]`` at ``(i[p], j[p])`` and ``backward[p]`` at ``(j[p], i[p])``, as the arrays
+    (indptr, indices, data) of its compressed columns: column by column, each entry placed in the order of the pairs
+    (two passes over the pairs: the entries counted, then put in place)."""
+    indptr = np.zeros(n + 1, np.int64)
+    for p in range(len(i)):
+        indptr[i[p] + 1] += 1
+        indptr[j[p] + 1] += 1
+    for k in range(n):
+        indptr[k + 1] += indptr[k]
+    cursor = indptr[:-1].copy()
+    indices = np.empty(indptr[n], np.int64)
+    data = np.empty(indptr[n])
+    for p in range(len(i)):
+        a = i[p]
+        b = j[p]
+        indices[cursor[a]] = b  # column a holds (j -> i) = backward
+        data[cursor[a]] = backward[p]
+        cursor[a] += 1
+        indices[cursor[b]] = a  # column b holds (i -> j) = forward
+        data[cursor[b]] = forward[p]
+        cursor[b] += 1
+    return indptr, indices, data
+
+
+def pair_matrix(n: int, i: np.ndarray, j: np.ndarray, forward: np.ndarray, backward: np.ndarray) -> sparse.csr_matrix:
+    """The (N, N) matrix with ``forward`` at the pairs ``(i, j)`` and ``backward`` at ``(j, i)`` (each unordered pair
+    once), in CSR with sorted indices: its columns filled in the pairs' order (`transposed_buckets`), then turned into
+    rows, which comes out sorted (a third of the time of two COO triangles added and sorted)."""
+    indptr, indices, data = transposed_buckets(n, np.asarray(i, np.int64), np.asarray(j, np.int64),
+                                               np.asarray(forward, float), np.asarray(backward, float))
+    if len(indices) < np.iinfo(np.int32).max:  # the index type scipy takes for such a matrix
+        indptr, indices = indptr.astype(np.int32), indices.astype(np.int32)
+    rates = sparse.csc_matrix((data, indices, indptr), shape=(n, n)).tocsr()
+    rates.sort_indices()  # (already sorted: a no-op but for its check)
+    return rates
+
+
 def exciton_network(state, forster_radius: float | None = None, trap_fraction: float = TRAP_FRACTION, *,
                     forster_radii: float | None = None, traps=None, seed=None, efficiency: float = 1.0,
                     tau: float = TAU_NS, energies=None,
@@ -322,9 +362,6 @@ def exciton_network(state, forster_radius: float | None = None, trap_fraction: f
     if energies is not None:  # uphill hops slowed by the Boltzmann factor
         rise = (energies[j] - energies[i]) / (KB_EV * temperature)
         forward, backward = forward * np.exp(-np.maximum(rise, 0.0)), forward * np.exp(-np.maximum(-rise, 0.0))
-    # two triangles added: far faster than one COO with both directions
-    rates = (sparse.coo_matrix((forward, (i, j)), shape=(n, n)).tocsr()
-             + sparse.coo_matrix((backward, (j, i)), shape=(n, n)).tocsr())
-    rates.sort_indices()
+    rates = pair_matrix(n, i, j, forward, backward)
     return ExcitonNetwork(rates, is_trap, k_r, k_nr, float(forster_radius), float(cutoff), bound,
                           energies, float(temperature))

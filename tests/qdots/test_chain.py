@@ -6,7 +6,7 @@ from scipy import sparse
 from scipy.sparse.linalg import spsolve
 
 from qdots.analysis.chain import absorbing_yields, block_cg, product
-from qdots.analysis.forster import KB_EV, draw_traps, exciton_network
+from qdots.analysis.forster import KB_EV, draw_traps, exciton_network, pair_matrix
 from qdots.analysis.lqe import DRAW_BLOCK, film_lqe, lqe_exact
 from qdots.placement import random_sequential
 from tests.qdots.test_lqe import board
@@ -72,3 +72,19 @@ def test_film_lqe_over_more_draws_than_a_block_equals_each_draw_alone():
              for k in range(draws)]
     np.testing.assert_allclose(average.values, alone, rtol=1e-12)
     assert len(set(average.values)) == draws
+
+
+@pytest.mark.parametrize("n, pairs", [(300, 2000), (5, 0), (2, 1)])
+def test_the_pair_matrix_equals_two_coo_triangles_added(n, pairs):
+    rng = np.random.default_rng(n)
+    i, j = np.divmod(np.unique(rng.choice(n * n, size=4 * pairs + 10)), n)
+    order = rng.permutation(np.flatnonzero(i < j))[:pairs]  # each unordered pair once, in a shuffled order
+    i, j = i[order], j[order]
+    forward, backward = rng.random(len(i)), rng.random(len(i))
+    oracle = (sparse.coo_matrix((forward, (i, j)), shape=(n, n)).tocsr()
+              + sparse.coo_matrix((backward, (j, i)), shape=(n, n)).tocsr())
+    oracle.sort_indices()
+    built = pair_matrix(n, i, j, forward, backward)
+    assert built.has_sorted_indices
+    for part in ("indptr", "indices", "data"):
+        np.testing.assert_array_equal(getattr(built, part), getattr(oracle, part))
