@@ -224,7 +224,7 @@ def transposed_buckets(n, i, j, forward, backward):
     for k in range(n):
         indptr[k + 1] += indptr[k]
     cursor = indptr[:-1].copy()
-    indices = np.empty(indptr[n], np.int64)
+    indices = np.empty(indptr[n], np.int32)  # dot numbers (a board has far fewer than 2^31 dots)
     data = np.empty(indptr[n])
     for p in range(len(i)):
         a = i[p]
@@ -244,8 +244,10 @@ def pair_matrix(n: int, i: np.ndarray, j: np.ndarray, forward: np.ndarray, backw
     rows, which comes out sorted (a third of the time of two COO triangles added and sorted)."""
     indptr, indices, data = transposed_buckets(n, np.asarray(i, np.int64), np.asarray(j, np.int64),
                                                np.asarray(forward, float), np.asarray(backward, float))
-    if len(indices) < np.iinfo(np.int32).max:  # the index type scipy takes for such a matrix
-        indptr, indices = indptr.astype(np.int32), indices.astype(np.int32)
+    if indptr[-1] < np.iinfo(np.int32).max:  # the index type scipy takes for such a matrix
+        indptr = indptr.astype(np.int32)
+    else:
+        indices = indices.astype(np.int64)
     rates = sparse.csc_matrix((data, indices, indptr), shape=(n, n)).tocsr()
     rates.sort_indices()  # (already sorted: a no-op but for its check)
     return rates
