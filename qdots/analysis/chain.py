@@ -129,8 +129,8 @@ def absorbing_yields(out: np.ndarray, hop: sparse.csr_matrix, emit: np.ndarray, 
     x = np.zeros((n, draws))
     solved = np.zeros(draws, dtype=bool)
     if scale is not None and n:
-        rows = np.repeat(np.arange(n), np.diff(hop.indptr))
-        symmetric = hop.data if np.all(scale == 1.0) else hop.data * (scale[rows] / scale[hop.indices])
+        symmetric = hop.data if np.all(scale == 1.0) else \
+            hop.data * (np.repeat(scale, np.diff(hop.indptr)) / scale[hop.indices])  # scale_i hop_ij / scale_j
         y, solved = block_cg(hop, symmetric, out, scale[:, None] * rhs, weights, rtol, 20 * n + 100)
         x = y / scale[:, None]
     for c in np.flatnonzero(~solved):  # the thesis's chain, or a draw the gradients did not solve
