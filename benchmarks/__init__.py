@@ -30,6 +30,7 @@ BENCHMARKS = [
     "planarize_fast",
     "planarize_accuracy",
     "planarize_continuum",
+    "planarize_hard",
     "afm_real",
     "sweeps",
     "cold_start",

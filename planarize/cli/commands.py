@@ -27,7 +27,7 @@ from labrig.validate import InputError
 
 from .. import render
 from ..anodize import Anodization
-from ..engines.resolution import ASYMPTOTIC_CHANGE, ORDER_HIGH, ORDER_LOW
+from ..engines.resolution import ASYMPTOTIC_CHANGE, NOISE_CURVATURE, ORDER_HIGH, ORDER_LOW
 from ..io.heights import load_levelled
 from ..io.results import save_history_csv, save_run
 from ..io.scenefile import save_scene
@@ -135,6 +135,12 @@ def _accuracy(summary: dict) -> str:
     if summary["engine"] != "continuum":
         return "not estimated (the thesis's algorithm: compare with engine continuum, or refine the grid)"
     cost = f"; the next finer grid, {summary['finer_grid']}" if summary.get("finer_grid") else ""
+    if summary.get("noisy"):
+        return (f"not stated: the map bends from pixel to pixel as white noise does (pixel curvature "
+                f"{summary['pixel_curvature']:.2g}, at least {NOISE_CURVATURE:g}), so its features are one pixel wide "
+                f"and no affordable grid converges steadily (--level spikes removes one-pixel spikes and pits); its "
+                f"last refinement, to {summary['resolution']}, changed RMS and z-range by up to "
+                f"{100 * summary['last_change']:.3g} %{cost}")
     if summary.get("not_asymptotic"):
         return (f"not stated: {summary['not_asymptotic']} not yet converging at a steady order at the finest grid "
                 f"tried, {summary['resolution']} (observed order outside [{ORDER_LOW:g}, {ORDER_HIGH:g}], or a change of "
@@ -177,6 +183,7 @@ def summarize(scene: PlanarizeScene, run: Anodization) -> dict:
                      "rtol_met": p["rtol_met"], "volume_error_largest": p["volume_error"],
                      "resolution": "its own grid" if factor == 1 else f"{factor:g}x its grid",
                      "asymptotic": p["asymptotic"], "last_change": p["change"], "smooth": p.get("smooth", False),
+                     "noisy": p.get("noisy", False), "pixel_curvature": p.get("pixel_curvature", math.nan),
                      "not_asymptotic": ", ".join(f"{c.replace('_nm', '').replace('_', ' ')} (order {p['orders'][c]:.2g})"
                                                  for c in p["not_asymptotic"]),
                      "finer_grid": p["finer"],

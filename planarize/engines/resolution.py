@@ -18,7 +18,8 @@ finest grids run so far (spacings 4h, 2h and h) come, for each of the RMS and z-
 
 Where ``p`` lies outside that range the changes do not shrink steadily (pixel-scale noise in a measured
 map, whose z-range converges slowly and unevenly, does this): no error is stated for that quantity (its
-column is NaN), and the run says so, with the observed order and the change of the last refinement. A
+column is NaN), and the run says so, with the observed order and the change of the last refinement. On a map whose
+pixels bend as white noise does (`NOISE_CURVATURE`) no error is stated at all: no affordable grid is asymptotic there. A
 single assumed order was used before; on real AFM maps it under-stated the z-range's error up to 9x
 (docs/performance.md, ``afm_real``). If the largest relative estimate of the quantities stated exceeds the
 settings' ``rtol``, or none is stated, the grid is refined by 2 until it does not, or until
@@ -94,6 +95,14 @@ ROUGH_ORDER = 1.0
 #: surfaces 56 of 66 within 2x (48 with the rule above), none under half; on a step, a ridge, a cusp and noise of 17 x
 #: 17 points, 35 of 42 as before.
 SMOOTH_CURVATURE, SMOOTH_STEADY, SMOOTH_ORDER = 1.3, 1.2, 1.8
+#: A map whose `planarize.metrics.pixel_curvature` reaches NOISE_CURVATURE bends from pixel to pixel as white noise
+#: does (white noise and a one-pixel pit give sqrt(20) = 4.47; the centre crops of twelve measured AFM maps 1.6-3.6):
+#: its features are one pixel wide, and the continuum answer hangs on how the grid joins them. On such maps of 17 x 17
+#: points (noise, pits 1 nm and 4 nm deep) the order of one refinement wandered between -1.5 and 4.5 at every grid
+#: from 1x to 8x, and at 8x the deeper pit's stated metal RMS and z-range errors were 0.40 and 0.36 of the true ones
+#: (16x truth): no grid within reach is asymptotic, so no error is stated (`error_columns`), and the grid is refined
+#: only while that is cheap (`SETTLE_S`).
+NOISE_CURVATURE = 4.0
 #: A relative error is taken against at least this fraction of the quantity's value at the start (a
 #: surface planarized flat has an RMS near 0, where a relative error means nothing).
 FLOOR = 0.01
@@ -143,17 +152,20 @@ def estimate_order(order: float, previous: float, smooth: bool = False) -> float
 
 
 def error_columns(fine: dict, middle: dict, orders: dict, ratio: float, previous: dict | None = None,
-                  smooth: bool = False) -> dict:
+                  smooth: bool = False, noisy: bool = False) -> dict:
     """The ``*_error_nm`` columns of ``fine``: Richardson's estimate from ``middle`` (a run on a grid ``ratio``
     times coarser recorded at the same thicknesses) at the order `estimate_order` takes from each column's observed
     order, the one observed one grid coarser (``previous``) and whether the map is ``smooth``, where it is
     asymptotic (0 where neither run changed it), NaN where it is not: an order outside [`ORDER_LOW`, `ORDER_HIGH`],
-    or a change of more than `ASYMPTOTIC_CHANGE` of the quantity."""
+    a change of more than `ASYMPTOTIC_CHANGE` of the quantity, or a map whose pixels bend as noise does (``noisy``:
+    `NOISE_CURVATURE`)."""
     out = {}
     for column in ESTIMATED:
         change = np.abs(np.asarray(fine[column], dtype=float) - np.asarray(middle[column], dtype=float))
         p = orders[column]
-        if math.isnan(p):
+        if noisy:
+            error = np.full_like(change, math.nan)
+        elif math.isnan(p):
             error = np.zeros_like(change)
         elif ORDER_LOW <= p <= ORDER_HIGH and np.max(relative(fine, column, change), initial=0.0) <= ASYMPTOTIC_CHANGE:
             error = change / (ratio ** estimate_order(p, (previous or {}).get(column, math.nan), smooth) - 1.0)
@@ -240,7 +252,7 @@ def converge(metal: Surface, thickness: float, model: Model, settings: Continuum
     best: tuple[dict, ContinuumEngine, dict, list, bool] | None = None  # the reported resolution's run
     n = metal.z.size
     curvature = pixel_curvature(metal)
-    smooth = curvature < SMOOTH_CURVATURE
+    smooth, noisy = curvature < SMOOTH_CURVATURE, curvature >= NOISE_CURVATURE
     for factor in _ladder(settings):
         points = n * factor * factor
         if factor > reported and (points > MAX_POINTS or points * BYTES_PER_POINT > available_memory() / 2):
@@ -294,14 +306,15 @@ def converge(metal: Surface, thickness: float, model: Model, settings: Continuum
         (_, _, coarse_table, _), (_, middle, middle_table, _) = done[-3], done[-2]
         ratio = middle.inner.dx / engine.inner.dx
         orders = observed_orders(table, middle_table, coarse_table, ratio)
-        table.update(error_columns(table, middle_table, orders, ratio, done[-2][0].get("orders"), smooth))
+        table.update(error_columns(table, middle_table, orders, ratio, done[-2][0].get("orders"), smooth, noisy))
         error, balance = relative_error(table), volume_error(table)
         level.update(estimated_error=error, volume_error=balance, orders=orders, change=last_change(table, middle_table))
         known = relative_error(table, stated_only=True)
         if settings.refine is not None:
             break
-        if math.isfinite(known) and max(known, balance) <= settings.rtol:
-            # every quantity stated meets rtol; one not yet asymptotic asks for a finer grid only if it is cheap
+        if noisy or (math.isfinite(known) and max(known, balance) <= settings.rtol):
+            # every quantity stated meets rtol (or none can be stated: a noisy map); one not yet asymptotic asks for
+            # a finer grid only if it is cheap
             if math.isfinite(error) or predicted_seconds(done[-2][0], done[-1][0], 4 * engine.inner.z.size) > SETTLE_S:
                 break
     assert best is not None  # the reported resolution always runs (coarser ones first, finer ones after)
@@ -321,7 +334,7 @@ def converge(metal: Surface, thickness: float, model: Model, settings: Continuum
                   "not_asymptotic": [c for c in ESTIMATED if estimated
                                      and np.isnan(table[c.replace("_nm", "_error_nm")]).any()],
                   "change": level.get("change", math.nan), "pixel_curvature": curvature,
-                  "smooth": smooth,
+                  "smooth": smooth, "noisy": noisy,
                   "finer": (f"{levels[-1]['factor']:g}x {levels[-1]['skipped']}" if "skipped" in levels[-1] else ""),
                   "levels": levels,
                   **{k: v for k, v in settings.options().items() if k != "rtol"}}
@@ -350,5 +363,5 @@ def _max_steps(engine: ContinuumEngine, thickness: float) -> int:
 
 __all__ = ["converge", "error_columns", "observed_orders", "relative_error", "volume_error", "predicted_seconds",
            "estimate_order", "TooCostly", "ORDER_LOW", "ORDER_HIGH", "ASYMPTOTIC_CHANGE", "ORDER_CAP", "ROUGH_ORDER",
-           "SMOOTH_CURVATURE", "SMOOTH_STEADY", "SMOOTH_ORDER", "FLOOR", "BUDGET_S", "SECONDS_PER_POINT_STEP",
+           "SMOOTH_CURVATURE", "SMOOTH_STEADY", "SMOOTH_ORDER", "NOISE_CURVATURE", "FLOOR", "BUDGET_S", "SECONDS_PER_POINT_STEP",
            "LEVEL_GROWTH", "MIN_LEVEL_S", "SETTLE_S"]

@@ -1,9 +1,11 @@
-"""AFM instruments' own files, read through the AFMReader package (optional extra ``afm``).
+"""AFM instruments' own files, read through the AFMReader and NSFopen packages (optional extra ``afm``).
 
 AFMReader (https://github.com/AFM-SPM/AFMReader, GPL-3.0, from the team of TopoStats) is the maintained
 Python reader of the formats AFM users bring; it returns one channel's heights in nm and the pixel size
-in nm, read from the file's own header. It is installed with ``pip install "nanodisorder[afm]"``; nanodisorder
-imports it only when such a file is read and includes none of its code. Formats read through it:
+in nm, read from the file's own header. NSFopen (MIT, from Nanosurf AG, the instruments' maker) reads NanoSurf
+``.nid`` files: heights in the unit each channel's header states, with each channel's scan range and points. Both
+are installed with ``pip install "nanodisorder[afm]"``; nanodisorder imports them only when such a file is read and
+includes none of their code. Formats read through them:
 
 ======== =================================== =====================================================
 format   suffixes                            instrument
@@ -14,10 +16,11 @@ format   suffixes                            instrument
 ``jpk``  ``.jpk``                            JPK / Bruker NanoWizard
 ``stp``  ``.stp``                            WSxM (Nanotec and others), heights as floats
 ``top``  ``.top``                            WSxM, heights as 16-bit integers
+``nid``  ``.nid``                            NanoSurf (through NSFopen)
 ======== =================================== =====================================================
 
-NanoSurf ``.nid`` and Park Systems ``.tiff`` files are not read by AFMReader: open them in Gwyddion and
-save them as ``.gwy``, which `planarize.io.load_heights` reads.
+Park Systems ``.tiff`` files are read by neither: open them in Gwyddion and save them as ``.gwy``, which
+`planarize.io.load_heights` reads.
 
 AFMReader 0.0.7 reads a ``.top`` file's height span (``Z Amplitude: 59.7449 nm``) as its integer part
 (59 nm), so its heights come out 1-12 % short on the sample files (measured against the ``.stp`` export of
@@ -41,13 +44,16 @@ from .limits import checked_file
 from .units import given_spacing, unit_scales
 
 #: Formats read through AFMReader, by suffix.
-SUFFIXES = {".spm": "spm", ".ibw": "ibw", ".jpk": "jpk", ".stp": "stp", ".top": "top"}
+SUFFIXES = {".spm": "spm", ".ibw": "ibw", ".jpk": "jpk", ".stp": "stp", ".top": "top", ".nid": "nid"}
 #: Channels tried, in order, when none is given (the height channels instruments write, trace first).
 HEIGHT_CHANNELS = {
     "spm": ("Height Sensor", "Height"),
     "ibw": ("HeightTrace", "HeightTracee", "HeightRetrace", "ZSensorTrace"),
     "jpk": ("height_trace", "measuredHeight_trace", "height_retrace", "measuredHeight_retrace"),
+    "nid": ("Z-Axis Sensor", "Z-Axis", "Topography"),  # (of the forward scan)
 }
+#: Length units of a NanoSurf channel's header, nm per unit.
+_NID_UNITS = {"m": 1e9, "um": 1e3, "µm": 1e3, "nm": 1.0}
 #: WSxM height spans in the header of a ``.top`` file, nm per unit.
 _WSXM_UNITS = {"nm": 1.0, "Å": 0.1, "pm": 1e-3, "µm": 1e3, "um": 1e3}
 
@@ -76,6 +82,22 @@ def read_instrument(path: Path, format: str, unit, z_unit, spacing, channel):
         raise InputError(f"a WSxM .{format} file holds one channel: leave channel unset")
     if isinstance(channel, int):
         raise InputError(f"channel of a .{format} file is its name (a number picks a .gwy channel), got {channel}")
+    if format == "nid":
+        image, pixels = _read_nid(path, channel)
+    else:
+        image, pixel = _read_afmreader(path, format, channel)
+        pixels = (pixel, pixel)
+    if image.ndim != 2 or image.size > MAX_POINTS:
+        raise InputError(f"the channel is {' x '.join(map(str, image.shape))} values, not a 2-D map of at most "
+                         f"{MAX_POINTS:,} points")
+    if format == "top":
+        image = _top_span(path, image)
+    xy_scale, z_scale = unit_scales("nm", "nm", unit, z_unit)
+    return image.T, pixels, xy_scale, z_scale
+
+
+def _read_afmreader(path: Path, format: str, channel: str | None) -> tuple[np.ndarray, float]:
+    """One channel of a file AFMReader reads (its height channel by default), heights in nm, and its pixel size, nm."""
     module = _module(format)
     load = getattr(module, f"load_{format}")
     if format in ("stp", "top"):
@@ -91,17 +113,50 @@ def read_instrument(path: Path, format: str, unit, z_unit, spacing, channel):
                     tried = f"no channel {channel!r}" if channel is not None else \
                         f"no height channel ({', '.join(map(repr, names))})"
                     raise InputError(f"{tried}; {missing}") from None
-    image = np.asarray(image, dtype=float)
-    if image.ndim != 2 or image.size > MAX_POINTS:
-        raise InputError(f"the channel is {' x '.join(map(str, image.shape))} values, not a 2-D map of at most "
-                         f"{MAX_POINTS:,} points")
-    if format == "top":
-        image = _top_span(path, image)
     pixel = float(pixel)
     if not np.isfinite(pixel) or pixel <= 0:
         raise InputError(f"the file states a pixel size of {pixel!r} nm")
-    xy_scale, z_scale = unit_scales("nm", "nm", unit, z_unit)
-    return image.T, (pixel, pixel), xy_scale, z_scale
+    return np.asarray(image, dtype=float), pixel
+
+
+def _read_nid(path: Path, channel: str | None) -> tuple[np.ndarray, tuple[float, float]]:
+    """One forward-scan channel of a NanoSurf ``.nid`` file (NSFopen), heights in nm as (lines, points), and its
+    pixel size (along a line, across lines) in nm from that channel's own header (its ``Dim0Range`` over its points,
+    its ``Dim1Range`` over its lines)."""
+    try:
+        from NSFopen.read import nid_read
+    except ImportError:
+        raise InputError('reading .nid files needs the NSFopen package: pip install "nanodisorder[afm]" '
+                         "(or pip install NSFopen)") from None
+    try:
+        with contextlib.redirect_stdout(None), warnings.catch_warnings():  # (pandas warns of NSFopen's calls)
+            warnings.simplefilter("ignore")
+            nid = nid_read(str(path), verbose=False)
+        scans = {h.get("Dim2Name"): h for name, h in nid.param["HeaderDump"].items()
+                 if name.startswith("DataSet-") and isinstance(h, dict) and h.get("Frame") == "Scan forward"}
+        images = nid.data["Image"]["Forward"] if scans else {}
+    except Exception as exc:  # a truncated or foreign file fails anywhere inside the parser
+        raise InputError(f"NSFopen cannot read the file: {type(exc).__name__} {exc}".rstrip()) from None
+    names = (channel,) if channel is not None else HEIGHT_CHANNELS["nid"]
+    found = next((name for name in names if name in scans and name in images), None)
+    if found is None:
+        tried = f"no channel {channel!r}" if channel is not None else \
+            f"no height channel ({', '.join(map(repr, names))})"
+        raise InputError(f"{tried} in the forward scan; its channels: {', '.join(map(repr, sorted(images.keys()))) or 'none'}")
+    header = scans[found]
+    units = [str(header.get(key)) for key in ("Dim0Unit", "Dim1Unit", "Dim2Unit")]
+    if any(u not in _NID_UNITS for u in units):
+        raise InputError(f"channel {found!r} is not a height map in length units (its units: {', '.join(units)})")
+    image = np.asarray(images[found], dtype=float) * _NID_UNITS[units[2]]
+    lines, points = int(header["Lines"]), int(header["Points"])
+    if image.shape != (lines, points):
+        raise InputError(f"channel {found!r} holds {' x '.join(map(str, image.shape))} values where its header states "
+                         f"{lines} lines of {points} points")
+    pixels = (float(header["Dim0Range"]) * _NID_UNITS[units[0]] / points,
+              float(header["Dim1Range"]) * _NID_UNITS[units[1]] / lines)
+    if not all(np.isfinite(p) and p > 0 for p in pixels):
+        raise InputError(f"the file states a pixel size of {pixels[0]!r} x {pixels[1]!r} nm")
+    return image, pixels
 
 
 class _ChannelMissing(Exception):

@@ -32,9 +32,9 @@ def test_scene_writes_every_file(hill_run, capsys):
     assert names == sorted(stem + suffix for suffix in (*FILES, ".mp4"))
     run = load_run(hill_run / f"{stem}.npz")
     assert run.initial.shape == (5, 5) and run.parameters["rtol"] == 0.08 and run.thickness >= 1.0
-    # the quick hill's metal RMS converges unevenly up to 8x (observed orders 3.2, 0.81, 0.39): no number for it
-    assert run.parameters["engine"] == "continuum" and run.parameters["not_asymptotic"] == ["metal_rms_nm"]
-    assert np.all(np.isfinite(run.history["oxide_rms_error_nm"])) and np.isnan(run.history["metal_rms_error_nm"]).all()
+    # the quick hill, 5 x 5 points, is one pixel wide (pixel curvature 4.5, as noise): no error is stated for it
+    assert run.parameters["engine"] == "continuum" and run.parameters["noisy"]
+    assert len(run.parameters["not_asymptotic"]) == 4 and np.isnan(run.history["oxide_rms_error_nm"]).all()
     with open(hill_run / f"{stem}_history.csv", newline="") as stream:
         rows = list(csv.DictReader(stream))
     assert [float(r["oxide_rms_nm"]) for r in rows] == pytest.approx(run.history["oxide_rms_nm"].tolist())
