@@ -316,7 +316,7 @@ def test_on_a_map_whose_pixels_bend_as_noise_does_no_error_is_stated_and_the_gri
         levels = p["levels"]
         assert levels[-1]["factor"] == p["refine"] >= 2
         if p["refine"] < 8:  # it stopped where the next grid was predicted to take longer than SETTLE_S
-            assert predicted_seconds(levels[-2], levels[-1], 4 * levels[-1]["points"]) > SETTLE_S
+            assert predicted_seconds(levels[-2], levels[-1], 4 * levels[-1]["points"], measured=False) > SETTLE_S
     np.save(tmp_path / "pit.npy", pit)
     assert planarize_main(["import", str(tmp_path / "pit.npy"), "--thickness", "1", "--unit", "nm", "--spacing",
                            "0.25", "--out", str(tmp_path / "out")]) == 0
@@ -538,10 +538,32 @@ def test_the_cost_of_the_next_grid_is_predicted_from_the_two_before():
     assert resolution.predicted_seconds(quarter, slow, 1600) == pytest.approx(160 * 1600 * resolution.SECONDS_PER_POINT_STEP)
     steep = dict(half, steps=10 * 40)
     assert resolution.predicted_seconds(quarter, steep, 1600) == pytest.approx(400 * 16 * 1600 * 1e-4 / (400 * 400))
+    # not measured: at SECONDS_PER_POINT_STEP whatever the machine's speed (the cost SETTLE_S bounds)
+    assert resolution.predicted_seconds(quarter, half, 1600, measured=False) == pytest.approx(
+        160 * 1600 * resolution.SECONDS_PER_POINT_STEP)
     run = anodize(surfaces.random_roughness(seed=1), 200.0, record=2, engine=Continuum(refine=1))
     quarter, half, own = run.parameters["levels"]
     predicted_steps = half["steps"] * half["steps"] / quarter["steps"]
     assert 0.8 < own["steps"] / predicted_steps < 1.25, (quarter["steps"], half["steps"], own["steps"])
+
+
+def test_the_grid_a_run_reports_does_not_depend_on_the_machines_speed(monkeypatch):
+    """A finer grid asked for only to settle a quantity is bounded by its cost in point steps (`SETTLE_S` at
+    `SECONDS_PER_POINT_STEP`), not by the measured speed: with a clock that makes the machine look a million times
+    faster, white noise on 17 x 17 points still stops at 4x (its 8x grid would cost 31 s at that rate) with the same
+    history. At the measured speed, a crop of a real Bruker scan ran to 4x on a busy machine and to 8x on a quiet one."""
+    import itertools
+    import types
+
+    from planarize.engines import resolution
+
+    noise = Surface(4.0 + 0.3 * np.random.default_rng(0).standard_normal((17, 17)), 0.25)
+    run = anodize(noise, 1.0, record=4)
+    ticks = itertools.count()
+    monkeypatch.setattr(resolution, "time", types.SimpleNamespace(perf_counter=lambda: 1e-9 * next(ticks)))
+    fast = anodize(noise, 1.0, record=4)
+    assert run.parameters["refine"] == fast.parameters["refine"] == 4
+    np.testing.assert_array_equal(run.history["metal_rms_nm"], fast.history["metal_rms_nm"])
 
 
 def test_a_run_predicted_past_its_budget_is_refused_up_front_with_its_cost(monkeypatch):
