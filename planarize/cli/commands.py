@@ -137,8 +137,9 @@ def _accuracy(summary: dict) -> str:
     cost = f"; the next finer grid, {summary['finer_grid']}" if summary.get("finer_grid") else ""
     if summary.get("noisy"):
         return (f"not stated: the map bends from pixel to pixel as white noise does (pixel curvature "
-                f"{summary['pixel_curvature']:.2g}, at least {NOISE_CURVATURE:g}), so its features are one pixel wide "
-                f"and no affordable grid converges steadily (--level spikes removes one-pixel spikes and pits); its "
+                f"{summary['pixel_curvature']:.2g}, at least {NOISE_CURVATURE:g}): its features are one pixel wide, as "
+                f"on a grid too coarse for them, on noise, or at one-pixel spikes and pits (--level spikes removes "
+                f"those), and no affordable grid converges steadily; its "
                 f"last refinement, to {summary['resolution']}, changed RMS and z-range by up to "
                 f"{100 * summary['last_change']:.3g} %{cost}")
     if summary.get("not_asymptotic"):
