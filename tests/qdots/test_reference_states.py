@@ -66,7 +66,7 @@ def test_the_chapter_2_presets_are_bit_identical_to_0_2(reference, name, kind):
 
 #: The continuum engine's grid 0.2's two-grid error estimate chose, where the three-grid estimate (issue 63) chooses
 #: another: at that grid the answer is still bit-identical.
-GRID_OF_0_2 = {"hill": 4, "tilted": 1}
+GRID_OF_0_2 = {"hill": 4, "tilted": 1, "ta": 2}  # (the quick Ta film, pixel curvature 4.04, now states no error: 8x)
 
 
 @pytest.mark.parametrize("engine", ["fast", "continuum"])
