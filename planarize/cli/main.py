@@ -142,7 +142,7 @@ def _run_named(args: argparse.Namespace) -> int:
 
 def _run_import(args: argparse.Namespace) -> int:
     """Import a height map (.xyz, .csv/.txt/.asc/.dat matrix, .npy, .gwy, or an AFM instrument's .spm, .ibw,
-    .jpk, .stp, .top, .nid) and anodize it. Units and sizes stated in the file are used; give the others with
+    .jpk, .stp, .top, .nid, Park .tiff, .mi) and anodize it. Units and sizes stated in the file are used; give the others with
     --unit and --spacing. Artefacts are reported and levelled as --level says."""
     from ..io.scenefile import save_scene
     from .commands import import_scene, run_scene

@@ -23,9 +23,10 @@ Formats (chosen by suffix, or ``format=``):
     "nanodisorder[afm]"``; `planarize.io.gwy`). One channel is imported: by number or
     title, by default the first whose values are lengths. Pixel size and
     units come from the file.
-``"spm"``, ``"ibw"``, ``"jpk"``, ``"stp"``, ``"top"``, ``"nid"``
-    The files of Bruker, Asylum Research, JPK and WSxM instruments, read with the AFMReader package, and of
-    NanoSurf instruments, read with Nanosurf's NSFopen (``pip install "nanodisorder[afm]"``;
+``"spm"``, ``"ibw"``, ``"jpk"``, ``"stp"``, ``"top"``, ``"nid"``, ``"park"``, ``"mi"``
+    The files of Bruker, Asylum Research, JPK and WSxM instruments, read with the AFMReader package, of
+    NanoSurf instruments, read with Nanosurf's NSFopen, and of Park Systems (``.tiff``) and Agilent / Keysight
+    PicoView (``.mi``) instruments, read with SurfaceTopography (``pip install "nanodisorder[afm]"``;
     `planarize.io.instrument`). Pixel size and heights come from the file; ``channel`` names a channel (default:
     the height channel).
 
@@ -89,7 +90,7 @@ MAX_PIXEL_ASPECT = 8.0
 #: ``[surface]`` keys for ``kind = "file"`` (`planarize.scene`).
 LOAD_OPTIONS = {
     "path": Param("str", high=4096, doc="height map: .xyz, .csv/.txt/.asc/.dat matrix, .npy, .gwy, or an AFM "
-                  "instrument's .spm, .ibw, .jpk, .stp, .top, .nid",
+                  "instrument's .spm, .ibw, .jpk, .stp, .top, .nid, .tiff (Park), .mi",
                   rule="relative to the scene file"),
     "unit": Param("str", choices=tuple(LENGTH_UNITS), optional=True,
                   doc="unit of lateral sizes (and heights), for files that do not state it", unset="the file's"),

@@ -1,11 +1,15 @@
-"""AFM instruments' own files, read through the AFMReader and NSFopen packages (optional extra ``afm``).
+"""AFM instruments' own files, read through the AFMReader, NSFopen and SurfaceTopography packages (optional extra
+``afm``).
 
 AFMReader (https://github.com/AFM-SPM/AFMReader, GPL-3.0, from the team of TopoStats) is the maintained
 Python reader of the formats AFM users bring; it returns one channel's heights in nm and the pixel size
 in nm, read from the file's own header. NSFopen (MIT, from Nanosurf AG, the instruments' maker) reads NanoSurf
-``.nid`` files: heights in the unit each channel's header states, with each channel's scan range and points. Both
-are installed with ``pip install "nanodisorder[afm]"``; nanodisorder imports them only when such a file is read and
-includes none of their code. Formats read through them:
+``.nid`` files: heights in the unit each channel's header states, with each channel's scan range and points.
+SurfaceTopography (https://github.com/ContactEngineering/SurfaceTopography, MIT, maintained by the team of
+contact.engineering) reads Park Systems ``.tiff`` and Agilent / Keysight PicoView ``.mi`` files, which neither
+of the others reads: heights and sizes in the unit the file states. All three are installed with
+``pip install "nanodisorder[afm]"``; nanodisorder imports them only when such a file is read and includes none of
+their code. Formats read through them:
 
 ======== =================================== =====================================================
 format   suffixes                            instrument
@@ -17,10 +21,15 @@ format   suffixes                            instrument
 ``stp``  ``.stp``                            WSxM (Nanotec and others), heights as floats
 ``top``  ``.top``                            WSxM, heights as 16-bit integers
 ``nid``  ``.nid``                            NanoSurf (through NSFopen)
+``park`` ``.tiff``, ``.tif``                 Park Systems (XE, NX; through SurfaceTopography)
+``mi``   ``.mi``                             Agilent / Keysight / Molecular Imaging PicoView (through
+                                             SurfaceTopography)
 ======== =================================== =====================================================
 
-Park Systems ``.tiff`` files are read by neither: open them in Gwyddion and save them as ``.gwy``, which
-`planarize.io.load_heights` reads.
+SurfaceTopography returns a scan with its first row at the bottom of the picture (``heights[x, y]``, ``y`` up);
+both files store their lines from the bottom up. The map is taken as the picture shows it: on the Park sample
+file, its heights averaged over 2 x 2 pixels correlate at 0.995 with the 256 x 256 preview the instrument stores
+in the same TIFF, and at 0.04 mirrored.
 
 AFMReader 0.0.7 reads a ``.top`` file's height span (``Z Amplitude: 59.7449 nm``) as its integer part
 (59 nm), so its heights come out 1-12 % short on the sample files (measured against the ``.stp`` export of
@@ -43,17 +52,22 @@ from ..heightfield import MAX_POINTS
 from .limits import checked_file
 from .units import given_spacing, unit_scales
 
-#: Formats read through AFMReader, by suffix.
-SUFFIXES = {".spm": "spm", ".ibw": "ibw", ".jpk": "jpk", ".stp": "stp", ".top": "top", ".nid": "nid"}
+#: Formats read through AFMReader, NSFopen and SurfaceTopography, by suffix.
+SUFFIXES = {".spm": "spm", ".ibw": "ibw", ".jpk": "jpk", ".stp": "stp", ".top": "top", ".nid": "nid",
+            ".tiff": "park", ".tif": "park", ".mi": "mi"}
+#: Formats read through SurfaceTopography: its name of each.
+SURFACE_TOPOGRAPHY_FORMATS = {"park": "ps", "mi": "mi"}
 #: Channels tried, in order, when none is given (the height channels instruments write, trace first).
 HEIGHT_CHANNELS = {
     "spm": ("Height Sensor", "Height"),
     "ibw": ("HeightTrace", "HeightTracee", "HeightRetrace", "ZSensorTrace"),
     "jpk": ("height_trace", "measuredHeight_trace", "height_retrace", "measuredHeight_retrace"),
     "nid": ("Z-Axis Sensor", "Z-Axis", "Topography"),  # (of the forward scan)
+    "park": ("Z Height", "Topography", "Z Detector", "Height"),
+    "mi": ("Topography", "Height"),
 }
-#: Length units of a NanoSurf channel's header, nm per unit.
-_NID_UNITS = {"m": 1e9, "um": 1e3, "µm": 1e3, "nm": 1.0}
+#: Length units of a NanoSurf channel's header and of SurfaceTopography's channels, nm per unit.
+_FILE_UNITS = {"m": 1e9, "mm": 1e6, "um": 1e3, "µm": 1e3, "nm": 1.0, "Å": 0.1, "pm": 1e-3}
 #: WSxM height spans in the header of a ``.top`` file, nm per unit.
 _WSXM_UNITS = {"nm": 1.0, "Å": 0.1, "pm": 1e-3, "µm": 1e3, "um": 1e3}
 
@@ -84,6 +98,8 @@ def read_instrument(path: Path, format: str, unit, z_unit, spacing, channel):
         raise InputError(f"channel of a .{format} file is its name (a number picks a .gwy channel), got {channel}")
     if format == "nid":
         image, pixels = _read_nid(path, channel)
+    elif format in SURFACE_TOPOGRAPHY_FORMATS:
+        image, pixels = _read_surface_topography(path, format, channel)
     else:
         image, pixel = _read_afmreader(path, format, channel)
         pixels = (pixel, pixel)
@@ -145,18 +161,69 @@ def _read_nid(path: Path, channel: str | None) -> tuple[np.ndarray, tuple[float,
         raise InputError(f"{tried} in the forward scan; its channels: {', '.join(map(repr, sorted(images.keys()))) or 'none'}")
     header = scans[found]
     units = [str(header.get(key)) for key in ("Dim0Unit", "Dim1Unit", "Dim2Unit")]
-    if any(u not in _NID_UNITS for u in units):
+    if any(u not in _FILE_UNITS for u in units):
         raise InputError(f"channel {found!r} is not a height map in length units (its units: {', '.join(units)})")
-    image = np.asarray(images[found], dtype=float) * _NID_UNITS[units[2]]
+    image = np.asarray(images[found], dtype=float) * _FILE_UNITS[units[2]]
     lines, points = int(header["Lines"]), int(header["Points"])
     if image.shape != (lines, points):
         raise InputError(f"channel {found!r} holds {' x '.join(map(str, image.shape))} values where its header states "
                          f"{lines} lines of {points} points")
-    pixels = (float(header["Dim0Range"]) * _NID_UNITS[units[0]] / points,
-              float(header["Dim1Range"]) * _NID_UNITS[units[1]] / lines)
+    pixels = (float(header["Dim0Range"]) * _FILE_UNITS[units[0]] / points,
+              float(header["Dim1Range"]) * _FILE_UNITS[units[1]] / lines)
     if not all(np.isfinite(p) and p > 0 for p in pixels):
         raise InputError(f"the file states a pixel size of {pixels[0]!r} x {pixels[1]!r} nm")
     return image, pixels
+
+
+def _read_surface_topography(path: Path, format: str, channel: str | None) -> tuple[np.ndarray, tuple[float, float]]:
+    """One channel of a Park Systems ``.tiff`` or PicoView ``.mi`` file (SurfaceTopography), heights in nm as the
+    picture shows them (lines, points), and its pixel size (along a line, across lines) in nm from the file's
+    scan size and points. The channel's size is checked before its heights are read."""
+    try:
+        from SurfaceTopography.IO import open_topography
+    except ImportError:
+        raise InputError(f'reading .{format} files needs the SurfaceTopography package: pip install '
+                         '"nanodisorder[afm]" (or pip install SurfaceTopography)') from None
+    what = {"park": "a Park Systems TIFF", "mi": "a PicoView .mi file"}[format]
+    try:
+        with contextlib.redirect_stdout(None), warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            reader = open_topography(str(path), format=SURFACE_TOPOGRAPHY_FORMATS[format])
+            channels: dict = {}
+            for each in reader.channels:  # (the first of a name: a .mi file holds a Friction trace and retrace)
+                channels.setdefault(each.name, each)
+    except Exception as exc:  # a foreign or truncated file fails anywhere inside the parser
+        raise InputError(f"SurfaceTopography cannot read the file as {what}: {type(exc).__name__} {exc}".rstrip()) \
+            from None
+    names = (channel,) if channel is not None else HEIGHT_CHANNELS[format]
+    found = next((name for name in names if name in channels), None)
+    if found is None:
+        tried = f"no channel {channel!r}" if channel is not None else \
+            f"no height channel ({', '.join(map(repr, names))})"
+        raise InputError(f"{tried}; its channels: {', '.join(map(repr, channels)) or 'none'}")
+    chosen = channels[found]
+    unit, data_unit = str(chosen.unit), str(getattr(chosen, "data_unit", chosen.unit))
+    if unit not in _FILE_UNITS or data_unit != unit:  # (a deflection or friction channel: its values in V)
+        raise InputError(f"channel {found!r} is not a height map in length units (its unit: {data_unit})")
+    points, lines = (int(n) for n in chosen.nb_grid_pts)
+    if points * lines > MAX_POINTS:
+        raise InputError(f"the channel is {lines} x {points} values, not a 2-D map of at most {MAX_POINTS:,} points")
+    try:
+        with contextlib.redirect_stdout(None), warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            topography = chosen.topography()
+            heights = np.asarray(topography.heights(), dtype=float)
+            sizes = tuple(float(s) for s in topography.physical_sizes)
+    except Exception as exc:
+        raise InputError(f"SurfaceTopography cannot read channel {found!r}: {type(exc).__name__} {exc}".rstrip()) \
+            from None
+    if str(topography.unit) != unit or heights.shape != (points, lines):
+        raise InputError(f"channel {found!r} holds {' x '.join(map(str, heights.shape))} values in "
+                         f"{topography.unit} where its header states {points} x {lines} in {unit}")
+    pixels = (sizes[0] * _FILE_UNITS[unit] / points, sizes[1] * _FILE_UNITS[unit] / lines)
+    if not all(np.isfinite(p) and p > 0 for p in pixels):
+        raise InputError(f"the file states a pixel size of {pixels[0]!r} x {pixels[1]!r} nm")
+    return heights.T * _FILE_UNITS[unit], pixels
 
 
 class _ChannelMissing(Exception):
@@ -201,4 +268,4 @@ def _top_span(path: Path, image: np.ndarray) -> np.ndarray:
     return (image - image.min()) * (span / top)
 
 
-__all__ = ["read_instrument", "SUFFIXES", "HEIGHT_CHANNELS"]
+__all__ = ["read_instrument", "SUFFIXES", "HEIGHT_CHANNELS", "SURFACE_TOPOGRAPHY_FORMATS"]

@@ -36,7 +36,8 @@ MAX_FILE_BYTES = {
     "xyz": 3 * TEXT_BYTES_PER_VALUE * MAX_POINTS,
     "npy": NPY_HEADER_BYTES + 16 * MAX_POINTS,
     "gwy": 8 * MAX_POINTS + GWY_OTHER_BYTES,
-    **dict.fromkeys(("spm", "ibw", "jpk", "stp", "top", "nid"), 8 * INSTRUMENT_CHANNELS * MAX_POINTS + (1 << 20)),
+    **dict.fromkeys(("spm", "ibw", "jpk", "stp", "top", "nid", "park", "mi"),
+                    8 * INSTRUMENT_CHANNELS * MAX_POINTS + (1 << 20)),
 }
 
 

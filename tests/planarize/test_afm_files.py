@@ -1,14 +1,16 @@
-"""Real AFM instrument files (`planarize.io.instrument`, through AFMReader and NSFopen): read with the units their headers
-state, the same scan alike in two formats, levelled, imported and refused in one line.
+"""Real AFM instrument files (`planarize.io.instrument`, through AFMReader, NSFopen and SurfaceTopography): read with the
+units their headers state, the same scan alike in two formats or through two readers, levelled, imported and refused
+in one line.
 
 The files are the public sample scans of `benchmarks/afm_real.toml`, fetched by ``python -m benchmarks.afm_files``
-(CI fetches them before the tests); without them, or without AFMReader, these tests are skipped.
+(CI fetches them before the tests); without them, or without the readers, these tests are skipped.
 """
 
 from __future__ import annotations
 
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -20,6 +22,7 @@ from planarize.io.heights import load_levelled
 
 pytest.importorskip("AFMReader")
 pytest.importorskip("NSFopen")
+pytest.importorskip("SurfaceTopography")
 MAPS = present()
 ENTRIES = {e["file"]: e for e in manifest()["map"]}
 pytestmark = pytest.mark.skipif(len(MAPS) < len(ENTRIES), reason="the real AFM maps are not fetched "
@@ -114,3 +117,78 @@ def test_without_afmreader_the_reader_names_the_extra(monkeypatch):
     monkeypatch.setitem(sys.modules, "AFMReader", None)
     with pytest.raises(InputError, match=r'needs the AFMReader package: pip install "nanodisorder\[afm\]"'):
         load_heights(MAPS.get("sample_0.jpk", ""))
+
+
+def _park_file(path):
+    """An independent reader of a Park Systems TIFF, from Park's published layout: the header (TIFF tag 50435: image
+    type, source and mode names in UTF-16, ..., width, height, ..., X and Y scan size, ..., data gain, Z scale, unit,
+    ..., data type) and the heights (tag 50434, float32 when the data type is 2), as stored (first line at the
+    bottom); returns them (height unit), the scan size (um, um) and the instrument's 8-bit preview."""
+    import struct
+
+    import tifffile
+
+    with tifffile.TiffFile(path) as tiff:
+        tags = tiff.pages[0].tags
+        header, data, preview = bytes(tags[50435].value), bytes(tags[50434].value), tiff.pages[0].asarray()
+    width, height = struct.unpack_from("<2i", header, 100)  # (bytes 0-99: type, names, low-pass, flags)
+    x_size, y_size = struct.unpack_from("<2d", header, 140)  # (100-139: angle, sine scan, overscan, directions)
+    gain, z_scale = struct.unpack_from("<2d", header, 220)  # (156-219: offsets, rate, set point and its unit, biases)
+    unit = header[244:260].decode("utf-16-le").split("\0")[0]  # (236: Z offset)
+    (data_type,) = struct.unpack_from("<i", header, 348)  # (260-347: data range, flags, servo, voltage modes)
+    assert data_type == 2 and unit == "um"  # (float heights in um: the sample file's)
+    heights = np.frombuffer(data, "<f4").reshape(height, width) * gain * z_scale
+    return heights, (x_size, y_size), preview
+
+
+def test_a_park_tiff_reads_as_an_independent_reading_of_parks_layout_and_as_its_preview_shows():
+    """SurfaceTopography's heights (nm) equal those of Park's layout read here; the map as read (row j of
+    ``Surface.z.T`` is the picture's line j from the top) correlates with the 256 x 256 preview Park stores in the
+    same file at above 0.99, its mirror image at under 0.1."""
+    path = MAPS.get("example_ps.tiff", "")
+    surface = load_heights(path, level="none")
+    stored, sizes, preview = _park_file(path)
+    assert surface.spacing == pytest.approx((1e3 * sizes[0] / stored.shape[1], 1e3 * sizes[1] / stored.shape[0]))
+    picture = 1e3 * stored[::-1]  # (lines stored from the bottom up)
+    np.testing.assert_allclose(surface.z.T, picture, rtol=1e-6, atol=1e-9)
+    halved = surface.z.T.reshape(256, 2, 256, 2).mean(axis=(1, 3))
+    assert np.corrcoef(halved.ravel(), preview.ravel())[0, 1] > 0.99
+    assert abs(np.corrcoef(halved[::-1].ravel(), preview.ravel())[0, 1]) < 0.1
+
+
+def test_a_picoview_file_reads_as_an_independent_reading_of_its_header_and_buffer():
+    """The .mi file's text header states 256 x 256 pixels over 2e-5 m, and the Topography buffer's range (2.9025 um
+    for the full int32 range); its data follow the header as int32 buffers, first line at the bottom (scanUp)."""
+    path = MAPS.get("mi-1.mi", "")
+    raw = Path(path).read_bytes()
+    text = raw[:raw.index(b"data          BINARY_32")].decode("latin-1")
+    field = {line[:14].strip(): line[14:].strip() for line in text.splitlines()}
+    points, lines = int(field["xPixels"]), int(field["yPixels"])
+    start = raw.index(b"\n", raw.index(b"data          BINARY_32")) + 1
+    buffer = np.frombuffer(raw[start:start + 4 * points * lines], "<i4").reshape(lines, points)
+    topography_range_um = float(text.split("bufferLabel   Topography")[1].split("bufferRange")[1].split()[0])
+    surface = load_heights(path, level="none")
+    assert surface.spacing == pytest.approx((1e9 * float(field["xLength"]) / points,
+                                             1e9 * float(field["yLength"]) / lines))
+    np.testing.assert_allclose(surface.z.T, 1e3 * topography_range_um * buffer[::-1] / 2 ** 31, rtol=1e-9)
+
+
+def test_surface_topography_files_are_refused_in_one_line_when_they_are_not_what_they_say(tmp_path):
+    with pytest.raises(InputError, match=r"no channel 'Nope'; its channels: 'Topography', 'Deflection', 'Friction'$"):
+        load_heights(MAPS.get("mi-1.mi", ""), channel="Nope")
+    with pytest.raises(InputError, match=r"channel 'Deflection' is not a height map in length units \(its unit: V\)"):
+        load_heights(MAPS.get("mi-1.mi", ""), channel="Deflection")
+    import tifffile
+
+    plain = tmp_path / "photo.tiff"
+    tifffile.imwrite(plain, np.zeros((8, 8), np.uint8))
+    with pytest.raises(InputError, match=r"photo.tiff: SurfaceTopography cannot read the file as a Park Systems TIFF")\
+            as error:
+        load_heights(plain)
+    assert "\n" not in str(error.value)
+
+
+def test_without_surface_topography_the_reader_names_the_extra(monkeypatch):
+    monkeypatch.setitem(sys.modules, "SurfaceTopography.IO", None)
+    with pytest.raises(InputError, match=r'needs the SurfaceTopography package: pip install "nanodisorder\[afm\]"'):
+        load_heights(MAPS.get("mi-1.mi", ""))
