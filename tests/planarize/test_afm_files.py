@@ -33,7 +33,7 @@ pytestmark = pytest.mark.skipif(len(MAPS) < len(ENTRIES), reason="the real AFM m
 def test_each_instrument_file_is_read_with_the_pixel_size_its_header_states(name):
     """The scan's width (along its lines) and height (across them) as its header states, over its points and lines
     (the NanoSurf MoS2 scan has 512 points a line and 256 lines over a square: pixels twice as long across lines)."""
-    surface = load_heights(MAPS.get(name, name), level="none")
+    surface = load_heights(MAPS.get(name, name), level="none", format=ENTRIES[name].get("format"))
     nx, ny = surface.shape
     assert surface.spacing[0] == pytest.approx(ENTRIES[name]["scan_nm"] / nx, rel=1e-6)
     assert surface.spacing[1] == pytest.approx(ENTRIES[name]["scan_nm"] / ny, rel=1e-6)
