@@ -45,19 +45,10 @@ REACH, REACH_PAD = 1.4, 4.0
 @jit
 def paint_dot(model, x, y, r, c, table, blur, sign):
     """Add ``sign * C F(|p - (x, y)| / r)`` (the blurred profile of `profile_table`) to ``model``, out to 2 r."""
-    replace_dot(model, x, y, 0.0, 0.0, x, y, r, sign * c, table, blur)
-
-
-@jit
-def replace_dot(model, old_x, old_y, old_r, old_c, x, y, r, c, table, blur):
-    """Take a dot's old model (centre, radius, contrast) out of ``model`` and put its new one in (`add_disc`)."""
-    curve = np.empty(table.shape[1])
-    if old_r > 0.0 and old_c != 0.0:
-        blur_row(table, blur / old_r, curve)
-        add_disc(model, old_x, old_y, old_r, -old_c, curve)
     if r > 0.0 and c != 0.0:
+        curve = np.empty(table.shape[1])
         blur_row(table, blur / r, curve)
-        add_disc(model, x, y, r, c, curve)
+        add_disc(model, x, y, r, sign * c, curve)
 
 
 @jit(inline=True)
@@ -149,16 +140,14 @@ def dot_profiles_part(image, model, centres, radii, contrast, table, blurs, reac
 
 
 @jit
-def centre_shift(image, model, x, y, r, c, table, blur, level):
-    """How far the centre of the dot at (x, y) is from where its darkness alone (``level - (image + model - own
-    model)``, positive part) balances within 0.9 r: (dx, dy), px; (0, 0) when the window crosses the image edge
-    or holds no darkness. Repeated, this converges on the dot's centre of symmetry."""
+def centre_shift(image, model, x, y, r, level):
+    """How far the centre of the dot at (x, y), radius ``r``, is from where its darkness alone (``level - (image +
+    model)``, positive part, ``model`` without the dot's own) balances within 0.9 r: (dx, dy), px; (0, 0) when the
+    window crosses the image edge or holds no darkness. Repeated, this converges on the dot's centre of symmetry."""
     h, w = image.shape
     window = 0.9 * r
     if not (r > 0.0) or x - window < 0.0 or y - window < 0.0 or x + window > w or y + window > h:
         return 0.0, 0.0
-    curve = np.empty(table.shape[1])
-    blur_row(table, blur / r, curve)
     sx = 0.0
     sy = 0.0
     total = 0.0
@@ -167,10 +156,9 @@ def centre_shift(image, model, x, y, r, c, table, blur, level):
         start, stop = disc_columns(x, dy, window, w)
         for col in range(start, stop):
             dx = col + 0.5 - x
-            rho = math.sqrt(dx * dx + dy * dy)
-            if rho >= window:
+            if dx * dx + dy * dy >= window * window:
                 continue
-            dark = level - (image[row, col] + model[row, col] - c * row_value(curve, rho / r))
+            dark = level - (image[row, col] + model[row, col])
             if dark > 0.0:  # (False for a pixel left out: NaN)
                 sx += dark * dx
                 sy += dark * dy
@@ -184,14 +172,15 @@ def centre_shift(image, model, x, y, r, c, table, blur, level):
 @jit
 def refine_pass(image, model, centres, radius, contrast, background, residual, level, free, table, blurs, reach,
                 n_bins, typical, wide, move, active, walk=False):
-    """One pass over the ``active`` dots in order, each fitted on ``image + model - own model`` and its model
-    replaced in ``model`` at once (Gauss-Seidel: the next dot sees it). ``wide``: radii searched over `WIDE` times
-    ``typical``; else near the dot's own (`qdots.micrograph.profiles.polish_dot`), and with ``walk`` on from where that
-    search stopped at its end (`PINNED`). ``move``: each centre first
-    moved to where its darkness balances (`centre_shift`). Updates the arrays in place."""
+    """One pass over the ``active`` dots in order: each dot's own model taken out of ``model``, the dot fitted on
+    ``image + model`` and its new model put in at once (Gauss-Seidel: the next dot sees it). ``wide``: radii searched
+    over `WIDE` times ``typical``; else near the dot's own (`qdots.micrograph.profiles.polish_dot`), and with ``walk``
+    on from where that search stopped at its end (`PINNED`). ``move``: each centre first moved to where its darkness
+    balances (`centre_shift`). Updates the arrays in place."""
     sums = np.zeros(n_bins)
     counts = np.zeros(n_bins)
     rhos = np.zeros(n_bins)
+    curve = np.empty(table.shape[1])
     for k in range(len(radius)):
         if not active[k]:
             continue
@@ -200,15 +189,17 @@ def refine_pass(image, model, centres, radius, contrast, background, residual, l
         blur = blurs[k]
         old_r = radius[k] if radius[k] > 0.0 else 0.0
         old_c = contrast[k]
-        if move and old_r > 0.0 and old_c > 0.0:
-            dx, dy = centre_shift(image, model, x, y, old_r, old_c, table, blur, level[k])
-            if dx != 0.0 or dy != 0.0:
-                replace_dot(model, x, y, old_r, old_c, x + dx, y + dy, old_r, old_c, table, blur)
-                x += dx
-                y += dy
-                centres[k, 0] = x
-                centres[k, 1] = y
-        dot_profile(image, model, x, y, old_r, old_c, table, blur, reach[k], BIN, -1, sums, counts, rhos)
+        own = old_r > 0.0 and old_c > 0.0
+        if own:  # the dot's own model out: the fit and the centre see the image plus its neighbours' models
+            blur_row(table, blur / old_r, curve)
+            add_disc(model, x, y, old_r, -old_c, curve)
+        if move and own:
+            dx, dy = centre_shift(image, model, x, y, old_r, level[k])
+            x += dx
+            y += dy
+            centres[k, 0] = x
+            centres[k, 1] = y
+        dot_profile(image, model, x, y, 0.0, 0.0, table, blur, reach[k], BIN, -1, sums, counts, rhos)
         if wide or not (old_r > 0.0):
             r, big, c, error = fit_dot(sums, counts, rhos, level[k], free, table, blur, typical, WIDE[0], WIDE[1],
                                        FIT_STEP * 2.0)
@@ -224,7 +215,9 @@ def refine_pass(image, model, centres, radius, contrast, background, residual, l
                                               NARROW[0], NARROW[1])
                 walks += 1
         new_c = c if (r > 0.0 and c > 0.0) else 0.0
-        replace_dot(model, x, y, old_r, old_c, x, y, r if r > 0.0 else 0.0, new_c, table, blur)
+        if new_c > 0.0:
+            blur_row(table, blur / r, curve)
+            add_disc(model, x, y, r, new_c, curve)
         radius[k] = r
         contrast[k] = new_c
         background[k] = big

@@ -1,5 +1,5 @@
 """The measurement's compiled kernels against numpy oracles written here: radial bins, region moments, the dots'
-model and their neighbour-corrected profiles."""
+model, their neighbour-corrected profiles and their centres' shifts; the fits' model kept equal to its dots'."""
 
 import math
 
@@ -8,7 +8,7 @@ import pytest
 from scipy import ndimage
 
 from qdots.micrograph.profiles import BIN, profile_table, radial_profiles
-from qdots.micrograph.refine import dot_profiles, model_image, rolled
+from qdots.micrograph.refine import centre_shift, dot_profiles, model_image, refine_dots, rolled
 from qdots.micrograph.segment import label_moments, region_properties
 
 
@@ -104,3 +104,33 @@ def test_each_dots_profile_is_the_image_plus_its_neighbours_model_in_radial_bins
 def test_rolled_equals_numpys_roll(shape, shift):
     image = np.random.default_rng(1).random(shape)
     np.testing.assert_array_equal(rolled(image, shift), np.roll(image, shift, axis=(0, 1)))
+
+
+def test_a_centres_shift_is_the_balance_of_its_darkness_within_nine_tenths_of_its_radius():
+    rng = np.random.default_rng(4)
+    image = rng.random((60, 70))
+    model = rng.normal(0.0, 0.1, image.shape)
+    image[rng.random(image.shape) < 0.03] = np.nan  # pixels left out count no darkness
+    rows, cols = np.indices(image.shape)
+    for x, y, r in [(30.3, 25.7, 9.0), (35.0, 30.0, 4.2), (12.6, 40.1, 11.0)]:
+        dx_, dy_ = cols + 0.5 - x, rows + 0.5 - y
+        dark = np.nan_to_num(np.maximum(0.8 - (image + model), 0.0)) * (dx_**2 + dy_**2 < (0.9 * r) ** 2)
+        expected = np.clip([np.sum(dark * dx_) / dark.sum(), np.sum(dark * dy_) / dark.sum()], -0.25 * r, 0.25 * r)
+        np.testing.assert_allclose(centre_shift(image, model, x, y, r, 0.8), expected, rtol=1e-12)
+    assert centre_shift(image, model, 3.0, 30.0, 9.0, 0.8) == (0.0, 0.0)  # its window crosses the edge
+
+
+@pytest.mark.parametrize("move", [False, True])
+def test_the_fits_leave_the_model_of_the_dots_they_found(move):
+    """Each fit takes its dot's model out and puts the new one in: at the end the model is the fitted dots' model
+    painted afresh, whatever moved."""
+    table = profile_table(0.5)
+    centres, radii, contrast, blurs = dots(n=30, side=100, seed=5)
+    image = 1.0 - model_image((100, 100), centres, radii, contrast, table, blurs)
+    image += np.random.default_rng(5).normal(0.0, 0.02, image.shape)
+    start = centres + np.random.default_rng(6).normal(0.0, 0.7, centres.shape)
+    fitted = refine_dots(image, start, 1.1 * radii, contrast, 5.0, 0.5, blurs, np.ones(len(radii)), move=move)
+    assert move or np.array_equal(fitted.centres, start)
+    assert not move or np.abs(fitted.centres - start).max() > 0.1
+    again = model_image(image.shape, fitted.centres, np.nan_to_num(fitted.radius), fitted.contrast, table, blurs)
+    np.testing.assert_allclose(fitted.model, again, rtol=0, atol=1e-12)
