@@ -14,12 +14,12 @@ from qdots.analysis.structure import radial_distribution
 from qdots.cli import main
 from qdots.micrograph.annotations import find_annotations
 from qdots.micrograph.detect import detect_dots
-from qdots.micrograph.film import film_metrics, film_state, size_spread
+from qdots.micrograph.film import film_metrics, film_state, first_peak, size_spread
 from qdots.micrograph.labelled import label_micrograph, not_a_film
 from qdots.micrograph.measure import measure_image, scale_check
 from qdots.micrograph.overlay import save_overlay
 from qdots.micrograph.scale import find_scale_bar
-from qdots.micrograph.synthetic import render_micrograph, superlattice_board
+from qdots.micrograph.synthetic import dense_board, render_micrograph, superlattice_board
 
 #: 10 nm dots at 0.6 nm/px, imaged with uneven focus and contrast, the support's grain and noise.
 D = 10.0 / 0.6
@@ -163,7 +163,6 @@ def test_a_scale_that_makes_the_dots_implausible_is_said_so():
 
 
 def board_png(path):
-    from qdots.micrograph.synthetic import dense_board
     from qdots.render import save_png
 
     centres, diameters = dense_board(200, 200, 15.0, 0.05, seed=4, vacancies=0.3)
@@ -377,3 +376,24 @@ def test_where_blur_hides_the_shape_the_residual_chooses_and_says_so():
     assert float(np.median(detection.diameters[index[found]] / diameters[found])) == pytest.approx(1.0, abs=0.02)
     truth = diameters * half_depth_radius(0.5, 2.5 / (0.5 * diameters))
     assert float(np.median(detection.half_widths()[index[found]] / truth[found])) == pytest.approx(1.0, abs=0.03)
+
+
+def test_the_first_peak_of_g_is_the_nearest_neighbours_shell_on_an_ordered_film():
+    """On a dense ordered board the shell at sqrt(7) spacings (12 neighbours) can rise above a first peak that
+    straddles two bins: the reported peak is still the first shell's."""
+    from scipy.spatial import cKDTree
+
+    centres, diameters = dense_board(600, 600, 15.0, 0.1, seed=1)
+    state = film_state(centres, diameters, (600, 600))
+    spacing = float(np.median(cKDTree(centres).query(centres, k=2)[0][:, 1]))
+    peak = film_metrics(state)["gr_peak_diameters"]
+    assert peak == pytest.approx(spacing / np.mean(diameters), abs=0.06)
+
+
+def test_first_peak_takes_the_first_local_maximum_that_reaches_half_the_largest():
+    r = np.arange(10.0)
+    assert first_peak(r, np.array([0, 0.2, 0.1, 0, 3, 5, 1, 0, 6, 2])) == 5.0  # the bump at 1 is under half of 6
+    assert first_peak(r, np.array([0, 0, 9, 0, 0, 0, 0, 0, 9, 0])) == 2.0
+    assert first_peak(r, np.array([np.nan, 4, 1, 0, 0, 0, 0, 0, 5, 0])) == 1.0
+    assert np.isnan(first_peak(r, np.zeros(10)))
+    assert np.isnan(first_peak(r, np.full(10, np.nan)))
