@@ -96,11 +96,13 @@ def parse_length(text: str, name: str = "scale_bar") -> float:
     return nm
 
 
-def spine(component: np.ndarray) -> tuple[int, int, int, int] | None:
+def spine(component: np.ndarray) -> tuple[int, int, int, int, int] | None:
     """The spine of a horizontal bar-like component (a boolean crop, its holes filled): ``(length, thickness,
-    off, middle)`` where ``length`` is the longest run of its pixels along a row, ``thickness`` the rows whose run is
-    at least 0.9 of it, ``off`` its pixels outside those rows (ticks, end caps), ``middle`` the middle one of those
-    rows; None when the spine does not span the component (text, a chain of dots)."""
+    off, middle, start)`` where the spine's rows are those whose longest run of pixels is at least 0.9 of the longest
+    of any row (``thickness`` of them, ``middle`` the middle one), ``off`` the pixels outside those rows (ticks, end
+    caps), and ``length`` the longest run of columns set on at least half of those rows, from column ``start``: one
+    row's run reaching further (a bright edge of the picture touching the bar) does not lengthen it; None when the
+    spine does not span the component (text, a chain of dots)."""
     padded = np.pad(component, ((0, 0), (1, 1)))
     edges = np.diff(padded.astype(np.int8), axis=1)
     runs = np.zeros(component.shape[0], dtype=int)
@@ -108,25 +110,29 @@ def spine(component: np.ndarray) -> tuple[int, int, int, int] | None:
         starts, stops = np.flatnonzero(edges[row] == 1), np.flatnonzero(edges[row] == -1)
         if starts.size:
             runs[row] = int((stops - starts).max())
-    length = int(runs.max())
-    if length < 0.9 * component.shape[1]:
+    longest = int(runs.max())
+    if longest < 0.9 * component.shape[1]:
         return None
-    rows = runs >= 0.9 * length
+    rows = runs >= 0.9 * longest
     thickness = int(rows.sum())
     on = np.flatnonzero(rows)
-    return length, thickness, int(component[~rows].sum()), int(on[len(on) // 2])
+    columns = np.pad(2 * component[rows].sum(axis=0) >= thickness, 1).astype(np.int8)
+    starts, stops = np.flatnonzero(np.diff(columns) == 1), np.flatnonzero(np.diff(columns) == -1)
+    best = int(np.argmax(stops - starts))
+    return int(stops[best] - starts[best]), thickness, int(component[~rows].sum()), int(on[len(on) // 2]), \
+        int(starts[best])
 
 
-def bar_candidate(component: np.ndarray, holes: np.ndarray) -> tuple[int, int, int, int] | None:
-    """(length, thickness, pixels off the spine, the spine's middle row) when ``component`` (a boolean crop, holes filled) is a scale bar, solid, ruled or in
-    an outline: a spine at least `MIN_BAR` px long and `BAR_ASPECT` times its thickness, at most `OFF_SPINE` times
-    as much of it off the spine as on it (ticks, end caps, a label whose letters touch the bar), and its holes (the
-    empty blocks of a checkered bar; ``holes`` the filled-in pixels) as tall as half the spine (a box holding text
-    and a smaller bar has low holes)."""
+def bar_candidate(component: np.ndarray, holes: np.ndarray) -> tuple[int, int, int, int, int] | None:
+    """(length, thickness, pixels off the spine, the spine's middle row, its first column; `spine`) when
+    ``component`` (a boolean crop, holes filled) is a scale bar, solid, ruled or in an outline: a spine at least
+    `MIN_BAR` px long and `BAR_ASPECT` times its thickness, at most `OFF_SPINE` times as much of it off the spine as on
+    it (ticks, end caps, a label whose letters touch the bar), and its holes (the empty blocks of a checkered bar;
+    ``holes`` the filled-in pixels) as tall as half the spine (a box holding text and a smaller bar has low holes)."""
     found = spine(component)
     if found is None:
         return None
-    length, thickness, off, _middle = found
+    length, thickness, off, _middle, _start = found
     if length < MIN_BAR or length < BAR_ASPECT * thickness or off > OFF_SPINE * length * thickness:
         return None
     if holes.any():
@@ -193,8 +199,9 @@ def find_scale_bar(image: np.ndarray) -> ScaleBar | None:
                 continue  # noise pixels, or a bright edge of the picture's own, joined into a bar
             edge = rows.start == 0 or cols.start == 0 or rows.stop == h_img or cols.stop == w_img
             middle = (rows.start if w >= h else cols.start) + found[3]
-            length = half_contrast_length(image, (cols.start, rows.start, cols.stop, rows.stop), w >= h, found[1],
-                                          float(found[0]), middle)
+            ends = (cols.start + found[4], rows.start, cols.start + found[4] + found[0], rows.stop) if w >= h else \
+                (cols.start, rows.start + found[4], cols.stop, rows.start + found[4] + found[0])
+            length = half_contrast_length(image, ends, w >= h, found[1], float(found[0]), middle)
             if length < shortest:
                 continue
             if best is None or length > best.length_px:

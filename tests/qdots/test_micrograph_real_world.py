@@ -239,6 +239,18 @@ def test_a_bar_in_a_box_is_the_bar_not_the_box_and_a_bar_cut_by_the_edge_is_said
     assert bar.at_edge and bar.length_px == pytest.approx(100, abs=0.6)
 
 
+def test_bright_pixels_touching_one_row_of_a_bar_do_not_lengthen_it():
+    """A white bar cut by the picture's edge, whose bottom row meets a bright gap between particles (a cropped
+    journal figure's, on the development half): the bar is its spine's rows, 100 px, not the 110 px of that row."""
+    image = bar_film()
+    high = image.max() + 0.2
+    image[262:269, 300:400] = high  # reaches the right edge
+    image[268, 290:298] = high - 0.02  # the bright gap, within the bar's colour, 2 px from its end along its last row
+    image[268, 298] = image.max()  # one pixel of it darker: bridged by the closing of a ruled bar's cuts
+    bar = find_scale_bar(image)
+    assert bar.at_edge and bar.length_px == pytest.approx(100, abs=0.6)
+
+
 def test_letters_beside_a_bar_are_left_out():
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
