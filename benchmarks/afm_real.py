@@ -178,7 +178,10 @@ def run(quick: bool = False) -> list:
              "hold pixel-scale noise, whose z-range converges slowly and unevenly as the grid refines: that is "
              "where the runs state no number. A crop whose default run chose the finest grid the converged answer "
              "was computed from (8x, where its 8x run cost more than FINEST_AFTER point steps and 16x was left out) has no "
-             "independent truth: its ratios are shown as such and not counted. " + "; ".join(verdicts) + "."),
+             "independent truth: its ratios are shown as such and not counted. A crop whose run at 1x alone costs "
+             f"more than {MOST_POINT_STEPS:,.0f} point steps (too steep for its pixels: relief many times the pixel "
+             "size) is not run, as its converged answer would take hours; that is decided from that cost alone. "
+             + "; ".join(verdicts) + "."),
     ]
 
 

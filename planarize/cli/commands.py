@@ -144,7 +144,7 @@ def _accuracy(summary: dict) -> str:
                 f"{100 * summary['last_change']:.3g} %{cost}")
     if summary.get("own_grid"):
         return ("not stated: the run stopped at the map's own grid, whose two coarser companions sample the map at half "
-                "and a quarter of its points: their changes hold what the map loses by sampling, not only the flow's "
+                "and a quarter of its resolution per side: their changes hold what the map loses by sampling, not only the flow's "
                 "error, so they cannot estimate this grid's error (a finer grid would: [engine] refine = 2 in the "
                 f"scene file); its last refinement changed RMS and z-range by up to {100 * summary['last_change']:.3g} "
                 f"%{cost}")

@@ -55,7 +55,8 @@ class Continuum:
         Default 0.02.
     refine : int, optional
         Compute at this refinement of the surface's grid instead (a power of 2 up to `MAX_REFINE`),
-        with the error still estimated from the two coarser resolutions.
+        with the error still estimated from the two coarser resolutions; at 1 (the map's own grid) no error is
+        stated (`planarize.engines.resolution.OWN_GRID_FINER`).
     max_refine : int
         Largest refinement ``rtol`` may choose (a power of 2 up to `MAX_REFINE`; default 8).
     stability : float

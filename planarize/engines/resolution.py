@@ -99,7 +99,7 @@ ROUGH_ORDER = 1.0
 #: 17 points, 35 of 42 as before.
 SMOOTH_CURVATURE, SMOOTH_STEADY, SMOOTH_ORDER = 1.3, 1.2, 1.8
 #: A map whose `planarize.metrics.pixel_curvature` reaches NOISE_CURVATURE bends from pixel to pixel as white noise
-#: does (white noise and a one-pixel pit give sqrt(20) = 4.47; the centre crops of twelve measured AFM maps 1.6-3.6):
+#: does (white noise and a one-pixel pit give sqrt(20) = 4.47; twelve crops of six measured AFM scans 1.6-3.6):
 #: its features are one pixel wide, and the continuum answer hangs on how the grid joins them. On such maps of 17 x 17
 #: points (noise, pits 1 nm and 4 nm deep) the order of one refinement wandered between -1.5 and 4.5 at every grid
 #: from 1x to 8x, and at 8x the deeper pit's stated metal RMS and z-range errors were 0.40 and 0.36 of the true ones
@@ -107,9 +107,9 @@ SMOOTH_CURVATURE, SMOOTH_STEADY, SMOOTH_ORDER = 1.3, 1.2, 1.8
 #: only while that is cheap (`SETTLE_S`).
 NOISE_CURVATURE = 4.0
 #: No error is stated on a grid whose two companions are coarser than the map (the map's own grid, ``refine`` 1, and
-#: coarser): they sample the map at half and a quarter of its points, a smoother surface, so their changes hold what
-#: the map loses by sampling as well as the flow's own discretization error. At 1x the estimate from them was 0.25 to
-#: 420 times the true error on the crops of eleven real AFM scans (the RMS of a PicoView scan's crop 223x, reported at
+#: coarser): they sample the map at half and a quarter of its resolution per side, a smoother surface, so their
+#: changes hold what the map loses by sampling as well as the flow's own discretization error. At 1x the estimate
+#: from them was 0.25 to 420 times the true error on the crops of eleven real AFM scans (the RMS of a PicoView scan's crop 223x, reported at
 #: 1x; the z-range of a Park scan's 0.25x) and 8.6-9.4 times it on the smooth 129 x 129 film. As on a noisy map, the
 #: grid is then refined only while the next one is cheap (`SETTLE_S`), and the run states no number where it is not.
 #: Grids from OWN_GRID_FINER times the map's on have a middle grid that holds every point of the map.

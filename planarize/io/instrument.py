@@ -126,13 +126,23 @@ def _read_afmreader(path: Path, format: str, channel: str | None) -> tuple[np.nd
                 break
             except _ChannelMissing as missing:
                 if k == len(names) - 1:
-                    tried = f"no channel {channel!r}" if channel is not None else \
-                        f"no height channel ({', '.join(map(repr, names))})"
-                    raise InputError(f"{tried}; {missing}") from None
+                    raise _no_channel(channel, names, f"; {missing}") from None
     pixel = float(pixel)
     if not np.isfinite(pixel) or pixel <= 0:
         raise InputError(f"the file states a pixel size of {pixel!r} nm")
     return np.asarray(image, dtype=float), pixel
+
+
+def _listed(names) -> str:
+    """Names as a list of their reprs, or 'none'."""
+    return ", ".join(map(repr, names)) or "none"
+
+
+def _no_channel(channel: str | None, names, rest: str) -> InputError:
+    """The one-line refusal of a file without the ``channel`` asked for (or, when none is, without any of the height
+    channels ``names``), followed by ``rest`` (what the file holds)."""
+    tried = f"no channel {channel!r}" if channel is not None else f"no height channel ({_listed(names)})"
+    return InputError(f"{tried}{rest}")
 
 
 def _read_nid(path: Path, channel: str | None) -> tuple[np.ndarray, tuple[float, float]]:
@@ -156,9 +166,7 @@ def _read_nid(path: Path, channel: str | None) -> tuple[np.ndarray, tuple[float,
     names = (channel,) if channel is not None else HEIGHT_CHANNELS["nid"]
     found = next((name for name in names if name in scans and name in images), None)
     if found is None:
-        tried = f"no channel {channel!r}" if channel is not None else \
-            f"no height channel ({', '.join(map(repr, names))})"
-        raise InputError(f"{tried} in the forward scan; its channels: {', '.join(map(repr, sorted(images.keys()))) or 'none'}")
+        raise _no_channel(channel, names, f" in the forward scan; its channels: {_listed(sorted(images.keys()))}")
     header = scans[found]
     units = [str(header.get(key)) for key in ("Dim0Unit", "Dim1Unit", "Dim2Unit")]
     if any(u not in _FILE_UNITS for u in units):
@@ -198,9 +206,7 @@ def _read_surface_topography(path: Path, format: str, channel: str | None) -> tu
     names = (channel,) if channel is not None else HEIGHT_CHANNELS[format]
     found = next((name for name in names if name in channels), None)
     if found is None:
-        tried = f"no channel {channel!r}" if channel is not None else \
-            f"no height channel ({', '.join(map(repr, names))})"
-        raise InputError(f"{tried}; its channels: {', '.join(map(repr, channels)) or 'none'}")
+        raise _no_channel(channel, names, f"; its channels: {_listed(channels)}")
     chosen = channels[found]
     unit, data_unit = str(chosen.unit), str(getattr(chosen, "data_unit", chosen.unit))
     if unit not in _FILE_UNITS or data_unit != unit:  # (a deflection or friction channel: its values in V)
