@@ -251,6 +251,27 @@ def test_a_touching_superlattice_without_vacancies_is_measured_to_two_percent():
 
 
 @pytest.mark.slow
+@pytest.mark.parametrize("vacancies", [
+    pytest.param(0.0, marks=pytest.mark.xfail(strict=True, reason="open fault: no background shows between the dots")),
+    0.1])
+def test_a_blurred_superlattice_of_discs_is_measured_to_two_percent(vacancies):
+    """Flat discs of 16.5 px, 2.5 px apart, blurred by 2 px: the gaps never rise to the background. With 10 % of the
+    sites empty the background shows and the mean diameter is right (-0.7 %); with none empty the settling finds a
+    lower background, a narrower blur and smaller discs that fit nearly as well, 8 % low on this film (2-3 % on
+    others alike). The misfit is not zero at any level on the film without noise, so the fits do not reach the
+    rendered discs even there: a fault of the model or the fits, not yet found. Strict: it fails once it is fixed."""
+    from scipy.spatial import cKDTree
+
+    centres, diameters = superlattice_board(500, 500, 16.5, 0.07, 2.5, seed=1, vacancies=vacancies)
+    image = render_micrograph(centres, diameters, (500, 500), profile=0.0, blur=2.0, noise=0.03, illumination=0.0,
+                              contrast=0.5)
+    detection = detect_dots(image)
+    whole = ~detection.cut
+    _, index = cKDTree(centres).query(detection.centres[whole])
+    assert abs(float(np.median(detection.diameters[whole] / diameters[index])) - 1.0) <= 0.02
+
+
+@pytest.mark.slow
 def test_dense_and_ordered_films_meet_the_goals_of_issue_52():
     from benchmarks.micrograph_films import FILMS, SPREADS, dense_table
 
