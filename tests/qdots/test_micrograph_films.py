@@ -251,15 +251,13 @@ def test_a_touching_superlattice_without_vacancies_is_measured_to_two_percent():
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("vacancies", [
-    pytest.param(0.0, marks=pytest.mark.xfail(strict=True, reason="open fault: no background shows between the dots")),
-    0.1])
-def test_a_blurred_superlattice_of_discs_is_measured_to_two_percent(vacancies):
+@pytest.mark.parametrize("vacancies, within", [(0.0, 0.04), (0.1, 0.02)])
+def test_a_blurred_superlattice_of_discs_is_measured_where_no_background_shows(vacancies, within):
     """Flat discs of 16.5 px, 2.5 px apart, blurred by 2 px: the gaps never rise to the background. With 10 % of the
-    sites empty the background shows and the mean diameter is right (-0.7 %); with none empty the settling finds a
-    lower background, a narrower blur and smaller discs that fit nearly as well, 8 % low on this film (2-3 % on
-    others alike). The misfit is not zero at any level on the film without noise, so the fits do not reach the
-    rendered discs even there: a fault of the model or the fits, not yet found. Strict: it fails once it is fixed."""
+    sites empty the background shows and the mean diameter is right (-0.8 %). With none empty, six faint dots the
+    threshold missed pulled the background the film is settled on down, and every diameter with it: -8.1 % before
+    the misfit left out its largest squares there (`qdots.micrograph.settle.TRIM`), -2.7 % since; the goal of 2 % is
+    not met yet (two dots are still missed)."""
     from scipy.spatial import cKDTree
 
     centres, diameters = superlattice_board(500, 500, 16.5, 0.07, 2.5, seed=1, vacancies=vacancies)
@@ -268,7 +266,10 @@ def test_a_blurred_superlattice_of_discs_is_measured_to_two_percent(vacancies):
     detection = detect_dots(image)
     whole = ~detection.cut
     _, index = cKDTree(centres).query(detection.centres[whole])
-    assert abs(float(np.median(detection.diameters[whole] / diameters[index])) - 1.0) <= 0.02
+    error = abs(float(np.median(detection.diameters[whole] / diameters[index])) - 1.0)
+    assert error <= within
+    if error > 0.02:
+        pytest.xfail(f"open: {100 * error:.1f} % off, the goal is 2 %")
 
 
 @pytest.mark.slow

@@ -134,3 +134,17 @@ def test_the_fits_leave_the_model_of_the_dots_they_found(move):
     assert not move or np.abs(fitted.centres - start).max() > 0.1
     again = model_image(image.shape, fitted.centres, np.nan_to_num(fitted.radius), fitted.contrast, table, blurs)
     np.testing.assert_allclose(fitted.model, again, rtol=0, atol=1e-12)
+
+
+def test_the_trimmed_misfit_leaves_out_the_largest_squares_and_nothing_else():
+    from qdots.micrograph.settle import trimmed_sum
+
+    rng = np.random.default_rng(4)
+    squares = rng.random(1000) ** 2
+    squares[::97] = np.nan  # pixels left out of the picture
+    finite = np.sort(squares[np.isfinite(squares)])
+    keep = int(round(0.97 * finite.size))
+    assert trimmed_sum(squares, 0.03) == pytest.approx(float(finite[:keep].sum()))
+    assert trimmed_sum(squares, 0.0) == pytest.approx(float(finite.sum()))
+    assert trimmed_sum(np.array([4.0, 1.0]), 0.5) == 1.0
+    assert trimmed_sum(np.array([np.nan]), 0.03) == 0.0
