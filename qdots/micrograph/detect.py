@@ -307,7 +307,7 @@ def _detect(image: np.ndarray, polarity: str, profile: str, ignore: np.ndarray, 
     sure = ok & ~touches if (ok & ~touches).any() else ok
     typical = float(np.median(first[0][sure])) if sure.any() else radius
     step("settling the blur and background")
-    shape, blur, level, level_map, how_shape = settle_profile(target, centres, first[0], first[2], first[1], typical,
+    shape, blur, level, level_map, how_shape, trimmed = settle_profile(target, centres, first[0], first[2], first[1], typical,
                                                               whole, profile)
     step(f"fitting {len(centres)} dots with their neighbours")
     refined = refine_dots(target, centres, first[0], first[2], typical, shape, blur, level, move=True)
@@ -315,7 +315,7 @@ def _detect(image: np.ndarray, polarity: str, profile: str, ignore: np.ndarray, 
     overlapping = overlap_share(nearest_ratio(refined.centres, 2.0 * refined.radius)) if spheres else 0.0
     if overlapping > OVERLAP_SHARE:  # projected spheres wider than their spacing: the particles are flatter
         profile = "disc"
-        shape, blur, level, level_map, how_shape = settle_profile(target, centres, first[0], first[2], first[1],
+        shape, blur, level, level_map, how_shape, trimmed = settle_profile(target, centres, first[0], first[2], first[1],
                                                                   typical, whole, profile)
         how_shape = refit = (f"p = 0: as projected spheres {100 * overlapping:.0f} % of the dots with a close "
                              "neighbour overlapped it, which particles in one layer cannot do, so they were fitted as "
@@ -324,7 +324,7 @@ def _detect(image: np.ndarray, polarity: str, profile: str, ignore: np.ndarray, 
     step("seeking faint dots the threshold missed")
     # the grain of the support (of the picture alone) beside the search, in a second thread
     extra, grains = run_tasks([
-        lambda: missed_dots(target, refined, level_map, typical, shape, blur, noise),
+        lambda: missed_dots(target, refined, level_map, typical, shape, blur, noise, trimmed),
         lambda: grain_noise(np.nan_to_num(target[half], nan=float(np.nanmedian(target))), mask[half], 0.5 * typical,
                             GRAIN_SIZES)])
     if len(extra):  # dots the threshold missed: fitted, and the film settled again with them if they are in its samples
@@ -336,7 +336,7 @@ def _detect(image: np.ndarray, polarity: str, profile: str, ignore: np.ndarray, 
         first = (np.concatenate([first[0], np.full(more, typical)]), np.concatenate([first[1], np.full(more, np.nan)]),
                  np.concatenate([first[2], np.full(more, float(np.median(first[2][sure])) if sure.any() else 0.0)]))
         if samples_hold(target.shape, centres, whole, typical, np.arange(n, n + more)):
-            shape, blur, level, level_map, how_shape = settle_profile(target, centres, first[0], first[2], first[1],
+            shape, blur, level, level_map, how_shape, trimmed = settle_profile(target, centres, first[0], first[2], first[1],
                                                                       typical, whole, profile)
             how_shape = refit or how_shape
             refined = refine_dots(target, centres, first[0], first[2], typical, shape, blur, level, move=True)

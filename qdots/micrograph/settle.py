@@ -250,7 +250,7 @@ def quadratic_minimum(points: np.ndarray, values: np.ndarray, low, high) -> tupl
 
 
 def settle_profile(image, centres, radii, contrast, background, typical: float, whole, profile: str
-                   ) -> tuple[float, np.ndarray, np.ndarray, np.ndarray, str]:
+                   ) -> tuple[float, np.ndarray, np.ndarray, np.ndarray, str, bool]:
     """The dots' shape ``p``, the blur and the background at each dot and everywhere, settled on a `Sample` of the
     film: those that leave the least squared difference between the image and the model of all dots
     (`refine_dots`, every dot fitted with the background fixed) over the sample's pixels.
@@ -269,7 +269,8 @@ def settle_profile(image, centres, radii, contrast, background, typical: float, 
     (dots blurred by a third of their radius or more), the lower residual decides, and the message says that the
     shape is hardly seen. A last pattern at a quarter of the steps settles the blur and ``k``
     of the shape taken, then each tile of the film (`settle_tiles`). Returns (p, the blur at each dot, px, the
-    level at each dot, the level map, how p was chosen).
+    level at each dot, the level map, how p was chosen, whether the misfit was trimmed: the background hardly
+    shows).
     """
     centres = np.asarray(centres, dtype=float)
     field, whole_map = smooth_level(centres, background, image.shape)
@@ -311,7 +312,7 @@ def settle_profile(image, centres, radii, contrast, background, typical: float, 
     blur, k = patterns([(patch, shape, found[shape], 0.25 * step, True)])[0][0]
     blurs, levels, level_map = settle_tiles(image, centres, radii, contrast, field, whole_map, typical, whole, shape,
                                             np.array([blur, k]), trim)
-    return float(shape), blurs, levels, level_map, how
+    return float(shape), blurs, levels, level_map, how, bool(trim)
 
 
 def tile_points(shape, centres, whole) -> list[tuple[float, float]]:
