@@ -23,6 +23,7 @@ BENCHMARKS = [
     "micrograph_films",
     "micrograph_real",
     "micrograph_emps",
+    "micrograph_bars",
     "micrograph_twins",
     "qdots_identifiability",
     "qdots_infer",

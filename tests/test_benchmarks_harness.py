@@ -250,3 +250,21 @@ def test_an_emps_file_that_is_not_the_manifests_is_not_kept(tmp_path, monkeypatc
     done = dict(micrograph_emps.fetch(tmp_path / "clone"))
     assert done[first].startswith(f"failed: ValueError: {first}: sha256")
     assert not (micrograph_emps.folder() / first).exists()
+
+
+def test_the_bar_manifest_holds_the_emps_pictures_and_the_verdict_reads_boxes():
+    """Every EMPS picture is in the bars' manifest once, in its half, its drawn bar a box wider than tall; a bar found is
+    the drawn one when its middle lies on it and it covers most of it, and a piece of it or a box elsewhere is not."""
+    from benchmarks import micrograph_bars, micrograph_emps
+
+    emps = {e["file"]: e["half"] for e in micrograph_emps.manifest()["image"]}
+    bars = micrograph_bars.manifest()
+    assert sorted(e["file"] for e in bars) == sorted(emps)
+    assert all(e["half"] == emps[e["file"]] and e["drawn"] for e in bars)
+    assert all(x1 - x0 > y1 - y0 > 0 for x0, y0, x1, y1 in (e["bar"] for e in bars if "bar" in e))
+    verdict, names = micrograph_bars.verdict, micrograph_bars.VERDICTS
+    assert verdict([100, 200, 200, 210], (101, 202, 199, 208)) == names[0]
+    assert verdict([100, 200, 200, 210], (101, 202, 150, 208)) == names[1]  # half of it
+    assert verdict([100, 200, 200, 210], (10, 20, 110, 28)) == names[1]
+    assert verdict([100, 200, 200, 210], None) == names[2]
+    assert verdict(None, None) == names[3] and verdict(None, (1, 2, 50, 6)) == names[4]

@@ -1,0 +1,128 @@
+"""The scale bar search of qdots measure on 134 real pictures: found on the drawn bar, found elsewhere, missed.
+
+`benchmarks.micrograph_real` scores the scale read on its pictures against the file's or a hand-measured bar. This one
+asks a simpler question of many more, the pictures of the EMPS data set (`benchmarks.micrograph_emps`): is the bar the
+search finds (``qdots.micrograph.annotations.find_annotations``) the bar drawn on the picture? The manifest,
+``benchmarks/micrograph_bars.toml``, holds each picture's drawn bar, boxed by eye, or none. A bar found elsewhere is
+the worst outcome: a user who gives its length (``--scale-bar``) gets a wrong scale without a word; a bar not found
+makes the command ask for the scale.
+
+Run: ``python -m benchmarks.micrograph_bars [--half dev|test|all]`` (the pictures are fetched by
+``python -m benchmarks.micrograph_emps --fetch``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from collections import Counter
+from pathlib import Path
+
+from .micrograph_emps import folder
+from .report import Headline, Note, Table, cli_with_options
+
+MEASURED_CODE = ("qdots/micrograph/annotations.py", "qdots/micrograph/scale.py", "qdots/micrograph/read.py")
+MANIFEST = Path(__file__).with_name("micrograph_bars.toml")
+#: A bar found is the drawn one when the middle of its box lies within the drawn bar's box grown by SLACK px, and it is
+#: at least COVER of the drawn bar's width (not a piece of it).
+SLACK, COVER = 3, 0.8
+#: Verdicts, in table order.
+VERDICTS = ("on the bar", "elsewhere", "not found", "none drawn, none found", "none drawn, one found")
+
+
+def manifest() -> list[dict]:
+    """The manifest's ``image`` entries."""
+    try:
+        import tomllib
+    except ImportError:  # Python 3.10
+        import tomli as tomllib
+    with open(MANIFEST, "rb") as f:
+        return tomllib.load(f)["image"]
+
+
+def verdict(drawn: list[int] | None, found: tuple[int, int, int, int] | None) -> str:
+    """One of `VERDICTS` for the bar ``drawn`` (a box, or None) and the box ``found`` (or None)."""
+    if drawn is None:
+        return VERDICTS[3] if found is None else VERDICTS[4]
+    if found is None:
+        return VERDICTS[2]
+    x0, y0, x1, y1 = drawn
+    middle = (0.5 * (found[0] + found[2]), 0.5 * (found[1] + found[3]))
+    inside = x0 - SLACK <= middle[0] <= x1 + SLACK and y0 - SLACK <= middle[1] <= y1 + SLACK
+    return VERDICTS[0] if inside and found[2] - found[0] >= COVER * (x1 - x0) else VERDICTS[1]
+
+
+def measure_entry(entry: dict) -> dict:
+    from qdots.micrograph.annotations import find_annotations
+    from qdots.micrograph.read import read_micrograph
+    from qdots.micrograph.scale import shortest_bar
+
+    start = time.perf_counter()
+    image = read_micrograph(folder() / entry["file"])
+    bar = find_annotations(image.pixels.astype(float)).bar
+    drawn = entry.get("bar")
+    short = drawn is not None and drawn[2] - drawn[0] < shortest_bar(image.shape)
+    return {"file": entry["file"], "half": entry["half"], "drawn": entry["drawn"], "box": drawn,
+            "found": None if bar is None else bar.box, "length": None if bar is None else bar.length_px,
+            "verdict": verdict(drawn, None if bar is None else bar.box), "short": short,
+            "seconds": time.perf_counter() - start}
+
+
+def tables(rows: list[dict], half: str) -> list:
+    counts = Counter(r["verdict"] for r in rows)
+    drawn = sum(r["box"] is not None for r in rows)
+    short = sum(r["short"] and r["verdict"] == VERDICTS[2] for r in rows)
+    summary = Table(f"Scale bars on the EMPS pictures, {half} half: the bar found against the bar drawn",
+                    ["pictures", "bars drawn", *VERDICTS[:3], "of those not found: under a twentieth of the picture",
+                     "no bar drawn", *VERDICTS[3:]],
+                    [[len(rows), drawn, *(counts[v] for v in VERDICTS[:3]), short, len(rows) - drawn,
+                      *(counts[v] for v in VERDICTS[3:])]])
+    misses = [r for r in rows if r["verdict"] not in (VERDICTS[0], VERDICTS[3])]
+    detail = Table(f"Scale bars on the EMPS pictures, {half} half: the pictures where the bar found is not the one drawn",
+                   ["picture", "drawn", "drawn at (x0, y0, x1, y1)", "found at", "found length (px)", "verdict"],
+                   [[r["file"], r["drawn"] + (" (under a twentieth of the picture)" if r["short"] else ""),
+                     "" if r["box"] is None else str(tuple(r["box"])), "" if r["found"] is None else str(r["found"]),
+                     "" if r["length"] is None else f"{r['length']:.1f}", r["verdict"]] for r in misses])
+    return [summary, detail]
+
+
+def results(halves: tuple[str, ...]) -> list:
+    chosen = [e for e in manifest() if e["half"] in halves]
+    missing = [e["file"] for e in chosen if not (folder() / e["file"]).exists()]
+    if missing:
+        return [Note(f"{len(missing)} of the {len(chosen)} EMPS pictures are not in {folder()} (the cache folder): "
+                     "fetch them with `python -m benchmarks.micrograph_emps --fetch`.")]
+    rows = [measure_entry(e) for e in chosen]
+    out: list = []
+    summary = []
+    for half in halves:
+        part = [r for r in rows if r["half"] == half]
+        out += tables(part, half)
+        counts = Counter(r["verdict"] for r in part)
+        drawn = sum(r["box"] is not None for r in part)
+        summary.append(f"{half}: {counts[VERDICTS[0]]} of {drawn} drawn bars found, {counts[VERDICTS[1]]} found "
+                       f"elsewhere, {counts[VERDICTS[4]]} found where none is drawn")
+    seconds = sum(r["seconds"] for r in rows)
+    out.insert(0, Headline("qdots measure's scale bar search on 134 EMPS pictures (dev / test halves)",
+                           f"{seconds:.0f} s for {len(rows)} pictures", "; ".join(summary)))
+    out.append(Note("The bar found is the drawn one when the middle of its box lies within the drawn bar's box (boxed by "
+                    f"eye, grown by {SLACK} px) and it is at least {COVER:g} of its width. A bar under a twentieth of the "
+                    "picture's longer side is not sought (`qdots.micrograph.scale.MIN_BAR_SHARE`). Lengths are scored "
+                    "against bars measured by hand in `micrograph_real`."))
+    return out
+
+
+def run(quick: bool) -> list:
+    """Both halves (quick: the development half)."""
+    return results(("dev",) if quick else ("dev", "test"))
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--half", choices=("dev", "test", "all"), default="all")
+    return cli_with_options(parser, lambda args: results(("dev", "test") if args.half == "all" else (args.half,)),
+                            argv)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
