@@ -223,6 +223,44 @@ def test_a_blurred_bar_is_measured_at_half_contrast():
         assert bar is not None and bar.length_px == pytest.approx(120, abs=0.6)
 
 
+def strip_film(ground: float, ink: float, line: float) -> np.ndarray:
+    """`bar_film` with a flat data strip over its last 50 rows (``ground``), letters of ``ink`` in it (5 x 7 px
+    blocks), and a swoosh of a logo: a thin line of ``line`` without end marks, 80 px."""
+    image = bar_film()
+    image[250:, :] = ground
+    for x in range(40, 75, 8):  # the label's letters, above the bar's left end
+        image[254:261, x:x + 5] = ink
+    image[290:292, 250:330] = line
+    return image
+
+
+def test_a_data_strips_thin_bar_is_measured_between_its_end_marks():
+    """A ZEISS strip's bar: a grey line 2 px thick, with caps 2 px wide crossing it, blurred as JPEG blurs it; neither
+    the darkest nor the lightest colour, it was not found. Now it is the line between its caps' middles (99 px), within
+    0.3 px. A logo's swoosh, a thin line without end marks, is no bar."""
+    image = strip_film(ground=1.2, ink=-0.2, line=1.2)
+    image[275:277, 40:141] = 0.6  # the line, in mid grey
+    image[268:284, 40:42] = image[268:284, 139:141] = 0.6  # its caps: middles at 41 and 140
+    image[250:] = ndimage.gaussian_filter(image[250:], 0.7)
+    bar = find_scale_bar(image)
+    assert bar is not None and bar.length_px == pytest.approx(99.0, abs=0.3) and bar.box[1] in (274, 275, 276)
+    swoosh = strip_film(ground=0.2, ink=1.2, line=1.2)  # on a black strip: the light swoosh alone
+    swoosh[290:292, 250:330] = 0.8
+    assert find_scale_bar(swoosh) is None
+
+
+def test_a_ruled_line_with_its_label_inside_it_is_one_bar():
+    """An FEI strip's bar: a thin light line from tick to tick, broken in the middle by its label ("|-- 200 nm --|"):
+    the two pieces and their outer ticks make one bar, 180 px between the ticks, not one of its halves."""
+    image = strip_film(ground=0.3, ink=1.1, line=0.3)
+    image[275, 40:111] = image[275, 150:221] = 0.9
+    image[269:282, 40] = image[269:282, 220] = 0.9  # ticks crossing the line: middles at 40.5 and 220.5
+    for x in range(116, 146, 8):  # the label between the pieces
+        image[272:279, x:x + 5] = 1.1
+    bar = find_scale_bar(image)
+    assert bar is not None and bar.length_px == pytest.approx(180.0, abs=0.3) and not bar.dark
+
+
 def test_a_bar_in_a_box_is_the_bar_not_the_box_and_a_bar_cut_by_the_edge_is_said():
     image = bar_film()
     low, high = image.min() - 0.2, image.max() + 0.2
