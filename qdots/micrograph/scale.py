@@ -272,8 +272,10 @@ def band_bar(image: np.ndarray, span: float, shortest: float) -> ScaleBar | None
                 continue
             row = rows.start + spine
             ground = flat_ground(signed, span, row, thickness, cols.start, cols.stop)
-            if ground is not None:
-                contrast = ground - float(np.median(signed[row, cols.start:cols.stop]))
+            if ground is None:
+                continue
+            contrast = ground - float(np.median(signed[row, cols.start:cols.stop]))
+            if contrast >= LINE_CONTRAST * span:  # a line on a flat ground, standing out of it along its spine
                 lines.append((row, thickness, cols.start, cols.stop,
                               end_mark(signed, ground, MARK_SHARE * contrast, row, thickness, cols.start),
                               end_mark(signed, ground, MARK_SHARE * contrast, row, thickness, cols.stop - 1)))
@@ -321,7 +323,7 @@ def end_mark(signed: np.ndarray, ground: float, contrast: float, row: int, thick
     if ink[:split].sum(axis=0).max(initial=0) < END_MARK or ink[split:].sum(axis=0).max(initial=0) < END_MARK:
         return None
     weights = np.where(ink, depth, 0.0).sum(axis=0)  # as a line profile across the mark: its depth
-    return float(np.sum(columns * weights) / weights.sum()) + 0.5
+    return float(np.sum(columns * weights) / weights.sum()) + 0.5 if weights.sum() > 0 else None
 
 
 def bar_contrast(image: np.ndarray, box: tuple[int, int, int, int], colour: np.ndarray) -> tuple[float, float]:

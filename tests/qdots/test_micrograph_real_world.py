@@ -249,6 +249,14 @@ def test_a_data_strips_thin_bar_is_measured_between_its_end_marks():
     assert find_scale_bar(swoosh) is None
 
 
+def test_a_line_at_its_grounds_level_has_no_end_marks():
+    """A data strip's written case (a black strip, 616 x 700 px) held a line found by the top-hat whose spine lay at
+    the ground's level: its end marks were weighed by nothing, and the middle came out NaN (numpy warned)."""
+    from qdots.micrograph.scale import end_mark
+
+    assert end_mark(np.zeros((40, 60)), 0.0, 0.0, 20, 2, 30) is None
+
+
 def test_a_ruled_line_with_its_label_inside_it_is_one_bar():
     """An FEI strip's bar: a thin light line from tick to tick, broken in the middle by its label ("|-- 200 nm --|"):
     the two pieces and their outer ticks make one bar, 180 px between the ticks, not one of its halves."""
