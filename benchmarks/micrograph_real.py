@@ -70,8 +70,10 @@ def match(found: np.ndarray, truth: np.ndarray, radius: np.ndarray) -> np.ndarra
 def measure_entry(entry: dict, folder: Path, overlays: Path | None = None) -> dict:
     """Measure one picture and score it (see the module)."""
     from labrig.validate import InputError
+    from qdots.micrograph.annotations import find_annotations
     from qdots.micrograph.measure import measure_image
     from qdots.micrograph.read import read_micrograph
+    from qdots.micrograph.scale import scale_from_bar
 
     from .micrograph_films import threshold_tool
 
@@ -94,6 +96,10 @@ def measure_entry(entry: dict, folder: Path, overlays: Path | None = None) -> di
             film = measure_image(path, lqe=False)
     except InputError as exc:
         row.update(verdict="refused", why=str(exc).split(": ", 1)[-1], seconds=time.perf_counter() - start)
+        if bar is not None and "scale_note" not in row:  # the scale read all the same: the bar is found before the dots
+            found = find_annotations(image.pixels).bar
+            truth_scale = entry.get("scale_nm_per_px")
+            row["scale_error"] = (scale_from_bar(found, bar) / truth_scale - 1.0) if found and truth_scale else math.nan
         return row
     row["seconds"] = time.perf_counter() - start
     det, s = film.detection, film.summary
