@@ -180,17 +180,20 @@ def test_bright_noise_near_saturation_is_no_scale_bar_and_a_drawn_bar_on_it_is_o
     assert bar is not None and bar.box == (200, 280, 260, 284) and bar.length_px == pytest.approx(60, abs=1)
 
 
+def bar_on_film(shape: tuple[int, int], seed: int, rows: slice, cols: slice):
+    """`find_scale_bar` on a sparse film of ``shape`` with a block darker than every dot drawn at ``rows``, ``cols``."""
+    centres, diameters = sparse_board(shape[1], shape[0], 15.0, 0.05, seed=seed)
+    image = render_micrograph(centres, diameters, shape, noise=0.02, seed=seed)
+    image[rows, cols] = image.min() - 0.2
+    return find_scale_bar(image)
+
+
 def test_an_upright_bar_is_no_scale_bar_and_a_thick_one_along_the_rows_is_one():
     """Scale bars are drawn along the rows: on 88 real pictures of the development halves every one is, and the three
     upright "bars" taken before were a panel label's "1" and two dark gaps between touching particles. A solid bar
     4.5 times longer than thick (a journal figure's "1 um" bar, 72 x 16 px) was missed while a bar had to be 5 times."""
-    centres, diameters = sparse_board(300, 300, 15.0, 0.05, seed=7)
-    image = render_micrograph(centres, diameters, (300, 300), noise=0.02, seed=7)
-    upright = image.copy()
-    upright[150:230, 20:28] = image.min() - 0.2
-    assert find_scale_bar(upright) is None
-    image[270:286, 180:252] = image.min() - 0.2
-    bar = find_scale_bar(image)
+    assert bar_on_film((300, 300), 7, slice(150, 230), slice(20, 28)) is None
+    bar = bar_on_film((300, 300), 7, slice(270, 286), slice(180, 252))
     assert bar is not None and bar.box == (180, 270, 252, 286) and bar.length_px == pytest.approx(72, abs=0.5)
 
 
@@ -201,13 +204,8 @@ def test_a_bar_shorter_than_a_twentieth_of_the_picture_is_no_scale_bar():
     from qdots.micrograph.scale import shortest_bar
 
     assert shortest_bar((512, 544)) == pytest.approx(27.2) and shortest_bar((150, 200)) == 10.0
-    centres, diameters = sparse_board(544, 512, 15.0, 0.05, seed=3)
-    image = render_micrograph(centres, diameters, (512, 544), noise=0.02, seed=3)
-    short = image.copy()
-    short[490:494, 500:526] = image.min() - 0.2
-    assert find_scale_bar(short) is None
-    image[490:494, 500:528] = image.min() - 0.2
-    bar = find_scale_bar(image)
+    assert bar_on_film((512, 544), 3, slice(490, 494), slice(500, 526)) is None
+    bar = bar_on_film((512, 544), 3, slice(490, 494), slice(500, 528))
     assert bar is not None and bar.box == (500, 490, 528, 494)
     refused(lambda: scale_from_bar(None, "20nm"), "0.05 of the picture's longer side")
 
