@@ -116,7 +116,7 @@ def describe_bar(bar: ScaleBar) -> str:
     """``127 px (a solid bar at x 730-857, y 837-845 px)``."""
     x0, y0, x1, y1 = bar.box
     edge = "; it reaches the picture's edge, so it may be longer than shown: check it" if bar.at_edge else ""
-    return (f"{bar.length_px:.1f} px at half contrast (a {'ruled' if bar.ruled else 'solid'} bar at x {x0}-{x1}, "
+    return (f"{bar.length_px:.1f} px {bar.measured} (a {'ruled' if bar.ruled else 'solid'} bar at x {x0}-{x1}, "
             f"y {y0}-{y1} px{edge})")
 
 

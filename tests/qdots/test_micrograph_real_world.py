@@ -254,7 +254,7 @@ def test_a_line_at_its_grounds_level_has_no_end_marks():
     the ground's level: its end marks were weighed by nothing, and the middle came out NaN (numpy warned)."""
     from qdots.micrograph.scale import end_mark
 
-    assert end_mark(np.zeros((40, 60)), 0.0, 0.0, 20, 2, 30) is None
+    assert end_mark(np.zeros((40, 60)), 0.0, 0.0, 19, 21, 30) is None
 
 
 def test_a_ruled_line_with_its_label_inside_it_is_one_bar():
@@ -267,6 +267,72 @@ def test_a_ruled_line_with_its_label_inside_it_is_one_bar():
         image[272:279, x:x + 5] = 1.1
     bar = find_scale_bar(image)
     assert bar is not None and bar.length_px == pytest.approx(180.0, abs=0.3) and not bar.dark
+
+
+def ruler_strip(hidden=(), short=()) -> np.ndarray:
+    """`strip_film` on a black strip with a Hitachi ruler: 11 light ticks 3 px wide and 7 tall, 21 px apart (middles
+    at 61.5 ... 271.5), blurred as JPEG blurs them, its label below; ticks ``hidden`` are left out, ticks ``short``
+    are drawn 3 rows shorter."""
+    image = strip_film(ground=0.2, ink=1.2, line=0.2)
+    image[250:] = 0.2
+    for k in range(11):
+        if k not in hidden:
+            image[262:269 - 3 * (k in short), 60 + 21 * k:63 + 21 * k] = 1.0
+    for x in range(200, 262, 9):  # "2.00um", letters as "0"s: strokes 2 px thick round a hole
+        image[275:283, x:x + 6] = 1.0
+        image[277:281, x + 2:x + 4] = 0.2
+    image[250:] = ndimage.gaussian_filter(image[250:], 0.8)
+    return image
+
+
+def test_a_ruler_of_ticks_is_measured_from_its_first_tick_to_its_last():
+    """A Hitachi data strip draws its scale as 11 separate ticks, its label the length from the first to the last:
+    no line joins them, and it was not found (2 of the EMPS development pictures). It is now measured between the
+    first and the last tick's middles (210 px, within 0.3 px); with one tick hidden (under a particle), as well. A
+    ruler that goes on past its ends is taken whole or not at all: a piece would give a wrong scale."""
+    for hidden in ((), (4,)):
+        bar = find_scale_bar(ruler_strip(hidden))
+        assert bar is not None and bar.length_px == pytest.approx(210.0, abs=0.3)
+        assert bar.box[1] >= 260 and "11 ticks" in bar.measured if not hidden else "10 ticks" in bar.measured
+    assert find_scale_bar(ruler_strip(hidden=(3, 6))) is None  # two hidden: not a ruler of evenly spaced ticks
+    assert find_scale_bar(ruler_strip(short=(10,))) is None  # its 11th tick, on other rows, would be left off
+
+
+def test_a_dark_fringe_along_a_particles_edge_is_no_bar():
+    """On an EMPS development picture the darkest pixels along the lower edge of a dark elongated particle (a Fresnel
+    fringe, 1 px by 37) were taken for a bar. A drawn bar stands out of the rows on both of its sides; the fringe has
+    the particle on one."""
+    image = bar_film()
+    image[150:170, 120:220] = 0.22  # a dark rod, a little lighter than the darkest dots
+    image[170, 122:218] = image.min() - 0.1  # its edge fringe, in the picture's darkest colour
+    assert find_scale_bar(image) is None
+    image[150:170, 120:220] = bar_film()[150:170, 120:220]  # the same line on the film alone is a bar
+    bar = find_scale_bar(image)
+    assert bar is not None and bar.length_px == pytest.approx(96, abs=1.0)
+
+
+def test_a_white_bar_in_a_dark_outline_on_a_light_picture_is_a_bar():
+    """A white bar edged in dark grey on a light picture (an EMPS development picture) stands out of the picture
+    beside it by little (0.12 of the range, under the 0.2 asked), and was not found; it stands far out of its outline,
+    and is measured against it at half contrast (the white part, 120 px)."""
+    image = bar_film()
+    rng = np.random.default_rng(3)
+    image[250:295, 110:290] = 0.95 + 0.02 * rng.standard_normal((45, 180))  # a light part of the picture
+    image[266:276, 138:262] = 0.6  # the outline, 2 px wide, in mid grey
+    image[268:274, 140:260] = image.max() + 0.02  # the white bar inside it, 120 px: 0.12 of the range out
+    bar = find_scale_bar(image)
+    assert bar is not None and not bar.dark and bar.length_px == pytest.approx(120, abs=0.6)
+
+
+def test_a_logos_swoosh_that_tapers_to_its_long_side_is_no_bar():
+    """A ZEISS logo's swoosh, a white arc whose rows widen to its bottom one (12, 22, 29, 34 px), was taken for a bar
+    in the lightest colour: a bar's rows are all as long as its spine, but for one blurred row on each side."""
+    image = strip_film(ground=0.2, ink=0.2, line=0.2)
+    for row, width in zip(range(280, 284), (12, 22, 29, 34)):
+        image[row, 200 - width // 2:200 + width - width // 2] = 1.2
+    assert find_scale_bar(image) is None
+    image[280:284, 183:217] = 1.2  # a bar of the same length is one
+    assert find_scale_bar(image) is not None
 
 
 def test_a_bar_in_a_box_is_the_bar_not_the_box_and_a_bar_cut_by_the_edge_is_said():
