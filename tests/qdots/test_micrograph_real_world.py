@@ -249,6 +249,20 @@ def test_a_data_strips_thin_bar_is_measured_between_its_end_marks():
     assert find_scale_bar(swoosh) is None
 
 
+def test_a_thin_bar_of_even_thickness_is_read_off_its_own_rows():
+    """A ZEISS bar on a noisy black strip (an EMPS development picture): a light line 4 px thick, shaded on its
+    lower side by JPEG. Its rows were taken one too high, so the ground below it was read on its shading (there it
+    varied by 0.076 of the range, against the 0.05 allowed), and it was refused. Its caps' middles are 44 px apart."""
+    rng = np.random.default_rng(5)
+    image = strip_film(ground=0.1, ink=0.1, line=0.1)
+    image[250:] = 0.1 + 0.02 * rng.standard_normal((50, 400))
+    image[270:274, 60:106] = 0.8  # the line
+    image[274, 62:104] = 0.35  # its shaded lower edge
+    image[263:282, 60:62] = image[263:282, 104:106] = 0.8  # its caps: middles at 61 and 105
+    bar = find_scale_bar(image)
+    assert bar is not None and bar.length_px == pytest.approx(44.0, abs=0.3) and bar.box[1] == 270
+
+
 def test_a_line_at_its_grounds_level_has_no_end_marks():
     """A data strip's written case (a black strip, 616 x 700 px) held a line found by the top-hat whose spine lay at
     the ground's level: its end marks were weighed by nothing, and the middle came out NaN (numpy warned)."""
