@@ -27,6 +27,7 @@ from ..geometry import nearest_ratio
 from ..state import State
 from .admit import ROUND_OUTLINE, NotAFilm, check_picture, film_verdict
 from .annotations import Annotations, find_annotations
+from .cells import network_cells
 from .detect import MAX_SMOOTHING, STAGES, Detection, detect_dots
 from .film import OUTLIER, complete_neighbourhood, film_metrics, film_state, size_inliers
 from .read import Micrograph, read_micrograph
@@ -206,6 +207,8 @@ def measure_image(path: str | os.PathLike, *, nm_per_px=None, scale_bar: str | N
         if refusals and detection.n_dots:  # particles with inner texture or shading cut into pieces: smoothed more
             detection, refusals, doubts = smoothed_retry(image.pixels, detection, refusals, doubts, found, polarity,
                                                          profile, step)
+        if refusals:  # touching particles cut into pieces however smoothed: the cells their gaps' network encloses
+            detection, refusals, doubts = cells_retry(image.pixels, detection, refusals, doubts, found, polarity, step)
     if detection.n_dots == 0:
         raise InputError(f"{path}: no dots found ({detection.polarity}); nothing written. Check --polarity, "
                          "or crop the image to the film")
@@ -241,6 +244,23 @@ def smoothed_retry(pixels: np.ndarray, detection: Detection, refusals: list[str]
                 note = (f"{shown}: smoothed by {smoothing:.1f} px, as the objects found at first were not a film of round "
                         f"particles ({refusals[0].split(' (')[0]}); these are)")
                 return replace(other, polarity=note), *film_verdict(other)
+    return detection, refusals, doubts
+
+
+def cells_retry(pixels: np.ndarray, detection: Detection, refusals: list[str], doubts: list[str], found: Annotations,
+                polarity: str, step) -> tuple[Detection, list[str], list[str]]:
+    """A refused ``detection`` (after `smoothed_retry`) found again as the cells of a network
+    (`qdots.micrograph.cells.network_cells`), in its polarity and then (``polarity="auto"``) the other: close-packed
+    particles whose gaps form one network. The first that is a film of round particles is kept, saying so; if none
+    is, the refused one is kept, with its ``refusals`` and ``doubts``."""
+    phases = [detection.dark] if polarity != "auto" else [detection.dark, not detection.dark]
+    for dark in phases:
+        step(f"the cells of a network ({'dark' if dark else 'light'} particles)")
+        other = network_cells(pixels, found.ignore, found.window, dark)
+        if other is not None and not film_verdict(other)[0]:
+            note = (f"{other.polarity} ({'given' if polarity != 'auto' else 'automatic'}: the objects found as dots "
+                    f"were not a film of round particles ({refusals[0].split(' (')[0]}); these are)")
+            return replace(other, polarity=note), *film_verdict(other)
     return detection, refusals, doubts
 
 
@@ -300,7 +320,7 @@ def summary_rows(summary: dict) -> list[tuple[str, str]]:
                                    f"a second layer, or not particles); {s['size_outliers']} sizes over "
                                    f"{OUTLIER:g} robust deviations from the median")),
         ("polarity", s["polarity"]),
-        ("profile", f"{s['profile']}, blur {s['blur_px']:.2f} px"),
+        ("profile", s["profile"] + (f", blur {s['blur_px']:.2f} px" if math.isfinite(s["blur_px"]) else "")),
         ("coverage", f"{s['coverage']:.3f}"),
         ("mean diameter +- SD", size),
         ("half-depth width", (f"{s['mean_half_width_nm']:.1f} nm" if nm else f"{s['mean_half_width_px']:.2f} px")

@@ -233,14 +233,15 @@ def watershed_parts(surface: np.ndarray, markers: np.ndarray, mask: np.ndarray) 
     return labels
 
 
-def split_fused(labels: np.ndarray, distance: np.ndarray) -> np.ndarray:
+def split_fused(labels: np.ndarray, distance: np.ndarray, unit_area: float | None = None) -> np.ndarray:
     """Split regions that are two or more fused dots with no neck between them.
 
     A region whose area exceeds `FUSED_AREA` times the disc of its inscribed radius ``r_m``, and which
     is elongated (`FUSED_ELONGATION`; an irregular single dot is round), holds
     ``k = max(2, round(area / (0.86 pi r_m^2)))`` dots (two discs of radius r whose centres are at least
-    r apart, as fused dots are split here); its pixels are split among them by k-means (`scipy.cluster.vq.kmeans2`,
-    started from points spread along the region's long axis). Returns new labels (1 .. n)."""
+    r apart, as fused dots are split here), or ``max(2, round(area / unit_area))`` where one dot's area is given;
+    its pixels are split among them by k-means (`scipy.cluster.vq.kmeans2`, started from points spread along the
+    region's long axis). Returns new labels (1 .. n)."""
     from scipy.cluster.vq import ClusterError, kmeans2
     from skimage.segmentation import relabel_sequential
 
@@ -260,7 +261,7 @@ def split_fused(labels: np.ndarray, distance: np.ndarray) -> np.ndarray:
         box = boxes[k - 1]
         rows, cols = np.nonzero(labels[box] == k)
         points = np.column_stack([rows, cols]).astype(float)
-        parts = max(2, round(ratio[k - 1] / 0.86))
+        parts = max(2, round(ratio[k - 1] / 0.86 if unit_area is None else area[k - 1] / unit_area))
         centre = points.mean(axis=0)
         values, vectors = np.linalg.eigh(np.cov((points - centre).T))
         if values[-1] < FUSED_ELONGATION**2 * max(values[0], 1e-12):
