@@ -25,7 +25,8 @@ from scipy import ndimage
 from labrig.compiled import jit
 from labrig.threads import run_tasks
 
-from .scale import ScaleBar, find_scale_bar
+from .bar import ScaleBar
+from .scale import find_scale_bar
 
 #: Sides, in the order strips are looked for.
 SIDES = ("top", "bottom", "left", "right")

@@ -27,11 +27,12 @@ from ..geometry import nearest_ratio
 from ..state import State
 from .admit import ROUND_OUTLINE, NotAFilm, check_picture, film_verdict
 from .annotations import Annotations, find_annotations
+from .bar import ScaleBar
 from .cells import network_cells
 from .detect import MAX_SMOOTHING, STAGES, Detection, detect_dots
 from .film import OUTLIER, complete_neighbourhood, film_metrics, film_state, size_inliers
 from .read import Micrograph, read_micrograph
-from .scale import ScaleBar, check_nm_per_px, parse_length, scale_from_bar
+from .scale import check_nm_per_px, parse_length, scale_from_bar
 from .shapes import STACKED
 
 #: Diameters, nm, of quantum dots and nanocrystals: a scale that puts the dots outside says so (`scale_check`).

@@ -266,7 +266,7 @@ def test_a_thin_bar_of_even_thickness_is_read_off_its_own_rows():
 def test_a_line_at_its_grounds_level_has_no_end_marks():
     """A data strip's written case (a black strip, 616 x 700 px) held a line found by the top-hat whose spine lay at
     the ground's level: its end marks were weighed by nothing, and the middle came out NaN (numpy warned)."""
-    from qdots.micrograph.scale import end_mark
+    from qdots.micrograph.strip_bars import end_mark
 
     assert end_mark(np.zeros((40, 60)), 0.0, 0.0, 19, 21, 30) is None
 
