@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -25,7 +25,7 @@ from labrig.validate import InputError
 from ..analysis.lqe import film_lqe
 from ..geometry import nearest_ratio
 from ..state import State
-from .admit import ROUND_OUTLINE, NotAFilm, check_picture, film_verdict
+from .admit import MAX_OUTLINE, ROUND_OUTLINE, NotAFilm, check_picture, film_verdict
 from .annotations import Annotations, find_annotations
 from .bar import ScaleBar
 from .cells import network_cells
@@ -230,37 +230,56 @@ def smoothed_retry(pixels: np.ndarray, detection: Detection, refusals: list[str]
     shading or a rough surface rejoin the particles they belong to. Smoothing rounds every outline (rods and shards
     too), so the objects found must be clearly round: a median outline under `qdots.micrograph.admit.ROUND_OUTLINE`
     rather than `qdots.micrograph.admit.MAX_OUTLINE`. The first that is a film of round particles is kept, saying so;
-    if none is, the refused one is kept, with its ``refusals`` and ``doubts``."""
+    if none is, the refused one is kept, with its ``refusals`` and ``doubts`` (`first_film`)."""
     whole = ~detection.cut
     pieces = float(np.median(detection.diameters[whole if whole.any() else slice(None)]))
-    phases = [detection.dark] if polarity != "auto" else [detection.dark, not detection.dark]
-    for share in RETRY_SMOOTHING:
-        smoothing = float(np.clip(share * pieces, 1.5, MAX_SMOOTHING))
-        for dark in phases:
-            step(f"smoothing by {smoothing:.1f} px ({'dark' if dark else 'light'} dots)")
-            other = detect_dots(pixels, polarity="dark" if dark else "light", profile=profile, ignore=found.ignore,
-                                window=found.window, smoothing=smoothing)
-            if other.n_dots and not film_verdict(other, ROUND_OUTLINE)[0]:
+
+    def attempts():
+        for share in RETRY_SMOOTHING:
+            smoothing = float(np.clip(share * pieces, 1.5, MAX_SMOOTHING))
+            for dark in phases(detection, polarity):
+                step(f"smoothing by {smoothing:.1f} px ({'dark' if dark else 'light'} dots)")
+                other = detect_dots(pixels, polarity="dark" if dark else "light", profile=profile, ignore=found.ignore,
+                                    window=found.window, smoothing=smoothing)
                 shown = f"{'dark' if dark else 'light'} dots ({'given' if polarity != 'auto' else 'automatic'}"
-                note = (f"{shown}: smoothed by {smoothing:.1f} px, as the objects found at first were not a film of round "
-                        f"particles ({refusals[0].split(' (')[0]}); these are)")
-                return replace(other, polarity=note), *film_verdict(other)
-    return detection, refusals, doubts
+                yield other, ROUND_OUTLINE, (f"{shown}: smoothed by {smoothing:.1f} px, as the objects found at first "
+                                             f"were not a film of round particles ({refusals[0].split(' (')[0]}); "
+                                             "these are)")
+
+    return first_film(detection, refusals, doubts, attempts())
 
 
 def cells_retry(pixels: np.ndarray, detection: Detection, refusals: list[str], doubts: list[str], found: Annotations,
                 polarity: str, step) -> tuple[Detection, list[str], list[str]]:
     """A refused ``detection`` (after `smoothed_retry`) found again as the cells of a network
     (`qdots.micrograph.cells.network_cells`), in its polarity and then (``polarity="auto"``) the other: close-packed
-    particles whose gaps form one network. The first that is a film of round particles is kept, saying so; if none
-    is, the refused one is kept, with its ``refusals`` and ``doubts``."""
-    phases = [detection.dark] if polarity != "auto" else [detection.dark, not detection.dark]
-    for dark in phases:
-        step(f"the cells of a network ({'dark' if dark else 'light'} particles)")
-        other = network_cells(pixels, found.ignore, found.window, dark)
-        if other is not None and not film_verdict(other)[0]:
-            note = (f"{other.polarity} ({'given' if polarity != 'auto' else 'automatic'}: the objects found as dots "
-                    f"were not a film of round particles ({refusals[0].split(' (')[0]}); these are)")
+    particles whose gaps form one network, or touch in a lattice. The first that is a film of round particles is kept,
+    saying so; if none is, the refused one is kept, with its ``refusals`` and ``doubts`` (`first_film`)."""
+    def attempts():
+        for dark in phases(detection, polarity):
+            step(f"the cells of a network ({'dark' if dark else 'light'} particles)")
+            other = network_cells(pixels, found.ignore, found.window, dark)
+            yield other, MAX_OUTLINE, "" if other is None else (
+                f"{other.polarity} ({'given' if polarity != 'auto' else 'automatic'}: the objects found as dots were "
+                f"not a film of round particles ({refusals[0].split(' (')[0]}); these are)")
+
+    return first_film(detection, refusals, doubts, attempts())
+
+
+def phases(detection: Detection, polarity: str) -> list[bool]:
+    """Whether the particles are dark, in the order a retry tries: ``detection``'s, then (``polarity="auto"``) the
+    other."""
+    return [detection.dark] if polarity != "auto" else [detection.dark, not detection.dark]
+
+
+def first_film(detection: Detection, refusals: list[str], doubts: list[str],
+               attempts: Iterable[tuple[Detection | None, float, str]]) -> tuple[Detection, list[str], list[str]]:
+    """The first of ``attempts`` (each a detection or None, the largest median outline it may have, and the
+    ``polarity`` note that says how it was found) that is a film of round particles, with its note and
+    `qdots.micrograph.admit.film_verdict`; if none is, the refused ``detection`` with its ``refusals`` and ``doubts``.
+    The attempts are made one at a time, up to the first film."""
+    for other, max_outline, note in attempts:
+        if other is not None and other.n_dots and not film_verdict(other, max_outline)[0]:
             return replace(other, polarity=note), *film_verdict(other)
     return detection, refusals, doubts
 
