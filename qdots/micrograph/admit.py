@@ -8,7 +8,9 @@ was found: a film has many dots the picture's edge does not cut (`MIN_FILM_DOTS`
 than strokes of text or lines (`MIN_FILM_DIAMETER`), not set in lines of text (`text_lines`), round (the outlines they
 show the background do not wander far from one radius, `MAX_OUTLINE`; they are not elongated, `MAX_ELONGATION`) and
 whole (a rod or a plate that the detection cut into pieces leaves dots far closer than a diameter to their nearest
-neighbour, `PIECES`; the region shapes are `qdots.micrograph.shapes`'). What is refused is said with its numbers.
+neighbour, `PIECES`, or slices that meet their neighbours along their whole width, `MAX_NECK`; the region shapes are
+`qdots.micrograph.shapes`'). A film found on a smoothed picture must also be round in the picture as taken
+(`elongation_as_taken`): smoothing rounds every outline. What is refused is said with its numbers.
 
 Other signs make a measurement doubtful without making the picture something else: sizes that vary over
 `MAX_FILM_SPREAD` (two populations, or false detections), diameters that repeat worse than `MAX_REPEAT_ERROR` (a noisy
@@ -18,14 +20,17 @@ reported beside the measurement (`film_verdict`'s doubts).
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from labrig.validate import InputError
 
 from ..geometry import nearest_ratio
 from .annotations import Annotations, flatness
+from .cells import flattened
 from .film import size_spread
-from .shapes import OVERLAP, OVERLAP_SHARE, STACKED, overlap_share
+from .shapes import OVERLAP, OVERLAP_SHARE, STACKED, elongation_within, overlap_share
 
 #: Share of the picture (within 0.2 % of its range) in flat 3 x 3 neighbourhoods above which it is drawn.
 FLAT_SHARE, FLAT_TOLERANCE = 0.3, 0.002
@@ -55,6 +60,20 @@ MAX_OUTLINE, MAX_ELONGATION, ROUND_OUTLINE, MIN_OUTLINES = 0.13, 1.3, 0.1, 5
 #: Pieces: at least PIECES of the whole dots are stacked on a neighbour (`qdots.micrograph.shapes.STACKED`: its centre
 #: closer than 0.7 of their mean diameter). Measured on the development half: films 0-0.35, rods 0.65.
 PIECES = 0.5
+#: Slices: the median neck (`qdots.micrograph.shapes`: a region's widest contact with one neighbour over its
+#: area-equivalent diameter) of the whole dots' regions at least MAX_NECK. Round particles in one layer meet along a
+#: chord shorter than that (two discs cut where their centres are half a diameter apart, far closer than hard particles
+#: lie: 0.97; a hexagonal lattice's cells 0.55, a square lattice's 0.89); a rod, a wire or a plate cut across into
+#: pieces shorter than wide leaves slices that meet along their whole width. Measured on the development halves (real
+#: micrographs and EMPS): films of round particles 0-0.89; rods and dumbbells cut into pieces 1.10-1.23, triangular
+#: plates 0.95, cells 0.98-1.17.
+MAX_NECK = 1.0
+#: Round as taken: a film found on a smoothed picture, whose outlines smoothing rounded, is one where the particles'
+#: phase of the picture as taken (cut at Otsu's threshold, `qdots.micrograph.cells.flattened`) within TAKEN_REACH radii
+#: of each whole dot has a median elongation at most MAX_TAKEN_ELONGATION. Measured on the development halves: films
+#: found smoothed (textured, fragmented or faint particles) 1.01-1.42; sparse rods of aspect 2.3 that smoothing had
+#: made round 1.92, cubes 1.87.
+TAKEN_REACH, MAX_TAKEN_ELONGATION = 1.5, 1.6
 
 
 def empty_bands(positions: np.ndarray, band: float) -> tuple[float, int]:
@@ -123,6 +142,12 @@ def film_verdict(detection, max_outline: float = MAX_OUTLINE) -> tuple[list[str]
         elif elongation > MAX_ELONGATION and wander > ROUND_OUTLINE:
             refusals.append(f"the objects are elongated: their long axis is {elongation:.2f} times the short one "
                             f"(median; round particles: under {MAX_ELONGATION:g}): rods, wires, cells?")
+    regions = shapes[np.isfinite(shapes[:, 0])]
+    neck = float(np.median(regions[:, 2])) if len(regions) >= MIN_OUTLINES else 0.0
+    if neck >= MAX_NECK:
+        refusals.append(f"the objects found meet their neighbours along their whole width (median neck {neck:.2f}; "
+                        f"round particles in one layer: under {MAX_NECK:g}): slices of larger objects (rods, wires, "
+                        "plates?), not particles")
     ratio = nearest_ratio(detection.centres[whole], detection.diameters[whole])
     pieces = float(np.mean(ratio < STACKED))
     if pieces >= PIECES:
@@ -141,6 +166,22 @@ def film_verdict(detection, max_outline: float = MAX_OUTLINE) -> tuple[list[str]
         doubts.append(f"{100 * overlapping:.0f} % of the dots with a close neighbour overlap it (centres closer than "
                       f"{OVERLAP:g} of their mean diameter): hard particles in one layer do not")
     return refusals, doubts
+
+
+def elongation_as_taken(pixels: np.ndarray, detection, ignore: np.ndarray | None) -> float:
+    """The median elongation of the particles' phase of ``pixels`` (the picture as taken, cut at Otsu's threshold)
+    within `TAKEN_REACH` radii of each of ``detection``'s whole dots (`qdots.micrograph.shapes.elongation_within`;
+    ``ignore``: pixels left out); NaN where no dot shows one."""
+    from skimage.filters import threshold_otsu
+
+    x0, y0 = detection.window[:2]
+    _, _, flat, left_out = flattened(pixels, ignore, detection.window, detection.dark)
+    if not (~left_out).any() or float(np.ptp(flat[~left_out])) <= 0:
+        return math.nan
+    phase = (flat < threshold_otsu(flat[~left_out])) & ~left_out
+    whole = ~detection.cut
+    found = elongation_within(phase, detection.centres[whole] - [x0, y0], detection.diameters[whole], TAKEN_REACH)
+    return float(np.nanmedian(found)) if np.isfinite(found).any() else math.nan
 
 
 class NotAFilm(InputError):

@@ -4,11 +4,17 @@ Where particles touch, the film's other phase (the gaps between them, and their 
 connected network, and each particle is a cell it encloses; on a sparse film the background is that network. When
 the dots found in both phases are refused, and the smoothed retry finds no film either (`qdots.micrograph.measure`),
 the picture is cut at Otsu's threshold after its broad fall of light is taken out, as
-`qdots.micrograph.detect.first_look` does; where one phase is a network (at least `NETWORK_SHARE` of its pixels in one
-piece), the cells it encloses are the particles (two or three fused where the cut missed their gap are split,
-`split_merged`), each measured by the disc of its area at that threshold: halfway between the network's level and the
-particle's, as a line profile's half depth. No profile is fitted: the sizes are a threshold's, and the measurement
-says so.
+`qdots.micrograph.detect.first_look` does. Two routes follow:
+
+* **a network**: where one phase is a network (at least `NETWORK_SHARE` of its pixels in one piece), the cells it
+  encloses are the particles (two or three fused where the cut missed their gap are split, `split_merged`);
+* **touching in a lattice**: where no phase is, as in a close-packed monolayer whose gaps break at every contact, the
+  lattice's spacing (`lattice_spacing`) sets a top-hat that finds the thin gaps, and a watershed of the distance from
+  them parts the particles (`touching_cells`).
+
+Each cell is made whole (`whole_outlines`: a darker core or a rim-lit crescent) and measured by the disc of its area
+at the threshold: halfway between the network's level and the particle's, as a line profile's half depth. No profile
+is fitted: the sizes are a threshold's, and the measurement says so.
 """
 
 from __future__ import annotations
@@ -50,8 +56,9 @@ GAP_RADIUS, GAP_RADIUS_MIN, MARKER_SPACING = 1.0 / 16.0, 2, 0.35
 
 def network_cells(pixels: np.ndarray, ignore: np.ndarray | None, window: tuple[int, int, int, int],
                   dark: bool) -> Detection | None:
-    """The particles of ``pixels`` as the cells of a network (see the module), darker than the network where ``dark``,
-    or None where that phase's complement is no network or its cells are under `MIN_CELL` px.
+    """The particles of ``pixels`` as the cells of a network, or touching in a lattice where no phase is a network
+    (see the module), darker than the network where ``dark``; None where neither route finds cells (no network and no
+    lattice) or its cells are under `MIN_CELL` px.
 
     Parameters
     ----------
@@ -76,13 +83,7 @@ def network_cells(pixels: np.ndarray, ignore: np.ndarray | None, window: tuple[i
     from skimage.segmentation import expand_labels
 
     x0, y0, x1, y1 = window
-    inner = (slice(y0, y1), slice(x0, x1))
-    left_out = np.zeros(np.shape(pixels), dtype=bool) if ignore is None else np.asarray(ignore, dtype=bool)
-    left_out = left_out[inner]
-    unit = scaled(np.asarray(pixels, dtype=float)[inner], left_out)
-    unit = unit if dark else 1.0 - unit  # particles dark, the network light
-    smooth = ndimage.gaussian_filter(unit, 1.0)
-    flat = smooth - broad_blur(smooth, max(unit.shape) / 12.0)
+    unit, smooth, flat, left_out = flattened(pixels, ignore, window, dark)
     if not (~left_out).any() or float(np.ptp(flat[~left_out])) <= 0:
         return None
     threshold = threshold_otsu(flat[~left_out])
@@ -126,6 +127,21 @@ def network_cells(pixels: np.ndarray, ignore: np.ndarray | None, window: tuple[i
     return Detection(centres, diameters, cut, contrast, dark, how, math.nan,
                      "none fitted: each cell's area at the threshold (its half depth)", math.nan, rejected,
                      tuple(np.shape(pixels)), (x0, y0, x1, y1), errors, region_shapes(cells), diameters.copy())
+
+
+def flattened(pixels: np.ndarray, ignore: np.ndarray | None, window: tuple[int, int, int, int],
+              dark: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The part of ``pixels`` inside ``window`` as the cut at Otsu's threshold sees it (see the module): mapped to
+    [0, 1] with the particles dark (``unit``; ``dark``: they are the darker phase), smoothed by 1 px (``smooth``), its
+    broad fall of light taken out (``flat``), and the pixels left out (``ignore`` inside the window)."""
+    x0, y0, x1, y1 = window
+    inner = (slice(y0, y1), slice(x0, x1))
+    left_out = np.zeros(np.shape(pixels), dtype=bool) if ignore is None else np.asarray(ignore, dtype=bool)
+    left_out = left_out[inner]
+    unit = scaled(np.asarray(pixels, dtype=float)[inner], left_out)
+    unit = unit if dark else 1.0 - unit  # particles dark, the network light
+    smooth = ndimage.gaussian_filter(unit, 1.0)
+    return unit, smooth, smooth - broad_blur(smooth, max(unit.shape) / 12.0), left_out
 
 
 def largest_share(mask: np.ndarray) -> float:

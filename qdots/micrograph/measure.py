@@ -25,7 +25,16 @@ from labrig.validate import InputError
 from ..analysis.lqe import film_lqe
 from ..geometry import nearest_ratio
 from ..state import State
-from .admit import MAX_OUTLINE, ROUND_OUTLINE, NotAFilm, check_picture, film_verdict
+from .admit import (
+    MAX_OUTLINE,
+    MAX_TAKEN_ELONGATION,
+    ROUND_OUTLINE,
+    TAKEN_REACH,
+    NotAFilm,
+    check_picture,
+    elongation_as_taken,
+    film_verdict,
+)
 from .annotations import Annotations, find_annotations
 from .bar import ScaleBar
 from .cells import network_cells
@@ -228,25 +237,37 @@ def smoothed_retry(pixels: np.ndarray, detection: Detection, refusals: list[str]
     """A refused ``detection`` found again on the picture smoothed by `RETRY_SMOOTHING` times the median diameter of
     what it found, in its polarity and then (``polarity="auto"``) the other: pieces of particles with an inner texture,
     shading or a rough surface rejoin the particles they belong to. Smoothing rounds every outline (rods and shards
-    too), so the objects found must be clearly round: a median outline under `qdots.micrograph.admit.ROUND_OUTLINE`
-    rather than `qdots.micrograph.admit.MAX_OUTLINE`. The first that is a film of round particles is kept, saying so;
-    if none is, the refused one is kept, with its ``refusals`` and ``doubts`` (`first_film`)."""
+    too), so the objects found must be clearly round (a median outline under `qdots.micrograph.admit.ROUND_OUTLINE`
+    rather than `qdots.micrograph.admit.MAX_OUTLINE`), and round in the picture as taken
+    (`qdots.micrograph.admit.elongation_as_taken`). The first that is a film of round particles is kept, saying so;
+    if none is, the refused one is kept, with its ``refusals`` and ``doubts`` (`first_film`), and what was elongated
+    as taken is said."""
     whole = ~detection.cut
     pieces = float(np.median(detection.diameters[whole if whole.any() else slice(None)]))
+    elongated: list[str] = []
 
     def attempts():
         for share in RETRY_SMOOTHING:
             smoothing = float(np.clip(share * pieces, 1.5, MAX_SMOOTHING))
             for dark in phases(detection, polarity):
                 step(f"smoothing by {smoothing:.1f} px ({'dark' if dark else 'light'} dots)")
-                other = detect_dots(pixels, polarity="dark" if dark else "light", profile=profile, ignore=found.ignore,
-                                    window=found.window, smoothing=smoothing)
+                other: Detection | None = detect_dots(pixels, polarity="dark" if dark else "light", profile=profile,
+                                                      ignore=found.ignore, window=found.window, smoothing=smoothing)
+                if other is not None and other.n_dots and not film_verdict(other, ROUND_OUTLINE)[0]:
+                    taken = elongation_as_taken(pixels, other, found.ignore)
+                    if taken > MAX_TAKEN_ELONGATION:
+                        elongated.append(f"smoothed by {smoothing:.1f} px, the objects look round, but in the picture "
+                                         f"as taken they are elongated: {taken:.2f} times as long as wide within "
+                                         f"{TAKEN_REACH:g} radii of each (median; round particles: under "
+                                         f"{MAX_TAKEN_ELONGATION:g}): rods, wires?")
+                        other = None
                 shown = f"{'dark' if dark else 'light'} dots ({'given' if polarity != 'auto' else 'automatic'}"
                 yield other, ROUND_OUTLINE, (f"{shown}: smoothed by {smoothing:.1f} px, as the objects found at first "
                                              f"were not a film of round particles ({refusals[0].split(' (')[0]}); "
                                              "these are)")
 
-    return first_film(detection, refusals, doubts, attempts())
+    kept, reasons, worries = first_film(detection, refusals, doubts, attempts())
+    return kept, (reasons + elongated[:1] if kept is detection else reasons), worries
 
 
 def cells_retry(pixels: np.ndarray, detection: Detection, refusals: list[str], doubts: list[str], found: Annotations,

@@ -99,6 +99,25 @@ def region_shapes(labels: np.ndarray) -> np.ndarray:
     return np.column_stack([elongation, outline, neck])
 
 
+def elongation_within(mask: np.ndarray, centres: np.ndarray, diameters: np.ndarray, reach: float) -> np.ndarray:
+    """The elongation (as `region_shapes`') of the pixels of ``mask`` within ``reach`` radii of each centre (``centres``
+    (x, y), px, of discs of ``diameters`` px, in ``mask``'s pixels); NaN where fewer than 5 pixels are."""
+    mask = np.asarray(mask, dtype=bool)
+    h, w = mask.shape
+    out = np.full(len(diameters), np.nan)
+    for k, ((x, y), d) in enumerate(zip(np.asarray(centres, dtype=float), np.asarray(diameters, dtype=float))):
+        r = reach * 0.5 * d
+        top, left = max(0, int(y - r)), max(0, int(x - r))
+        rows, cols = np.mgrid[top:min(h, int(y + r) + 2), left:min(w, int(x + r) + 2)]
+        inside = mask[rows, cols] & ((cols + 0.5 - x) ** 2 + (rows + 0.5 - y) ** 2 <= r * r)
+        if np.count_nonzero(inside) < 5:
+            continue
+        spread = np.cov(np.vstack([cols[inside], rows[inside]]).astype(float), bias=True) + np.eye(2) / 12.0
+        low, high = np.linalg.eigvalsh(spread)
+        out[k] = math.sqrt(high / max(low, 1e-12))
+    return out
+
+
 def overlap_share(ratio: np.ndarray) -> float:
     """Of the dots with a close neighbour (`qdots.geometry.nearest_ratio` under 1.5), the share that overlap it (under `OVERLAP`)."""
     ratio = np.asarray(ratio, dtype=float)

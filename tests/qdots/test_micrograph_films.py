@@ -347,7 +347,7 @@ def test_objects_not_round_are_refused_when_few_show_an_outline():
     n = 17
     centres = np.column_stack([np.arange(n) % 5 * 120.0 + 80, np.arange(n) // 5 * 120.0 + 80])
     shapes = np.full((n, 3), np.nan)
-    shapes[:8] = np.column_stack([rng.uniform(1.3, 1.8, 8), rng.uniform(0.17, 0.21, 8), np.ones(8)])
+    shapes[:8] = np.column_stack([rng.uniform(1.3, 1.8, 8), rng.uniform(0.17, 0.21, 8), np.zeros(8)])  # none touch
     detection = Detection(centres, np.full(n, 90.0), np.zeros(n, dtype=bool), np.full(n, 0.3), True, "dark",
                           0.0, "p = 0", 2.0, 0, (600, 700), (0, 0, 700, 600), np.full(n, 0.5), shapes)
     assert 8 >= MIN_OUTLINES

@@ -51,6 +51,62 @@ def test_region_shapes_tell_discs_from_squares_rods_and_pieces_of_a_rod():
     assert np.all(touching[:, 2] < 0.6)  # touching discs meet at a narrow waist
 
 
+def slice_detection(labels: np.ndarray):
+    """A `Detection` of the regions of ``labels``: each a dot at its centroid, of its area's diameter, with its shapes."""
+    from qdots.micrograph.detection import Detection
+
+    index = np.arange(1, labels.max() + 1)
+    rows, cols = np.array(ndimage.center_of_mass(labels > 0, labels, index)).T
+    diameters = 2.0 * np.sqrt(ndimage.sum(labels > 0, labels, index) / math.pi)
+    n = len(index)
+    return Detection(np.column_stack([cols + 0.5, rows + 0.5]), diameters, np.zeros(n, dtype=bool), np.full(n, 0.3),
+                     True, "dark dots (given)", 0.0, "disc (given)", 1.0, 0, labels.shape, (0, 0, *labels.shape[::-1]),
+                     np.zeros(n), region_shapes(labels))
+
+
+def test_slices_of_rods_are_refused_by_their_necks_touching_discs_are_not():
+    """Regression (EMPS development half, short rods among spheres): rods cut across into slices shorter than wide, whose
+    centres lie 0.74 of their diameters apart (over the 0.7 of the pieces' rule) and whose outlines and elongations
+    passed, were measured as a film of 340 dots. Slices meet their neighbours along their whole width (neck 1.06)."""
+    from qdots.micrograph.admit import MAX_NECK, film_verdict
+
+    slices = np.zeros((400, 400), dtype=np.int64)
+    k = 0
+    for top in range(20, 380, 40):
+        for left in range(20, 340, 60):
+            for piece in range(3):  # a rod 20 px wide, 42 px long, cut into three slices 14 px long
+                k += 1
+                slices[top:top + 20, left + 14 * piece:left + 14 * (piece + 1)] = k
+    cut_rods = slice_detection(slices)
+    assert np.median(cut_rods.shapes[:, 2]) >= MAX_NECK
+    assert any("whole width" in reason for reason in film_verdict(cut_rods)[0])
+    lattice = [(x + 15 * (j % 2), 20 + 26 * j) for j in range(14) for x in np.arange(20, 380, 30)]
+    touching = slice_detection(disc_labels((400, 400), lattice, np.full(len(lattice), 15.5)))  # 1 px overlaps
+    assert 0 < np.median(touching.shapes[:, 2]) < 0.7
+    assert film_verdict(touching)[0] == []
+
+
+def test_a_film_found_smoothed_must_be_round_in_the_picture_as_taken():
+    """Regression (EMPS development half, sparse rods of aspect 2.3): smoothed by 21 px, each rod was one round dot
+    (median outline 0.09), and the rods were measured. Within 1.5 radii of each such dot, the rods as taken are
+    elongated (there 1.92); round particles are not."""
+    from qdots.micrograph.admit import MAX_TAKEN_ELONGATION, elongation_as_taken
+
+    rows, cols = np.indices((300, 400))
+    rods, discs = np.ones((300, 400)), np.ones((300, 400))
+    centres = [(x, y) for x in range(50, 400, 100) for y in range(50, 300, 100)]
+    for k, (x, y) in enumerate(centres):
+        angle = 0.7 * k
+        along = (cols - x) * math.cos(angle) + (rows - y) * math.sin(angle)
+        across = -(cols - x) * math.sin(angle) + (rows - y) * math.cos(angle)
+        rods[(np.abs(along) <= 35) & (np.abs(across) <= 15)] = 0.3  # 70 x 30 px
+        discs[(cols - x) ** 2 + (rows - y) ** 2 <= 17**2] = 0.3
+    noise = 0.02 * np.random.default_rng(5).standard_normal(rods.shape)
+    smoothed_dots = slice_detection(disc_labels((300, 400), centres, np.full(len(centres), 17.0)))
+    assert elongation_as_taken(rods + noise, smoothed_dots, None) > MAX_TAKEN_ELONGATION
+    assert elongation_as_taken(discs + noise, smoothed_dots, None) < 1.2
+
+
 def test_flat_colour_is_the_3_by_3_range_of_the_footprint_filters():
     rng = np.random.default_rng(0)
     image = np.round(rng.random((90, 130)) * 3) / 3
