@@ -76,7 +76,9 @@ def network_cells(pixels: np.ndarray, ignore: np.ndarray | None, window: tuple[i
     Detection or None
         Each cell's centroid and the diameter of the disc of its area; ``cut`` where it touches the window's edge or
         a pixel left out; ``errors`` how far each diameter moves when the threshold moves by the pixel noise;
-        ``shape`` NaN (no profile fitted); ``widths`` the diameters (the threshold is the half depth).
+        ``shape`` NaN (no profile fitted); ``widths`` the diameters (a network's threshold is the half depth; in a
+        lattice, the width between the gaps: there, and on rim-lit SEM spheres, a line profile's half depth is no
+        particle's edge).
     """
     from skimage.filters import threshold_otsu
     from skimage.morphology import disk, white_tophat
