@@ -9,8 +9,9 @@ than strokes of text or lines (`MIN_FILM_DIAMETER`), not set in lines of text (`
 show the background do not wander far from one radius, `MAX_OUTLINE`; they are not elongated, `MAX_ELONGATION`) and
 whole (a rod or a plate that the detection cut into pieces leaves dots far closer than a diameter to their nearest
 neighbour, `PIECES`, or slices that meet their neighbours along their whole width, `MAX_NECK`; the region shapes are
-`qdots.micrograph.shapes`'). A film found on a smoothed picture must also be round in the picture as taken
-(`elongation_as_taken`): smoothing rounds every outline. What is refused is said with its numbers.
+`qdots.micrograph.shapes`'). A film found on a smoothed picture must also be round in the picture as taken, where
+its necks are read too (`as_taken`): smoothing rounds every outline and widens every contact. What is refused is said
+with its numbers.
 
 Other signs make a measurement doubtful without making the picture something else: sizes that vary over
 `MAX_FILM_SPREAD` (two populations, or false detections), diameters that repeat worse than `MAX_REPEAT_ERROR` (a noisy
@@ -21,6 +22,7 @@ reported beside the measurement (`film_verdict`'s doubts).
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 
@@ -30,7 +32,7 @@ from ..geometry import nearest_ratio
 from .annotations import Annotations, flatness
 from .cells import flattened
 from .film import size_spread
-from .shapes import OVERLAP, OVERLAP_SHARE, STACKED, elongation_within, overlap_share
+from .shapes import OVERLAP, OVERLAP_SHARE, STACKED, elongation_within, necks_within, overlap_share
 
 #: Share of the picture (within 0.2 % of its range) in flat 3 x 3 neighbourhoods above which it is drawn.
 FLAT_SHARE, FLAT_TOLERANCE = 0.3, 0.002
@@ -168,20 +170,25 @@ def film_verdict(detection, max_outline: float = MAX_OUTLINE) -> tuple[list[str]
     return refusals, doubts
 
 
-def elongation_as_taken(pixels: np.ndarray, detection, ignore: np.ndarray | None) -> float:
-    """The median elongation of the particles' phase of ``pixels`` (the picture as taken, cut at Otsu's threshold)
-    within `TAKEN_REACH` radii of each of ``detection``'s whole dots (`qdots.micrograph.shapes.elongation_within`;
-    ``ignore``: pixels left out); NaN where no dot shows one."""
+def as_taken(pixels: np.ndarray, detection, ignore: np.ndarray | None):
+    """A film found on a smoothed picture, seen in ``pixels``, the picture as taken (``ignore``: pixels left out),
+    cut at Otsu's threshold: the median elongation of the particles' phase within `TAKEN_REACH` radii of each of
+    ``detection``'s whole dots (`qdots.micrograph.shapes.elongation_within`; NaN where no dot shows one), and
+    ``detection`` with the necks of its regions read there (`qdots.micrograph.shapes.necks_within`: the phase within
+    `TAKEN_REACH` radii of each dot, nearer to it than to any other), where smoothing had widened them."""
     from skimage.filters import threshold_otsu
 
     x0, y0 = detection.window[:2]
     _, _, flat, left_out = flattened(pixels, ignore, detection.window, detection.dark)
     if not (~left_out).any() or float(np.ptp(flat[~left_out])) <= 0:
-        return math.nan
+        return math.nan, detection
     phase = (flat < threshold_otsu(flat[~left_out])) & ~left_out
+    centres = detection.centres - [x0, y0]
     whole = ~detection.cut
-    found = elongation_within(phase, detection.centres[whole] - [x0, y0], detection.diameters[whole], TAKEN_REACH)
-    return float(np.nanmedian(found)) if np.isfinite(found).any() else math.nan
+    found = elongation_within(phase, centres[whole], detection.diameters[whole], TAKEN_REACH)
+    shapes = detection.shapes.copy()
+    shapes[:, 2] = necks_within(phase, centres, detection.diameters, TAKEN_REACH)
+    return (float(np.nanmedian(found)) if np.isfinite(found).any() else math.nan), replace(detection, shapes=shapes)
 
 
 class NotAFilm(InputError):

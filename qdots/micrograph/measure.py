@@ -31,8 +31,8 @@ from .admit import (
     ROUND_OUTLINE,
     TAKEN_REACH,
     NotAFilm,
+    as_taken,
     check_picture,
-    elongation_as_taken,
     film_verdict,
 )
 from .annotations import Annotations, find_annotations
@@ -238,8 +238,8 @@ def smoothed_retry(pixels: np.ndarray, detection: Detection, refusals: list[str]
     what it found, in its polarity and then (``polarity="auto"``) the other: pieces of particles with an inner texture,
     shading or a rough surface rejoin the particles they belong to. Smoothing rounds every outline (rods and shards
     too), so the objects found must be clearly round (a median outline under `qdots.micrograph.admit.ROUND_OUTLINE`
-    rather than `qdots.micrograph.admit.MAX_OUTLINE`), and round in the picture as taken
-    (`qdots.micrograph.admit.elongation_as_taken`). The first that is a film of round particles is kept, saying so;
+    rather than `qdots.micrograph.admit.MAX_OUTLINE`), and round in the picture as taken, where their necks are read
+    too (`qdots.micrograph.admit.as_taken`). The first that is a film of round particles is kept, saying so;
     if none is, the refused one is kept, with its ``refusals`` and ``doubts`` (`first_film`), and what was elongated
     as taken is said."""
     whole = ~detection.cut
@@ -253,8 +253,9 @@ def smoothed_retry(pixels: np.ndarray, detection: Detection, refusals: list[str]
                 step(f"smoothing by {smoothing:.1f} px ({'dark' if dark else 'light'} dots)")
                 other: Detection | None = detect_dots(pixels, polarity="dark" if dark else "light", profile=profile,
                                                       ignore=found.ignore, window=found.window, smoothing=smoothing)
+                if other is not None and other.n_dots:
+                    taken, other = as_taken(pixels, other, found.ignore)
                 if other is not None and other.n_dots and not film_verdict(other, ROUND_OUTLINE)[0]:
-                    taken = elongation_as_taken(pixels, other, found.ignore)
                     if taken > MAX_TAKEN_ELONGATION:
                         elongated.append(f"smoothed by {smoothing:.1f} px, the objects look round, but in the picture "
                                          f"as taken they are elongated: {taken:.2f} times as long as wide within "

@@ -118,6 +118,32 @@ def elongation_within(mask: np.ndarray, centres: np.ndarray, diameters: np.ndarr
     return out
 
 
+def necks_within(mask: np.ndarray, centres: np.ndarray, diameters: np.ndarray, reach: float) -> np.ndarray:
+    """The neck (as `region_shapes`') of each disc's region in ``mask``: its pixels within ``reach`` radii of the disc's
+    centre that lie nearer to it than to any other centre (``centres`` (x, y), px, of discs of ``diameters`` px, in
+    ``mask``'s pixels); 0 for a disc whose centre lies outside ``mask``."""
+    from scipy import ndimage
+
+    mask = np.asarray(mask, dtype=bool)
+    h, w = mask.shape
+    centres = np.asarray(centres, dtype=float).reshape(-1, 2)
+    n = len(centres)
+    cols, rows = np.floor(centres[:, 0]).astype(np.int64), np.floor(centres[:, 1]).astype(np.int64)
+    inside = (cols >= 0) & (cols < w) & (rows >= 0) & (rows < h)
+    if n == 0 or not inside.any():
+        return np.zeros(n)
+    seeds = np.zeros((h, w), dtype=np.int64)
+    seeds[rows[inside], cols[inside]] = np.flatnonzero(inside) + 1
+    distance, (near_row, near_col) = ndimage.distance_transform_edt(seeds == 0, return_indices=True)
+    labels = seeds[near_row, near_col]
+    reach_px = reach * 0.5 * np.asarray(diameters, dtype=float)
+    labels[~mask | (distance > reach_px[labels - 1])] = 0
+    necks = np.zeros(n)
+    found = region_shapes(labels)[:, 2]
+    necks[:len(found)] = found
+    return necks
+
+
 def overlap_share(ratio: np.ndarray) -> float:
     """Of the dots with a close neighbour (`qdots.geometry.nearest_ratio` under 1.5), the share that overlap it (under `OVERLAP`)."""
     ratio = np.asarray(ratio, dtype=float)

@@ -6,6 +6,7 @@ not depend on the number of threads."""
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -90,7 +91,7 @@ def test_a_film_found_smoothed_must_be_round_in_the_picture_as_taken():
     """Regression (EMPS development half, sparse rods of aspect 2.3): smoothed by 21 px, each rod was one round dot
     (median outline 0.09), and the rods were measured. Within 1.5 radii of each such dot, the rods as taken are
     elongated (there 1.92); round particles are not."""
-    from qdots.micrograph.admit import MAX_TAKEN_ELONGATION, elongation_as_taken
+    from qdots.micrograph.admit import MAX_TAKEN_ELONGATION, as_taken
 
     rows, cols = np.indices((300, 400))
     rods, discs = np.ones((300, 400)), np.ones((300, 400))
@@ -103,8 +104,40 @@ def test_a_film_found_smoothed_must_be_round_in_the_picture_as_taken():
         discs[(cols - x) ** 2 + (rows - y) ** 2 <= 17**2] = 0.3
     noise = 0.02 * np.random.default_rng(5).standard_normal(rods.shape)
     smoothed_dots = slice_detection(disc_labels((300, 400), centres, np.full(len(centres), 17.0)))
-    assert elongation_as_taken(rods + noise, smoothed_dots, None) > MAX_TAKEN_ELONGATION
-    assert elongation_as_taken(discs + noise, smoothed_dots, None) < 1.2
+    assert as_taken(rods + noise, smoothed_dots, None)[0] > MAX_TAKEN_ELONGATION
+    assert as_taken(discs + noise, smoothed_dots, None)[0] < 1.2
+
+
+def test_a_film_found_smoothed_has_its_necks_read_in_the_picture_as_taken():
+    """Regression (EMPS, rough SEM spheres on a textured support): smoothed by 15 px, the spheres were found as dots
+    whose regions met along their whole width (median neck 1.01, widened by the smoothing), and a film of round
+    particles was refused as slices. In the picture as taken, touching spheres meet at a narrow waist; slices of rods
+    still meet along their whole width."""
+    from qdots.micrograph.admit import MAX_NECK, as_taken, film_verdict
+
+    rows, cols = np.indices((300, 400))
+    spheres = np.ones((300, 400))
+    centres = [(x + 17 * (j % 2), 20 + 29.4 * j) for j in range(9) for x in range(20, 370, 34)]
+    for x, y in centres:
+        spheres[(cols - x) ** 2 + (rows - y) ** 2 <= 17**2] = 0.3  # 34 px, touching on a hexagonal lattice
+    noise = 0.02 * np.random.default_rng(6).standard_normal(spheres.shape)
+    smoothed = slice_detection(disc_labels((300, 400), centres, np.full(len(centres), 17.0)))
+    smoothed = replace(smoothed, shapes=np.column_stack([smoothed.shapes[:, :2], np.full(len(centres), 1.01)]))
+    assert any("whole width" in reason for reason in film_verdict(smoothed)[0])
+    taken = as_taken(spheres + noise, smoothed, None)[1]
+    assert np.median(taken.shapes[~taken.cut, 2]) < 0.5
+    assert not any("whole width" in reason for reason in film_verdict(taken)[0])
+
+    rods = np.ones((300, 400))
+    slices = np.zeros((300, 400), dtype=np.int64)
+    k = 0
+    for top in range(20, 280, 40):
+        rods[top:top + 20, 20:380] = 0.3  # rods 20 px wide, cut into slices 14 px long
+        for left in range(20, 380 - 14, 14):
+            k += 1
+            slices[top:top + 20, left:left + 14] = k
+    taken = as_taken(rods + noise, slice_detection(slices), None)[1]
+    assert np.median(taken.shapes[:, 2]) >= MAX_NECK
 
 
 def test_flat_colour_is_the_3_by_3_range_of_the_footprint_filters():
@@ -317,6 +350,25 @@ def test_a_thin_bar_of_even_thickness_is_read_off_its_own_rows():
     image[263:282, 60:62] = image[263:282, 104:106] = 0.8  # its caps: middles at 61 and 105
     bar = find_scale_bar(image)
     assert bar is not None and bar.length_px == pytest.approx(44.0, abs=0.3) and bar.box[1] == 270
+
+
+def test_a_thin_bar_with_end_marks_is_taken_down_to_its_own_share_of_the_picture():
+    """A ZEISS strip's bar with end caps (an EMPS development picture): 31 px between its caps on a picture 675 px
+    wide, 0.046 of it, under the twentieth a bar must measure; it was not found. A line with a mark at each end on a
+    flat ground, which neither a rim nor a particle's edge is, is taken down to 0.035; a plain bar still is not."""
+    from qdots.micrograph.scale import MIN_BAR_SHARE, MIN_MARKED_SHARE
+
+    rng = np.random.default_rng(3)
+    image = bar_film(shape=(300, 800))
+    image[250:] = 0.1 + 0.02 * rng.standard_normal((50, 800))
+    image[270:272, 60:98] = 0.8  # the line, 2 px thick
+    image[263:280, 60:62] = image[263:280, 96:98] = 0.8  # its caps: middles at 61 and 97, 36 px (0.045) apart
+    image[266:274, 300:338] = 0.8  # a plain bar, 38 px (0.0475)
+    assert MIN_MARKED_SHARE * 800 < 36 < 38 < MIN_BAR_SHARE * 800
+    bar = find_scale_bar(image)
+    assert bar is not None and bar.length_px == pytest.approx(36.0, abs=0.3) and bar.box[1] == 270
+    image[263:280, 60:62] = image[263:280, 96:98] = 0.1  # without its caps, it is no bar either
+    assert find_scale_bar(image) is None
 
 
 def test_a_line_at_its_grounds_level_has_no_end_marks():
