@@ -108,8 +108,7 @@ def results(halves: tuple[str, ...]) -> list:
                            f"{seconds:.0f} s for {len(rows)} pictures", "; ".join(summary)))
     out.append(Note("The bar found is the drawn one when the middle of its box lies within the drawn bar's box (boxed by "
                     f"eye, grown by {SLACK} px) and it is at least {COVER:g} of its width. A bar under a twentieth of the "
-                    "picture's longer side is not sought (`qdots.micrograph.scale.MIN_BAR_SHARE`), but a thin bar with a "
-                    "mark at each end, down to 0.035 of it (`MIN_MARKED_SHARE`). Lengths are scored "
+                    "picture's longer side is not sought (`qdots.micrograph.scale.MIN_BAR_SHARE`). Lengths are scored "
                     "against bars measured by hand in `micrograph_real`."))
     return out
 

@@ -29,11 +29,6 @@ BAR_SURROUNDINGS = 12
 #: pictures without one, 0.018 (a 10 px run of a sphere's bright rim) and 0.041 (a bright particle cut by the
 #: picture's lower edge).
 MIN_BAR_SHARE = 0.05
-#: A thin bar with a mark at each end on a flat ground (`qdots.micrograph.strip_bars.thin_bar`), which neither a rim
-#: nor a particle's edge is, need only be MIN_MARKED_SHARE of the picture's longer side. On the development halves (the
-#: real micrographs' and EMPS's, 88 pictures), sought down to `qdots.micrograph.bar.MIN_BAR`: a ZEISS strip's bar with
-#: end caps 0.046; what was taken on films, 0.017 and 0.028 (a particle's edge between two others).
-MIN_MARKED_SHARE = 0.035
 #: A bar holds at most OFF_SPINE times as many pixels off its spine as on it (its ticks, end caps, or its label's
 #: letters where they touch it: a cropped journal figure's bold "20 nm" set on its bar, 0.96 times).
 OFF_SPINE = 2.0
@@ -130,10 +125,10 @@ def bar_candidate(component: np.ndarray, holes: np.ndarray) -> tuple[int, int, i
     return found
 
 
-def shortest_bar(shape: tuple[int, int], share: float = MIN_BAR_SHARE) -> float:
-    """The shortest scale bar taken on a picture of ``shape``, px: `qdots.micrograph.bar.MIN_BAR`, or ``share`` of its
-    longer side where that is more (`MIN_BAR_SHARE`; a thin bar with end marks, `MIN_MARKED_SHARE`)."""
-    return max(float(MIN_BAR), share * max(shape))
+def shortest_bar(shape: tuple[int, int]) -> float:
+    """The shortest scale bar taken on a picture of ``shape``, px: `qdots.micrograph.bar.MIN_BAR`, or `MIN_BAR_SHARE` of its longer
+    side where that is more."""
+    return max(float(MIN_BAR), MIN_BAR_SHARE * max(shape))
 
 
 def find_scale_bar(image: np.ndarray) -> ScaleBar | None:
@@ -152,8 +147,7 @@ def find_scale_bar(image: np.ndarray) -> ScaleBar | None:
     colour, nor that long; a bar stands out of what surrounds it (`bar_contrast`; or of its outline, where it is drawn
     in one), where noise pixels joined into a bar do not, and out of the rows on both of its sides
     (`stands_out_both_sides`), where the darkest fringe along a dark particle's edge does not. The thin bars and the
-    rulers of ticks of instruments' data strips are found by `qdots.micrograph.strip_bars.thin_bar`, down to
-    `MIN_MARKED_SHARE` of the picture.
+    rulers of ticks of instruments' data strips are found by `qdots.micrograph.strip_bars.thin_bar`.
     """
     image = np.asarray(image, dtype=float)
     low, high = float(image.min()), float(image.max())
@@ -203,7 +197,7 @@ def find_scale_bar(image: np.ndarray) -> ScaleBar | None:
                 best = ScaleBar(length, (cols.start, rows.start, cols.stop, rows.stop), dark,
                                 ruled=bool(holes.any() or found[2] > 0 or (own & ~colour[box]).any()),
                                 thickness=found[1], at_edge=bool(edge))
-    thin = thin_bar(image, shortest_bar(image.shape, MIN_MARKED_SHARE))
+    thin = thin_bar(image, shortest)
     return thin if thin is not None and (best is None or thin.length_px > best.length_px) else best
 
 
@@ -312,7 +306,7 @@ def scale_from_bar(bar: ScaleBar | None, length: str) -> float:
     nm = parse_length(length)
     if bar is None:
         raise InputError(f"scale_bar: no scale bar found on the image (a horizontal bar, solid or ruled, in its darkest or "
-                         f"lightest colour, at least {MIN_BAR} px long and {MIN_BAR_SHARE:g} of the picture's longer side "
-                         f"({MIN_MARKED_SHARE:g} with a mark at each end), and {BAR_ASPECT:g} times longer than thick); "
+                         f"lightest colour, at least {MIN_BAR} px long and {MIN_BAR_SHARE:g} of the picture's longer side, "
+                         f"and {BAR_ASPECT:g} times longer than thick); "
                          "give the scale with --nm-per-px instead")
     return check_nm_per_px(nm / bar.length_px, "scale from the scale bar")
