@@ -216,7 +216,8 @@ def _detect(image: np.ndarray, polarity: str, profile: str, ignore: np.ndarray, 
     from skimage.filters import threshold_otsu
 
     given = smoothing is not None
-    unit = scaled(image, ignore)
+    raw = scaled(image, ignore, clip=False)  # one scaling: the unclipped image for the fits, clipped for the looks
+    unit = np.clip(raw, 0.0, 1.0)
     if float(np.ptp(unit[~ignore])) < 1e-6:
         return _empty(image.shape, polarity, 0)
     noise = pixel_noise(unit, ignore)
@@ -226,7 +227,7 @@ def _detect(image: np.ndarray, polarity: str, profile: str, ignore: np.ndarray, 
     dark, how = decide_polarity(*edge_curvature(unit[look], ignore[look], noise, sigma), skew, sigma, polarity)
     # the dots are measured on the unclipped image (clipping would flatten the darkest cores and the noise), the
     # pixels to ignore left out (NaN); dots are dark in every image below
-    target = by_rows(lambda part: ndimage.gaussian_filter(part, 1.0), scaled(image, ignore, clip=False), 5)
+    target = by_rows(lambda part: ndimage.gaussian_filter(part, 1.0), raw, 5)
     target[ignore] = np.nan
     if not dark:
         unit, target = 1.0 - unit, 1.0 - target
