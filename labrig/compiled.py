@@ -18,23 +18,16 @@ from numba import types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
-#: The fast-math flags of ``jit(fastmath=True)``: LLVM may fuse a multiply and an add (``contract``), multiply by a
-#: reciprocal instead of dividing (``arcp``), ignore the sign of zero (``nsz``) and reorder sums (``reassoc``, which lets
-#: loops vectorize). Not ``nnan`` nor ``ninf``: NaN marks pixels left out and must still compare as NaN.
-FAST_MATH = frozenset({"contract", "arcp", "nsz", "reassoc"})
 
-
-def jit(function=None, *, inline: bool = False, fastmath: bool = False):
-    """Compile ``function`` with numba (``@jit``, ``@jit(inline=True)``, ``@jit(fastmath=True)``).
+def jit(function=None, *, inline: bool = False):
+    """Compile ``function`` with numba (``@jit`` or ``@jit(inline=True)``).
 
     ``inline=True`` inlines it into its compiled callers: for small helpers called per element with
-    many array arguments, where a call costs more than the work. ``fastmath=True`` lets LLVM round differently
-    (`FAST_MATH`): for kernels whose results are measurements with errors far above the last bits.
+    many array arguments, where a call costs more than the work.
     """
     if function is None:
-        return functools.partial(jit, inline=inline, fastmath=fastmath)
-    return numba.njit(cache=True, nogil=True, error_model="numpy", fastmath=set(FAST_MATH) if fastmath else False,
-                      inline="always" if inline else "never")(function)
+        return functools.partial(jit, inline=inline)
+    return numba.njit(cache=True, nogil=True, error_model="numpy", inline="always" if inline else "never")(function)
 
 
 def c_callback(signature: str):

@@ -57,7 +57,7 @@ def profile_table(shape: float) -> np.ndarray:
     return table
 
 
-@jit(fastmath=True)
+@jit
 def table_value(table, s, u):
     """Bilinear value of `profile_table` at relative blur ``s`` and radius ``u`` (0 beyond the table or at NaN)."""
     si = min(s * 100.0, 59.999) if s > 0.0 else 0.0
@@ -72,7 +72,7 @@ def table_value(table, s, u):
             + a * ((1 - b) * table[i + 1, j] + b * table[i + 1, j + 1]))
 
 
-@jit(fastmath=True)
+@jit
 def blur_row(table, s, out):
     """Fill ``out`` with `profile_table`'s profile at relative blur ``s`` (interpolated between its rows as
     `table_value` does): `row_value` then reads it at any radius, for the many pixels of one dot."""
@@ -83,7 +83,7 @@ def blur_row(table, s, out):
         out[j] = (1 - a) * table[i, j] + a * table[i + 1, j]
 
 
-@jit(inline=True, fastmath=True)
+@jit(inline=True)
 def row_value(row, u):
     """Linear value of a `blur_row` at radius ``u`` (0 beyond it or at NaN)."""
     ui = u * 200.0
@@ -94,7 +94,7 @@ def row_value(row, u):
     return (1 - b) * row[j] + b * row[j + 1]
 
 
-@jit(fastmath=True)
+@jit
 def fit_at(sums, counts, rhos, level, free, table, s, r):
     """Least squares of one dot's profile (1-D ``sums``, ``counts``, ``rhos`` per bin) against ``B - C F(rho / r)``
     at relative blur ``s``: (B, C, residual), ``B`` fitted when ``free``, else ``level``; each bin is taken at the
@@ -135,7 +135,7 @@ def fit_at(sums, counts, rhos, level, free, table, s, r):
     return big, c, max(error, 0.0)
 
 
-@jit(fastmath=True)
+@jit
 def fit_dot(sums, counts, rhos, level, free, table, blur, start, low, high, step):
     """Fit one dot's profile (`fit_at`) over radii ``start * [low, high]``: every ``COARSE * step``, then every
     ``step`` around the best of those, refined by a parabola through the best three. Returns (r, B, C, residual);
@@ -167,7 +167,7 @@ def fit_dot(sums, counts, rhos, level, free, table, blur, start, low, high, step
     return r, big, c, error
 
 
-@jit(fastmath=True)
+@jit
 def polish_dot(sums, counts, rhos, level, free, table, blur, start, step, low, high):
     """Fit one dot's profile (`fit_at`) near the radius ``start``: steps of ``step`` (relative) downhill until the
     least residual is bracketed (within ``start * [low, high]``), then a parabola through the three, and once more
@@ -217,7 +217,7 @@ def fit_profiles(sums, counts, rhos, level, free, start, table, blur, low, high,
     return tuple(np.concatenate(part) for part in zip(*pieces))
 
 
-@jit(fastmath=True)
+@jit
 def fit_profiles_part(sums, counts, rhos, level, free, start, table, blur, low, high, step):
     """`fit_profiles` of these dots in this thread."""
     n = sums.shape[0]
@@ -299,7 +299,7 @@ def radial_profiles(image, regions, centres, n_bins: int):
     return sums, counts, rhos
 
 
-@jit(fastmath=True)
+@jit
 def region_bins(image, regions, centres, sums, counts, rhos):
     """Add each labelled pixel of ``image`` to its region's radial bin (`radial_profiles`), pixel after pixel in
     row-major order."""
@@ -320,7 +320,7 @@ def region_bins(image, regions, centres, sums, counts, rhos):
             rhos[k, b] += rho
 
 
-@jit(fastmath=True)
+@jit
 def measured_half_widths(sums, counts, rhos, radius, blur) -> np.ndarray:
     """Each dot's full width at half depth read on its own profile, px, as a line profile by hand reads it: twice
     the radius where the profile (``sums / counts`` at the mean radius ``rhos / counts`` of each bin, the dot's

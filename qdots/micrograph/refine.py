@@ -42,7 +42,7 @@ PINNED, WALKS = 0.015, 8
 #: A dot's profile reaches REACH times its radius (or the typical one, if larger) plus REACH_PAD px.
 REACH, REACH_PAD = 1.4, 4.0
 
-@jit(fastmath=True)
+@jit
 def paint_dot(model, x, y, r, c, table, blur, sign):
     """Add ``sign * C F(|p - (x, y)| / r)`` (the blurred profile of `profile_table`) to ``model``, out to 2 r."""
     if r > 0.0 and c != 0.0:
@@ -51,7 +51,7 @@ def paint_dot(model, x, y, r, c, table, blur, sign):
         add_disc(model, x, y, r, sign * c, curve)
 
 
-@jit(inline=True, fastmath=True)
+@jit(inline=True)
 def disc_columns(x, dy, reach, w):
     """The columns (start, stop) of an image ``w`` px wide, on a row ``dy`` px from a centre at ``x``, that may lie
     within ``reach`` px of it (an empty range where none can): a superset, each pixel still tested."""
@@ -61,7 +61,7 @@ def disc_columns(x, dy, reach, w):
     return max(0, int(x - 0.5 - half)), min(w, int(x - 0.5 + half) + 2)
 
 
-@jit(fastmath=True)
+@jit
 def add_disc(model, x, y, r, c, curve):
     """Add ``c`` times the profile ``curve`` (a `qdots.micrograph.profiles.blur_row`) at radius ``r`` around (x, y) to
     ``model``, out to twice the radius, row by row over the columns that distance reaches."""
@@ -77,14 +77,14 @@ def add_disc(model, x, y, r, c, curve):
                 model[line, col] += c * row_value(curve, rho / r)
 
 
-@jit(fastmath=True)
+@jit
 def paint_model(model, centres, radii, contrast, table, blurs):
     """Add every dot's `paint_dot` to ``model`` (``blurs[k]`` the blur at dot k, px)."""
     for k in range(len(radii)):
         paint_dot(model, centres[k, 0], centres[k, 1], radii[k], contrast[k], table, blurs[k], 1.0)
 
 
-@jit(fastmath=True)
+@jit
 def dot_profile(image, model, x, y, r, c, table, blur, far, bin_width, parity, sums, counts, rhos):
     """Fill ``sums``, ``counts`` and ``rhos`` (zeroed here) with the radial bins of ``image + model - own model``
     around (x, y), out to ``far`` px; ``parity`` -1 takes every pixel, 0 or 1 only those in the even or odd 45
@@ -130,7 +130,7 @@ def dot_profiles(image, model, centres, radii, contrast, table, blurs, reach, n_
     return sums, counts, rhos
 
 
-@jit(fastmath=True)
+@jit
 def dot_profiles_part(image, model, centres, radii, contrast, table, blurs, reach, bin_width, parity, start, stop,
                       sums, counts, rhos):
     """`dot_profiles` of dots ``start`` .. ``stop`` - 1, into rows of ``sums``, ``counts`` and ``rhos``."""
@@ -139,7 +139,7 @@ def dot_profiles_part(image, model, centres, radii, contrast, table, blurs, reac
                     bin_width, parity, sums[k], counts[k], rhos[k])
 
 
-@jit(fastmath=True)
+@jit
 def centre_shift(image, model, x, y, r, level):
     """How far the centre of the dot at (x, y), radius ``r``, is from where its darkness alone (``level - (image +
     model)``, positive part, ``model`` without the dot's own) balances within 0.9 r: (dx, dy), px; (0, 0) when the
@@ -169,7 +169,7 @@ def centre_shift(image, model, x, y, r, level):
     return min(max(sx / total, -limit), limit), min(max(sy / total, -limit), limit)
 
 
-@jit(fastmath=True)
+@jit
 def refine_pass(image, model, centres, radius, contrast, background, residual, level, free, table, blurs, reach,
                 n_bins, typical, wide, move, active, walk=False):
     """One pass over the ``active`` dots in order: each dot's own model taken out of ``model``, the dot fitted on
