@@ -32,6 +32,10 @@ from labrig.files import atomic_path
 MANIFEST = Path(__file__).with_name("micrograph_real.toml")
 #: Largest file fetched, bytes (the largest in the manifest is under 4 MiB).
 MAX_BYTES = 64 * 2**20
+#: A hand line profile seeks the background beyond CREST_INSIDE of the particle's outline radius, where the source
+#: outlines its particles (`half_depth_widths`): the gap to a neighbour lies at the outline or beyond (the outlines
+#: sit 5-17 % outside the half-depth edge), a particle's own light specks inside it.
+CREST_INSIDE = 0.75
 
 
 def cache_folder() -> Path:
@@ -198,20 +202,26 @@ def reference(entry: dict, folder: Path | None = None) -> Reference | None:
     if entry.get("reference_measure") == "source":
         return Reference(float(diameters.mean()), float(diameters.std(ddof=1) / diameters.mean()), len(diameters),
                          f"its {what}", float(diameters.mean()), diameters, centres)
-    widths = half_depth_widths(image, centres, dark, 1.5 * float(np.median(diameters)) / 2 + 3)
+    widths = half_depth_widths(image, centres, dark, 1.5 * float(np.median(diameters)) / 2 + 3,
+                               CREST_INSIDE * diameters / 2)
     ok = np.isfinite(widths)
     return Reference(float(widths[ok].mean()), float(diameters.std(ddof=1) / diameters.mean()), len(diameters),
                      f"hand line profiles of {int(ok.sum())} of its particles; sigma of its {what}",
                      float(diameters.mean()), diameters, centres, widths, centres)
 
 
-def half_depth_widths(image: np.ndarray, centres: np.ndarray, dark: bool, reach: float) -> np.ndarray:
+def half_depth_widths(image: np.ndarray, centres: np.ndarray, dark: bool, reach: float,
+                      inner: np.ndarray | None = None) -> np.ndarray:
     """The full width at half depth of the particles at ``centres`` (x, y, px), along the row and the column through
     each (their mean; a line whose two sides do not reach the same background, a neighbour or a slope, is not used),
     as one measures by hand: on the image smoothed by 1 px, the core is the 10th percentile of the line's middle
     half (dark particles; the 90th for light ones), the background on each side the lightest value (the darkest)
     between the middle and ``reach`` px out (the plateau, or the crest of the gap to the next particle), and the
-    width runs between the crossings of the half-way level, interpolated linearly. NaN where neither line serves."""
+    width runs between the crossings of the half-way level, interpolated linearly. NaN where neither line serves.
+
+    Where the particles' outlines are known (``inner``: `CREST_INSIDE` of each outline's radius, px), the crest is
+    sought outside it, as one reads the background by hand: a textured or rim-lit particle's own lightest speck is
+    not its background."""
     smooth = ndimage.gaussian_filter(np.asarray(image, dtype=float), 1.0)
     v = smooth if dark else -smooth  # particles are low in v
     h, w = v.shape
@@ -221,16 +231,17 @@ def half_depth_widths(image: np.ndarray, centres: np.ndarray, dark: bool, reach:
         row, col = int(y), int(x)
         if not (r <= row < h - r and r <= col < w - r):
             continue
+        skip = 0 if inner is None else min(r - 1, int(inner[k]))  # px next to the middle where no crest is sought
         widths = []
         for profile in (v[row, col - r:col + r + 1], v[row - r:row + r + 1, col]):
             core = float(np.percentile(profile[r // 2:r + r // 2 + 1], 10))
-            left, right = float(profile[:r].max()), float(profile[r + 1:].max())
+            left, right = float(profile[:r - skip].max()), float(profile[r + 1 + skip:].max())
             background = 0.5 * (left + right)
             if background <= core or abs(left - right) > 0.25 * (background - core):
                 continue
             half = 0.5 * (background + core)
-            i = int(np.argmax(profile[:r]))  # the crest on each side; the crossing lies between it and the middle
-            j = r + 1 + int(np.argmax(profile[r + 1:]))
+            i = int(np.argmax(profile[:r - skip]))  # the crest on each side; the crossing lies between it and the middle
+            j = r + 1 + skip + int(np.argmax(profile[r + 1 + skip:]))
             inside = np.flatnonzero(profile[i:j + 1] < half) + i
             if inside.size == 0:
                 continue

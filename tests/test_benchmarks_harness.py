@@ -268,3 +268,24 @@ def test_the_bar_manifest_holds_the_emps_pictures_and_the_verdict_reads_boxes():
     assert verdict([100, 200, 200, 210], (10, 20, 110, 28)) == names[1]
     assert verdict([100, 200, 200, 210], None) == names[2]
     assert verdict(None, None) == names[3] and verdict(None, (1, 2, 50, 6)) == names[4]
+
+
+def test_the_hand_line_profile_reads_a_textured_particles_background_outside_its_outline():
+    """A textured particle (mesoporous silica on a development picture: 55-60 px across, its hand line profiles read
+    19-39 px) holds light specks lighter than the dim gap to its neighbour, and the crest was taken there. Where the
+    outline is known, the crest is sought beyond `CREST_INSIDE` of its radius: the 40 px disc reads 40 px again."""
+    from benchmarks.real_data import CREST_INSIDE, half_depth_widths
+
+    image = np.full((121, 121), 1.0)
+    yy, xx = np.indices(image.shape)
+    r = np.hypot(xx - 60.5, yy - 60.5)
+    image[r < 20] = 0.0  # a dark disc 40 px across
+    image[(r > 26) & (r < 40)] = 0.0  # its neighbours all around, past a dim gap 6 px wide
+    image[(r > 20) & (r < 26)] = 0.5
+    image[55:66, 45:48] = image[55:66, 73:76] = 0.9  # light specks inside it, on its row
+    image[45:48, 55:66] = image[73:76, 55:66] = 0.9  # and on its column
+    centre = np.array([[60.5, 60.5]])
+    naive = half_depth_widths(image, centre, True, 33.0)[0]
+    read = half_depth_widths(image, centre, True, 33.0, np.array([CREST_INSIDE * 20.0]))[0]
+    assert not naive > 30.0  # the speck taken for the crest (or no line served)
+    assert read == pytest.approx(40.0, abs=1.5)
