@@ -22,7 +22,7 @@ import math
 
 import numpy as np
 
-from .real_data import cache_folder, entries, half_depth_widths, reference
+from .real_data import CREST_INSIDE, cache_folder, entries, half_depth_widths, reference
 from .report import Note, Table, cli_with_options
 
 MEASURED_CODE = ("qdots/micrograph",)
@@ -72,7 +72,8 @@ def twin_row(entry: dict) -> dict | None:
     truth = diameters * half_depth_radius(det.shape, det.blur / (0.5 * diameters))
     gap, which = cKDTree(dots).query(centres[near])
     same = np.unique(which[gap < 0.5 * widths[near]])  # the twin's particles at the reference's
-    hand = half_depth_widths(twin, dots[same], True, reach)
+    outlines = None if entry["reference"] == "profiles" else CREST_INSIDE * diameters[same] / 2  # as the reference reads
+    hand = half_depth_widths(twin, dots[same], True, reach, outlines)
     found = detect_dots(twin, polarity="dark")
     miss, at = cKDTree(found.centres).query(dots[same])
     ours = found.half_widths()[at]
