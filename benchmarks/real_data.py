@@ -219,9 +219,9 @@ def half_depth_widths(image: np.ndarray, centres: np.ndarray, dark: bool, reach:
     between the middle and ``reach`` px out (the plateau, or the crest of the gap to the next particle), and the
     width runs between the crossings of the half-way level, interpolated linearly. NaN where neither line serves.
 
-    Where the particles' outlines are known (``inner``: `CREST_INSIDE` of each outline's radius, px), the crest is
-    sought outside it, as one reads the background by hand: a textured or rim-lit particle's own lightest speck is
-    not its background."""
+    ``inner`` (px, one per particle; `CREST_INSIDE` of its outline's radius where the source outlines it): no crest
+    is sought nearer the middle than that, as one reads the background by hand: a textured particle's own light
+    specks are not its background."""
     smooth = ndimage.gaussian_filter(np.asarray(image, dtype=float), 1.0)
     v = smooth if dark else -smooth  # particles are low in v
     h, w = v.shape
