@@ -53,19 +53,21 @@ def nearest_image(di, dj, nx, ny, periodic):
 
 
 @jit(inline=True)
-def _grid_segments(seg, z, k, di, dj, zref, t):
+def _grid_segments(seg, z, k, di, dj, zref, dx, dy, edge_nb, step_i, step_j):
     """The 4 grid segments at point ``k`` (offset ``di, dj``, heights ``z`` less ``zref``), each from its
     -x/-y end to its +x/+y end: row ``e`` of ``seg`` holds the start, direction and squared length (or a
     negative length: no segment there, past an open edge). A metal point's own segments (``di = dj = 0``,
-    ``zref`` its height) are the same for every anchor paired with it, so they are set up once per point."""
-    hx, hy, hz = di * t.dx, dj * t.dy, z[k] - zref
+    ``zref`` its height) are the same for every anchor paired with it, so they are set up once per point.
+    (The per-pair helpers take `FeatureTables`' arrays one by one: a tuple of arrays handed to them costs a
+    reference count per array per pair, 1.5 times the kernel's time.)"""
+    hx, hy, hz = di * dx, dj * dy, z[k] - zref
     for e in range(4):
-        u = t.edge_nb[k, e]
+        u = edge_nb[k, e]
         if u < 0:
             seg[e, 6] = -1.0
             continue
-        tx, ty, tz = (di + t.step_i[e]) * t.dx, (dj + t.step_j[e]) * t.dy, z[u] - zref
-        if t.step_i[e] + t.step_j[e] > 0:  # from k to u
+        tx, ty, tz = (di + step_i[e]) * dx, (dj + step_j[e]) * dy, z[u] - zref
+        if step_i[e] + step_j[e] > 0:  # from k to u
             ax, ay, az, bx, by, bz = hx, hy, hz, tx, ty, tz
         else:
             ax, ay, az, bx, by, bz = tx, ty, tz, hx, hy, hz
@@ -93,6 +95,25 @@ def _segment_feet(out, r, first, px, py, pz, seg):
 
 
 @jit(inline=True)
+def _anchor_feet(out, r, first, z, k, di, dj, zref, dx, dy, edge_nb, step_i, step_j):
+    """Slots ``out[r, first .. first + 3]``: `segment_foot_inside` of the origin (the metal point) on the 4 grid
+    segments at point ``k`` (offset ``di, dj``, heights ``z`` less ``zref``), each from its -x/-y end to its
+    +x/+y end, as `_grid_segments` sets them up (the same arithmetic, without the round trip through memory:
+    they are used once)."""
+    hx, hy, hz = di * dx, dj * dy, z[k] - zref
+    for e in range(4):
+        u = edge_nb[k, e]
+        if u < 0:
+            out[r, first + e] = _INF
+            continue
+        tx, ty, tz = (di + step_i[e]) * dx, (dj + step_j[e]) * dy, z[u] - zref
+        if step_i[e] + step_j[e] > 0:
+            out[r, first + e] = segment_foot_inside(0.0, 0.0, 0.0, hx, hy, hz, tx, ty, tz)
+        else:
+            out[r, first + e] = segment_foot_inside(0.0, 0.0, 0.0, tx, ty, tz, hx, hy, hz)
+
+
+@jit(inline=True)
 def _inside_triangle(px, py, pz, ax, ay, az, bx, by, bz, cx, cy, cz):
     """The distance from p to the triangle abc when its closest point lies strictly inside it, else inf."""
     d, wa, wb, wc = triangle(px, py, pz, ax, ay, az, bx, by, bz, cx, cy, cz)
@@ -100,25 +121,26 @@ def _inside_triangle(px, py, pz, ax, ay, az, bx, by, bz, cx, cy, cz):
 
 
 @jit
-def _facets(out, r, first, px, py, pz, z, k, di, dj, zref, t):
+def _facets(out, r, first, px, py, pz, z, k, di, dj, zref, dx, dy, quad_cell, quad_corners, cell_corners, quad_i,
+            quad_j, centre_i, centre_j):
     """Slots ``out[r, first .. first + 11]``: half-diagonals, then two triangles per quadrant, at point ``k``."""
-    hx, hy, hz = di * t.dx, dj * t.dy, z[k] - zref
+    hx, hy, hz = di * dx, dj * dy, z[k] - zref
     for q in range(4):
-        cell = t.quad_cell[k, q]
+        cell = quad_cell[k, q]
         if cell < 0:
             out[r, first + q] = _INF
             out[r, first + 4 + 2 * q] = _INF
             out[r, first + 5 + 2 * q] = _INF
             continue
-        c = t.cell_corners[cell]
+        c = cell_corners[cell]
         zc = 0.25 * (((z[c[0]] + z[c[1]]) + z[c[2]]) + z[c[3]])
-        cx, cy, cz = (di + t.centre_i[q]) * t.dx, (dj + t.centre_j[q]) * t.dy, zc - zref
+        cx, cy, cz = (di + centre_i[q]) * dx, (dj + centre_j[q]) * dy, zc - zref
         out[r, first + q] = segment_foot_inside(px, py, pz, hx, hy, hz, cx, cy, cz)
         for side in range(2):
-            si = t.quad_i[q] if side == 0 else 0
-            sj = 0 if side == 0 else t.quad_j[q]
-            w = t.quad_corners[k, q, 0 if side == 0 else 2]
-            tx, ty, tz = (di + si) * t.dx, (dj + sj) * t.dy, z[w] - zref
+            si = quad_i[q] if side == 0 else 0
+            sj = 0 if side == 0 else quad_j[q]
+            w = quad_corners[k, q, 0 if side == 0 else 2]
+            tx, ty, tz = (di + si) * dx, (dj + sj) * dy, z[w] - zref
             if si + sj > 0:
                 d = _inside_triangle(px, py, pz, hx, hy, hz, tx, ty, tz, cx, cy, cz)
             else:
@@ -127,43 +149,45 @@ def _facets(out, r, first, px, py, pz, z, k, di, dj, zref, t):
 
 
 @jit(inline=True)
-def _pair_slots(out, r, zm, zo, m, v, do_oxide, do_metal, exact, t, own, seg, mi, mj):
+def _pair_slots(out, r, zm, zo, m, v, do_oxide, do_metal, exact, nx, ny, periodic, dx, dy, edge_nb, quad_cell,
+                quad_corners, cell_corners, step_i, step_j, quad_i, quad_j, centre_i, centre_j, own, mi, mj):
     """Every slot of one (metal ``m`` at row ``mi``, column ``mj``, anchor ``v``) pair, into row ``r`` of
-    ``out`` (filled with inf); ``own`` holds the metal point's segments (`_grid_segments`), ``seg`` is room
-    for the anchor's. (Rows are passed as (array, index), not as views: a view per pair costs more than
-    the pair.)"""
-    vi = v // t.ny
-    di, dj = nearest_image(vi - mi, v - vi * t.ny - mj, t.nx, t.ny, t.periodic)
+    ``out`` (filled with inf); ``nx`` .. ``centre_j`` are `FeatureTables`' fields, ``own`` holds the metal
+    point's segments (`_grid_segments`). (Rows are passed as (array, index), not as views: a view per pair
+    costs more than the pair.)"""
+    vi = v // ny
+    di, dj = nearest_image(vi - mi, v - vi * ny - mj, nx, ny, periodic)
     zref = zm[m]
-    vx, vy, vz = di * t.dx, dj * t.dy, zo[v] - zref
+    vx, vy, vz = di * dx, dj * dy, zo[v] - zref
     if do_oxide:
         out[r, POINT] = math.sqrt(vx * vx + vy * vy + vz * vz)
-        _grid_segments(seg, zo, v, di, dj, zref, t)
-        _segment_feet(out, r, OXIDE_SEGMENTS, 0.0, 0.0, 0.0, seg)
+        _anchor_feet(out, r, OXIDE_SEGMENTS, zo, v, di, dj, zref, dx, dy, edge_nb, step_i, step_j)
         if exact:
-            _facets(out, r, OXIDE_HALF_DIAGONALS, 0.0, 0.0, 0.0, zo, v, di, dj, zref, t)
+            _facets(out, r, OXIDE_HALF_DIAGONALS, 0.0, 0.0, 0.0, zo, v, di, dj, zref, dx, dy, quad_cell, quad_corners,
+                    cell_corners, quad_i, quad_j, centre_i, centre_j)
     if do_metal:
         _segment_feet(out, r, METAL_SEGMENTS, vx, vy, vz, own)
         if exact:
-            _facets(out, r, METAL_HALF_DIAGONALS, vx, vy, vz, zm, m, 0, 0, zref, t)
+            _facets(out, r, METAL_HALF_DIAGONALS, vx, vy, vz, zm, m, 0, 0, zref, dx, dy, quad_cell, quad_corners,
+                    cell_corners, quad_i, quad_j, centre_i, centre_j)
 
 
 @jit
-def _set_of(slot, v, t, into, count):
+def _set_of(slot, v, edge_nb, quad_corners, into, count):
     """Append the oxide points of slot ``slot`` at anchor ``v`` to ``into``: the anchor, and a segment's other
     end or a cell's other three corners; past an open edge there are none (a slot that does not apply can be
     asked for when all are inf)."""
     into[count] = v
     count += 1
     if OXIDE_SEGMENTS <= slot < METAL_SEGMENTS:
-        u = t.edge_nb[v, slot - OXIDE_SEGMENTS]
+        u = edge_nb[v, slot - OXIDE_SEGMENTS]
         if u >= 0:
             into[count] = u
             count += 1
     elif OXIDE_HALF_DIAGONALS <= slot < METAL_HALF_DIAGONALS:
         q = slot - OXIDE_HALF_DIAGONALS if slot < OXIDE_TRIANGLES else (slot - OXIDE_TRIANGLES) // 2
         for c in range(3):
-            u = t.quad_corners[v, q, c]
+            u = quad_corners[v, q, c]
             if u >= 0:
                 into[count] = u
                 count += 1
@@ -191,6 +215,9 @@ def _sort_unique(values, count):
 
 @jit(inline=True)
 def _closest_sets(zm, zo, m, v, tie, do_oxide, do_metal, n_slots, exact, t):
+    nx, ny, periodic, dx, dy = t.nx, t.ny, t.periodic, t.dx, t.dy
+    edge_nb, quad_cell, quad_corners, cell_corners = t.edge_nb, t.quad_cell, t.quad_corners, t.cell_corners
+    step_i, step_j, quad_i, quad_j, centre_i, centre_j = t.step_i, t.step_j, t.quad_i, t.quad_j, t.centre_i, t.centre_j
     n_pairs = len(m)
     n_groups = 0
     for r in range(n_pairs):
@@ -203,7 +230,6 @@ def _closest_sets(zm, zo, m, v, tie, do_oxide, do_metal, n_slots, exact, t):
     found = np.empty(64, dtype=np.intp)
     dist = np.empty((16, n_slots))  # one group's pairs at a time: stays in cache
     own = np.empty((4, 7))
-    seg = np.empty((4, 7))
     n_out = 0
     start = 0
     for g in range(n_groups):
@@ -212,14 +238,16 @@ def _closest_sets(zm, zo, m, v, tie, do_oxide, do_metal, n_slots, exact, t):
             stop += 1
         if stop - start > len(dist):
             dist = np.empty((2 * (stop - start), n_slots))
-        _grid_segments(own, zm, m[start], 0, 0, zm[m[start]], t)
-        mi = m[start] // t.ny
-        mj = m[start] - mi * t.ny
+        _grid_segments(own, zm, m[start], 0, 0, zm[m[start]], dx, dy, edge_nb, step_i, step_j)
+        mi = m[start] // ny
+        mj = m[start] - mi * ny
         low = _INF
         for r in range(start, stop):
             row = r - start
             dist[row, :] = _INF
-            _pair_slots(dist, row, zm, zo, m[r], v[r], do_oxide[r], do_metal[r], exact, t, own, seg, mi, mj)
+            _pair_slots(dist, row, zm, zo, m[r], v[r], do_oxide[r], do_metal[r], exact, nx, ny, periodic, dx, dy, edge_nb,
+                        quad_cell, quad_corners, cell_corners, step_i, step_j, quad_i, quad_j, centre_i, centre_j, own,
+                        mi, mj)
             for s in range(n_slots):
                 low = min(low, dist[row, s])
         points[g] = m[start]
@@ -230,7 +258,7 @@ def _closest_sets(zm, zo, m, v, tie, do_oxide, do_metal, n_slots, exact, t):
                 if dist[r - start, s] <= low + tie:
                     if count + 4 > len(found):
                         found = np.concatenate((found, np.empty_like(found)))
-                    count = _set_of(s, v[r], t, found, count)
+                    count = _set_of(s, v[r], edge_nb, quad_corners, found, count)
         count = _sort_unique(found, count)
         if n_out + count > len(owner):
             grow = max(len(owner), count)
@@ -301,11 +329,13 @@ def closest_sets(tables: FeatureTables, zm, zo, m, v, tie: float, oxide=None, me
 
 @jit
 def _all_slots(zm, zo, m, v, oxide, metal, t, out):
-    own, seg = np.empty((4, 7)), np.empty((4, 7))
+    own = np.empty((4, 7))
     for r in range(len(m)):
-        _grid_segments(own, zm, m[r], 0, 0, zm[m[r]], t)
+        _grid_segments(own, zm, m[r], 0, 0, zm[m[r]], t.dx, t.dy, t.edge_nb, t.step_i, t.step_j)
         mi = m[r] // t.ny
-        _pair_slots(out, r, zm, zo, m[r], v[r], oxide[r], metal[r], t.exact, t, own, seg, mi, m[r] - mi * t.ny)
+        _pair_slots(out, r, zm, zo, m[r], v[r], oxide[r], metal[r], t.exact, t.nx, t.ny, t.periodic, t.dx, t.dy,
+                    t.edge_nb, t.quad_cell, t.quad_corners, t.cell_corners, t.step_i, t.step_j, t.quad_i, t.quad_j,
+                    t.centre_i, t.centre_j, own, mi, m[r] - mi * t.ny)
 
 
 def pair_slots(tables: FeatureTables, zm, zo, m, v, oxide=None, metal=None) -> np.ndarray:
