@@ -3,7 +3,7 @@ measure of a film reads."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -87,6 +87,13 @@ class Detection:
         if self.widths is None:
             return fitted
         return np.where(np.isfinite(self.widths), self.widths, fitted)
+
+    def take(self, keep) -> Detection:
+        """The dots where ``keep`` (booleans, one per dot, or indices) is true, everything else as it is."""
+        keep = np.asarray(keep)
+        return replace(self, centres=self.centres[keep], diameters=self.diameters[keep], cut=self.cut[keep],
+                       contrast=self.contrast[keep], errors=self.errors[keep], shapes=self.shapes[keep],
+                       widths=None if self.widths is None else self.widths[keep])
 
     def coverage(self) -> float:
         """Fraction of the image inside the fitted discs (their union, on the pixel grid)."""

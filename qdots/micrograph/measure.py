@@ -33,6 +33,7 @@ from .admit import (
     NotAFilm,
     as_taken,
     check_picture,
+    clearest_dots,
     film_verdict,
 )
 from .annotations import Annotations, find_annotations
@@ -219,6 +220,8 @@ def measure_image(path: str | os.PathLike, *, nm_per_px=None, scale_bar: str | N
                                                          profile, step)
         if refusals:  # touching particles cut into pieces however smoothed: the cells their gaps' network encloses
             detection, refusals, doubts = cells_retry(image.pixels, detection, refusals, doubts, found, polarity, step)
+        if refusals:  # a few particles on a support speckled with faint features: the clearest dots
+            detection, refusals, doubts = clearest_retry(detection, refusals, doubts)
     if detection.n_dots == 0:
         raise InputError(f"{path}: no dots found ({detection.polarity}); nothing written. Check --polarity, "
                          "or crop the image to the film")
@@ -284,6 +287,24 @@ def cells_retry(pixels: np.ndarray, detection: Detection, refusals: list[str], d
             yield other, MAX_OUTLINE, "" if other is None else (
                 f"{other.polarity} ({'given' if polarity != 'auto' else 'automatic'}: the objects found as dots were "
                 f"not a film of round particles ({refusals[0].split(' (')[0]}); these are)")
+
+    return first_film(detection, refusals, doubts, attempts())
+
+
+def clearest_retry(detection: Detection, refusals: list[str], doubts: list[str]) -> tuple[Detection, list[str], list[str]]:
+    """A refused ``detection`` (after every other retry) kept to its clearest dots (`qdots.micrograph.admit.clearest_dots`:
+    a few particles on a support speckled with faint, irregular features); kept when they are a film of round
+    particles, saying so and how many faint objects were left out (counted with the rejected objects); if not, the
+    refused one with its ``refusals`` and ``doubts`` (`first_film`)."""
+    def attempts():
+        found = clearest_dots(detection)
+        if found is not None:
+            keep, gap = found
+            left = int(np.count_nonzero(~keep))
+            clear = replace(detection.take(keep), rejected=detection.rejected + left)
+            yield clear, MAX_OUTLINE, (f"{detection.polarity}; the {clear.n_dots} clearest dots kept, {gap:.1f} times "
+                                       f"the contrast of the {left} faint objects left out (all together they were not "
+                                       f"a film of round particles: {refusals[0].split(' (')[0]})")
 
     return first_film(detection, refusals, doubts, attempts())
 

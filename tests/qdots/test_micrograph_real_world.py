@@ -705,3 +705,64 @@ def test_a_picture_of_one_grey_value_has_no_dots_and_no_warning():
     for value in (0.0, 0.7):
         detection = detect_dots(np.full((24, 30), value))
         assert detection.n_dots == 0
+
+
+def speckled_detection(n_clear: int, n_faint: int, clear_contrast: float = 5.0, seed: int = 0):
+    """A `Detection` of ``n_clear`` round dots of contrast ``clear_contrast`` (+- 20 %) among ``n_faint`` faint objects
+    (contrast 0.3-1.2) whose outlines wander 20 % from one radius, spread over a 600 x 600 px picture."""
+    from qdots.micrograph.detection import Detection
+
+    rng = np.random.default_rng(seed)
+    n = n_clear + n_faint
+    grid = np.array([(x, y) for x in range(20, 600, 30) for y in range(20, 600, 30)], dtype=float)
+    centres = grid[rng.permutation(len(grid))[:n]] + rng.uniform(-3, 3, (n, 2))
+    diameters = np.concatenate([rng.normal(8.0, 0.4, n_clear), rng.uniform(6.0, 20.0, n_faint)])
+    contrast = np.concatenate([rng.uniform(0.8, 1.2, n_clear) * clear_contrast, rng.uniform(0.3, 1.2, n_faint)])
+    shapes = np.column_stack([np.full(n, 1.1), np.concatenate([np.full(n_clear, 0.04), np.full(n_faint, 0.2)]),
+                              np.zeros(n)])
+    return Detection(centres, diameters, np.zeros(n, dtype=bool), contrast, False, "light dots (automatic)", 0.0,
+                     "disc", 1.0, 0, (600, 600), (0, 0, 600, 600), np.full(n, 0.05), shapes)
+
+
+def test_a_few_clear_particles_among_faint_speckles_are_measured_alone():
+    """Regression (EMPS development half, 50a4901372): 10 small bright particles on an SEM support speckled with faint
+    features were refused as "outlines not round", the 225 faint objects found with them deciding every verdict. The
+    clearest dots, 3.5 times the contrast of the rest, are a film: they are measured alone, and the faint objects are
+    counted as left out."""
+    from qdots.micrograph.admit import CONTRAST_GAP, clearest_dots, film_verdict
+    from qdots.micrograph.measure import clearest_retry
+
+    detection = speckled_detection(12, 200)
+    refusals, doubts = film_verdict(detection)
+    assert refusals and "not round" in refusals[0]
+    keep, gap = clearest_dots(detection)
+    assert np.array_equal(keep, np.arange(212) < 12) and gap >= CONTRAST_GAP
+    kept, refusals_after, _ = clearest_retry(detection, refusals, doubts)
+    assert not refusals_after and kept.n_dots == 12 and kept.rejected == 200
+    assert "the 12 clearest dots kept" in kept.polarity and "200 faint objects left out" in kept.polarity
+
+
+@pytest.mark.parametrize("n_clear, clear_contrast, why", [
+    (9, 5.0, "fewer than a film above the fall"),
+    (12, 2.0, "no fall of CONTRAST_GAP times"),
+])
+def test_the_clearest_dots_need_a_film_standing_apart(n_clear, clear_contrast, why):
+    """No split where fewer than `MIN_FILM_DOTS` whole dots stand above the fall, or where the contrasts fall by less
+    than `CONTRAST_GAP` times: the refused detection stays refused, unchanged."""
+    from qdots.micrograph.admit import clearest_dots, film_verdict
+    from qdots.micrograph.measure import clearest_retry
+
+    detection = speckled_detection(n_clear, 200, clear_contrast)
+    refusals, doubts = film_verdict(detection)
+    assert clearest_dots(detection) is None, why
+    assert clearest_retry(detection, refusals, doubts) == (detection, refusals, doubts)
+
+
+def test_a_detection_keeps_the_dots_it_is_asked_for():
+    """`Detection.take` keeps every per-dot array in step (booleans or indices)."""
+    detection = speckled_detection(12, 5)
+    taken = detection.take(np.arange(17) % 2 == 0)
+    assert taken.n_dots == 9
+    for name in ("centres", "diameters", "cut", "contrast", "errors", "shapes"):
+        assert np.array_equal(getattr(taken, name), getattr(detection, name)[::2])
+    assert np.array_equal(detection.take([3, 1]).diameters, detection.diameters[[3, 1]])
