@@ -120,7 +120,9 @@ class Reference:
     (`half_depth_widths`) of the source's own particles (or of 10 picked by eye). ``spread`` is the scored size
     spread (SD / mean): the source's stated one, else that of its own particles' sizes, else of the hand widths.
     ``source_mean_px`` is the mean of the source's own per-particle sizes (its outlines' area-equivalent
-    diameters, its boxes' sides), NaN without them; ``centres`` and ``diameters`` (the source's) are None without
+    diameters, its boxes' sides), NaN without them; ``source_spread`` is their spread by the estimator `qdots measure`
+    reports (`qdots.micrograph.film.size_spread`: sizes over 4.5 robust deviations left out), where the scored spread
+    is one the source states from a fit of its own (NaN otherwise); ``centres`` and ``diameters`` (the source's) are None without
     them; ``widths`` are the hand widths of the particles at ``width_centres`` (NaN where no line served), for a
     comparison particle by particle; ``count`` is how many particles the reference holds and ``how`` says all this
     in words."""
@@ -134,6 +136,7 @@ class Reference:
     centres: np.ndarray | None = None
     widths: np.ndarray | None = None
     width_centres: np.ndarray | None = None
+    source_spread: float = float("nan")
 
 
 def whole_labels(labels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -187,9 +190,12 @@ def reference(entry: dict, folder: Path | None = None) -> Reference | None:
     if "reference_diameter_nm" in entry:  # a size the source states
         scale = entry["scale_nm_per_px"]
         own = source_particles(entry, folder)
+        from qdots.micrograph.film import size_spread
+
         return Reference(entry["reference_diameter_nm"] / scale, entry["reference_sd_nm"] / entry["reference_diameter_nm"],
                          len(own[0]) if own else 0, "the size the source states",
-                         float(own[0].mean()) if own else float("nan"), *(own[:2] if own else (None, None)))
+                         float(own[0].mean()) if own else float("nan"), *(own[:2] if own else (None, None)),
+                         source_spread=size_spread(own[0])["size_spread"] if own else float("nan"))
     image = read_micrograph(folder / entry["file"]).pixels
     if kind == "profiles":
         centres = np.asarray(entry["profile_centres"], dtype=float)
