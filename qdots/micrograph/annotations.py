@@ -98,15 +98,20 @@ class Annotations:
         return ", ".join(parts) if parts else "nothing"
 
 
+def side_lines(array: np.ndarray, side: str, depth: int) -> np.ndarray:
+    """The ``depth`` lines of ``array`` from ``side`` inward, as rows (the side's own line first)."""
+    if side == "top":
+        return array[:depth]
+    if side == "bottom":
+        return array[::-1][:depth]
+    if side == "left":
+        return array[:, :depth].T
+    return array[:, ::-1][:, :depth].T
+
+
 def line_shares(mask: np.ndarray, side: str, depth: int) -> np.ndarray:
     """Share of each of the ``depth`` lines of ``mask`` from ``side`` inward that is set."""
-    if side == "top":
-        return mask[:depth].mean(axis=1)
-    if side == "bottom":
-        return mask[::-1][:depth].mean(axis=1)
-    if side == "left":
-        return mask[:, :depth].mean(axis=0)
-    return mask[:, ::-1][:, :depth].mean(axis=0)
+    return side_lines(mask, side, depth).mean(axis=1)
 
 
 def find_strips(image: np.ndarray) -> tuple[tuple[int, int, int, int], tuple[Strip, ...]]:
@@ -123,7 +128,7 @@ def find_strips(image: np.ndarray) -> tuple[tuple[int, int, int, int], tuple[Str
         outer = {"top": image[0], "bottom": image[-1], "left": image[:, 0], "right": image[:, -1]}[side]
         value = low if np.mean(outer <= low + EXTREME * span) >= np.mean(outer >= high - EXTREME * span) else high
         depth = max(1, int(MAX_STRIP * extent))
-        frame_shares = line_shares(np.abs(image - float(np.median(outer))) <= FLAT * span, side, depth)
+        frame_shares = (np.abs(side_lines(image, side, depth) - float(np.median(outer))) <= FLAT * span).mean(axis=1)
         frame = int(np.argmin(frame_shares >= FRAME_SHARE)) if frame_shares[-1] < FRAME_SHARE else 0
         shares = line_shares(drawn, side, depth + FILM_LINES)
         width = 0
@@ -150,24 +155,39 @@ def flatness(image: np.ndarray, tolerance: float) -> np.ndarray:
 @jit
 def _flat3(image, tolerance, out):
     h, w = image.shape
+    low = np.empty((h, w))  # each pixel's least and greatest value over its row's three, then over three rows
+    high = np.empty((h, w))
     for row in range(h):
         for col in range(w):
-            low = np.inf
-            high = -np.inf
+            a = b = image[row, col]
+            for c in range(max(0, col - 1), min(w, col + 2)):
+                a = min(a, image[row, c])
+                b = max(b, image[row, c])
+            low[row, col] = a
+            high[row, col] = b
+    for row in range(h):
+        for col in range(w):
+            a = low[row, col]
+            b = high[row, col]
             for r in range(max(0, row - 1), min(h, row + 2)):
-                for c in range(max(0, col - 1), min(w, col + 2)):
-                    v = image[r, c]
-                    low = min(low, v)
-                    high = max(high, v)
-            out[row, col] = high - low <= tolerance
+                a = min(a, low[r, col])
+                b = max(b, high[r, col])
+            out[row, col] = b - a <= tolerance
 
 
-def find_boxes(image: np.ndarray, window) -> tuple[tuple[int, int, int, int], ...]:
-    """Label boxes over the film (see the module), in image px."""
+def picture_flatness(image: np.ndarray, window) -> np.ndarray:
+    """`flatness` of the picture in ``window`` (x0, y0, x1, y1) within `FLAT` of its range: what `find_boxes` and
+    `corner_boxes` read."""
     x0, y0, x1, y1 = window
     picture = np.asarray(image, dtype=float)[y0:y1, x0:x1]
-    span = float(picture.max() - picture.min())
-    labels, _ = ndimage.label(flatness(picture, FLAT * span))
+    return flatness(picture, FLAT * float(picture.max() - picture.min()))
+
+
+def find_boxes(image: np.ndarray, window, flat: np.ndarray | None = None) -> tuple[tuple[int, int, int, int], ...]:
+    """Label boxes over the film (see the module), in image px; ``flat``: the `picture_flatness`, if known."""
+    x0, y0, x1, y1 = window
+    picture = np.asarray(image, dtype=float)[y0:y1, x0:x1]
+    labels, _ = ndimage.label(picture_flatness(image, window) if flat is None else flat)
     boxes = []
     for k, box in enumerate(ndimage.find_objects(labels), start=1):
         if box is None:
@@ -282,20 +302,21 @@ def panel_letters(image: np.ndarray, window: tuple[int, int, int, int]) -> np.nd
     return out
 
 
-def corner_boxes(image: np.ndarray, window: tuple[int, int, int, int]) -> tuple[tuple[int, int, int, int], ...]:
+def corner_boxes(image: np.ndarray, window: tuple[int, int, int, int],
+                 flat: np.ndarray | None = None) -> tuple[tuple[int, int, int, int], ...]:
     """Boxes in a corner of the picture ("(a)" on a white box in a journal figure's panel): a piece of flat colour
     (`flatness`, within `FLAT` of the picture's range) in either extreme colour (within `LABEL_INK` of the range),
     whose bounding box starts at a corner of the picture and lies within `PANEL_BOX` of its width and height, and
     holds only the two extremes (at least `BOX_FILL` of its pixels, counting those within 2 px of the other: the
     letters' anti-aliasing), of which at least `BOX_HOLES` the other (the ink). The letters may cut the box into pieces; each such piece is one (their union is
-    left out). ``(x0, y0, x1, y1)`` in image px."""
+    left out). ``(x0, y0, x1, y1)`` in image px; ``flat``: the `picture_flatness`, if known."""
     x0, y0, x1, y1 = window
     picture = np.asarray(image, dtype=float)[y0:y1, x0:x1]
     h, w = picture.shape
     low, high = float(picture.min()), float(picture.max())
     span = high - low
     dark, light = picture <= low + LABEL_INK * span, picture >= high - LABEL_INK * span
-    flat = flatness(picture, FLAT * span)
+    flat = picture_flatness(image, window) if flat is None else flat
     boxes = []
     for colour, ink in ((dark, light), (light, dark)):
         labels, _ = ndimage.label(flat & colour)
@@ -310,6 +331,13 @@ def corner_boxes(image: np.ndarray, window: tuple[int, int, int, int]) -> tuple[
     return tuple(boxes)
 
 
+def boxes_and_letters(image: np.ndarray, window) -> tuple[tuple, np.ndarray]:
+    """The label boxes over the film and in its corners (`find_boxes`, `corner_boxes`: the flatness read once) and the
+    panel letters (`panel_letters`)."""
+    flat = picture_flatness(image, window)
+    return find_boxes(image, window, flat) + corner_boxes(image, window, flat), panel_letters(image, window)
+
+
 def find_annotations(image: np.ndarray) -> Annotations:
     """Strips, boxes and the scale bar of ``image`` (see the module), and the pixels to leave out."""
     image = np.asarray(image, dtype=float)
@@ -317,7 +345,7 @@ def find_annotations(image: np.ndarray) -> Annotations:
     # the bar beside the boxes and letters, in a second thread (each is numpy's and scipy's filters, which release the GIL)
     bar, (boxes, letters) = run_tasks([
         lambda: find_scale_bar(image),
-        lambda: (find_boxes(image, window) + corner_boxes(image, window), panel_letters(image, window))])
+        lambda: boxes_and_letters(image, window)])
     ignore = np.zeros(image.shape, dtype=bool)
     for x0, y0, x1, y1 in boxes:
         ignore[max(0, y0 - 2):y1 + 2, max(0, x0 - 2):x1 + 2] = True

@@ -263,8 +263,9 @@ def _detect(image: np.ndarray, polarity: str, profile: str, ignore: np.ndarray, 
     distance = inside_distance(mask, max(64.0, 4.0 * radius))
     radius = typical_radius(distance)
     if sigma > 0 and smoothing == 1.0:  # touching small dots merged into one network: the blobs give their radius
-        blobs = 2.0 * typical_radius(ndimage.distance_transform_edt(
-            mask[half] & (ndimage.gaussian_laplace(flat[half], sigma / 2.0) > 0)))
+        curved = by_rows(lambda part: ndimage.gaussian_laplace(part, sigma / 2.0), flat[half],
+                         math.ceil(2.0 * sigma) + 1)  # (each band's: exact)
+        blobs = 2.0 * typical_radius(inside_distance(mask[half] & (curved > 0), max(64.0, 4.0 * radius)))
         radius = blobs if radius > MERGED * blobs else radius
     if radius < 0.5 * MIN_DIAMETER:
         return _empty(image.shape, how, 0)

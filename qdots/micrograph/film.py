@@ -19,6 +19,8 @@ import math
 
 import numpy as np
 
+from labrig.threads import run_tasks
+
 from ..analysis.packing import INTERIOR_MIN_NEIGHBOURS, neighbour_counts
 from ..analysis.structure import clusters, hexatic_order, radial_distribution
 from ..state import State
@@ -186,35 +188,42 @@ def film_metrics(state, measured: np.ndarray | None = None, complete: np.ndarray
     n = len(state.radii)
     measured = np.ones(n, dtype=bool) if measured is None else np.asarray(measured, dtype=bool)
     complete = np.ones(n, dtype=bool) if complete is None else np.asarray(complete, dtype=bool)
-    d = 2.0 * np.asarray(state.radii, dtype=float)
-    sized = d[measured]
     out: dict[str, float] = {"dots": n, "dots_sized": int(measured.sum()), "dots_complete": int(complete.sum())}
+    sized = 2.0 * np.asarray(state.radii, dtype=float)[measured]
     spread = size_spread(sized, None if errors is None else np.asarray(errors, dtype=float)[measured])
     mean = spread.pop("size_mean")
     sd = spread["size_spread_measured"] * mean if sized.size > 1 else math.nan
     out.update(mean_diameter_px=mean, sd_diameter_px=sd)
     out.update(spread)
-    out.update(size_populations(sized))
+    # the size mixture beside the packing figures, in a second thread (numpy and the compiled pair searches release
+    # the GIL)
+    populations, packing = run_tasks([lambda: size_populations(sized), lambda: packing_figures(state, complete, mean)])
+    out.update(populations)
     if nm_per_px is not None:
         out.update(mean_diameter_nm=mean * nm_per_px, sd_diameter_nm=sd * nm_per_px)
+    out.update(packing)
+    return out
+
+
+def packing_figures(state, complete: np.ndarray, mean: float) -> dict:
+    """`film_metrics`'s neighbourhood, cluster and g(r) figures: the neighbourhoods of the dots ``complete``, g(r)'s
+    first peak in ``mean`` diameters (px)."""
+    n = len(state.radii)
     counts = neighbour_counts(state) if n else np.zeros(0, dtype=int)
     hexatic = hexatic_order(state) if n else None
     inner = complete & (counts > 0)
-    out.update(
-        interior_fraction=float(np.mean(counts[complete] >= INTERIOR_MIN_NEIGHBOURS)) if complete.any() else math.nan,
-        mean_neighbours=float(counts[complete].mean()) if complete.any() else math.nan,
-        psi6_local=float(np.abs(hexatic.psi[inner]).mean()) if hexatic is not None and inner.any() else math.nan,
-        psi6_global=float(abs(hexatic.psi[inner].mean())) if hexatic is not None and inner.any() else math.nan,
-    )
     _, sizes = clusters(state) if n else (None, np.zeros(0, dtype=int))
-    out.update(aggregates=int(np.sum(sizes >= AGGREGATE)), largest_share=float(sizes[0] / n) if n else math.nan,
-               single_dots=int(np.sum(sizes == 1)))
     peak = math.nan
     if n >= 2:
         rdf = radial_distribution(state, r_max=min(4.0 * mean, *state.box) if math.isfinite(mean) else None, bins=80)
         peak = first_peak(rdf.r, rdf.g) / mean
-    out["gr_peak_diameters"] = peak
-    return out
+    return dict(
+        interior_fraction=float(np.mean(counts[complete] >= INTERIOR_MIN_NEIGHBOURS)) if complete.any() else math.nan,
+        mean_neighbours=float(counts[complete].mean()) if complete.any() else math.nan,
+        psi6_local=float(np.abs(hexatic.psi[inner]).mean()) if hexatic is not None and inner.any() else math.nan,
+        psi6_global=float(abs(hexatic.psi[inner].mean())) if hexatic is not None and inner.any() else math.nan,
+        aggregates=int(np.sum(sizes >= AGGREGATE)), largest_share=float(sizes[0] / n) if n else math.nan,
+        single_dots=int(np.sum(sizes == 1)), gr_peak_diameters=peak)
 
 
 def first_peak(r: np.ndarray, g: np.ndarray) -> float:

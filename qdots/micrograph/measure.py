@@ -349,7 +349,7 @@ def measured_film(image: Micrograph, detection: Detection, scale: float | None, 
         lambda: film_lqe(state, draws=draws, seed=0) if lqe else None,
         lambda: film_metrics(state, measured=~detection.cut & ~stacked, complete=complete, nm_per_px=scale,
                              errors=detection.errors)]
-    average, metrics = run_tasks(tasks)
+    average, metrics = run_tasks(tasks) if lqe else (None, tasks[1]())  # (the metrics' own tasks then in two threads)
     summary.update(metrics)
     sized = ~detection.cut & ~stacked  # the half-depth widths of the dots the mean diameter is of, outliers left out
     half = detection.half_widths()[sized][size_inliers(detection.diameters[sized])]

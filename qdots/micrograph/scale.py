@@ -8,7 +8,7 @@ import re
 import numpy as np
 from scipy import ndimage
 
-from labrig.threads import run_tasks
+from labrig.compiled import jit
 from labrig.validate import InputError, real
 
 from .bar import MIN_BAR, ScaleBar
@@ -158,11 +158,8 @@ def find_scale_bar(image: np.ndarray) -> ScaleBar | None:
     h_img, w_img = image.shape
     shortest = shortest_bar(image.shape)
     colours = [np.abs(image - value) <= BAR_TOLERANCE * span for value in (low, high)]
-    closings = run_tasks([lambda colour=colour, line=line: ndimage.binary_closing(colour, np.ones(line))
-                          for colour in colours for line in ((1, BAR_GAP), (BAR_GAP, 1))])  # side by side in threads
-    for dark, colour, along, across in zip((True, False), colours, closings[::2], closings[1::2]):
-        closed = colour | along | across
-        labels, _n = ndimage.label(closed)
+    for dark, colour in zip((True, False), colours):
+        labels, _n = ndimage.label(closed_lines(colour, BAR_GAP))
         for k, box in enumerate(ndimage.find_objects(labels), start=1):
             if box is None:
                 continue
@@ -199,6 +196,55 @@ def find_scale_bar(image: np.ndarray) -> ScaleBar | None:
                                 thickness=found[1], at_edge=bool(edge))
     thin = thin_bar(image, shortest)
     return thin if thin is not None and (best is None or thin.length_px > best.length_px) else best
+
+
+def closed_lines(mask: np.ndarray, length: int) -> np.ndarray:
+    """``mask`` with the gaps of its rows and of its columns closed by a line of ``length`` px (odd): ``mask |
+    binary_closing(mask, ones((1, length))) | binary_closing(mask, ones((length, 1)))``, scipy's closings (the pixels
+    beyond the edge unset), in one compiled pass."""
+    if length < 1 or length % 2 == 0:
+        raise ValueError(f"length must be an odd number of px >= 1, got {length}")
+    mask = np.ascontiguousarray(mask, dtype=np.bool_)
+    out = mask.copy()
+    _close_lines(mask, length // 2, out)
+    return out
+
+
+@jit
+def _close_lines(mask, half, out):
+    """`closed_lines` into ``out`` (a copy of ``mask``): rows, then columns."""
+    h, w = mask.shape
+    grown = np.zeros(w, dtype=np.bool_)
+    for row in range(h):  # a row's dilation, then its erosion (False within ``half`` of either end)
+        for col in range(w):
+            grown[col] = False
+            for k in range(max(0, col - half), min(w, col + half + 1)):
+                if mask[row, k]:
+                    grown[col] = True
+                    break
+        for col in range(half, w - half):
+            if not out[row, col]:
+                closed = True
+                for k in range(col - half, col + half + 1):
+                    if not grown[k]:
+                        closed = False
+                        break
+                out[row, col] = closed
+    down = np.zeros((h, w), dtype=np.bool_)  # each column's dilation
+    for row in range(h):
+        for k in range(max(0, row - half), min(h, row + half + 1)):
+            for col in range(w):
+                if mask[k, col]:
+                    down[row, col] = True
+    for row in range(half, h - half):
+        for col in range(w):
+            if not out[row, col]:
+                closed = True
+                for k in range(row - half, row + half + 1):
+                    if not down[k, col]:
+                        closed = False
+                        break
+                out[row, col] = closed
 
 
 def bar_contrast(image: np.ndarray, box: tuple[int, int, int, int],

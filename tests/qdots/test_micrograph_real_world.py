@@ -21,7 +21,7 @@ from qdots.micrograph.film import size_populations, size_spread
 from qdots.micrograph.measure import measure_image
 from qdots.micrograph.profiles import half_depth_radius, profile_table
 from qdots.micrograph.refine import refine_dots
-from qdots.micrograph.scale import find_scale_bar
+from qdots.micrograph.scale import closed_lines, find_scale_bar
 from qdots.micrograph.segment import broad_blur, stretch
 from qdots.micrograph.shapes import region_shapes
 from qdots.micrograph.synthetic import dense_board, render_micrograph, score_detection, sparse_board, superlattice_board
@@ -145,6 +145,22 @@ def test_flat_colour_is_the_3_by_3_range_of_the_footprint_filters():
     image = np.round(rng.random((90, 130)) * 3) / 3
     oracle = ndimage.maximum_filter(image, 3) - ndimage.minimum_filter(image, 3) <= 0.4
     np.testing.assert_array_equal(flatness(image, 0.4), oracle)
+
+
+@pytest.mark.parametrize("shape", [(1, 1), (1, 7), (7, 1), (2, 3), (41, 57)])
+@pytest.mark.parametrize("length", [1, 3, 5])
+def test_lines_closed_in_one_pass_are_scipys_closings(shape, length):
+    rng = np.random.default_rng(length + shape[0])
+    for share in (0.1, 0.45, 0.8):
+        mask = rng.random(shape) < share
+        oracle = (mask | ndimage.binary_closing(mask, np.ones((1, length)))
+                  | ndimage.binary_closing(mask, np.ones((length, 1))))
+        np.testing.assert_array_equal(closed_lines(mask, length), oracle)
+
+
+def test_lines_are_closed_by_an_odd_length_only():
+    with pytest.raises(ValueError, match="odd"):
+        closed_lines(np.ones((4, 4), dtype=bool), 2)
 
 
 def test_a_broad_blur_is_the_gaussian_edges_included():
