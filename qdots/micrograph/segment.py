@@ -7,7 +7,7 @@ or, where a library would sort or loop in Python, in a compiled loop.
 from __future__ import annotations
 
 import math
-from typing import Literal, cast
+from typing import Literal
 
 import numpy as np
 from scipy import ndimage
@@ -219,9 +219,9 @@ def watershed_parts(surface: np.ndarray, markers: np.ndarray, mask: np.ndarray) 
     pieces, n = ndimage.label(mask)
     if n < 2:
         return watershed(surface, markers, mask=mask)
-    found = cast(list[tuple[slice, slice]], ndimage.find_objects(pieces))  # every label 1 .. n is present
-    band = np.array([rows.start for rows, _ in found]) // BAND_ROWS
-    last = np.array([rows.stop for rows, _ in found])
+    boxes = label_boxes(pieces, n)  # every label 1 .. n is present
+    band = boxes[:, 0] // BAND_ROWS
+    last = boxes[:, 1]
     jobs = []
     for b in np.unique(band):
         rows = slice(int(b) * BAND_ROWS, int(last[band == b].max()))
@@ -244,7 +244,6 @@ def split_fused(labels: np.ndarray, distance: np.ndarray, unit_area: float | Non
     its pixels are split among them by k-means (`scipy.cluster.vq.kmeans2`, started from points spread along the
     region's long axis). Returns new labels (1 .. n)."""
     from scipy.cluster.vq import ClusterError, kmeans2
-    from skimage.segmentation import relabel_sequential
 
     n = int(labels.max())
     if n == 0:
@@ -257,9 +256,9 @@ def split_fused(labels: np.ndarray, distance: np.ndarray, unit_area: float | Non
         return labels
     out = labels.copy()
     following = n + 1
-    boxes = ndimage.find_objects(labels)
+    boxes = label_boxes(labels, n)
     for k in fused:
-        box = boxes[k - 1]
+        box = (slice(boxes[k - 1, 0], boxes[k - 1, 1]), slice(boxes[k - 1, 2], boxes[k - 1, 3]))
         rows, cols = np.nonzero(labels[box] == k)
         points = np.column_stack([rows, cols]).astype(float)
         parts = max(2, round(ratio[k - 1] / 0.86 if unit_area is None else area[k - 1] / unit_area))
@@ -278,8 +277,44 @@ def split_fused(labels: np.ndarray, distance: np.ndarray, unit_area: float | Non
             if chosen.any():
                 out[box][rows[chosen], cols[chosen]] = following
                 following += 1
-    relabelled, _, _ = relabel_sequential(out)
-    return relabelled
+    return sequential_labels(out)
+
+
+def sequential_labels(labels: np.ndarray) -> np.ndarray:
+    """``labels`` (0 none) renumbered 1 .. m in their order, as `skimage.segmentation.relabel_sequential` does (same
+    dtype; ``labels`` itself when they already are)."""
+    present = np.bincount(labels.ravel(), minlength=1) > 0
+    present[0] = False
+    if present[1:].all():
+        return labels
+    forward = np.zeros(present.size, dtype=labels.dtype)
+    forward[present] = np.arange(1, int(present.sum()) + 1)
+    return forward[labels]
+
+
+@jit
+def label_boxes(labels, n):
+    """Each region 1 .. ``n`` of ``labels``'s bounding box: rows (start, stop) and columns (start, stop) as
+    `scipy.ndimage.find_objects` gives them, (n, 4) integers ((0, 0, 0, 0) for a label absent)."""
+    h, w = labels.shape
+    boxes = np.zeros((n, 4), dtype=np.int64)
+    seen = np.zeros(n, dtype=np.bool_)
+    for row in range(h):
+        for col in range(w):
+            k = labels[row, col] - 1
+            if k < 0 or k >= n:
+                continue
+            if not seen[k]:
+                seen[k] = True
+                boxes[k, 0] = row
+                boxes[k, 1] = row + 1
+                boxes[k, 2] = col
+                boxes[k, 3] = col + 1
+            else:
+                boxes[k, 1] = row + 1
+                boxes[k, 2] = min(boxes[k, 2], col)
+                boxes[k, 3] = max(boxes[k, 3], col + 1)
+    return boxes
 
 
 @jit

@@ -9,7 +9,7 @@ from scipy import ndimage
 
 from qdots.micrograph.profiles import BIN, profile_table, radial_profiles
 from qdots.micrograph.refine import centre_shift, dot_profiles, model_image, refine_dots, rolled
-from qdots.micrograph.segment import label_moments, region_properties
+from qdots.micrograph.segment import label_boxes, label_moments, region_properties, sequential_labels
 
 
 def table_oracle(table, s, u):
@@ -47,6 +47,31 @@ def test_radial_bins_are_numpys_bincount():
     np.testing.assert_array_equal(sums.ravel(), np.bincount(index, image[rows, cols][keep], n * 30))
     np.testing.assert_array_equal(counts.ravel(), np.bincount(index, None, n * 30))
     np.testing.assert_array_equal(rhos.ravel(), np.bincount(index, rho[keep], n * 30))
+
+
+def test_label_boxes_are_scipys_find_objects():
+    rng = np.random.default_rng(4)
+    labels, n = ndimage.label(rng.random((70, 91)) < 0.5)
+    labels[labels == 3] = 0  # a label absent
+    boxes = label_boxes(labels, n)
+    for k, box in enumerate(ndimage.find_objects(labels, n)):
+        expected = (0, 0, 0, 0) if box is None else (box[0].start, box[0].stop, box[1].start, box[1].stop)
+        assert tuple(boxes[k]) == expected
+
+
+def test_sequential_labels_are_skimages_relabelling():
+    from skimage.segmentation import relabel_sequential
+
+    rng = np.random.default_rng(5)
+    labels, _ = ndimage.label(rng.random((50, 64)) < 0.5)
+    labels = labels.astype(np.int32)
+    gapped = labels * 3
+    gapped[gapped % 7 == 0] = 0
+    for field in (labels, gapped, np.zeros((4, 4), dtype=np.int32)):
+        expected = relabel_sequential(field)[0]
+        got = sequential_labels(field)
+        assert got.dtype == expected.dtype
+        np.testing.assert_array_equal(got, expected)
 
 
 def test_region_moments_and_properties_are_numpys():
