@@ -27,6 +27,7 @@ BENCHMARKS = [
     "micrograph_twins",
     "qdots_identifiability",
     "qdots_infer",
+    "qdots_infer_limits",
     "planarize_reference",
     "planarize_fast",
     "planarize_accuracy",

@@ -289,3 +289,28 @@ def test_the_hand_line_profile_reads_a_textured_particles_background_outside_its
     read = half_depth_widths(image, centre, True, 33.0, np.array([CREST_INSIDE * 20.0]))[0]
     assert not naive > 30.0  # the speck taken for the crest (or no line served)
     assert read == pytest.approx(40.0, abs=1.5)
+
+
+def test_the_library_error_is_told_from_the_seed_noise():
+    """`benchmarks.qdots_infer_limits.library_error`: sets whose learnt mean is off by a known spread (0.3, shared
+    by the set's films) under seed noise of 0.5 give back 0.3, not the 0.35 their mean residuals spread by."""
+    from scipy.stats import multivariate_normal
+
+    from benchmarks.qdots_infer_limits import K, gaussian_log_density, library_error, seed_noise
+
+    rng = np.random.default_rng(7)
+    sets, offsets = [], {}
+    for k in range(3000):
+        theta = np.full(4, float(k))
+        offsets[k] = rng.normal(0.0, 0.3, K)
+        sets.append((theta, 0, np.hstack([offsets[k] + rng.normal(0.0, 0.5, (8, K)), np.zeros((8, 2))])))
+    scale = (np.zeros(K), np.ones(K))
+    error = library_error(sets, scale, lambda theta, model, x: np.zeros((len(x), K)))
+    assert np.allclose(error, 0.3, atol=0.02), error
+    assert np.allclose(seed_noise(sets, scale), 0.5, atol=0.01)
+    assert np.allclose(library_error(sets, scale, lambda theta, model, x: np.tile(offsets[int(theta[0])], (len(x), 1))),
+                       0.0, atol=0.07)  # the right mean: what is left is the variance's sampling error
+    cov = np.eye(K) + 0.3 * np.ones((K, K))
+    r = rng.normal(size=(5, K))
+    assert np.allclose(gaussian_log_density(r, np.broadcast_to(cov, (5, K, K))),
+                       multivariate_normal(np.zeros(K), cov).logpdf(r))
