@@ -18,7 +18,10 @@ films shipped with the package (a synthetic likelihood; Wood 2010).
   maximum likelihood), drawn by importance sampling from the prior (``PROPOSALS`` per mass model). Once with the
   emulator taken as exact (``lambda = 0``), once with its error.
 * **What the summaries could tell with an exact forward model**: observations drawn from the emulator itself at
-  the held-out sets' truths and conditions (so the model is exact by construction), m = 1 to 32.
+  the held-out sets' truths and conditions (so the model is exact by construction), m = 1 to 32; then the same
+  with the measures the posterior leaves out (`MEASURE_SETS`: the nearest gap and the g(r) peak, which a diameter
+  2 % off moves; psi6 global, the aggregates and the largest cluster, which depend on the film's size and the
+  picture's edge), each with its own emulator: how much a picture could tell if they were read as a board reads them.
 
 Run: ``python -m benchmarks.qdots_infer_limits [--quick]`` (needs the ``infer`` extra; the held-out sets are those
 of `benchmarks.qdots_infer`, simulated there or here when missing: about 10 minutes on 2 cores).
@@ -26,19 +29,23 @@ of `benchmarks.qdots_infer`, simulated there or here when missing: about 10 minu
 
 from __future__ import annotations
 
+import math
 import time
 
 import numpy as np
 
 from qdots.inference.conformal import is_calibration_film
-from qdots.inference.forward import CONDITIONS, MASS_MODELS, PARAMETERS, SUMMARIES
-from qdots.inference.library import (
-    build_replicates,
-    replicate_groups,
-    shipped_replicates,
-    shipped_rows,
-    training_arrays,
+from qdots.inference.forward import (
+    CONDITIONS,
+    MASS_KEY,
+    MASS_MODELS,
+    MEASURES,
+    PARAMETERS,
+    SUMMARIES,
+    condition_keys,
+    mass_model_index,
 )
+from qdots.inference.library import build_replicates, shipped_replicates, shipped_rows, usable_row
 from qdots.inference.posterior import credible_intervals, prior_bounds
 
 from .qdots_infer import TEST_FIRST, TEST_GROUPS, held_out_folder, pct
@@ -55,7 +62,40 @@ COUNTS, EXACT_COUNTS = (1, 2, 4, 8), (1, 4, 16, 32)
 PROPOSALS, EXACT_MORE, SHARES = 20_000, 10, np.round(np.linspace(0.0, 0.9, 19), 2)
 #: Width of the emulator's hidden layers, films per batch, epochs without improvement before stopping.
 HIDDEN, BATCH, PATIENCE = 128, 64, 50
-K = len(SUMMARIES)
+#: Sets of measures compared in the exact-model table: the six the posterior uses, and with those it leaves out.
+MEASURE_SETS = (("the six summaries", SUMMARIES),
+                ("+ nearest gap, g(r) peak position", (*SUMMARIES, "mean_gap", "gr_peak_diameters")),
+                ("+ g(r) peak height, psi6 global, aggregates, largest cluster",
+                 (*SUMMARIES, "gr_peak_height", "psi6_global", "aggregates", "largest_share")),
+                ("all twelve measures", tuple(MEASURES)))
+#: Observations per set of the measure sets' table.
+MEASURE_COUNTS = (1, 4, 16)
+C = len(CONDITIONS)
+
+
+def film_arrays(rows: list[dict], measures=SUMMARIES) -> tuple[np.ndarray, np.ndarray, np.ndarray, list]:
+    """(theta, mass models, x, run ids) of the usable ``rows`` with every one of ``measures`` finite; x holds the
+    measures then the film's own conditions (`qdots.inference.library.training_arrays` for other measures)."""
+    rows = [r for r in rows if usable_row(r) and all(r.get(k) is not None and math.isfinite(r[k]) for k in measures)]
+    theta = np.array([[r[p.key] for p in PARAMETERS] for r in rows], dtype=float).reshape(-1, len(PARAMETERS))
+    models = np.array([mass_model_index(r[MASS_KEY]) for r in rows], dtype=int)
+    x = np.array([[r[k] for k in measures] + [r[f"film_{c}"] for c in condition_keys()] for r in rows],
+                 dtype=float).reshape(-1, len(measures) + C)
+    return theta, models, x, [r["run"] for r in rows]
+
+
+def film_sets(rows: list[dict], measures=SUMMARIES) -> list:
+    """Replicate films as sets, ``(theta, mass model, x)`` per group with 2 usable films or more
+    (`qdots.inference.library.replicate_groups` for other measures)."""
+    groups: dict[int, list[dict]] = {}
+    for row in rows:
+        groups.setdefault(int(row["group"]), []).append(row)
+    out = []
+    for group in sorted(groups):
+        theta, models, x, _ = film_arrays(sorted(groups[group], key=lambda r: r["copy"]), measures)
+        if len(x) >= 2:
+            out.append((theta[0], int(models[0]), x))
+    return out
 
 
 def emulator_inputs(theta: np.ndarray, model, conditions: np.ndarray) -> np.ndarray:
@@ -110,11 +150,12 @@ def squared_error(prediction, target):
 
 
 def cholesky_factor(raw):
-    """Lower-triangular factors (n, K, K) with a positive diagonal from the network's raw outputs (n, K(K+1)/2)."""
+    """Lower-triangular factors (n, k, k) with a positive diagonal from the network's raw outputs (n, k(k+1)/2)."""
     import torch
 
-    rows, cols = np.tril_indices(K)
-    factor = torch.zeros(len(raw), K, K)
+    k = int(round((math.sqrt(8 * raw.shape[1] + 1) - 1) / 2))
+    rows, cols = np.tril_indices(k)
+    factor = torch.zeros(len(raw), k, k)
     factor[:, rows, cols] = raw
     diagonal = torch.diagonal(factor, dim1=1, dim2=2)
     return factor - torch.diag_embed(diagonal) + torch.diag_embed(torch.nn.functional.softplus(diagonal) + 1e-4)
@@ -123,7 +164,8 @@ def cholesky_factor(raw):
 def gaussian_loss(raw, residual):
     import torch
 
-    return -torch.distributions.MultivariateNormal(torch.zeros(K), scale_tril=cholesky_factor(raw)).log_prob(residual)
+    return -torch.distributions.MultivariateNormal(torch.zeros(residual.shape[-1]),
+                                                   scale_tril=cholesky_factor(raw)).log_prob(residual)
 
 
 class Emulator:
@@ -134,19 +176,20 @@ class Emulator:
     def __init__(self, u: np.ndarray, y: np.ndarray, seed: int = 0, folds: int = FOLDS, max_epochs: int = 3000):
         import torch
 
+        k_out = y.shape[1]
         parts = np.array_split(np.random.default_rng(seed).permutation(len(u)), folds)
         self.means, residual = [], np.zeros_like(y)
         for k, part in enumerate(parts):
             rest = np.setdiff1d(np.arange(len(u)), part)
-            net = fit(network(K, u.shape[1]), squared_error, u[rest], y[rest], seed + k, max_epochs)
+            net = fit(network(k_out, u.shape[1]), squared_error, u[rest], y[rest], seed + k, max_epochs)
             with torch.no_grad():
                 residual[part] = y[part] - net(torch.as_tensor(u[part])).numpy()
             self.means.append(net)
-        self.covariance = fit(network(K * (K + 1) // 2, u.shape[1]), gaussian_loss, u, residual, seed + folds,
+        self.covariance = fit(network(k_out * (k_out + 1) // 2, u.shape[1]), gaussian_loss, u, residual, seed + folds,
                               max_epochs)
 
     def moments(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Mean (n, K) and covariance (n, K, K) of one film's summaries at the inputs ``u``."""
+        """Mean (n, k) and covariance (n, k, k) of one film's measures at the inputs ``u``."""
         import torch
 
         with torch.no_grad():
@@ -160,29 +203,29 @@ def gaussian_log_density(r: np.ndarray, cov: np.ndarray) -> np.ndarray:
     factor = np.linalg.cholesky(cov)
     z = np.linalg.solve(factor, r[..., None])[..., 0]
     return (-0.5 * (z**2).sum(-1) - np.log(np.diagonal(factor, axis1=-2, axis2=-1)).sum(-1)
-            - 0.5 * K * np.log(2 * np.pi))
+            - 0.5 * r.shape[-1] * np.log(2 * np.pi))
 
 
 def set_moments(emulator: Emulator, theta: np.ndarray, model: int, x: np.ndarray, scale) -> tuple:
-    """Per film of a set: its residual at the truth (m, K) and the emulator's covariance (m, K, K)."""
-    mean, cov = emulator.moments(emulator_inputs(np.repeat(theta[None], len(x), 0), model, x[:, K:]))
-    return (x[:, :K] - scale[0]) / scale[1] - mean, cov
+    """Per film of a set: its residual at the truth (m, k) and the emulator's covariance (m, k, k)."""
+    mean, cov = emulator.moments(emulator_inputs(np.repeat(theta[None], len(x), 0), model, x[:, -C:]))
+    return (x[:, :-C] - scale[0]) / scale[1] - mean, cov
 
 
 def library_error(sets: list, scale, emulator_of) -> np.ndarray:
-    """The error of a learnt mean (K,), from replicate ``sets``: the spread of the sets' mean residuals with the
+    """The error of a learnt mean (one per measure), from replicate ``sets``: the spread of the sets' mean residuals with the
     seeds' share (the spread within the sets over their size) taken out."""
     means, noise = [], []
     for theta, model, x in sets:
-        z = (x[:, :K] - scale[0]) / scale[1]
+        z = (x[:, :-C] - scale[0]) / scale[1]
         means.append((z - emulator_of(theta, model, x)).mean(axis=0))
         noise.append(z.var(axis=0, ddof=1) / len(x))
     return np.sqrt(np.maximum(np.var(means, axis=0) - np.mean(noise, axis=0), 0.0))
 
 
 def seed_noise(sets: list, scale) -> np.ndarray:
-    """One film's seed spread per summary (K,), in the summaries' units: the root mean variance within the sets."""
-    return np.sqrt(np.mean([((x[:, :K] - scale[0]) / scale[1]).var(axis=0, ddof=1) for _, _, x in sets], axis=0))
+    """One film's seed spread per measure, in the measures' units: the root mean variance within the sets."""
+    return np.sqrt(np.mean([((x[:, :-C] - scale[0]) / scale[1]).var(axis=0, ddof=1) for _, _, x in sets], axis=0))
 
 
 def fitted_share(emulator: Emulator, sets: list, scale) -> float:
@@ -206,13 +249,14 @@ def posterior_rows(emulator: Emulator, sets: list, scale, share: float, counts, 
     draws = low + (high - low) * rng.random((proposals, len(PARAMETERS)))
     found = {m: ([], [], [], [], []) for m in counts}
     for theta, model, x in sets:
-        conditions = x[:, K:].mean(axis=0)
+        conditions = x[:, -C:].mean(axis=0)
         moments = [emulator.moments(emulator_inputs(draws, j, conditions)) for j in range(len(MASS_MODELS))]
         if exact:
             truth_mean, truth_cov = emulator.moments(emulator_inputs(theta[None], model, conditions))
-            observed = truth_mean[0] + rng.multivariate_normal(np.zeros(K), truth_cov[0], size=max(counts))
+            observed = truth_mean[0] + rng.multivariate_normal(np.zeros(len(scale[0])), truth_cov[0],
+                                                                      size=max(counts))
         else:
-            observed = (x[:, :K] - scale[0]) / scale[1]
+            observed = (x[:, :-C] - scale[0]) / scale[1]
         for m in counts:
             if len(observed) < m:
                 continue
@@ -240,6 +284,28 @@ def posterior_table(title: str, rows: list, dots: float) -> Table:
                    f"{given:.2f}", f"{effective:.0f}"] for m, n, hits, widths, right, given, effective in rows])
 
 
+def study_data(measures, quick: bool) -> tuple:
+    """What a study of ``measures`` needs: the emulator's inputs and targets (the posterior's own training films:
+    the calibration films left out), the measures' centre and spread over them, the shipped sets and the held-out
+    sets (quick: the shipped sets 40-59, no simulation)."""
+    theta, models, x, ids = film_arrays(shipped_rows(), measures)
+    training = ~np.array([is_calibration_film(i) for i in ids])
+    theta, models, x = theta[training], models[training], x[training]
+    scale = (x[:, :-C].mean(axis=0), x[:, :-C].std(axis=0))
+    u, y = emulator_inputs(theta, models, x[:, -C:]), ((x[:, :-C] - scale[0]) / scale[1]).astype(np.float32)
+    shipped = film_sets(shipped_replicates(), measures)
+    if quick:
+        return u, y, scale, shipped[:40], shipped[40:]
+    rows = build_replicates(held_out_folder(False) / "replicates", TEST_GROUPS, 8, workers=2, progress=False,
+                            first=TEST_FIRST)
+    return u, y, scale, shipped, film_sets(rows, measures)
+
+
+def learnt_mean(model_of):
+    """The function ``(theta, model, x) -> mean (m, k)`` of a set's films from ``model_of(u) -> mean``."""
+    return lambda t, model, xs: model_of(emulator_inputs(np.repeat(t[None], len(xs), 0), model, xs[:, -C:]))
+
+
 def run(quick: bool) -> list:
     from qdots.micrograph.choices import INFER_EXTRA, missing_infer_extra
 
@@ -249,19 +315,10 @@ def run(quick: bool) -> list:
 
     torch.set_num_threads(1)
     start = time.perf_counter()
-    theta, models, x, ids = training_arrays(shipped_rows())
-    training = ~np.array([is_calibration_film(i) for i in ids])  # the posterior's own training films
-    theta, models, x = theta[training], models[training], x[training]
-    scale = (x[:, :K].mean(axis=0), x[:, :K].std(axis=0))
-    u, y = emulator_inputs(theta, models, x[:, K:]), ((x[:, :K] - scale[0]) / scale[1]).astype(np.float32)
-    shipped = replicate_groups(shipped_replicates())
-    if quick:  # no simulation: the shipped sets split in two, short trainings
-        held_out, shipped = shipped[40:], shipped[:40]
-        sizes, draws, folds, epochs, proposals = (600, None), 1, 2, 40, 4000
+    u, y, scale, shipped, held_out = study_data(SUMMARIES, quick)
+    if quick:  # short trainings
+        sizes, draws, folds, epochs, proposals = (600, None), 1, 2, 30, 2000
     else:
-        rows = build_replicates(held_out_folder(False) / "replicates", TEST_GROUPS, 8, workers=2, progress=False,
-                                first=TEST_FIRST)
-        held_out = replicate_groups(rows)
         sizes, draws, folds, epochs, proposals = SIZES, DRAWS, FOLDS, 3000, PROPOSALS
     sets = shipped + held_out
     noise = seed_noise(sets, scale)
@@ -272,24 +329,30 @@ def run(quick: bool) -> list:
         errors = []
         for d in range(draws):
             chosen = np.random.default_rng([5621, n, d]).choice(len(u), n, replace=False)
-            net = fit(network(K, u.shape[1]), squared_error, u[chosen], y[chosen], 100 + d, epochs)
+            net = fit(network(y.shape[1], u.shape[1]), squared_error, u[chosen], y[chosen], 100 + d, epochs)
 
-            def learnt(t, model, xs, net=net):
+            def mean_of(inputs, net=net):
                 with torch.no_grad():
-                    return net(torch.as_tensor(emulator_inputs(np.repeat(t[None], len(xs), 0), model,
-                                                               xs[:, K:]))).numpy()
+                    return net(torch.as_tensor(inputs)).numpy()
 
-            errors.append(library_error(sets, scale, learnt))
+            errors.append(library_error(sets, scale, learnt_mean(mean_of)))
         curve.append((n, np.mean(errors, axis=0)))
     emulator = Emulator(u, y, folds=folds, max_epochs=epochs)
-    final_error = library_error(sets, scale, lambda t, model, xs: emulator.moments(
-        emulator_inputs(np.repeat(t[None], len(xs), 0), model, xs[:, K:]))[0])
+    final_error = library_error(sets, scale, learnt_mean(lambda inputs: emulator.moments(inputs)[0]))
     curve.append((f"{len(u):,} ({folds} folds' ensemble)", final_error))
     share = fitted_share(emulator, shipped, scale)
     dots = float(np.mean([r["complete_dots"] for r in shipped_rows()[:200] if r.get("complete_dots")]))
     modelled = posterior_rows(emulator, held_out, scale, share, COUNTS, proposals)
     exact_taken = posterior_rows(emulator, held_out, scale, 0.0, COUNTS, proposals)
     exact = posterior_rows(emulator, held_out, scale, 0.0, EXACT_COUNTS, EXACT_MORE * proposals, exact=True)
+    richer = []
+    for label, measures in MEASURE_SETS[1:] if not quick else MEASURE_SETS[-1:]:
+        mu, my, mscale, mshipped, mheld = study_data(measures, quick)
+        memulator = Emulator(mu, my, folds=folds, max_epochs=epochs)
+        merror = library_error(mshipped + mheld, mscale, learnt_mean(lambda inputs, e=memulator: e.moments(inputs)[0]))
+        ratio_m = float(np.mean(merror / seed_noise(mshipped + mheld, mscale)))
+        richer += [(label, ratio_m, row) for row in posterior_rows(memulator, mheld, mscale, 0.0, MEASURE_COUNTS,
+                                                                   EXACT_MORE * proposals, exact=True)]
     seconds = time.perf_counter() - start
 
     learning = Table("The error of the learnt mean against one film's seed noise (summaries in units of their spread "
@@ -314,6 +377,13 @@ def run(quick: bool) -> list:
                             dots),
             posterior_table("An exact forward model: observations drawn from the emulator at the held-out sets' "
                             "truths (what the six summaries could tell)", exact, dots),
+            Table("An exact forward model of more measures (those the posterior leaves out, as a board reads them): "
+                  "90 % coverage / width of the prior",
+                  ["measures", "library error / noise", "observations", *(p.label for p in PARAMETERS),
+                   "mass model right", "mean P(true model)", "fewest effective proposals"],
+                  [[label, f"{ratio_m:.2f}", m, *(f"{pct(h)} / {pct(w)}" for h, w in zip(hits, widths)), pct(right),
+                    f"{given:.2f}", f"{effective:.0f}"]
+                   for label, ratio_m, (m, _, hits, widths, right, given, effective) in richer]),
             Note(f"Training films: {len(u)} of the shipped library (the calibration films left out, as the posterior "
                  f"does); proposals {proposals} per mass model; {seconds:.0f} s in all on 1 thread.")]
 

@@ -296,8 +296,9 @@ def test_the_library_error_is_told_from_the_seed_noise():
     by the set's films) under seed noise of 0.5 give back 0.3, not the 0.35 their mean residuals spread by."""
     from scipy.stats import multivariate_normal
 
-    from benchmarks.qdots_infer_limits import K, gaussian_log_density, library_error, seed_noise
+    from benchmarks.qdots_infer_limits import gaussian_log_density, library_error, seed_noise
 
+    K = 6
     rng = np.random.default_rng(7)
     sets, offsets = [], {}
     for k in range(3000):
@@ -314,3 +315,20 @@ def test_the_library_error_is_told_from_the_seed_noise():
     r = rng.normal(size=(5, K))
     assert np.allclose(gaussian_log_density(r, np.broadcast_to(cov, (5, K, K))),
                        multivariate_normal(np.zeros(K), cov).logpdf(r))
+
+
+def test_the_limits_study_reads_the_shipped_films_as_the_posterior_does():
+    """`benchmarks.qdots_infer_limits.film_arrays` and `film_sets` with the posterior's six summaries are
+    `qdots.inference.library.training_arrays` and `replicate_groups` (they read other measures too)."""
+    from benchmarks.qdots_infer_limits import film_arrays, film_sets
+    from qdots.inference.forward import MEASURES
+    from qdots.inference.library import replicate_groups, shipped_replicates, shipped_rows, training_arrays
+
+    rows = shipped_rows()[:300]
+    for ours, theirs in zip(film_arrays(rows), training_arrays(rows)):
+        assert np.array_equal(np.asarray(ours), np.asarray(theirs))
+    replicates = shipped_replicates()
+    for (t1, m1, x1), (t2, m2, x2) in zip(film_sets(replicates), replicate_groups(replicates), strict=True):
+        assert np.array_equal(t1, t2) and m1 == m2 and np.array_equal(x1, x2)
+    theta, models, x, ids = film_arrays(rows, tuple(MEASURES))
+    assert x.shape == (len(ids), len(MEASURES) + 2) and np.isfinite(x).all()
