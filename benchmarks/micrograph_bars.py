@@ -1,4 +1,4 @@
-"""The scale bar search of qdots measure on 134 real pictures: found on the drawn bar, found elsewhere, missed.
+"""The scale bar search of qdots measure on 214 real pictures: found on the drawn bar, found elsewhere, missed.
 
 `benchmarks.micrograph_real` scores the scale read on its pictures against the file's or a hand-measured bar. This one
 asks a simpler question of many more, the pictures of the EMPS data set (`benchmarks.micrograph_emps`): is the bar the
@@ -7,8 +7,12 @@ search finds (``qdots.micrograph.annotations.find_annotations``) the bar drawn o
 the worst outcome: a user who gives its length (``--scale-bar``) gets a wrong scale without a word; a bar not found
 makes the command ask for the scale.
 
-Run: ``python -m benchmarks.micrograph_bars [--half dev|test|all]`` (the pictures are fetched by
-``python -m benchmarks.micrograph_emps --fetch``).
+The manifest holds two batches of EMPS pictures, each split into development and test halves before the search was
+changed for it: the 134 of `benchmarks.micrograph_emps` and 80 more (``batch = 2``) that no other benchmark uses.
+
+Run: ``python -m benchmarks.micrograph_bars [--half dev|test|all] [--fetch [--from DIR]]`` (the first batch is fetched
+by ``python -m benchmarks.micrograph_emps --fetch``, the second by ``--fetch`` here; ``--from``: a clone of the EMPS
+repository).
 """
 
 from __future__ import annotations
@@ -19,6 +23,8 @@ from collections import Counter
 from pathlib import Path
 
 from .micrograph_emps import folder
+from .micrograph_emps import manifest as emps_manifest
+from .real_data import fetch_one
 from .report import Headline, Note, Table, cli_with_options
 
 MEASURED_CODE = ("qdots/micrograph/annotations.py", "qdots/micrograph/bar.py", "qdots/micrograph/scale.py",
@@ -39,6 +45,25 @@ def manifest() -> list[dict]:
         import tomli as tomllib
     with open(MANIFEST, "rb") as f:
         return tomllib.load(f)["image"]
+
+
+def fetch(source: Path | None = None) -> list[tuple[str, str]]:
+    """Fetch the second batch's pictures into the EMPS cache folder (from ``source``, a clone of the EMPS repository, or
+    its pinned commit on GitHub), each checked against the manifest's sha256; returns (file, what was done or the
+    error)."""
+    base = emps_manifest()["source"]["images"]
+    target = folder()
+    target.mkdir(parents=True, exist_ok=True)
+    done = []
+    for e in manifest():
+        if "sha256" not in e:
+            continue
+        try:
+            done.append((e["file"], fetch_one(e["file"], base + e["file"], e["sha256"], target,
+                                              None if source is None else source / "images")))
+        except (OSError, ValueError) as exc:
+            done.append((e["file"], f"failed: {type(exc).__name__}: {exc}"))
+    return done
 
 
 def verdict(drawn: list[int] | None, found: tuple[int, int, int, int] | None) -> str:
@@ -63,23 +88,25 @@ def measure_entry(entry: dict) -> dict:
     bar = find_annotations(image.pixels.astype(float)).bar
     drawn = entry.get("bar")
     short = drawn is not None and drawn[2] - drawn[0] < shortest_bar(image.shape)
-    return {"file": entry["file"], "half": entry["half"], "drawn": entry["drawn"], "box": drawn,
+    return {"file": entry["file"], "half": entry["half"], "batch": entry.get("batch", 1), "drawn": entry["drawn"],
+            "box": drawn,
             "found": None if bar is None else bar.box, "length": None if bar is None else bar.length_px,
             "verdict": verdict(drawn, None if bar is None else bar.box), "short": short,
             "seconds": time.perf_counter() - start}
 
 
 def tables(rows: list[dict], half: str) -> list:
+    """The summary and the misses of one half of one batch (``half``: its name in the tables' titles)."""
     counts = Counter(r["verdict"] for r in rows)
     drawn = sum(r["box"] is not None for r in rows)
     short = sum(r["short"] and r["verdict"] == VERDICTS[2] for r in rows)
-    summary = Table(f"Scale bars on the EMPS pictures, {half} half: the bar found against the bar drawn",
+    summary = Table(f"Scale bars on the EMPS pictures, {half}: the bar found against the bar drawn",
                     ["pictures", "bars drawn", *VERDICTS[:3], "of those not found: under a twentieth of the picture",
                      "no bar drawn", *VERDICTS[3:]],
                     [[len(rows), drawn, *(counts[v] for v in VERDICTS[:3]), short, len(rows) - drawn,
                       *(counts[v] for v in VERDICTS[3:])]])
     misses = [r for r in rows if r["verdict"] not in (VERDICTS[0], VERDICTS[3])]
-    detail = Table(f"Scale bars on the EMPS pictures, {half} half: the pictures where the bar found is not the one drawn",
+    detail = Table(f"Scale bars on the EMPS pictures, {half}: the pictures where the bar found is not the one drawn",
                    ["picture", "drawn", "drawn at (x0, y0, x1, y1)", "found at", "found length (px)", "verdict"],
                    [[r["file"], r["drawn"] + (" (under a twentieth of the picture)" if r["short"] else ""),
                      "" if r["box"] is None else str(tuple(r["box"])), "" if r["found"] is None else str(r["found"]),
@@ -89,22 +116,30 @@ def tables(rows: list[dict], half: str) -> list:
 
 def results(halves: tuple[str, ...]) -> list:
     chosen = [e for e in manifest() if e["half"] in halves]
-    missing = [e["file"] for e in chosen if not (folder() / e["file"]).exists()]
+    missing = [e for e in chosen if not (folder() / e["file"]).exists()]
     if missing:
+        second = sum("sha256" in e for e in missing)
         return [Note(f"{len(missing)} of the {len(chosen)} EMPS pictures are not in {folder()} (the cache folder): "
-                     "fetch them with `python -m benchmarks.micrograph_emps --fetch`.")]
+                     "fetch them with `python -m benchmarks.micrograph_emps --fetch`"
+                     + (f" ({len(missing) - second}) and `python -m benchmarks.micrograph_bars --fetch` ({second})."
+                        if second else "."))]
     rows = [measure_entry(e) for e in chosen]
     out: list = []
     summary = []
-    for half in halves:
-        part = [r for r in rows if r["half"] == half]
-        out += tables(part, half)
-        counts = Counter(r["verdict"] for r in part)
-        drawn = sum(r["box"] is not None for r in part)
-        summary.append(f"{half}: {counts[VERDICTS[0]]} of {drawn} drawn bars found, {counts[VERDICTS[1]]} found "
-                       f"elsewhere, {counts[VERDICTS[4]]} found where none is drawn")
+    for batch in (1, 2):
+        for half in halves:
+            part = [r for r in rows if r["half"] == half and r["batch"] == batch]
+            if not part:
+                continue
+            name = f"{half} half" + ("" if batch == 1 else " of the second batch")
+            out += tables(part, name)
+            counts = Counter(r["verdict"] for r in part)
+            drawn = sum(r["box"] is not None for r in part)
+            summary.append(f"{half}{'' if batch == 1 else ' 2'}: {counts[VERDICTS[0]]} of {drawn} drawn bars found, "
+                           f"{counts[VERDICTS[1]]} found elsewhere, {counts[VERDICTS[4]]} found where none is drawn")
     seconds = sum(r["seconds"] for r in rows)
-    out.insert(0, Headline("qdots measure's scale bar search on 134 EMPS pictures (dev / test halves)",
+    out.insert(0, Headline(f"qdots measure's scale bar search on {len(rows)} EMPS pictures (dev / test halves, two "
+                           "batches)",
                            f"{seconds:.0f} s for {len(rows)} pictures", "; ".join(summary)))
     out.append(Note("The bar found is the drawn one when the middle of its box lies within the drawn bar's box (boxed by "
                     f"eye, grown by {SLACK} px) and it is at least {COVER:g} of its width. A bar under a twentieth of the "
@@ -121,8 +156,17 @@ def run(quick: bool) -> list:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--half", choices=("dev", "test", "all"), default="all")
-    return cli_with_options(parser, lambda args: results(("dev", "test") if args.half == "all" else (args.half,)),
-                            argv)
+    parser.add_argument("--fetch", action="store_true", help="download the second batch's pictures into the cache first")
+    parser.add_argument("--from", dest="source", type=Path, default=None,
+                        help="with --fetch: copy them from a clone of the EMPS repository instead")
+
+    def make(args):
+        if args.fetch:
+            for name, what in fetch(source=args.source):
+                print(f"{name}: {what}")
+        return results(("dev", "test") if args.half == "all" else (args.half,))
+
+    return cli_with_options(parser, make, argv)
 
 
 if __name__ == "__main__":

@@ -27,6 +27,15 @@ from .bar import MIN_BAR, ScaleBar
 #: read by hand across the marks on four of them (ZEISS and FEI bars of 60-244 px).
 THIN_LINE, LINE_REACH, LINE_CONTRAST, LINE_GROUND = 4, 9, 0.25, 0.05
 END_MARK, END_REACH, MARK_SHARE, MARK_ROWS = 3, 3, 1.0 / 3.0, 7
+#: A line broken by its label without end marks (FEI's and others' "-- 5 um --", its ends plain or round): two thin
+#: lines on one row (`band_bar`), the shorter at least HALVES_EQUAL of the longer (the label is set in the middle),
+#: with ink between them on at least LABEL_INK of the gap's columns (the label; within `MARK_ROWS` rows of the line),
+#: measured between the lines' outer ends at half of their contrast (`line_end`). On the second EMPS development batch,
+#: three such bars (FEI, two other instruments): halves of 51 and 53, 74 and 75, 76 and 78 px, 0.65-0.90 of the range
+#: out of their ground, none with a mark at either end.
+#: Each half is straight: at most HALF_OFF of its pixels (of the top-hat) lie off its spine's rows (those halves 0.00-0.04;
+#: the bottoms of two letters "0" on one row of a label, taken as such a pair on a test picture, 0.53-0.55).
+HALVES_EQUAL, LABEL_INK, HALF_OFF = 0.8, 0.3, 0.2
 #: A ruler of ticks (`band_ruler`) has at least MIN_TICKS ticks at most TICK_WIDTH px wide, its gaps within TICK_EVEN
 #: of a whole number of its first gap, and at most MAX_HIDDEN ticks hidden (by a particle where the ruler is drawn over
 #: the film). A Hitachi data strip's ruler has 11 ticks, 4-5 px wide at a quarter of the picture's range.
@@ -152,12 +161,13 @@ def band_bar(image: np.ndarray, span: float, shortest: float) -> ScaleBar | None
     for dark in (True, False):
         signed = image if dark else -image
         labels, _n = ndimage.label(fills[dark]().T >= LINE_CONTRAST * span, structure=np.ones((3, 3)))
-        lines = []  # (row, thickness, start, stop, mark at the start, mark at the stop)
+        lines = []  # (top, bottom, start, stop, mark at the start, mark at the stop, pixels off the spine's rows / on)
         for k, (rows, cols) in enumerate(ndimage.find_objects(labels), start=1):
             if cols.stop - cols.start < MIN_BAR:  # a film's gaps and edges, most of what is found
                 continue
             runs = (labels[rows, cols] == k).sum(axis=1)
             spine = np.flatnonzero(runs >= 0.9 * runs.max())  # its rows; their middle row is its spine
+            off = 1.0 - float(runs[spine].sum()) / float(runs.sum())
             top, bottom = rows.start + int(spine[0]), rows.start + int(spine[-1]) + 1
             if runs.max() < max(MIN_BAR, 0.9 * (cols.stop - cols.start)) or bottom - top > THIN_LINE:
                 continue
@@ -168,19 +178,65 @@ def band_bar(image: np.ndarray, span: float, shortest: float) -> ScaleBar | None
             if contrast >= LINE_CONTRAST * span:  # a line on a flat ground, standing out of it along its spine
                 lines.append((top, bottom, cols.start, cols.stop,
                               end_mark(signed, ground, MARK_SHARE * contrast, top, bottom, cols.start),
-                              end_mark(signed, ground, MARK_SHARE * contrast, top, bottom, cols.stop - 1)))
+                              end_mark(signed, ground, MARK_SHARE * contrast, top, bottom, cols.stop - 1),
+                              off / (1.0 - off) if off < 1.0 else math.inf))
         bars = [(first[4], last[5], first, last) for first in lines for last in lines
                 if first is last or (abs(first[0] + first[1] - last[0] - last[1]) <= 2 and first[3] < last[2]
                                      and last[2] - first[3] <= 0.5 * (last[3] - first[2]))]
+        measured = "between the middles of its end marks"
         for left, right, first, last in bars:
+            how = measured
+            if (left is None or right is None) and first is not last and label_between(signed, first, last):
+                left, right, how = line_end(signed, first, -1), line_end(signed, last, 1), \
+                    "between the outer ends of its two halves, at half contrast"
             if left is None or right is None or right - left < shortest:
                 continue
             if best is None or right - left > best.length_px:
                 top, bottom = min(first[0], last[0]), max(first[1], last[1])
                 best = ScaleBar(right - left, (first[2], top, last[3], bottom), dark, ruled=True,
                                 thickness=bottom - top, at_edge=first[2] == 0 or last[3] == image.shape[1],
-                                measured="between the middles of its end marks")
+                                measured=how)
     return best
+
+
+def label_between(signed: np.ndarray, first: tuple, last: tuple) -> bool:
+    """Whether two thin lines of `band_bar` (``(top, bottom, start, stop, ...)`` on ``signed``, the first to the left)
+    are the halves of one bar broken by its label: straight (`HALF_OFF`), of lengths within `HALVES_EQUAL` of each
+    other, with ink (half the
+    lines' contrast out of the ground, read on each line's own ends' rows) on `LABEL_INK` of the columns between them,
+    within `MARK_ROWS` rows."""
+    lengths = (first[3] - first[2], last[3] - last[2])
+    if min(lengths) < HALVES_EQUAL * max(lengths) or max(first[6], last[6]) > HALF_OFF:
+        return False
+    top, bottom = min(first[0], last[0]), max(first[1], last[1])
+    rows = slice(max(0, top - MARK_ROWS), bottom + MARK_ROWS)
+    ground = float(np.median(np.concatenate([signed[rows, first[2]:first[3]].ravel(),
+                                             signed[rows, last[2]:last[3]].ravel()])))
+    line = float(np.median(np.concatenate([signed[top:bottom, first[2]:first[3]].ravel(),
+                                           signed[top:bottom, last[2]:last[3]].ravel()])))
+    gap = signed[rows, first[3]:last[2]]
+    return gap.size > 0 and float(np.mean((ground - gap >= 0.5 * (ground - line)).any(axis=0))) >= LABEL_INK
+
+
+def line_end(signed: np.ndarray, line: tuple, side: int) -> float | None:
+    """Where a thin line of `band_bar` (``(top, bottom, start, stop, ...)`` on ``signed``) ends on its ``side`` (-1
+    its left, 1 its right): the column, px (a pixel's edge), where the depth of its rows' darkest pixel falls to half
+    of its depth along the line, interpolated between pixels, sought outwards from `END_REACH` px inside the line to as
+    far beyond its end; None where it does not fall there."""
+    top, bottom, start, stop = line[:4]
+    ground = float(np.median(signed[max(0, top - LINE_REACH):max(0, top - 1), start:stop]))
+    depth = ground - signed[top:bottom].min(axis=0)
+    half = 0.5 * float(np.median(depth[start:stop]))
+    if side > 0:
+        reach = range(max(start, stop - 1 - END_REACH), min(signed.shape[1] - 1, stop + END_REACH))
+    else:
+        reach = range(min(stop - 1, start + END_REACH), max(0, start - END_REACH - 1), -1)
+    for at in reach:
+        beyond = at + side
+        if depth[beyond] < half <= depth[at]:  # the half-depth point between the centres of pixels at and beyond
+            centre = at + 0.5 + side * (depth[at] - half) / (depth[at] - depth[beyond])
+            return float(centre)
+    return None
 
 
 def ruler_goes_on(narrow: np.ndarray, middles: list[float]) -> bool:

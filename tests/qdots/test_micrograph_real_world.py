@@ -388,6 +388,28 @@ def test_a_ruled_line_with_its_label_inside_it_is_one_bar():
     assert bar is not None and bar.length_px == pytest.approx(180.0, abs=0.3) and not bar.dark
 
 
+def test_a_line_broken_by_its_label_without_end_marks_is_one_bar():
+    """A strip's bar as FEI and others draw it without ticks ("-- 5 um --", the second EMPS batch): two thin light
+    lines of 70 px on one row, the label between them, plain ends. It was not found (no end marks); now it is one bar
+    from the first line's outer end to the second's, read at half contrast (170 px, ends blurred as JPEG blurs them).
+    Two lines of unequal length, or with nothing between them, are no such pair."""
+    def strip(first=70, second=70, label=True):
+        image = strip_film(ground=0.2, ink=0.2, line=0.2)
+        image[250:] = 0.2
+        image[275:277, 40:40 + first] = image[275:277, 210 - second:210] = 1.0
+        if label:
+            for x in range(114, 138, 8):
+                image[272:280, x:x + 5] = 1.0
+        image[250:] = ndimage.gaussian_filter(image[250:], 0.6)
+        return image
+
+    bar = find_scale_bar(strip())
+    assert bar is not None and bar.length_px == pytest.approx(170.0, abs=0.5) and "two halves" in bar.measured
+    for other in (strip(second=40), strip(label=False)):
+        found = find_scale_bar(other)
+        assert found is None or "two halves" not in found.measured
+
+
 def ruler_strip(hidden=(), short=()) -> np.ndarray:
     """`strip_film` on a black strip with a Hitachi ruler: 11 light ticks 3 px wide and 7 tall, 21 px apart (middles
     at 61.5 ... 271.5), blurred as JPEG blurs them, its label below; ticks ``hidden`` are left out, ticks ``short``
