@@ -161,7 +161,8 @@ def band_bar(image: np.ndarray, span: float, shortest: float) -> ScaleBar | None
     for dark in (True, False):
         signed = image if dark else -image
         labels, _n = ndimage.label(fills[dark]().T >= LINE_CONTRAST * span, structure=np.ones((3, 3)))
-        lines = []  # (top, bottom, start, stop, mark at the start, mark at the stop, pixels off the spine's rows / on)
+        # (top, bottom, start, stop, mark at the start, mark at the stop, pixels off the spine's rows / on, ground)
+        lines = []
         for k, (rows, cols) in enumerate(ndimage.find_objects(labels), start=1):
             if cols.stop - cols.start < MIN_BAR:  # a film's gaps and edges, most of what is found
                 continue
@@ -179,7 +180,7 @@ def band_bar(image: np.ndarray, span: float, shortest: float) -> ScaleBar | None
                 lines.append((top, bottom, cols.start, cols.stop,
                               end_mark(signed, ground, MARK_SHARE * contrast, top, bottom, cols.start),
                               end_mark(signed, ground, MARK_SHARE * contrast, top, bottom, cols.stop - 1),
-                              off / (1.0 - off) if off < 1.0 else math.inf))
+                              off / (1.0 - off) if off < 1.0 else math.inf, ground))
         bars = [(first[4], last[5], first, last) for first in lines for last in lines
                 if first is last or (abs(first[0] + first[1] - last[0] - last[1]) <= 2 and first[3] < last[2]
                                      and last[2] - first[3] <= 0.5 * (last[3] - first[2]))]
@@ -187,7 +188,7 @@ def band_bar(image: np.ndarray, span: float, shortest: float) -> ScaleBar | None
         for left, right, first, last in bars:
             how = measured
             if (left is None or right is None) and first is not last and label_between(signed, first, last):
-                left, right, how = line_end(signed, first, -1), line_end(signed, last, 1), \
+                left, right, how = line_end(signed, first, -1, first[7]), line_end(signed, last, 1, last[7]), \
                     "between the outer ends of its two halves, at half contrast"
             if left is None or right is None or right - left < shortest:
                 continue
@@ -202,29 +203,26 @@ def band_bar(image: np.ndarray, span: float, shortest: float) -> ScaleBar | None
 def label_between(signed: np.ndarray, first: tuple, last: tuple) -> bool:
     """Whether two thin lines of `band_bar` (``(top, bottom, start, stop, ...)`` on ``signed``, the first to the left)
     are the halves of one bar broken by its label: straight (`HALF_OFF`), of lengths within `HALVES_EQUAL` of each
-    other, with ink (half the
-    lines' contrast out of the ground, read on each line's own ends' rows) on `LABEL_INK` of the columns between them,
-    within `MARK_ROWS` rows."""
+    other, with ink (half the lines' contrast out of their ground) on `LABEL_INK` of the columns between them, within
+    `MARK_ROWS` rows of them."""
     lengths = (first[3] - first[2], last[3] - last[2])
     if min(lengths) < HALVES_EQUAL * max(lengths) or max(first[6], last[6]) > HALF_OFF:
         return False
     top, bottom = min(first[0], last[0]), max(first[1], last[1])
     rows = slice(max(0, top - MARK_ROWS), bottom + MARK_ROWS)
-    ground = float(np.median(np.concatenate([signed[rows, first[2]:first[3]].ravel(),
-                                             signed[rows, last[2]:last[3]].ravel()])))
+    ground = 0.5 * (first[7] + last[7])
     line = float(np.median(np.concatenate([signed[top:bottom, first[2]:first[3]].ravel(),
                                            signed[top:bottom, last[2]:last[3]].ravel()])))
     gap = signed[rows, first[3]:last[2]]
     return gap.size > 0 and float(np.mean((ground - gap >= 0.5 * (ground - line)).any(axis=0))) >= LABEL_INK
 
 
-def line_end(signed: np.ndarray, line: tuple, side: int) -> float | None:
-    """Where a thin line of `band_bar` (``(top, bottom, start, stop, ...)`` on ``signed``) ends on its ``side`` (-1
-    its left, 1 its right): the column, px (a pixel's edge), where the depth of its rows' darkest pixel falls to half
-    of its depth along the line, interpolated between pixels, sought outwards from `END_REACH` px inside the line to as
-    far beyond its end; None where it does not fall there."""
+def line_end(signed: np.ndarray, line: tuple, side: int, ground: float) -> float | None:
+    """Where a thin line of `band_bar` (``(top, bottom, start, stop, ...)`` on ``signed``, lying on ``ground``) ends on
+    its ``side`` (-1 its left, 1 its right): the column, px (a pixel's edge), where the depth below the ground of its
+    rows' darkest pixel falls to half of its depth along the line, interpolated between pixels, sought outwards from
+    `END_REACH` px inside the line to as far beyond its end; None where it does not fall there."""
     top, bottom, start, stop = line[:4]
-    ground = float(np.median(signed[max(0, top - LINE_REACH):max(0, top - 1), start:stop]))
     depth = ground - signed[top:bottom].min(axis=0)
     half = 0.5 * float(np.median(depth[start:stop]))
     if side > 0:
