@@ -33,8 +33,9 @@ END_MARK, END_REACH, MARK_SHARE, MARK_ROWS = 3, 3, 1.0 / 3.0, 7
 #: measured between the lines' outer ends at half of their contrast (`line_end`). On the second EMPS development batch,
 #: three such bars (FEI, two other instruments): halves of 51 and 53, 74 and 75, 76 and 78 px, 0.65-0.90 of the range
 #: out of their ground, none with a mark at either end.
-#: Each half is straight: at most HALF_OFF of its pixels (of the top-hat) lie off its spine's rows (those halves 0.00-0.04;
-#: the bottoms of two letters "0" on one row of a label, taken as such a pair on a test picture, 0.53-0.55).
+#: Each half is straight: its pixels (of the top-hat) off its spine's rows are at most HALF_OFF times those on them (those
+#: halves 0.00-0.04; the bottoms of two letters "0" on one row of a label, taken as such a pair on a test picture,
+#: 0.53-0.55).
 HALVES_EQUAL, LABEL_INK, HALF_OFF = 0.8, 0.3, 0.2
 #: A ruler of ticks (`band_ruler`) has at least MIN_TICKS ticks at most TICK_WIDTH px wide, its gaps within TICK_EVEN
 #: of a whole number of its first gap, and at most MAX_HIDDEN ticks hidden (by a particle where the ruler is drawn over
