@@ -251,8 +251,9 @@ def bar_contrast(image: np.ndarray, box: tuple[int, int, int, int],
                  colour: np.ndarray) -> tuple[float, float, float]:
     """How far a bar in ``box`` (x0, y0, x1, y1) stands out of its surroundings, the pixel noise there, and how far it
     stands out of its outline: the median of its pixels in the bar colour (``colour``, a mask of the box) against the
-    median of the pixels within `BAR_SURROUNDINGS` px around the box, and against the `OUTLINE` px around the box
-    where that stands further out by `MIN_CONTRAST` times the noise (a white bar in a dark outline on a light picture;
+    median of the pixels within `BAR_SURROUNDINGS` px around the box, and against the `OUTLINE` px above the box and
+    those below it, the less of the two (a light line along a table's dark border stands out of one side only), where
+    that stands further out by `MIN_CONTRAST` times the noise (a white bar in a dark outline on a light picture;
     else 0); the noise of that window, 1.4826 times the median absolute deviation of
     neighbouring pixels' differences over sqrt 2 (texture and edges hardly move it). A drawn bar stands out by
     tens of deviations (infinitely many in noiseless graphics); noise pixels joined into a bar, by a few."""
@@ -268,8 +269,13 @@ def bar_contrast(image: np.ndarray, box: tuple[int, int, int, int],
     contrast = abs(level - float(np.median(window[~inside])))
     diffs = np.concatenate([np.diff(window, axis=1).ravel(), np.diff(window, axis=0).ravel()])
     noise = 1.4826 * float(np.median(np.abs(diffs - np.median(diffs)))) / math.sqrt(2.0)
-    ring = ndimage.binary_dilation(inside, iterations=OUTLINE) & ~inside
-    outline = abs(level - float(np.median(window[ring]))) if ring.any() else 0.0
+    # its outline: the OUTLINE px above it and those below it (with its corners); a bar in an outline stands out of
+    # both, a light line along a dark border (a data strip's table) out of one only
+    top, left = y0 - max(0, y0 - m), x0 - max(0, x0 - m)
+    columns = slice(max(0, left - OUTLINE), left + (x1 - x0) + OUTLINE)
+    sides = [window[max(0, top - OUTLINE):top, columns], window[top + y1 - y0:top + y1 - y0 + OUTLINE, columns]]
+    sides = [side for side in sides if side.size]
+    outline = min(abs(level - float(np.median(side))) for side in sides) if sides else 0.0
     # a bar drawn in an outline stands further out of it than out of the picture beside it
     return contrast, noise, outline if outline >= contrast + MIN_CONTRAST * noise else 0.0
 

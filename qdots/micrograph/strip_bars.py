@@ -37,6 +37,11 @@ END_MARK, END_REACH, MARK_SHARE, MARK_ROWS = 3, 3, 1.0 / 3.0, 7
 #: halves 0.00-0.04; the bottoms of two letters "0" on one row of a label, taken as such a pair on a test picture,
 #: 0.53-0.55).
 HALVES_EQUAL, LABEL_INK, HALF_OFF = 0.8, 0.3, 0.2
+#: A scale drawn as a double-headed arrow is measured between its tips (`arrow_tip`): its top-hat line stops where the
+#: arrowheads' arms meet it, and those arms, taken as end marks, lie inside the tips. An arm is sought within
+#: ARROW_ARM px of the line's rows, and the tip within twice that past the line's end (an EMPS development picture's
+#: arrow: arms 11 px long across, the tip 11 px past where its line stops).
+ARROW_ARM = 12
 #: A ruler of ticks (`band_ruler`) has at least MIN_TICKS ticks at most TICK_WIDTH px wide, its gaps within TICK_EVEN
 #: of a whole number of its first gap, and at most MAX_HIDDEN ticks hidden (by a particle where the ruler is drawn over
 #: the film). A Hitachi data strip's ruler has 11 ticks, 4-5 px wide at a quarter of the picture's range.
@@ -188,6 +193,12 @@ def band_bar(image: np.ndarray, span: float, shortest: float) -> ScaleBar | None
         measured = "between the middles of its end marks"
         for left, right, first, last in bars:
             how = measured
+            if left is not None and right is not None:
+                contrast = first[7] - float(np.median(signed[(first[0] + first[1]) // 2, first[2]:first[3]]))
+                tips = (arrow_tip(signed, first, -1, contrast), arrow_tip(signed, last, 1, contrast))
+                if tips[0] is not None and tips[1] is not None:
+                    (left, arms_left), (right, arms_right) = tips
+                    how = "between the tips of its arrowheads, at half contrast"
             if (left is None or right is None) and first is not last and label_between(signed, first, last):
                 left, right, how = line_end(signed, first, -1, first[7]), line_end(signed, last, 1, last[7]), \
                     "between the outer ends of its two halves, at half contrast"
@@ -195,10 +206,54 @@ def band_bar(image: np.ndarray, span: float, shortest: float) -> ScaleBar | None
                 continue
             if best is None or right - left > best.length_px:
                 top, bottom = min(first[0], last[0]), max(first[1], last[1])
-                best = ScaleBar(right - left, (first[2], top, last[3], bottom), dark, ruled=True,
+                box = (first[2], top, last[3], bottom)
+                if how.startswith("between the tips"):  # the arrowheads, tips and arms, are the bar's too
+                    box = (int(left), top - max(arms_left[0], arms_right[0]), int(math.ceil(right)),
+                           bottom + max(arms_left[1], arms_right[1]))
+                best = ScaleBar(right - left, box, dark, ruled=True,
                                 thickness=bottom - top, at_edge=first[2] == 0 or last[3] == image.shape[1],
                                 measured=how)
     return best
+
+
+def arrow_tip(signed: np.ndarray, line: tuple, side: int, contrast: float) -> tuple[float, tuple[int, int]] | None:
+    """Where a thin line of `band_bar` (``(top, bottom, start, stop, ..., ground)`` on ``signed``, standing
+    ``contrast`` out of its ground) ends on its ``side`` (-1 its left, 1 its right) in an arrowhead's tip: the column,
+    px (a pixel's edge), where its rows' depth below the ground falls to half of ``contrast``, interpolated, when that
+    is more than `END_REACH` px past the line's end and the ink beside its rows closes in on them towards the tip (the
+    two arms of an open or filled arrowhead pointing outward: on each side, the farthest pixel half as deep within
+    `ARROW_ARM` px of the rows comes no farther out, column by column towards the tip, and is at least `END_MARK` px
+    out at the line's end), with how far the arms reach above and below the line's rows there, px; None otherwise (a
+    cap's or a tick's edge, or a plain end).
+
+    The arrows of a double-headed arrow drawn as the scale, whose top-hat line stops where its arms meet it."""
+    top, bottom, start, stop, ground = line[0], line[1], line[2], line[3], line[7]
+    h, w = signed.shape
+    end = start if side < 0 else stop - 1
+    half = 0.5 * contrast
+    rows = slice(max(0, top - ARROW_ARM), min(h, bottom + ARROW_ARM))
+    ink = ground - signed[rows] >= half
+    spine = ink[top - rows.start:bottom - rows.start]
+    # the farthest ink above and below the line's rows, column by column (0: none)
+    above = np.where(ink[:top - rows.start].any(axis=0),
+                     top - rows.start - np.argmax(ink[:top - rows.start], axis=0), 0)
+    below = np.where(ink[bottom - rows.start:].any(axis=0),
+                     ink.shape[0] - (bottom - rows.start) - np.argmax(ink[::-1][:ink.shape[0] - (bottom - rows.start)],
+                                                                     axis=0), 0)
+    at = end
+    while 0 <= at + side < w and spine[:, at + side].any() and abs(at + side - end) <= ARROW_ARM * 2:
+        at += side
+    if abs(at - end) <= END_REACH or min(above[end], below[end]) < END_MARK:
+        return None
+    reach = range(end, at + side, side)
+    if any(above[c + side] > above[c] or below[c + side] > below[c] for c in reach[:-1]):
+        return None  # the ink beside the line does not close in on it towards the tip
+    depth = ground - signed[top:bottom].min(axis=0)
+    beyond = at + side
+    if not 0 <= beyond < w or depth[beyond] >= half:
+        return None
+    return float(at + 0.5 + side * (depth[at] - half) / (depth[at] - depth[beyond])), (int(above[end]),
+                                                                                         int(below[end]))
 
 
 def label_between(signed: np.ndarray, first: tuple, last: tuple) -> bool:

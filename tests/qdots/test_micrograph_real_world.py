@@ -410,6 +410,33 @@ def test_a_line_broken_by_its_label_without_end_marks_is_one_bar():
         assert found is None or "two halves" not in found.measured
 
 
+def test_a_double_headed_arrow_is_measured_between_its_tips():
+    """A scale drawn as a double-headed arrow (two EMPS pictures, one of the second development batch): the line's
+    top-hat stops where the arrowheads' arms meet it, and the arms were taken for end marks, 58.5 px for 82 tip to
+    tip. Now the bar runs between the tips, at half contrast (here 160 px, within 0.5 px: a shaft 4 px thick, arms 3
+    px thick at a slope of 0.6 reaching 11 px out, as on that picture, blurred as JPEG blurs them). A bar whose end
+    marks are upright caps is still measured between their middles."""
+    def arrow(heads=True):
+        image = strip_film(ground=1.2, ink=-0.2, line=1.2)
+        image[274:278, 60:220] = 0.2  # the shaft, tips at columns 60 and 220 (their outer edges)
+        rows = np.arange(250, 300)
+        for k in range(18):
+            for sign in (-1, 1):
+                arm = np.abs(rows - (275.5 + sign * 0.6 * k)) <= 1.5  # an arm, from the tip back and out
+                if heads:
+                    image[250:, 60 + k][arm] = image[250:, 219 - k][arm] = 0.2
+        if not heads:
+            image[266:286, 60:62] = image[266:286, 218:220] = 0.2  # caps, middles at 61 and 219
+        image[250:] = ndimage.gaussian_filter(image[250:], 0.7)
+        return image
+
+    bar = find_scale_bar(arrow())
+    assert bar is not None and "arrowheads" in bar.measured
+    assert bar.length_px == pytest.approx(160.0, abs=0.5) and bar.box[0] <= 60 and bar.box[2] >= 220
+    capped = find_scale_bar(arrow(heads=False))
+    assert capped is not None and "end marks" in capped.measured and capped.length_px == pytest.approx(158.0, abs=0.3)
+
+
 def ruler_strip(hidden=(), short=()) -> np.ndarray:
     """`strip_film` on a black strip with a Hitachi ruler: 11 light ticks 3 px wide and 7 tall, 21 px apart (middles
     at 61.5 ... 271.5), blurred as JPEG blurs them, its label below; ticks ``hidden`` are left out, ticks ``short``
