@@ -225,7 +225,7 @@ def label_strokes(image: np.ndarray, bar: ScaleBar) -> np.ndarray:
     `LABEL_SIZE` of the bar. Boolean image."""
     image = np.asarray(image, dtype=float)
     low, high = float(image.min()), float(image.max())
-    x0, y0, x1, y1 = bar.box
+    x0, y0, x1, y1 = bar.found_box
     length = int(math.ceil(bar.length_px))
     along, across = length // 2, length // 2
     horizontal = x1 - x0 >= y1 - y0
@@ -352,7 +352,7 @@ def find_annotations(image: np.ndarray) -> Annotations:
     ignore |= ndimage.binary_dilation(letters, iterations=2)
     if bar is not None:
         ignore |= bar.mask(image.shape)
-        bx0, by0, bx1, by1 = bar.box
+        bx0, by0, bx1, by1 = bar.found_box
         inside = window[0] <= bx0 and window[1] <= by0 and bx1 <= window[2] and by1 <= window[3]
         boxed = any(x0 <= bx0 and y0 <= by0 and bx1 <= x1 and by1 <= y1 for x0, y0, x1, y1 in boxes)
         if inside and not boxed:  # drawn over the film: its label too

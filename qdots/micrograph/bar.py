@@ -28,6 +28,9 @@ class ScaleBar:
         The thickness of its spine, px (ticks and end caps aside).
     at_edge : bool
         Whether it reaches the picture's edge (its length may then be cut, and is that of what is shown).
+    extent : (int, int, int, int) or None
+        ``(x0, y0, x1, y1)`` of all it was found with and is left out with (`mask`): a letter of its label that touches
+        it (the tail of a "µ") as well; None: ``box``.
     measured : str
         How its length was measured: between its ends' half-contrast points
         (`qdots.micrograph.scale.half_contrast_length`), between the middles of its end marks
@@ -42,10 +45,16 @@ class ScaleBar:
     thickness: int = 0
     at_edge: bool = False
     measured: str = "at half contrast"
+    extent: tuple[int, int, int, int] | None = None
+
+    @property
+    def found_box(self) -> tuple[int, int, int, int]:
+        """``extent``, or ``box`` where it is None: what is left out with the bar."""
+        return self.box if self.extent is None else self.extent
 
     def mask(self, shape: tuple[int, int], margin: int = 2) -> np.ndarray:
-        """The bar's pixels and ``margin`` px around it, as a boolean image of ``shape``."""
+        """The bar's pixels (its `found_box`) and ``margin`` px around them, as a boolean image of ``shape``."""
         out = np.zeros(shape, dtype=bool)
-        x0, y0, x1, y1 = self.box
+        x0, y0, x1, y1 = self.found_box
         out[max(0, y0 - margin):y1 + margin, max(0, x0 - margin):x1 + margin] = True
         return out

@@ -50,6 +50,11 @@ OUTLINE = 2
 #: And it stands out of the rows on each side of it by at least SIDE_SHARE of that (`stands_out_both_sides`): on the
 #: EMPS development half, a dark particle's edge fringe taken for a bar, 0.29 on the particle's side.
 SIDE_SHARE = 0.5
+#: A piece of a bar's component off its spine at least GLYPH_SIDE px wide and tall, its middle more than GLYPH_AWAY of
+#: the spine's length from either end, is a letter of its label that touches it, not the bar's (`bar_rows`): on the
+#: bars found on 614 EMPS and real pictures, the tails of "µ"s touching a bar were 4-35 px wide and 6-51 tall, 0.5-0.57
+#: of the way along; end caps lie within 0.05 of an end and ruler ticks are 1-2 px wide.
+GLYPH_SIDE, GLYPH_AWAY = 4, 0.1
 #: Lengths a scale bar can state, nm: 0.01 nm to 1 cm.
 MIN_BAR_NM, MAX_BAR_NM = 1e-2, 1e7
 
@@ -81,13 +86,7 @@ def spine(component: np.ndarray) -> tuple[int, int, int, int, int] | None:
     caps), and ``length`` the longest run of columns set on at least half of those rows, from column ``start``: one
     row's run reaching further (a bright edge of the picture touching the bar) does not lengthen it; None when the
     spine does not span the component (text, a chain of dots)."""
-    padded = np.pad(component, ((0, 0), (1, 1)))
-    edges = np.diff(padded.astype(np.int8), axis=1)
-    runs = np.zeros(component.shape[0], dtype=int)
-    for row in range(component.shape[0]):
-        starts, stops = np.flatnonzero(edges[row] == 1), np.flatnonzero(edges[row] == -1)
-        if starts.size:
-            runs[row] = int((stops - starts).max())
+    runs = np.array([longest_run(row) for row in component], dtype=int)
     longest = int(runs.max())
     if longest < 0.9 * component.shape[1]:
         return None
@@ -123,6 +122,39 @@ def bar_candidate(component: np.ndarray, holes: np.ndarray) -> tuple[int, int, i
             if size >= MIN_HOLE and rows.stop - rows.start < 0.5 * thickness:
                 return None  # a hole of its own, low: text or a smaller bar in a box (specks of noise aside)
     return found
+
+
+def bar_rows(component: np.ndarray, found: tuple[int, int, int, int, int]) -> tuple[int, int]:
+    """The rows of a bar's ``component`` (a boolean crop, holes filled; ``found`` its `spine`) that are the bar's own,
+    ``(top, bottom)``, bottom exclusive: its spine's and its blurred edges' (rows at least `TAPER` of its longest run),
+    and those of what stands off them (end caps, ticks), less a letter of its label that touches it: a piece off the spine at least `GLYPH_SIDE` px
+    wide and tall, away from its ends (its middle more than `GLYPH_AWAY` of the spine's length from either). On the
+    second EMPS development batch a "µ"'s tail touching its bar made the bar's box hold its label (rows 456-483 for a
+    bar on rows 480-484)."""
+    length, _thickness, _off, middle, start = found
+    runs = np.array([longest_run(row) for row in component], dtype=int)
+    on = runs >= TAPER * runs.max()  # its spine and the rows of its blurred edges
+    rows = np.flatnonzero(on)
+    top, bottom = int(rows[0]), int(rows[-1]) + 1
+    off = component & ~on[:, None]
+    labels, _n = ndimage.label(off)
+    for piece in ndimage.find_objects(labels):
+        if piece is None:
+            continue
+        rs, cs = piece
+        centre = 0.5 * (cs.start + cs.stop) - start
+        glyph = (rs.stop - rs.start >= GLYPH_SIDE and cs.stop - cs.start >= GLYPH_SIDE
+                 and GLYPH_AWAY * length < centre < (1.0 - GLYPH_AWAY) * length)
+        if not glyph:
+            top, bottom = min(top, rs.start), max(bottom, rs.stop)
+    return top, bottom
+
+
+def longest_run(row: np.ndarray) -> int:
+    """The longest run of set pixels in ``row`` (boolean)."""
+    edges = np.diff(np.pad(row, 1).astype(np.int8))
+    starts, stops = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    return int((stops - starts).max()) if starts.size else 0
 
 
 def shortest_bar(shape: tuple[int, int]) -> float:
@@ -191,9 +223,12 @@ def find_scale_bar(image: np.ndarray) -> ScaleBar | None:
             if length < shortest:
                 continue
             if best is None or length > best.length_px:
-                best = ScaleBar(length, (cols.start, rows.start, cols.stop, rows.stop), dark,
+                top, bottom = bar_rows(filled, found)
+                extent = (cols.start, rows.start, cols.stop, rows.stop)
+                best = ScaleBar(length, (cols.start, rows.start + top, cols.stop, rows.start + bottom), dark,
                                 ruled=bool(holes.any() or found[2] > 0 or (own & ~colour[box]).any()),
-                                thickness=found[1], at_edge=bool(edge))
+                                thickness=found[1], at_edge=bool(edge),
+                                extent=None if (top, bottom) == (0, rows.stop - rows.start) else extent)
     thin = thin_bar(image, shortest)
     return thin if thin is not None and (best is None or thin.length_px > best.length_px) else best
 

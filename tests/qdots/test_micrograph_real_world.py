@@ -492,6 +492,22 @@ def test_a_white_bar_in_a_dark_outline_on_a_light_picture_is_a_bar():
     assert bar is not None and not bar.dark and bar.length_px == pytest.approx(120, abs=0.6)
 
 
+def test_a_letter_touching_its_bar_is_left_out_with_it_but_is_not_the_bar():
+    """A label's "µ" whose tail touches its bar (6 pictures of EMPS): the bar's box held the label (rows 456-483 for a
+    bar on rows 480-484), and the benchmark took it for a bar found elsewhere. The box is now the bar's own rows (its
+    end caps' too); the letter, found with it, is still left out with it (`ScaleBar.extent`, the mask)."""
+    image = bar_film()
+    white = image.max() + 0.2
+    image[262:268, 150:270] = white  # the bar, 120 px
+    image[256:262, 150:152] = image[256:262, 268:270] = white  # its end caps, 6 px up
+    image[236:256, 205:211] = white  # a letter's stroke above the middle, 6 px wide
+    image[256:262, 208:209] = white  # its tail, down to the bar
+    bar = find_scale_bar(image)
+    assert bar is not None and bar.length_px == pytest.approx(120, abs=0.6)
+    assert bar.box[1] == 256 and bar.box[3] == 268  # the caps' rows and the bar's, not the letter's
+    assert bar.found_box[1] == 236 and bar.mask(image.shape)[240, 207]
+
+
 def test_a_logos_swoosh_that_tapers_to_its_long_side_is_no_bar():
     """A ZEISS logo's swoosh, a white arc whose rows widen to its bottom one (12, 22, 29, 34 px), was taken for a bar
     in the lightest colour: a bar's rows are all as long as its spine, but for one blurred row on each side."""
