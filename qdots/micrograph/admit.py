@@ -3,7 +3,9 @@ in one line: a plot, text, a drawing, a rendered board, rods, cubes, plates, cel
 
 Two looks. Before the dots are sought (`check_picture`): a micrograph has noise in every pixel, while
 drawn pictures are mostly flat colour (`FLAT_SHARE` of the picture with 3 x 3 neighbourhoods of one value;
-micrographs: under 2 %; plots, text, drawings and qdots' own board pictures: 65-95 %). After (`film_verdict`), what
+micrographs: mostly under 30 %; plots, text, drawings and qdots' own board pictures: 65-95 %), and what is not flat
+in them is strokes and edges (`MIN_TEXTURED`): a micrograph whose background is clipped to one value, flat, still has
+particles with noise or texture inside them. After (`film_verdict`), what
 was found: a film has many dots the picture's edge does not cut (`MIN_FILM_DOTS`), big enough to be particles rather
 than strokes of text or lines (`MIN_FILM_DIAMETER`), not set in lines of text (`text_lines`), round (the outlines they
 show the background do not wander far from one radius, `MAX_OUTLINE`; they are not elongated, `MAX_ELONGATION`) and
@@ -25,6 +27,7 @@ import math
 from dataclasses import replace
 
 import numpy as np
+from scipy import ndimage
 
 from labrig.validate import InputError
 
@@ -34,8 +37,13 @@ from .cells import flattened
 from .film import size_spread
 from .shapes import OVERLAP, OVERLAP_SHARE, STACKED, elongation_within, necks_within, overlap_share
 
-#: Share of the picture (within 0.2 % of its range) in flat 3 x 3 neighbourhoods above which it is drawn.
+#: Share of the picture (within 0.2 % of its range) in flat 3 x 3 neighbourhoods above which it may be drawn.
 FLAT_SHARE, FLAT_TOLERANCE = 0.3, 0.002
+#: It is drawn unless at least MIN_TEXTURED of it lies TEXTURED_REACH px or more from any flat pixel (inside
+#: something with noise or texture, not a stroke or an edge). Drawn pictures (`qdots.micrograph.labelled.not_a_film`:
+#: plots, pages of text, drawings) 0.000-0.011; real micrographs with a clipped, flat background (of 254 EMPS and real
+#: pictures, the five with over 30 % flat, among them two films refused as drawings before) 0.11-0.43.
+MIN_TEXTURED, TEXTURED_REACH = 0.05, 4
 #: A film: at least MIN_FILM_DOTS dots the edge does not cut (with fewer, the spread is uncertain by over a fifth of
 #: itself) and a median diameter of MIN_FILM_DIAMETER px. Doubtful: a spread (interquartile range over 1.349, over the
 #: median) over MAX_FILM_SPREAD, or a median repeat error over MAX_REPEAT_ERROR of the diameter (synthetic films and
@@ -112,10 +120,17 @@ def check_picture(image: np.ndarray, found: Annotations, source: str) -> None:
     picture = np.asarray(image, dtype=float)[y0:y1, x0:x1]
     keep = ~found.ignore[y0:y1, x0:x1] if found.ignore is not None else np.ones(picture.shape, dtype=bool)
     span = float(picture.max() - picture.min())
-    share = float(flatness(picture, FLAT_TOLERANCE * span)[keep].mean()) if keep.any() else 1.0
-    if share > FLAT_SHARE:
-        reason = (f"{100 * share:.0f} % of the picture is flat colour, as in a plot, text, a drawing or a rendered "
-                  f"board (a micrograph has noise everywhere, under {100 * FLAT_SHARE:.0f} %)")
+    flat = flatness(picture, FLAT_TOLERANCE * span)
+    share = float(flat[keep].mean()) if keep.any() else 1.0
+    if share <= FLAT_SHARE:
+        return
+    # the pixels whose (2 TEXTURED_REACH + 1)-wide square holds no flat pixel: inside a textured object
+    textured = ndimage.minimum_filter(~flat, size=2 * TEXTURED_REACH + 1, mode="constant", cval=True)
+    inside = float(textured[keep].mean()) if keep.any() else 0.0
+    if inside < MIN_TEXTURED:
+        reason = (f"{100 * share:.0f} % of the picture is flat colour and {100 * inside:.1f} % lies inside anything "
+                  "with noise or texture, as in a plot, text, a drawing or a rendered board (a micrograph has noise "
+                  f"in its objects: over {100 * MIN_TEXTURED:.0f} % lies {TEXTURED_REACH} px or more inside them)")
         raise NotAFilm(f"{source}: not a micrograph: {reason}", [reason])
 
 

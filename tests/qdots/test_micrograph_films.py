@@ -238,6 +238,24 @@ def test_the_refusal_names_its_reason():
     refused(lambda: check_picture(flat, find_annotations(flat), "square.png"), "square.png", "flat colour")
 
 
+def test_a_micrograph_whose_background_is_clipped_flat_is_not_a_drawing():
+    """Particles on a background clipped to one value (an EMPS development film of raspberry-like particles on black,
+    33 % of it flat) were refused as "flat colour, as in a drawing". What is not flat in a micrograph is its particles,
+    with noise inside them; in a drawing, strokes and edges. Here a sparse film's light background is clipped flat
+    (over 30 % of the picture) and the picture is taken; the drawings, plots and text of `not_a_film` still are not."""
+    from qdots.micrograph.admit import FLAT_SHARE, check_picture
+    from qdots.micrograph.synthetic import sparse_board
+
+    centres, diameters = sparse_board(400, 300, 24.0, 0.1, seed=3)
+    image = render_micrograph(centres, diameters, (300, 400), noise=0.03, seed=3)
+    clipped = np.minimum(image, np.percentile(image, 40))  # the light background, clipped to one value
+    assert (clipped == clipped.max()).mean() > FLAT_SHARE
+    check_picture(clipped, find_annotations(clipped), "clipped.png")  # taken: no error
+    for kind in ("plot", "text", "drawing"):
+        picture = not_a_film(kind)
+        refused(lambda p=picture: check_picture(p, find_annotations(p), f"{kind}.png"), f"{kind}.png", "flat colour")
+
+
 @pytest.mark.slow
 def test_a_touching_superlattice_without_vacancies_is_measured_to_two_percent():
     """No background shows anywhere but between three touching dots: the faint dots the threshold misses
