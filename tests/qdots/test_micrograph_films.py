@@ -253,7 +253,7 @@ def test_a_micrograph_whose_background_is_clipped_flat_is_not_a_drawing():
     check_picture(clipped, find_annotations(clipped), "clipped.png")  # taken: no error
     for kind in ("plot", "text", "drawing"):
         picture = not_a_film(kind)
-        refused(lambda p=picture: check_picture(p, find_annotations(p), f"{kind}.png"), f"{kind}.png", "flat colour")
+        refused(lambda p=picture, k=kind: check_picture(p, find_annotations(p), f"{k}.png"), f"{kind}.png", "flat colour")
 
 
 @pytest.mark.slow
