@@ -195,9 +195,9 @@ def band_bar(image: np.ndarray, span: float, shortest: float) -> ScaleBar | None
             how = measured
             if left is not None and right is not None:
                 contrast = first[7] - float(np.median(signed[(first[0] + first[1]) // 2, first[2]:first[3]]))
-                tips = (arrow_tip(signed, first, -1, contrast), arrow_tip(signed, last, 1, contrast))
-                if tips[0] is not None and tips[1] is not None:
-                    (left, arms_left), (right, arms_right) = tips
+                tip_left, tip_right = arrow_tip(signed, first, -1, contrast), arrow_tip(signed, last, 1, contrast)
+                if tip_left is not None and tip_right is not None:
+                    (left, arms_left), (right, arms_right) = tip_left, tip_right
                     how = "between the tips of its arrowheads, at half contrast"
             if (left is None or right is None) and first is not last and label_between(signed, first, last):
                 left, right, how = line_end(signed, first, -1, first[7]), line_end(signed, last, 1, last[7]), \
