@@ -20,6 +20,15 @@ from .strip_bars import thin_bar
 #: 4.5 times, was missed at 5; no other object on the 88 pictures of the development halves, the real micrographs'
 #: and EMPS's, is taken at 4 that was not at 5).
 BAR_ASPECT = 4.0
+#: A stubbier bar, down to STUBBY_ASPECT times longer than thick, is taken where it is drawn as a solid rectangle: at
+#: least SOLID of its spine's rows and columns in the bar colour (`solid_rectangle`). On the second EMPS development
+#: batch, a solid black bar of 59 x 20 px (2.95 times) under its label; the same search at 2.5 without that test took
+#: the black gap between four touching discs of a segmentation (43 x 15 px) for a bar, 0.86 of it in the colour; drawn
+#: stubby bars on the EMPS pictures in no batch, 0.987-1.0.
+STUBBY_ASPECT, SOLID = 2.5, 0.95
+#: ... and stands free: under EDGE_ROW of the row just above its spine, and of the row just below, in the bar colour
+#: (that bar: 0.05, a "µ"'s tail touching it; the gap between discs: 0.42 and 0.47).
+EDGE_ROW = 0.25
 #: Cuts in a ruled bar up to this many px wide are closed; holes in a bar of fewer px are specks of noise.
 BAR_GAP, MIN_HOLE = 3, 4
 #: A bar's surroundings are read within BAR_SURROUNDINGS px of its ends.
@@ -106,14 +115,14 @@ def spine(component: np.ndarray) -> tuple[int, int, int, int, int] | None:
 def bar_candidate(component: np.ndarray, holes: np.ndarray) -> tuple[int, int, int, int, int] | None:
     """(length, thickness, pixels off the spine, the spine's middle row, its first column; `spine`) when
     ``component`` (a boolean crop, holes filled) is a scale bar, solid, ruled or in an outline: a spine at least
-    `qdots.micrograph.bar.MIN_BAR` px long and `BAR_ASPECT` times its thickness, at most `OFF_SPINE` times as much of it off the spine as on
+    `qdots.micrograph.bar.MIN_BAR` px long and `STUBBY_ASPECT` times its thickness, at most `OFF_SPINE` times as much of it off the spine as on
     it (ticks, end caps, a label whose letters touch the bar), and its holes (the empty blocks of a checkered bar;
     ``holes`` the filled-in pixels) as tall as half the spine (a box holding text and a smaller bar has low holes)."""
     found = spine(component)
     if found is None:
         return None
     length, thickness, off, _middle, _start = found
-    if length < MIN_BAR or length < BAR_ASPECT * thickness or off > OFF_SPINE * length * thickness:
+    if length < MIN_BAR or length < STUBBY_ASPECT * thickness or off > OFF_SPINE * length * thickness:
         return None
     if holes.any():
         hole_labels, _ = ndimage.label(holes)
@@ -122,6 +131,20 @@ def bar_candidate(component: np.ndarray, holes: np.ndarray) -> tuple[int, int, i
             if size >= MIN_HOLE and rows.stop - rows.start < 0.5 * thickness:
                 return None  # a hole of its own, low: text or a smaller bar in a box (specks of noise aside)
     return found
+
+
+def solid_rectangle(colour: np.ndarray, found: tuple[int, int, int, int, int]) -> bool:
+    """Whether a bar's spine (``found``, `spine`) is drawn as a solid rectangle standing free: at least `SOLID` of the
+    rectangle of its rows and columns in the bar colour (``colour``, a boolean crop of the component's box, before any
+    closing), and under `EDGE_ROW` of the row just above it and of the row just below it (where the crop has them):
+    a letter's tail may touch a drawn bar, where the gap between touching discs narrows row by row."""
+    length, thickness, _off, middle, start = found
+    top = max(0, middle - thickness // 2)
+    block = colour[top:top + thickness, start:start + length]
+    if block.size == 0 or float(block.mean()) < SOLID:
+        return False
+    beside = [colour[row, start:start + length] for row in (top - 1, top + thickness) if 0 <= row < colour.shape[0]]
+    return all(float(row.mean()) < EDGE_ROW for row in beside)
 
 
 def bar_rows(component: np.ndarray, found: tuple[int, int, int, int, int]) -> tuple[int, int]:
@@ -169,7 +192,8 @@ def find_scale_bar(image: np.ndarray) -> ScaleBar | None:
     The pixels within `BAR_TOLERANCE` of the image's darkest (or lightest) value are closed along rows and
     columns by `BAR_GAP` px (the thin cuts of a ruled bar) and their holes filled (the blocks of a checkered
     bar in its outline); a component is a bar when it is one horizontally or vertically (`bar_candidate`), and not a
-    box: its holes hold nothing of its colour (a label box drawn as an outline holds its bar and its text). A
+    box: its holes hold nothing of its colour (a label box drawn as an outline holds its bar and its text); one under
+    `BAR_ASPECT` times longer than thick is a bar only where drawn as a solid rectangle (`solid_rectangle`). A
     component that spans the image from side to side is a frame, not a bar; one that reaches a side with one end
     only is a bar cut by the picture's edge, which cropped figures often show (`qdots.micrograph.bar.ScaleBar.at_edge`). A bar is drawn
     along the picture's rows: a component longer down than across is not one (on the development halves of the real
@@ -179,7 +203,9 @@ def find_scale_bar(image: np.ndarray) -> ScaleBar | None:
     colour, nor that long; a bar stands out of what surrounds it (`bar_contrast`; or of its outline, where it is drawn
     in one), where noise pixels joined into a bar do not, and out of the rows on both of its sides
     (`stands_out_both_sides`), where the darkest fringe along a dark particle's edge does not. The thin bars and the
-    rulers of ticks of instruments' data strips are found by `qdots.micrograph.strip_bars.thin_bar`.
+    rulers of ticks of instruments' data strips, and grey lines under their labels, are found by
+    `qdots.micrograph.strip_bars.thin_bar`; the longer of the two searches' bars is taken, but a bar both find
+    (`same_bar`) is measured as its colour shows it.
     """
     image = np.asarray(image, dtype=float)
     low, high = float(image.min()), float(image.max())
@@ -199,7 +225,7 @@ def find_scale_bar(image: np.ndarray) -> ScaleBar | None:
             h, w = rows.stop - rows.start, cols.stop - cols.start
             across = (rows.start == 0 and rows.stop == h_img) or (cols.start == 0 and cols.stop == w_img)
             corner = (rows.start == 0 or rows.stop == h_img) and (cols.start == 0 or cols.stop == w_img)
-            if across or corner or h > w or w < shortest or w < BAR_ASPECT * h / 4:
+            if across or corner or h > w or 1.5 * w < shortest or w < STUBBY_ASPECT * h / 4:
                 continue
             own = labels[box] == k
             filled = ndimage.binary_fill_holes(own)
@@ -207,7 +233,7 @@ def find_scale_bar(image: np.ndarray) -> ScaleBar | None:
             if (holes & (labels[box] != k) & (labels[box] > 0)).any():
                 continue  # a box around a bar or text, not a bar
             found = bar_candidate(filled, holes)
-            if found is None:
+            if found is None or (found[0] < BAR_ASPECT * found[1] and not solid_rectangle(colour[box], found)):
                 continue
             plain, noise, outline = bar_contrast(image, (cols.start, rows.start, cols.stop, rows.stop),
                                                  colour[box] & own)
@@ -230,7 +256,18 @@ def find_scale_bar(image: np.ndarray) -> ScaleBar | None:
                                 thickness=found[1], at_edge=bool(edge),
                                 extent=None if (top, bottom) == (0, rows.stop - rows.start) else extent)
     thin = thin_bar(image, shortest)
-    return thin if thin is not None and (best is None or thin.length_px > best.length_px) else best
+    if thin is None or (best is not None and (thin.length_px <= best.length_px or same_bar(thin, best))):
+        return best
+    return thin
+
+
+def same_bar(bar: ScaleBar, other: ScaleBar) -> bool:
+    """Whether two bars found by `find_scale_bar`'s two searches are one (their boxes share a pixel, their lengths
+    within `BAR_TOLERANCE` of each other): it is measured as its colour shows it, the thin bars' search reading its
+    ends off its darkest pixels (up to 0.8 % longer on the EMPS pictures), not the whole bar's profile."""
+    box, near = bar.box, other.box
+    return (box[0] < near[2] and near[0] < box[2] and box[1] < near[3] and near[1] < box[3]
+            and abs(bar.length_px - other.length_px) <= BAR_TOLERANCE * other.length_px)
 
 
 def closed_lines(mask: np.ndarray, length: int) -> np.ndarray:
@@ -394,6 +431,6 @@ def scale_from_bar(bar: ScaleBar | None, length: str) -> float:
     if bar is None:
         raise InputError(f"scale_bar: no scale bar found on the image (a horizontal bar, solid or ruled, in its darkest or "
                          f"lightest colour, at least {MIN_BAR} px long and {MIN_BAR_SHARE:g} of the picture's longer side, "
-                         f"and {BAR_ASPECT:g} times longer than thick); "
+                         f"and {BAR_ASPECT:g} times longer than thick, or {STUBBY_ASPECT:g} times if drawn solid); "
                          "give the scale with --nm-per-px instead")
     return check_nm_per_px(nm / bar.length_px, "scale from the scale bar")

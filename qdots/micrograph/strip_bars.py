@@ -37,6 +37,9 @@ END_MARK, END_REACH, MARK_SHARE, MARK_ROWS = 3, 3, 1.0 / 3.0, 7
 #: halves 0.00-0.04; the bottoms of two letters "0" on one row of a label, taken as such a pair on a test picture,
 #: 0.53-0.55).
 HALVES_EQUAL, LABEL_INK, HALF_OFF = 0.8, 0.3, 0.2
+#: A plain line without end marks is a bar (`plain_bar`) where its ends are free, FREE_ROWS px above and below it,
+#: and its label lies within LABEL_ROWS px above or below it.
+FREE_ROWS, LABEL_ROWS = 3, 15
 #: A scale drawn as a double-headed arrow is measured between its tips (`arrow_tip`): its top-hat line stops where the
 #: arrowheads' arms meet it, and those arms, taken as end marks, lie inside the tips. An arm is sought within
 #: ARROW_ARM px of the line's rows, and the tip within twice that past the line's end (an EMPS development picture's
@@ -202,6 +205,9 @@ def band_bar(image: np.ndarray, span: float, shortest: float) -> ScaleBar | None
             if (left is None or right is None) and first is not last and label_between(signed, first, last):
                 left, right, how = line_end(signed, first, -1, first[7]), line_end(signed, last, 1, last[7]), \
                     "between the outer ends of its two halves, at half contrast"
+            elif left is None and right is None and first is last and plain_bar(signed, first):
+                left, right, how = line_end(signed, first, -1, first[7]), line_end(signed, first, 1, first[7]), \
+                    "between its plain ends, at half contrast"
             if left is None or right is None or right - left < shortest:
                 continue
             if best is None or right - left > best.length_px:
@@ -254,6 +260,30 @@ def arrow_tip(signed: np.ndarray, line: tuple, side: int, contrast: float) -> tu
         return None
     return float(at + 0.5 + side * (depth[at] - half) / (depth[at] - depth[beyond])), (int(above[end]),
                                                                                          int(below[end]))
+
+
+def plain_bar(signed: np.ndarray, line: tuple) -> bool:
+    """Whether a thin line of `band_bar` (``(top, bottom, start, stop, ..., off, ground)`` on ``signed``) without end
+    marks is a plain bar under or over its label: straight (`HALF_OFF`), its ends free (no ink, half its contrast out
+    of its ground, `FREE_ROWS` px above or below its rows 1 px off them, within `END_REACH` px of either end: a box's
+    frame turns there), and its label's ink on `LABEL_INK` of its middle half's columns within `LABEL_ROWS` px above
+    it or below it."""
+    top, bottom, start, stop, off, ground = line[0], line[1], line[2], line[3], line[6], line[7]
+    if off > HALF_OFF:
+        return False
+    h, w = signed.shape
+    half = 0.5 * (ground - float(np.median(signed[(top + bottom) // 2, start:stop])))
+    for end in (start, stop - 1):
+        columns = slice(max(0, end - END_REACH), min(w, end + END_REACH + 1))
+        near = np.concatenate([signed[max(0, top - 1 - FREE_ROWS):max(0, top - 1), columns].ravel(),
+                               signed[min(h, bottom + 1):min(h, bottom + 1 + FREE_ROWS), columns].ravel()])
+        if (ground - near >= half).any():
+            return False
+    middle = slice(start + (stop - start) // 4, stop - (stop - start) // 4)
+    for rows in (slice(max(0, top - LABEL_ROWS), max(0, top - 1)), slice(min(h, bottom + 1), bottom + LABEL_ROWS)):
+        if signed[rows, middle].size and float(np.mean((ground - signed[rows, middle] >= half).any(axis=0))) >= LABEL_INK:
+            return True
+    return False
 
 
 def label_between(signed: np.ndarray, first: tuple, last: tuple) -> bool:

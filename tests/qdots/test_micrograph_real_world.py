@@ -508,6 +508,64 @@ def test_a_letter_touching_its_bar_is_left_out_with_it_but_is_not_the_bar():
     assert bar.found_box[1] == 236 and bar.mask(image.shape)[240, 207]
 
 
+def test_a_stubby_bar_drawn_solid_is_a_bar_where_a_gap_between_discs_is_not():
+    """A solid black bar of 59 x 20 px under its label (2.95 times longer than thick; an EMPS development picture) was
+    not sought below 4 times. A bar down to 2.5 times is now taken where it is a solid rectangle standing free; the
+    black gap between touching discs of a segmentation, as solid but narrowing row by row above and below it, is not,
+    nor is a speckled block, nor anything stubbier."""
+    def stubby(length=60, thick=22, wedge=False, speckled=False):
+        image = bar_film()
+        low = image.min() - 0.2
+        image[255:255 + thick, 150:150 + length] = low
+        if wedge:  # the gap's cusps: rows above and below in its colour, from 0.45 of its length, narrowing
+            for k in range(1, 8):
+                half = int(0.225 * length * (8 - k) / 7)
+                cols = slice(150 + length // 2 - half, 150 + length // 2 + half)
+                image[255 - k, cols] = image[254 + thick + k, cols] = low
+        if speckled:
+            rows, cols = np.nonzero(np.random.default_rng(3).random((thick, length)) < 0.1)
+            image[255 + rows, 150 + cols] = image.max()
+        return find_scale_bar(image)
+
+    bar = stubby()
+    assert bar is not None and bar.length_px == pytest.approx(60, abs=0.6)
+    assert stubby(wedge=True) is None and stubby(speckled=True) is None and stubby(length=50) is None
+    assert stubby(length=100) is not None  # a long bar need not be solid
+
+
+def test_a_plain_grey_line_under_its_label_is_a_bar_but_not_a_frames_edge():
+    """A dark grey bar without end marks under its label in a light box (an EMPS development picture: 0.05-0.09 of the
+    range above the picture's darkest, so not in its colour; a line without end marks was no bar). A thin line with
+    free ends and its label within `LABEL_ROWS` px is one now, measured at half contrast (95 px here, within 0.5 px);
+    without a label it is still no bar (a logo's swoosh), and neither is a line whose ends turn up (a box's frame)."""
+    def line(label=True, frame=False):
+        image = strip_film(ground=1.0, ink=-0.3, line=1.0)
+        image[280:284, 40:135] = 0.25  # the line, 4 px thick, in dark grey (the strip's letters are darker)
+        if label:
+            for x in range(45, 100, 9):  # its label, 6 px above it
+                image[264:274, x:x + 6] = 0.25
+        if frame:
+            image[262:284, 40:42] = image[262:284, 133:135] = 0.25
+        image[250:] = ndimage.gaussian_filter(image[250:], 0.7)
+        return find_scale_bar(image)
+
+    bar = line()
+    assert bar is not None and "plain ends" in bar.measured and bar.length_px == pytest.approx(95, abs=0.5)
+    assert line(label=False) is None and line(frame=True) is None
+
+
+def test_the_shortest_bar_is_judged_on_its_length_at_half_contrast():
+    """A blurred bar whose solid core is shorter than the shortest bar sought, but whose length at half contrast is
+    not, is a bar: the core was judged before its ends were read (a bar of 33 px on an EMPS picture of 642 px, its
+    core 30 px, under the 32.1 px sought)."""
+    image = bar_film()
+    sharp = image.copy()
+    sharp[262:268, 150:171] = image.min() - 0.3  # 21 px, the shortest sought 20
+    image[255:275, 140:180] = ndimage.gaussian_filter(sharp, 1.5)[255:275, 140:180]
+    bar = find_scale_bar(image)
+    assert bar is not None and bar.length_px == pytest.approx(21, abs=0.6)
+
+
 def test_a_logos_swoosh_that_tapers_to_its_long_side_is_no_bar():
     """A ZEISS logo's swoosh, a white arc whose rows widen to its bottom one (12, 22, 29, 34 px), was taken for a bar
     in the lightest colour: a bar's rows are all as long as its spine, but for one blurred row on each side."""
