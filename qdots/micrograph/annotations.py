@@ -276,8 +276,8 @@ def panel_letters(image: np.ndarray, window: tuple[int, int, int, int]) -> np.nd
     """A journal figure's panel letter ("a", "(b)", "C") in a corner of the picture: letters (`glyphs`) drawn flat
     (`PANEL_FLAT` of their pixels within 1 % of the image's range of its darkest or lightest value) in either extreme
     colour (within `LABEL_INK` of the range), within `PANEL_CORNER` of the picture's width and height from a corner,
-    at most `PANEL_SIZE` of its shorter side across, and what is set in a line with them (`same_line`); each then read
-    whole, with what is set in a line with it, where it reaches out of the corner. Boolean image."""
+    at most `PANEL_SIZE` of its shorter side across, and what is set in a line with them (`same_line`). Boolean
+    image."""
     image = np.asarray(image, dtype=float)
     x0, y0, x1, y1 = window
     low, high = float(image.min()), float(image.max())
@@ -285,43 +285,21 @@ def panel_letters(image: np.ndarray, window: tuple[int, int, int, int]) -> np.nd
     out = np.zeros(image.shape, dtype=bool)
     cw, ch = int(PANEL_CORNER * (x1 - x0)), int(PANEL_CORNER * (y1 - y0))
     largest = PANEL_SIZE * min(x1 - x0, y1 - y0)
-    # the letters found in a corner are then read whole, in the corner and PANEL_SIZE more around it
-    reach_x, reach_y = min(x1 - x0, cw + int(largest) + 1), min(y1 - y0, ch + int(largest) + 1)
-    for left, top in ((True, True), (False, True), (True, False), (False, False)):
-        corner = (slice(y0, y0 + ch) if top else slice(y1 - ch, y1), slice(x0, x0 + cw) if left else slice(x1 - cw, x1))
-        around = (slice(y0, y0 + reach_y) if top else slice(y1 - reach_y, y1),
-                  slice(x0, x0 + reach_x) if left else slice(x1 - reach_x, x1))
+    for xa, ya in ((x0, y0), (x1 - cw, y0), (x0, y1 - ch), (x1 - cw, y1 - ch)):
+        corner = (slice(ya, ya + ch), slice(xa, xa + cw))
+        part = image[corner]
         for value, sign in ((low, 1.0), (high, -1.0)):
-            found = letters_in(image[corner], value, sign, span, largest)
-            if not found.any():
-                continue
-            # each letter whole (cut by the corner's edge, a "(g)" reaching out of it), and what is set in a line with it
-            seeds = np.zeros(image.shape, dtype=bool)
-            seeds[corner] = found
-            ink = sign * (image[around] - value) <= LABEL_INK * span
+            ink = sign * (part - value) <= LABEL_INK * span
             labels, n = ndimage.label(ink)
+            if n == 0:
+                continue
+            flat = np.bincount(labels.ravel(), (sign * (part - value) <= 0.01 * span).ravel(), n + 1)[1:]
+            area = np.bincount(labels.ravel(), minlength=n + 1)[1:]
             small = np.array([max(b[0].stop - b[0].start, b[1].stop - b[1].start) <= largest
                               for b in ndimage.find_objects(labels)])
-            seeded = (np.bincount(labels[seeds[around]], minlength=n + 1)[1:] > 0) & small
-            out[corner] |= found
-            out[around] |= np.concatenate([[False], same_line(labels, seeded) & small])[labels]
+            letter = glyphs(np.pad(labels, 1), n, 2.0)[1:] & (flat >= PANEL_FLAT * area) & small
+            out[corner] |= np.concatenate([[False], same_line(labels, letter & (area >= MIN_STROKE)) & small])[labels]
     return out
-
-
-def letters_in(part: np.ndarray, value: float, sign: float, span: float, largest: float) -> np.ndarray:
-    """The panel letters of `panel_letters` in one corner ``part`` of a picture whose range is ``span``, in the
-    extreme colour ``value`` (``sign`` 1 for the darkest, -1 for the lightest), none longer than ``largest`` px: letters
-    (`glyphs`) drawn flat, and what is set in a line with them (`same_line`). Boolean array of ``part``'s shape."""
-    ink = sign * (part - value) <= LABEL_INK * span
-    labels, n = ndimage.label(ink)
-    if n == 0:
-        return np.zeros(part.shape, dtype=bool)
-    flat = np.bincount(labels.ravel(), (sign * (part - value) <= 0.01 * span).ravel(), n + 1)[1:]
-    area = np.bincount(labels.ravel(), minlength=n + 1)[1:]
-    small = np.array([max(b[0].stop - b[0].start, b[1].stop - b[1].start) <= largest
-                      for b in ndimage.find_objects(labels)])
-    letter = glyphs(np.pad(labels, 1), n, 2.0)[1:] & (flat >= PANEL_FLAT * area) & small
-    return np.concatenate([[False], same_line(labels, letter & (area >= MIN_STROKE)) & small])[labels]
 
 
 def corner_boxes(image: np.ndarray, window: tuple[int, int, int, int],
