@@ -1,4 +1,4 @@
-"""The scale bar search of qdots measure on 214 real pictures: found on the drawn bar, found elsewhere, missed.
+"""The scale bar search of qdots measure on 254 real pictures: found on the drawn bar, found elsewhere, missed.
 
 `benchmarks.micrograph_real` scores the scale read on its pictures against the file's or a hand-measured bar. This one
 asks a simpler question of many more, the pictures of the EMPS data set (`benchmarks.micrograph_emps`): is the bar the
@@ -7,12 +7,14 @@ search finds (``qdots.micrograph.annotations.find_annotations``) the bar drawn o
 the worst outcome: a user who gives its length (``--scale-bar``) gets a wrong scale without a word; a bar not found
 makes the command ask for the scale.
 
-The manifest holds two batches of EMPS pictures, each split into development and test halves before the search was
-changed for it: the 134 of `benchmarks.micrograph_emps` and 80 more (``batch = 2``) that no other benchmark uses.
+The manifest holds three batches of EMPS pictures, each split into development and test halves before the search was
+changed for it: the 134 of `benchmarks.micrograph_emps`, 80 more (``batch = 2``) that no other benchmark uses, and 40
+more (``batch = 3``), annotated after the last change for the second and measured once, both halves: how the search
+does on pictures it was never shaped on.
 
 Run: ``python -m benchmarks.micrograph_bars [--half dev|test|all] [--fetch [--from DIR]]`` (the first batch is fetched
-by ``python -m benchmarks.micrograph_emps --fetch``, the second by ``--fetch`` here; ``--from``: a clone of the EMPS
-repository).
+by ``python -m benchmarks.micrograph_emps --fetch``, the second and third by ``--fetch`` here; ``--from``: a clone of
+the EMPS repository).
 """
 
 from __future__ import annotations
@@ -48,7 +50,7 @@ def manifest() -> list[dict]:
 
 
 def fetch(source: Path | None = None) -> list[tuple[str, str]]:
-    """Fetch the second batch's pictures into the EMPS cache folder (from ``source``, a clone of the EMPS repository, or
+    """Fetch the second and third batches' pictures into the EMPS cache folder (from ``source``, a clone of the EMPS repository, or
     its pinned commit on GitHub), each checked against the manifest's sha256; returns (file, what was done or the
     error)."""
     base = emps_manifest()["source"]["images"]
@@ -126,19 +128,19 @@ def results(halves: tuple[str, ...]) -> list:
     rows = [measure_entry(e) for e in chosen]
     out: list = []
     summary = []
-    for batch in (1, 2):
+    for batch in (1, 2, 3):
         for half in halves:
             part = [r for r in rows if r["half"] == half and r["batch"] == batch]
             if not part:
                 continue
-            name = f"{half} half" + ("" if batch == 1 else " of the second batch")
+            name = f"{half} half" + ("", " of the second batch", " of the third batch")[batch - 1]
             out += tables(part, name)
             counts = Counter(r["verdict"] for r in part)
             drawn = sum(r["box"] is not None for r in part)
-            summary.append(f"{half}{'' if batch == 1 else ' 2'}: {counts[VERDICTS[0]]} of {drawn} drawn bars found, "
+            summary.append(f"{half}{'' if batch == 1 else f' {batch}'}: {counts[VERDICTS[0]]} of {drawn} drawn bars found, "
                            f"{counts[VERDICTS[1]]} found elsewhere, {counts[VERDICTS[4]]} found where none is drawn")
     seconds = sum(r["seconds"] for r in rows)
-    out.insert(0, Headline(f"qdots measure's scale bar search on {len(rows)} EMPS pictures (dev / test halves, two "
+    out.insert(0, Headline(f"qdots measure's scale bar search on {len(rows)} EMPS pictures (dev / test halves, three "
                            "batches)",
                            f"{seconds:.0f} s for {len(rows)} pictures", "; ".join(summary)))
     out.append(Note("The bar found is the drawn one when the middle of its box lies within the drawn bar's box (boxed by "
@@ -156,7 +158,8 @@ def run(quick: bool) -> list:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--half", choices=("dev", "test", "all"), default="all")
-    parser.add_argument("--fetch", action="store_true", help="download the second batch's pictures into the cache first")
+    parser.add_argument("--fetch", action="store_true",
+                        help="download the second and third batches' pictures into the cache first")
     parser.add_argument("--from", dest="source", type=Path, default=None,
                         help="with --fetch: copy them from a clone of the EMPS repository instead")
 
