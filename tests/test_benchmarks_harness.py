@@ -253,8 +253,9 @@ def test_an_emps_file_that_is_not_the_manifests_is_not_kept(tmp_path, monkeypatc
 
 
 def test_the_bar_manifest_holds_the_emps_pictures_and_the_verdict_reads_boxes():
-    """Every picture of micrograph_emps is in the bars' manifest once, in its half; the second batch's are none of
-    those nor of micrograph_real's, each with its sha256, half of them in each half; every drawn bar is a box wider
+    """Every picture of micrograph_emps is in the bars' manifest once, in its half; the second and third batches' are
+    none of those nor of micrograph_real's nor of each other's, each with its sha256, half of them in each half; every
+    drawn bar is a box wider
     than tall; a bar found is the drawn one when its middle lies on it and it covers most of it, and a piece of it or a
     box elsewhere is not."""
     from benchmarks import micrograph_bars, micrograph_emps
@@ -264,13 +265,18 @@ def test_the_bar_manifest_holds_the_emps_pictures_and_the_verdict_reads_boxes():
     bars = micrograph_bars.manifest()
     first = [e for e in bars if e.get("batch", 1) == 1]
     second = [e for e in bars if e.get("batch", 1) == 2]
-    assert len(first) + len(second) == len(bars) and len(second) == 80
+    third = [e for e in bars if e.get("batch", 1) == 3]
+    assert len(first) + len(second) + len(third) == len(bars) and len(second) == 80 and len(third) == 40
     assert sorted(e["file"] for e in first) == sorted(emps)
     assert all(e["half"] == emps[e["file"]] and e["drawn"] for e in first)
     real = {e["path"].rsplit("/", 1)[-1] for e in entries() if e.get("repo") == "by256/emps"}
-    assert len({e["file"] for e in second}) == 80 and not {e["file"] for e in second} & (set(emps) | real)
-    assert all(len(e["sha256"]) == 64 and e["drawn"] for e in second)
-    assert sum(e["half"] == "dev" for e in second) == sum(e["half"] == "test" for e in second) == 40
+    seen = set(emps) | real
+    for batch in (second, third):
+        files = {e["file"] for e in batch}
+        assert len(files) == len(batch) and not files & seen
+        seen |= files
+        assert all(len(e["sha256"]) == 64 and e["drawn"] for e in batch)
+        assert sum(e["half"] == "dev" for e in batch) == sum(e["half"] == "test" for e in batch) == len(batch) // 2
     assert all(x1 - x0 > y1 - y0 > 0 for x0, y0, x1, y1 in (e["bar"] for e in bars if "bar" in e))
     verdict, names = micrograph_bars.verdict, micrograph_bars.VERDICTS
     assert verdict([100, 200, 200, 210], (101, 202, 199, 208)) == names[0]
