@@ -13,6 +13,7 @@ from labrig.validate import InputError, real
 
 from .bar import MIN_BAR, ScaleBar
 from .choices import MAX_NM_PER_PX, MIN_NM_PER_PX
+from .film_lines import faint_line
 from .read import UNIT_NM
 from .strip_bars import thin_bar
 
@@ -205,7 +206,8 @@ def find_scale_bar(image: np.ndarray) -> ScaleBar | None:
     (`stands_out_both_sides`), where the darkest fringe along a dark particle's edge does not. The thin bars and the
     rulers of ticks of instruments' data strips, and grey lines under their labels, are found by
     `qdots.micrograph.strip_bars.thin_bar`; the longer of the two searches' bars is taken, but a bar both find
-    (`same_bar`) is measured as its colour shows it.
+    (`same_bar`) is measured as its colour shows it. Where neither finds one, a faint line drawn over the film under
+    its label is looked for (`qdots.micrograph.film_lines.faint_line`).
     """
     image = np.asarray(image, dtype=float)
     low, high = float(image.min()), float(image.max())
@@ -256,6 +258,8 @@ def find_scale_bar(image: np.ndarray) -> ScaleBar | None:
                                 thickness=found[1], at_edge=bool(edge),
                                 extent=None if (top, bottom) == (0, rows.stop - rows.start) else extent)
     thin = thin_bar(image, shortest)
+    if thin is None and best is None:
+        return faint_line(image, shortest)
     if thin is None or (best is not None and (thin.length_px <= best.length_px or same_bar(thin, best))):
         return best
     return thin

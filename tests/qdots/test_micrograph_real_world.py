@@ -18,12 +18,14 @@ from qdots.cli import main
 from qdots.micrograph.annotations import corner_boxes, find_annotations, flatness
 from qdots.micrograph.detect import detect_dots
 from qdots.micrograph.film import size_populations, size_spread
+from qdots.micrograph.film_lines import SEED_SHARE, SIDE_ROWS, stand_out
 from qdots.micrograph.measure import measure_image
 from qdots.micrograph.profiles import half_depth_radius, profile_table
 from qdots.micrograph.refine import refine_dots
 from qdots.micrograph.scale import closed_lines, find_scale_bar
 from qdots.micrograph.segment import broad_blur, stretch
 from qdots.micrograph.shapes import region_shapes
+from qdots.micrograph.strip_bars import THIN_LINE
 from qdots.micrograph.synthetic import dense_board, render_micrograph, score_detection, sparse_board, superlattice_board
 
 
@@ -552,6 +554,73 @@ def test_a_plain_grey_line_under_its_label_is_a_bar_but_not_a_frames_edge():
     bar = line()
     assert bar is not None and "plain ends" in bar.measured and bar.length_px == pytest.approx(95, abs=0.5)
     assert line(label=False) is None and line(frame=True) is None
+
+
+def faint_film(seed: int = 7, label: bool = True, parallel: bool = False, rim: bool = False) -> np.ndarray:
+    """`bar_film` whose last 70 rows are a bare textured film (SD 0.055) with a faint light line over it, 2 px by 120 px,
+    0.2 lighter (3.6 SDs: the EMPS pictures' faint bars stand 3.0-10.5 SDs out of their film), and its label in white 8 px
+    above it: a light bar drawn on the film, neither the picture's lightest nor on a flat ground."""
+    image = bar_film(seed=seed)
+    rng = np.random.default_rng(seed)
+    image[230:] = image[230:].mean() + ndimage.gaussian_filter(rng.normal(0, 0.2, (70, 400)), 1.0)
+    image[262:264, 150:270] += 0.2
+    if parallel:  # lines side by side, as the gaps between rows of a superlattice's particles
+        image[250:252, 150:270] += 0.2
+        image[274:276, 150:270] += 0.2
+    if rim:  # the film darker below the line than above it: the bright rim along a particle's edge
+        image[264:, 140:280] -= 0.1
+    if label:
+        white = image.max() + 0.2
+        for x in range(170, 250, 12):
+            image[244:254, x:x + 7] = white
+    return image
+
+
+def test_a_faint_line_over_the_film_under_its_label_is_a_bar():
+    """EMPS pictures draw bars as faint lines over the film (a thin white line 0.2 of the range lighter than the film
+    under its white label; a light line under a black label box): neither search saw them. A line standing out of both
+    sides of it on nearly all its columns, under its label, is one now, measured at half contrast (120 px here, within
+    2.5 px at this noise, 0.6 px on average; on the EMPS pictures within 0.3 px of hand profiles); not without its label, nor beside other
+    such lines (a superlattice's gaps), nor with the film different on its two sides (a particle's rim); and it is
+    looked for only where no other bar is found."""
+    lengths = []
+    for seed in range(1, 9):
+        bar = find_scale_bar(faint_film(seed))
+        assert bar is not None and "faint line" in bar.measured
+        lengths.append(bar.length_px)
+    assert np.abs(np.array(lengths) - 120).max() < 2.5 and abs(np.mean(lengths) - 120) < 0.6  # the noise's, unbiased
+    assert find_scale_bar(faint_film(label=False)) is None
+    assert find_scale_bar(faint_film(parallel=True)) is None
+    assert find_scale_bar(faint_film(rim=True)) is None
+    drawn = faint_film()
+    drawn[200:206, 40:140] = drawn.min() - 0.2  # a bar in the picture's darkest colour, 100 px
+    assert find_scale_bar(drawn).length_px == pytest.approx(100, abs=0.6)
+
+
+def oracle_stand_out(image: np.ndarray, thickness: int, window: int):
+    """`stand_out` in numpy: band means row by row, and the share of a window centred on each column counted."""
+    h, w = image.shape
+    light, dark = np.zeros((h, w), dtype=bool), np.zeros((h, w), dtype=bool)
+    for row in range(SIDE_ROWS + 1, h - thickness - SIDE_ROWS):
+        core = image[row:row + thickness].mean(axis=0)
+        above = image[row - 1 - SIDE_ROWS:row - 1].mean(axis=0)
+        below = image[row + thickness + 1:row + thickness + 1 + SIDE_ROWS].mean(axis=0)
+        light[row], dark[row] = core > np.maximum(above, below), core < np.minimum(above, below)
+    seeds = []
+    for out in (light, dark):
+        padded = np.pad(out, ((0, 0), (window // 2, window)))
+        counts = np.stack([padded[:, col:col + window].sum(axis=1) for col in range(w)], axis=1)
+        seeds.append(counts >= SEED_SHARE * window)
+    return light, dark, seeds[0], seeds[1]
+
+
+@pytest.mark.parametrize("shape, window", [((40, 60), 10), ((31, 47), 7), ((12, 9), 20)])
+def test_the_rows_that_stand_out_are_the_numpy_oracles(shape, window):
+    image = np.random.default_rng(shape[0]).integers(0, 6, size=shape).astype(float)  # ties included, sums exact
+    for thickness, found in enumerate(stand_out(image, window), start=1):
+        for got, want in zip(found, oracle_stand_out(image, thickness, window)):
+            np.testing.assert_array_equal(got, want)
+    assert len(stand_out(image, window)) == THIN_LINE
 
 
 def test_the_shortest_bar_is_judged_on_its_length_at_half_contrast():

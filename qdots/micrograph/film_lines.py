@@ -1,0 +1,248 @@
+"""Faint scale bars drawn over the film: a thin line a little lighter (or darker) than the film it lies on, under or
+over its label, neither the picture's darkest nor its lightest colour and on no flat ground, so that neither
+`qdots.micrograph.scale.find_scale_bar`'s search by colour nor `qdots.micrograph.strip_bars.thin_bar`'s search of
+strips and label boxes sees it. It is looked for only where neither finds a bar.
+
+A line is found where, on each of its columns, its rows stand out of the rows on both sides of it (`stand_out`): a film's
+texture does that on some columns, a drawn line on nearly all of them, however faint.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import ndimage
+
+from labrig.compiled import jit
+
+from .bar import ScaleBar
+from .strip_bars import LABEL_INK, LABEL_ROWS, THIN_LINE
+
+#: A line's rows stand out of the rows beside it (SIDE_ROWS of them, 1 px off its rows: its blur) on at least
+#: ALONG_SHARE of its columns; it is sought in windows of the shortest bar's length where SEED_SHARE of the columns
+#: do. On the EMPS development pictures and those in no batch, the faint lines drawn as bars: 0.958-0.967 of their
+#: columns; a film's texture reaches 0.9 over a short bar's length here and there, never 0.95 over a longer one with
+#: the rest of these tests.
+ALONG_SHARE, SEED_SHARE, SIDE_ROWS = 0.95, 0.9, 3
+#: Its median contrast is at least NOISE_RATIO times the spread (SD) of the quieter of the bands beside it
+#: (NEAR_ROWS rows each; the label's ink left out): those faint lines 3.0-10.5 times. A band that varies by less than
+#: MIN_TEXTURE of the picture's range is a flat ground, a strip's or a box's: its lines are `thin_bar`'s.
+NOISE_RATIO, NEAR_ROWS, MIN_TEXTURE = 2.0, 8, 0.015
+#: The film is the same on both sides of a bar: their levels differ by at most SIDES_EVEN of the line's contrast (a
+#: bright rim along a particle's edge, or the border between a strip and the film, has a different side each way).
+SIDES_EVEN = 0.5
+#: A bar is one line: on no row PARALLEL_ROWS rows from it do the rows stand out (`stand_out`) on PARALLEL_SHARE of
+#: its columns (the gaps between the rows of particles in a superlattice are lines side by side).
+PARALLEL_SHARE, PARALLEL_ROWS = 0.8, (5, 20)
+#: Its label's ink (within EXTREME of the picture's range of its darkest or lightest value) lies within
+#: `qdots.micrograph.strip_bars.LABEL_ROWS` px above or below it, on `qdots.micrograph.strip_bars.LABEL_INK` of its
+#: columns or more. A line along the edge of a flat box or strip (flat ink: within FLAT of the range across 3 x 3 px,
+#: on half its columns within HUG_ROWS rows of it) is the box's edge, and a line of flat ink is a letter's or a
+#: box's, not faint.
+EXTREME, FLAT, HUG_ROWS = 0.1, 0.04, 4
+#: It ends: beyond each end that is not the picture's edge, its rows stand out on at most FREE_SHARE of the columns
+#: (over half its length, from END_GAP px out); and no mark as strong as half its contrast goes CORNER_ROWS
+#: px up or down within 2 px of an end (a box's frame turns there).
+FREE_SHARE, END_GAP, CORNER_ROWS = 0.7, 3, 5
+
+
+def stand_out(image: np.ndarray, window: int) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]:
+    """For each thickness 1 to `THIN_LINE` px: where the rows ``r`` to ``r + thickness`` (exclusive) of ``image``
+    stand out, column by column, of both bands of `SIDE_ROWS` rows beside them, 1 px off: lighter than both, darker
+    than both (at row ``r``; False where a band leaves the picture); and where they do on `SEED_SHARE` of the
+    ``window`` columns centred on a column (from ``window // 2`` before it; columns beyond the picture do not),
+    lighter, darker. Compiled passes over the columns' running sums."""
+    image = np.ascontiguousarray(image, dtype=float)
+    total = np.zeros((image.shape[0] + 1, image.shape[1]))
+    _running_sums(image, total)
+    found = []
+    for thickness in range(1, THIN_LINE + 1):
+        light, dark, light_seeds, dark_seeds = (np.zeros(image.shape, dtype=bool) for _ in range(4))
+        _stand_out(total, thickness, SIDE_ROWS, int(window), SEED_SHARE, light, dark, light_seeds, dark_seeds)
+        found.append((light, dark, light_seeds, dark_seeds))
+    return found
+
+
+@jit
+def _running_sums(image, total):
+    """Each column's running sum of ``image`` down its rows into ``total`` (one row more, the first 0)."""
+    h, w = image.shape
+    for row in range(h):
+        for col in range(w):
+            total[row + 1, col] = total[row, col] + image[row, col]
+
+
+@jit
+def _stand_out(total, thickness, side, window, share, light, dark, light_seeds, dark_seeds):
+    """`stand_out` for one thickness into ``light``, ``dark``, ``light_seeds`` and ``dark_seeds``."""
+    h, w = light.shape
+    need = share * window
+    for row in range(side + 1, h - thickness - side):
+        for col in range(w):
+            core = (total[row + thickness, col] - total[row, col]) / thickness
+            above = (total[row - 1, col] - total[row - 1 - side, col]) / side
+            below = (total[row + thickness + 1 + side, col] - total[row + thickness + 1, col]) / side
+            light[row, col] = core > max(above, below)
+            dark[row, col] = core < min(above, below)
+        for out, seeds in ((light, light_seeds), (dark, dark_seeds)):
+            count = 0
+            for col in range(min(w, window - window // 2)):  # the window of column 0: columns 0 to window - window // 2
+                count += out[row, col]
+            for col in range(w):
+                seeds[row, col] = count >= need
+                enter, leave = col + window - window // 2, col - window // 2
+                if enter < w:
+                    count += out[row, enter]
+                if leave >= 0:
+                    count -= out[row, leave]
+
+
+def faint_line(image: np.ndarray, shortest: float) -> ScaleBar | None:
+    """The longest faint line drawn over the film as a scale bar on ``image`` (see the module), at least ``shortest``
+    px between its ends at half contrast, or None."""
+    image = np.asarray(image, dtype=float)
+    h, w = image.shape
+    low, high = float(image.min()), float(image.max())
+    span = high - low
+    window = int(shortest)
+    if not span > 0 or window < 2 or h < 2 * (SIDE_ROWS + 1) + THIN_LINE or w <= window:
+        return None
+    ink = (image <= low + EXTREME * span) | (image >= high - EXTREME * span)
+    lines = []
+    for thickness, (light, dark_, light_seeds, dark_seeds) in enumerate(stand_out(image, window), start=1):
+        for dark, out, seeds in ((False, light, light_seeds), (True, dark_, dark_seeds)):
+            signed = -image if dark else image
+            for row in np.flatnonzero(seeds.any(axis=1)):
+                edges = np.flatnonzero(np.diff(np.concatenate(([0], seeds[row].view(np.int8), [0]))))
+                starts = np.maximum(0, edges[::2] - window // 2)
+                stops = np.minimum(w, edges[1::2] + window // 2)
+                count = np.concatenate(([0], np.cumsum(out[row])))
+                along = (count[stops] - count[starts]) >= ALONG_SHARE * (stops - starts)
+                for start, stop in zip(starts[along], stops[along]):
+                    line = (row, row + thickness, int(start), int(stop))
+                    found = None if stop - start < shortest else faint(signed, out, ink, span, line)
+                    if found is None:
+                        continue
+                    ends = line_ends(signed[row:row + thickness].mean(axis=0), found[0], start, stop)
+                    if ends is not None and ends[1] - ends[0] >= shortest:
+                        left, right = ends
+                        lines.append((found[1], ScaleBar(
+                            right - left, (int(left), int(row), int(np.ceil(right)), int(row) + thickness), dark,
+                            thickness=thickness, at_edge=left <= 0 or right >= w,
+                            measured="between its ends at half contrast, a faint line over the film")))
+    # a line is found at several rows and thicknesses: each is read where it stands out most, then the longest is taken
+    kept: list[ScaleBar] = []
+    for _score, bar in sorted(lines, key=lambda found: -found[0]):
+        if not any(overlap(bar.box, other.box) for other in kept):
+            kept.append(bar)
+    return max(kept, key=lambda bar: bar.length_px, default=None)
+
+
+def overlap(box: tuple[int, int, int, int], other: tuple[int, int, int, int]) -> bool:
+    """Whether two boxes ``(x0, y0, x1, y1)`` share a pixel or touch."""
+    return box[0] <= other[2] and other[0] <= box[2] and box[1] <= other[3] and other[1] <= box[3]
+
+
+def faint(signed: np.ndarray, out: np.ndarray, ink: np.ndarray, span: float,
+          line: tuple) -> tuple[float, float] | None:
+    """Whether the rows ``line`` = ``(top, bottom, start, stop)`` of ``signed`` (``out``: where they stand out of both
+    sides, row by row) are a faint bar drawn over the film under or over its label (see the module's constants)."""
+    top, bottom, start, stop = line
+    h, w = signed.shape
+    columns = slice(start, stop)
+    if (start == 0 and stop == w) or out[top, columns].mean() < ALONG_SHARE:
+        return None
+    bands = (slice(max(0, top - NEAR_ROWS - 1), max(0, top - 1)), slice(bottom + 1, bottom + NEAR_ROWS + 1))
+    sides = [signed[rows, columns][~ink[rows, columns]] for rows in bands]
+    if min(side.size for side in sides) <= NEAR_ROWS:
+        return None
+    quiet = min(float(side.std()) for side in sides)
+    levels = [float(np.median(side)) for side in sides]
+    line_level = float(np.median(signed[top:bottom, columns].mean(axis=0)))
+    contrast = line_level - max(levels)
+    if quiet < MIN_TEXTURE * span or contrast < NOISE_RATIO * quiet or abs(levels[0] - levels[1]) > SIDES_EVEN * contrast:
+        return None
+    # flat ink (within FLAT of the range over 3 x 3 px) on the line's rows and HUG_ROWS rows beside them
+    first, wide = max(0, top - HUG_ROWS - 1), slice(max(0, start - 1), min(w, stop + 1))
+    near = signed[first:bottom + HUG_ROWS + 1, wide]
+    flat = ink[first:bottom + HUG_ROWS + 1, wide] & (ndimage.maximum_filter(near, 3) - ndimage.minimum_filter(near, 3)
+                                                       <= FLAT * span)
+    flat = flat[:, start - wide.start:stop - wide.start]
+    if flat[top - first:bottom - first].mean() > 0.5:
+        return None
+    hug = max(flat[max(0, top - HUG_ROWS) - first:top - first].any(axis=0).mean(),
+              flat[bottom - first:bottom + HUG_ROWS - first].any(axis=0).mean())
+    if hug >= 0.5:
+        return None
+    beside = [top + offset for offset in range(-PARALLEL_ROWS[1], PARALLEL_ROWS[1] + 1)
+              if abs(offset) >= PARALLEL_ROWS[0] and 0 <= top + offset < h]
+    if beside and float(out[beside, columns].mean(axis=1).max()) >= PARALLEL_SHARE:
+        return None
+    label = max(ink[max(0, top - LABEL_ROWS):max(0, top - 1), columns].any(axis=0).mean(),
+                ink[bottom + 1:bottom + LABEL_ROWS, columns].any(axis=0).mean())
+    if label < LABEL_INK:
+        return None
+    reach = (stop - start) // 2
+    level = 0.5 * (levels[0] + levels[1])
+    for end, beyond in ((start, slice(max(0, start - END_GAP - reach), max(0, start - END_GAP))),
+                        (stop - 1, slice(min(w, stop + END_GAP), min(w, stop + END_GAP + reach)))):
+        if end in (0, w - 1):
+            continue
+        if beyond.stop - beyond.start > 0 and float(out[max(0, top - 1):top + 2, beyond].mean(axis=1).max()) > FREE_SHARE:
+            return None  # the line goes on: a film's or a picture's line, not a bar
+        near_end = slice(max(0, end - 2), min(w, end + 3))
+        for rows in (slice(max(0, top - NEAR_ROWS), top), slice(bottom, bottom + NEAR_ROWS)):
+            strong = signed[rows, near_end] >= level + 0.5 * contrast
+            if strong.size and (strong.sum(axis=0) >= CORNER_ROWS).any():
+                return None  # a box's frame turning up or down at the end
+    return level, contrast / quiet
+
+
+def line_ends(profile: np.ndarray, ground: float, start: int, stop: int) -> tuple[float, float] | None:
+    """Where a faint line found between columns ``start`` and ``stop`` ends on each side (px, pixels' edges), at half
+    contrast: where its rows' mean (``profile``, column by column, smoothed over 3 px) falls halfway from its median
+    inside to the level past that end (`END_GAP` to twice that px past where it falls halfway to ``ground``, the level
+    of the film beside it: a bar in a dark outline ends on the outline), and stays there for `END_GAP` px (a faint
+    line's noise dips under it here and there), interpolated, sought outwards from a quarter of its length in; the
+    picture's edge where it reaches it. None where it does not fall within half its length beyond an end."""
+    w = profile.size
+    smooth = ndimage.uniform_filter1d(profile, 3)
+    quarter = (stop - start) // 4
+    level = float(np.median(smooth[start + quarter:stop - quarter]))
+    if not level > ground:
+        return None
+    ends = []
+    for side, first in ((-1, start + quarter), (1, stop - 1 - quarter)):
+        limit = first + side * (3 * quarter + (stop - start) // 2)
+        end = crossing(smooth, first, limit, side, 0.5 * (level + ground))
+        if end is None:
+            return None
+        past = smooth[int(end) + side * END_GAP:int(end) + side * 2 * END_GAP:side] if side > 0 else \
+            smooth[max(0, int(end) - 2 * END_GAP):max(0, int(end) - END_GAP)]
+        if 0 < end < w and past.size == END_GAP and float(np.median(past)) < level:
+            end = crossing(smooth, first, limit, side, 0.5 * (level + float(np.median(past))))
+            if end is None:
+                return None
+        ends.append(end)
+    return ends[0], ends[1]
+
+
+def crossing(smooth: np.ndarray, first: int, limit: int, side: int, half: float) -> float | None:
+    """`line_ends`' end on its ``side`` (-1 left, 1 right) at the level ``half``, walking from column ``first`` to at
+    most ``limit``: px, a pixel's edge; the picture's edge where it gets there; None where it reaches ``limit``."""
+    w = smooth.size
+    at = first
+    while 0 <= at + side < w and at != limit and (smooth[at + side] >= half or goes_on(smooth, at + side, side, half)):
+        at += side
+    if at == limit:
+        return None
+    if not 0 <= at + side < w:
+        return 0.0 if side < 0 else float(w)
+    beyond = at + side
+    return at + 0.5 + side * (smooth[at] - half) / (smooth[at] - smooth[beyond])
+
+
+def goes_on(height: np.ndarray, at: int, side: int, half: float) -> bool:
+    """Whether ``height`` reaches ``half`` again within `END_GAP` px past column ``at`` on its ``side`` (-1 left, 1
+    right)."""
+    beyond = height[at + side:at + side * (END_GAP + 1):side] if side > 0 else height[max(0, at - END_GAP):at][::-1]
+    return bool((beyond >= half).any())
