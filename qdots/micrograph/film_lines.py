@@ -13,6 +13,7 @@ import numpy as np
 from scipy import ndimage
 
 from labrig.compiled import jit
+from labrig.threads import run_tasks
 
 from .bar import ScaleBar
 from .strip_bars import LABEL_INK, LABEL_ROWS, THIN_LINE
@@ -45,21 +46,26 @@ EXTREME, FLAT, HUG_ROWS = 0.1, 0.04, 4
 FREE_SHARE, END_GAP, CORNER_ROWS = 0.7, 3, 5
 
 
-def stand_out(image: np.ndarray, window: int) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]:
+def stand_out(image: np.ndarray, window: int) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
     """For each thickness 1 to `THIN_LINE` px: where the rows ``r`` to ``r + thickness`` (exclusive) of ``image``
     stand out, column by column, of both bands of `SIDE_ROWS` rows beside them, 1 px off: lighter than both, darker
-    than both (at row ``r``; False where a band leaves the picture); and where they do on `SEED_SHARE` of the
-    ``window`` columns centred on a column (from ``window // 2`` before it; columns beyond the picture do not),
-    lighter, darker. Compiled passes over the columns' running sums."""
+    than both (at row ``r``; False where a band leaves the picture); and the runs of columns where they may be a line,
+    as rows ``(dark, row, start, stop)``: each run of the columns whose ``window`` columns centred on them (from
+    ``window // 2`` before; columns beyond the picture do not) stand out on `SEED_SHARE` of them, widened by
+    ``window // 2`` on each side (within the picture), where they stand out on `ALONG_SHARE` of its columns.
+    Compiled passes over the columns' running sums."""
     image = np.ascontiguousarray(image, dtype=float)
-    total = np.zeros((image.shape[0] + 1, image.shape[1]))
+    h, w = image.shape
+    total = np.zeros((h + 1, w))
     _running_sums(image, total)
-    found = []
-    for thickness in range(1, THIN_LINE + 1):
-        light, dark, light_seeds, dark_seeds = (np.zeros(image.shape, dtype=bool) for _ in range(4))
-        _stand_out(total, thickness, SIDE_ROWS, int(window), SEED_SHARE, light, dark, light_seeds, dark_seeds)
-        found.append((light, dark, light_seeds, dark_seeds))
-    return found
+
+    def one(thickness: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        light, dark = np.zeros(image.shape, dtype=bool), np.zeros(image.shape, dtype=bool)
+        runs = np.zeros((2 * h * (w // max(1, window) + 2), 4), dtype=np.int64)
+        n = _stand_out(total, thickness, SIDE_ROWS, int(window), SEED_SHARE, ALONG_SHARE, light, dark, runs)
+        return light, dark, runs[:n]
+
+    return run_tasks([lambda thickness=thickness: one(thickness) for thickness in range(1, THIN_LINE + 1)])
 
 
 @jit
@@ -72,10 +78,13 @@ def _running_sums(image, total):
 
 
 @jit
-def _stand_out(total, thickness, side, window, share, light, dark, light_seeds, dark_seeds):
-    """`stand_out` for one thickness into ``light``, ``dark``, ``light_seeds`` and ``dark_seeds``."""
+def _stand_out(total, thickness, side, window, seed_share, along_share, light, dark, runs):
+    """`stand_out` for one thickness into ``light``, ``dark`` and ``runs``; returns how many runs it wrote."""
     h, w = light.shape
-    need = share * window
+    need = seed_share * window
+    half = window // 2
+    counted = np.zeros(w + 1, dtype=np.int64)
+    n = 0
     for row in range(side + 1, h - thickness - side):
         for col in range(w):
             core = (total[row + thickness, col] - total[row, col]) / thickness
@@ -83,17 +92,24 @@ def _stand_out(total, thickness, side, window, share, light, dark, light_seeds, 
             below = (total[row + thickness + 1 + side, col] - total[row + thickness + 1, col]) / side
             light[row, col] = core > max(above, below)
             dark[row, col] = core < min(above, below)
-        for out, seeds in ((light, light_seeds), (dark, dark_seeds)):
-            count = 0
-            for col in range(min(w, window - window // 2)):  # the window of column 0: columns 0 to window - window // 2
-                count += out[row, col]
+        for polarity in range(2):
+            out = dark if polarity == 1 else light
             for col in range(w):
-                seeds[row, col] = count >= need
-                enter, leave = col + window - window // 2, col - window // 2
-                if enter < w:
-                    count += out[row, enter]
-                if leave >= 0:
-                    count -= out[row, leave]
+                counted[col + 1] = counted[col] + out[row, col]
+            first = -1  # the first column of the current run of seeds
+            for col in range(w + 1):
+                seed = False
+                if col < w:
+                    seed = counted[min(w, col + window - half)] - counted[max(0, col - half)] >= need
+                if seed and first < 0:
+                    first = col
+                elif not seed and first >= 0:
+                    start, stop = max(0, first - half), min(w, col + half)
+                    if counted[stop] - counted[start] >= along_share * (stop - start):
+                        runs[n, 0], runs[n, 1], runs[n, 2], runs[n, 3] = polarity, row, start, stop
+                        n += 1
+                    first = -1
+    return n
 
 
 def faint_line(image: np.ndarray, shortest: float) -> ScaleBar | None:
@@ -108,27 +124,20 @@ def faint_line(image: np.ndarray, shortest: float) -> ScaleBar | None:
         return None
     ink = (image <= low + EXTREME * span) | (image >= high - EXTREME * span)
     lines = []
-    for thickness, (light, dark_, light_seeds, dark_seeds) in enumerate(stand_out(image, window), start=1):
-        for dark, out, seeds in ((False, light, light_seeds), (True, dark_, dark_seeds)):
-            signed = -image if dark else image
-            for row in np.flatnonzero(seeds.any(axis=1)):
-                edges = np.flatnonzero(np.diff(np.concatenate(([0], seeds[row].view(np.int8), [0]))))
-                starts = np.maximum(0, edges[::2] - window // 2)
-                stops = np.minimum(w, edges[1::2] + window // 2)
-                count = np.concatenate(([0], np.cumsum(out[row])))
-                along = (count[stops] - count[starts]) >= ALONG_SHARE * (stops - starts)
-                for start, stop in zip(starts[along], stops[along]):
-                    line = (row, row + thickness, int(start), int(stop))
-                    found = None if stop - start < shortest else faint(signed, out, ink, span, line)
-                    if found is None:
-                        continue
-                    ends = line_ends(signed[row:row + thickness].mean(axis=0), found[0], start, stop)
-                    if ends is not None and ends[1] - ends[0] >= shortest:
-                        left, right = ends
-                        lines.append((found[1], ScaleBar(
-                            right - left, (int(left), int(row), int(np.ceil(right)), int(row) + thickness), dark,
-                            thickness=thickness, at_edge=left <= 0 or right >= w,
-                            measured="between its ends at half contrast, a faint line over the film")))
+    negative = -image
+    for thickness, (light, dark_, runs) in enumerate(stand_out(image, window), start=1):
+        for polarity, row, start, stop in runs.tolist():
+            dark, out = bool(polarity), dark_ if polarity else light
+            signed = negative if dark else image
+            found = None if stop - start < shortest else faint(signed, out, ink, span, (row, row + thickness, start, stop))
+            if found is None:
+                continue
+            ends = line_ends(signed[row:row + thickness].mean(axis=0), found[0], start, stop)
+            if ends is not None and ends[1] - ends[0] >= shortest:
+                left, right = ends
+                lines.append((found[1], ScaleBar(right - left, (int(left), row, int(np.ceil(right)), row + thickness),
+                                                 dark, thickness=thickness, at_edge=left <= 0 or right >= w,
+                                                 measured="between its ends at half contrast, a faint line over the film")))
     # a line is found at several rows and thicknesses: each is read where it stands out most, then the longest is taken
     kept: list[ScaleBar] = []
     for _score, bar in sorted(lines, key=lambda found: -found[0]):
@@ -145,11 +154,17 @@ def overlap(box: tuple[int, int, int, int], other: tuple[int, int, int, int]) ->
 def faint(signed: np.ndarray, out: np.ndarray, ink: np.ndarray, span: float,
           line: tuple) -> tuple[float, float] | None:
     """Whether the rows ``line`` = ``(top, bottom, start, stop)`` of ``signed`` (``out``: where they stand out of both
-    sides, row by row) are a faint bar drawn over the film under or over its label (see the module's constants)."""
+    sides, row by row; ``ink``: the picture's darkest and lightest `EXTREME`; ``span``: its range) are a faint bar
+    drawn over the film under or over its label (see the module's constants): if so, the level of the film beside it
+    and how far the line stands out of it in its quieter side's SDs, else None."""
     top, bottom, start, stop = line
     h, w = signed.shape
     columns = slice(start, stop)
     if (start == 0 and stop == w) or out[top, columns].mean() < ALONG_SHARE:
+        return None
+    beside = [top + offset for offset in range(-PARALLEL_ROWS[1], PARALLEL_ROWS[1] + 1)
+              if abs(offset) >= PARALLEL_ROWS[0] and 0 <= top + offset < h]
+    if beside and float(out[beside, columns].mean(axis=1).max()) >= PARALLEL_SHARE:
         return None
     bands = (slice(max(0, top - NEAR_ROWS - 1), max(0, top - 1)), slice(bottom + 1, bottom + NEAR_ROWS + 1))
     sides = [signed[rows, columns][~ink[rows, columns]] for rows in bands]
@@ -172,10 +187,6 @@ def faint(signed: np.ndarray, out: np.ndarray, ink: np.ndarray, span: float,
     hug = max(flat[max(0, top - HUG_ROWS) - first:top - first].any(axis=0).mean(),
               flat[bottom - first:bottom + HUG_ROWS - first].any(axis=0).mean())
     if hug >= 0.5:
-        return None
-    beside = [top + offset for offset in range(-PARALLEL_ROWS[1], PARALLEL_ROWS[1] + 1)
-              if abs(offset) >= PARALLEL_ROWS[0] and 0 <= top + offset < h]
-    if beside and float(out[beside, columns].mean(axis=1).max()) >= PARALLEL_SHARE:
         return None
     label = max(ink[max(0, top - LABEL_ROWS):max(0, top - 1), columns].any(axis=0).mean(),
                 ink[bottom + 1:bottom + LABEL_ROWS, columns].any(axis=0).mean())

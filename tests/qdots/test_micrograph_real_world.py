@@ -18,7 +18,7 @@ from qdots.cli import main
 from qdots.micrograph.annotations import corner_boxes, find_annotations, flatness
 from qdots.micrograph.detect import detect_dots
 from qdots.micrograph.film import size_populations, size_spread
-from qdots.micrograph.film_lines import SEED_SHARE, SIDE_ROWS, stand_out
+from qdots.micrograph.film_lines import ALONG_SHARE, SEED_SHARE, SIDE_ROWS, stand_out
 from qdots.micrograph.measure import measure_image
 from qdots.micrograph.profiles import half_depth_radius, profile_table
 from qdots.micrograph.refine import refine_dots
@@ -598,7 +598,8 @@ def test_a_faint_line_over_the_film_under_its_label_is_a_bar():
 
 
 def oracle_stand_out(image: np.ndarray, thickness: int, window: int):
-    """`stand_out` in numpy: band means row by row, and the share of a window centred on each column counted."""
+    """`stand_out` in numpy: band means row by row; each window's share counted column by column, its runs of seeds
+    found, widened and kept where the rows stand out on `ALONG_SHARE` of them."""
     h, w = image.shape
     light, dark = np.zeros((h, w), dtype=bool), np.zeros((h, w), dtype=bool)
     for row in range(SIDE_ROWS + 1, h - thickness - SIDE_ROWS):
@@ -606,21 +607,31 @@ def oracle_stand_out(image: np.ndarray, thickness: int, window: int):
         above = image[row - 1 - SIDE_ROWS:row - 1].mean(axis=0)
         below = image[row + thickness + 1:row + thickness + 1 + SIDE_ROWS].mean(axis=0)
         light[row], dark[row] = core > np.maximum(above, below), core < np.minimum(above, below)
-    seeds = []
-    for out in (light, dark):
-        padded = np.pad(out, ((0, 0), (window // 2, window)))
-        counts = np.stack([padded[:, col:col + window].sum(axis=1) for col in range(w)], axis=1)
-        seeds.append(counts >= SEED_SHARE * window)
-    return light, dark, seeds[0], seeds[1]
+    runs = []
+    for row in range(h):
+        for polarity, out in enumerate((light, dark)):
+            padded = np.pad(out[row], (window // 2, window))
+            seeds = np.array([padded[col:col + window].sum() >= SEED_SHARE * window for col in range(w)])
+            edges = np.flatnonzero(np.diff(np.concatenate(([0], seeds.astype(int), [0]))))
+            for first, last in zip(edges[::2], edges[1::2]):
+                start, stop = max(0, first - window // 2), min(w, last + window // 2)
+                if out[row, start:stop].sum() >= ALONG_SHARE * (stop - start):
+                    runs.append((polarity, row, start, stop))
+    return light, dark, sorted(runs)
 
 
 @pytest.mark.parametrize("shape, window", [((40, 60), 10), ((31, 47), 7), ((12, 9), 20)])
 def test_the_rows_that_stand_out_are_the_numpy_oracles(shape, window):
     image = np.random.default_rng(shape[0]).integers(0, 6, size=shape).astype(float)  # ties included, sums exact
-    for thickness, found in enumerate(stand_out(image, window), start=1):
-        for got, want in zip(found, oracle_stand_out(image, thickness, window)):
-            np.testing.assert_array_equal(got, want)
-    assert len(stand_out(image, window)) == THIN_LINE
+    image[20 % shape[0], 2:-2] += 9  # a line, so that some runs stand out along it
+    found = stand_out(image, window)
+    assert len(found) == THIN_LINE
+    for thickness, (light, dark, runs) in enumerate(found, start=1):
+        want = oracle_stand_out(image, thickness, window)
+        np.testing.assert_array_equal(light, want[0])
+        np.testing.assert_array_equal(dark, want[1])
+        assert sorted(map(tuple, runs.tolist())) == want[2]
+    assert any(len(runs) for _light, _dark, runs in found) == (shape[1] > window)  # no run wider than the picture
 
 
 def test_the_shortest_bar_is_judged_on_its_length_at_half_contrast():
