@@ -156,10 +156,9 @@ def bar_rows(component: np.ndarray, found: tuple[int, int, int, int, int]) -> tu
     second EMPS development batch a "µ"'s tail touching its bar made the bar's box hold its label (rows 456-483 for a
     bar on rows 480-484)."""
     length, _thickness, _off, middle, start = found
-    runs = np.array([longest_run(row) for row in component], dtype=int)
-    on = runs >= TAPER * runs.max()  # its spine and the rows of its blurred edges
-    rows = np.flatnonzero(on)
-    top, bottom = int(rows[0]), int(rows[-1]) + 1
+    top, bottom = spine_rows(component)
+    on = np.zeros(len(component), dtype=bool)
+    on[top:bottom] = True
     off = component & ~on[:, None]
     labels, _n = ndimage.label(off)
     for piece in ndimage.find_objects(labels):
@@ -172,6 +171,14 @@ def bar_rows(component: np.ndarray, found: tuple[int, int, int, int, int]) -> tu
         if not glyph:
             top, bottom = min(top, rs.start), max(bottom, rs.stop)
     return top, bottom
+
+
+def spine_rows(component: np.ndarray) -> tuple[int, int]:
+    """The rows of a bar's ``component`` (a boolean crop, holes filled) that hold its line: its spine and its blurred
+    edges, the rows whose longest run is at least `TAPER` of the longest, ``(top, bottom)``, bottom exclusive."""
+    runs = np.array([longest_run(row) for row in component], dtype=int)
+    rows = np.flatnonzero(runs >= TAPER * runs.max())
+    return int(rows[0]), int(rows[-1]) + 1
 
 
 def longest_run(row: np.ndarray) -> int:
@@ -242,8 +249,9 @@ def find_scale_bar(image: np.ndarray) -> ScaleBar | None:
             contrast = max(plain, outline)
             if contrast < MIN_SHARE * span or contrast < MIN_CONTRAST * noise:
                 continue  # noise pixels, or a bright edge of the picture's own, joined into a bar
-            if not stands_out_both_sides(image, (cols.start, rows.start, cols.stop, rows.stop), colour[box] & own,
-                                         plain):
+            top, bottom = spine_rows(filled)  # its line's rows: a ruler's end caps may reach its label box's edge
+            if not stands_out_both_sides(image, (cols.start, rows.start + top, cols.stop, rows.start + bottom),
+                                         (colour[box] & own)[top:bottom], plain):
                 continue  # the dark fringe along a dark particle's edge
             edge = rows.start == 0 or cols.start == 0 or rows.stop == h_img or cols.stop == w_img
             ends = (cols.start + found[4], rows.start, cols.start + found[4] + found[0], rows.stop)

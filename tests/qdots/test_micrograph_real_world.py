@@ -481,6 +481,27 @@ def test_a_dark_fringe_along_a_particles_edge_is_no_bar():
     assert bar is not None and bar.length_px == pytest.approx(96, abs=1.0)
 
 
+def test_a_rulers_end_caps_reaching_its_label_boxs_edge_do_not_hide_it():
+    """An EMPS development picture draws its scale as a ruler (a line with ticks and tall end caps) in a white label
+    box whose top edge the caps reach: the rows above the bar's box were the dark film, within half the bar's contrast
+    of it, and the bar was taken for a fringe along an object's edge. A bar stands out of the rows beside its line, its
+    caps and ticks aside: found, 200 px between its caps' outer edges."""
+    def ruler_in_box(top_gap):
+        image = bar_film()
+        low, high = image.min() - 0.2, image.max() + 0.2
+        image[:236] = low + 0.3 * (image[:236] - low)  # a dark film, its level within half the ruler's contrast of it
+        image[236:276, 90:310] = high  # a white label box over the film
+        image[237 + top_gap:264, 100:102] = image[237 + top_gap:264, 298:300] = low  # end caps, up to the box's edge
+        image[262:264, 100:300] = low  # the ruler's line, 200 px
+        for x in range(120, 300, 20):
+            image[258:262, x] = low  # its ticks
+        return find_scale_bar(image)
+
+    for gap in (0, 6):
+        bar = ruler_in_box(gap)
+        assert bar is not None and bar.length_px == pytest.approx(200, abs=0.6)
+
+
 def test_a_white_bar_in_a_dark_outline_on_a_light_picture_is_a_bar():
     """A white bar edged in dark grey on a light picture (an EMPS development picture) stands out of the picture
     beside it by little (0.12 of the range, under the 0.2 asked), and was not found; it stands far out of its outline,
