@@ -36,10 +36,12 @@ SIDES_EVEN = 0.5
 PARALLEL_SHARE, PARALLEL_ROWS = 0.8, (5, 20)
 #: Its label's ink (within EXTREME of the picture's range of its darkest or lightest value) lies within
 #: `qdots.micrograph.strip_bars.LABEL_ROWS` px above or below it, on `qdots.micrograph.strip_bars.LABEL_INK` of its
-#: columns or more. A line along the edge of a flat box or strip (flat ink: within FLAT of the range across 3 x 3 px,
+#: columns or more, of LABEL_SPAN times `LABEL_ROWS` columns at most (a long bar's label may be short: "0.5 um" over
+#: 27 % of a 210 px line on a picture in no batch). A line along the edge of a flat box or strip (flat ink: within FLAT of the range across 3 x 3 px,
 #: on half its columns within HUG_ROWS rows of it) is the box's edge, and a line of flat ink is a letter's or a
 #: box's, not faint.
 EXTREME, FLAT, HUG_ROWS = 0.1, 0.04, 4
+LABEL_SPAN = 4
 #: It ends: beyond each end that is not the picture's edge, its rows stand out on at most FREE_SHARE of the columns
 #: (over half its length, from END_GAP px out); and no mark as strong as half its contrast goes CORNER_ROWS
 #: px up or down within 2 px of an end (a box's frame turns there).
@@ -188,9 +190,9 @@ def faint(signed: np.ndarray, out: np.ndarray, ink: np.ndarray, span: float,
               flat[bottom - first:bottom + HUG_ROWS - first].any(axis=0).mean())
     if hug >= 0.5:
         return None
-    label = max(ink[max(0, top - LABEL_ROWS):max(0, top - 1), columns].any(axis=0).mean(),
-                ink[bottom + 1:bottom + LABEL_ROWS, columns].any(axis=0).mean())
-    if label < LABEL_INK:
+    label = max(int(ink[max(0, top - LABEL_ROWS):max(0, top - 1), columns].any(axis=0).sum()),
+                int(ink[bottom + 1:bottom + LABEL_ROWS, columns].any(axis=0).sum()))
+    if label < LABEL_INK * min(stop - start, LABEL_SPAN * LABEL_ROWS):
         return None
     reach = (stop - start) // 2
     level = 0.5 * (levels[0] + levels[1])

@@ -577,14 +577,15 @@ def test_a_plain_grey_line_under_its_label_is_a_bar_but_not_a_frames_edge():
     assert line(label=False) is None and line(frame=True) is None
 
 
-def faint_film(seed: int = 7, label: bool = True, parallel: bool = False, rim: bool = False) -> np.ndarray:
+def faint_film(seed: int = 7, label: bool = True, parallel: bool = False, rim: bool = False,
+               line: tuple[int, int] = (150, 270)) -> np.ndarray:
     """`bar_film` whose last 70 rows are a bare textured film (SD 0.055) with a faint light line over it, 2 px by 120 px,
     0.2 lighter (3.6 SDs: the EMPS pictures' faint bars stand 3.0-10.5 SDs out of their film), and its label in white 8 px
     above it: a light bar drawn on the film, neither the picture's lightest nor on a flat ground."""
     image = bar_film(seed=seed)
     rng = np.random.default_rng(seed)
     image[230:] = image[230:].mean() + ndimage.gaussian_filter(rng.normal(0, 0.2, (70, 400)), 1.0)
-    image[262:264, 150:270] += 0.2
+    image[262:264, line[0]:line[1]] += 0.2
     if parallel:  # lines side by side, as the gaps between rows of a superlattice's particles
         image[250:252, 150:270] += 0.2
         image[274:276, 150:270] += 0.2
@@ -601,7 +602,8 @@ def test_a_faint_line_over_the_film_under_its_label_is_a_bar():
     """EMPS pictures draw bars as faint lines over the film (a thin white line 0.2 of the range lighter than the film
     under its white label; a light line under a black label box): neither search saw them. A line standing out of both
     sides of it on nearly all its columns, under its label, is one now, measured at half contrast (120 px here, within
-    2.5 px at this noise, 0.6 px on average; on the EMPS pictures within 0.3 px of hand profiles); not without its label, nor beside other
+    2.5 px at this noise, 0.6 px on average; on the EMPS pictures within 0.4 px of hand profiles), its label short beside
+    it or not; not without its label, nor beside other
     such lines (a superlattice's gaps), nor with the film different on its two sides (a particle's rim); and it is
     looked for only where no other bar is found."""
     lengths = []
@@ -610,6 +612,8 @@ def test_a_faint_line_over_the_film_under_its_label_is_a_bar():
         assert bar is not None and "faint line" in bar.measured
         lengths.append(bar.length_px)
     assert np.abs(np.array(lengths) - 120).max() < 2.5 and abs(np.mean(lengths) - 120) < 0.6  # the noise's, unbiased
+    long = find_scale_bar(faint_film(line=(40, 360)))  # its label (49 columns of ink) over 0.15 of it
+    assert long is not None and long.length_px == pytest.approx(320, abs=2.5)
     assert find_scale_bar(faint_film(label=False)) is None
     assert find_scale_bar(faint_film(parallel=True)) is None
     assert find_scale_bar(faint_film(rim=True)) is None
