@@ -22,7 +22,7 @@ from qdots.micrograph.film_lines import ALONG_SHARE, SEED_SHARE, SIDE_ROWS, stan
 from qdots.micrograph.measure import measure_image
 from qdots.micrograph.profiles import half_depth_radius, profile_table
 from qdots.micrograph.refine import refine_dots
-from qdots.micrograph.scale import closed_lines, find_scale_bar
+from qdots.micrograph.scale import closed_lines, colour_bar, find_scale_bar, shortest_bar
 from qdots.micrograph.segment import broad_blur, stretch
 from qdots.micrograph.shapes import region_shapes
 from qdots.micrograph.strip_bars import THIN_LINE
@@ -500,6 +500,33 @@ def test_a_rulers_end_caps_reaching_its_label_boxs_edge_do_not_hide_it():
     for gap in (0, 6):
         bar = ruler_in_box(gap)
         assert bar is not None and bar.length_px == pytest.approx(200, abs=0.6)
+
+
+def askew_bar(climb: float, length: float, thickness: float, bow: float = 0.0) -> np.ndarray:
+    """`bar_film` with a bar in its darkest colour centred at (200, 262) px, climbing ``climb`` rows over its
+    ``length`` (its edges anti-aliased: drawn at 4 x 4 points a px), its middle ``bow`` px off its ends' line."""
+    image = bar_film()
+    low, n = image.min() - 0.2, 4
+    yy, xx = np.mgrid[0:300 * n, 0:400 * n] / n + 0.5 / n
+    angle = np.arctan2(climb, length)
+    along = (xx - 200) * np.cos(angle) + (yy - 262) * np.sin(angle)
+    across = -(xx - 200) * np.sin(angle) + (yy - 262) * np.cos(angle) + bow * (2 * along / length) ** 2
+    cover = ((np.abs(along) <= length / 2) & (np.abs(across) <= thickness / 2)).reshape(300, n, 400, n).mean(axis=(1, 3))
+    return image * (1 - cover) + low * cover
+
+
+def test_a_bar_drawn_askew_is_measured_sheared_upright_where_a_bowed_one_is_no_bar():
+    """Two EMPS pictures in no batch (scanned figures) draw their bars askew: a white bar climbing 2 rows over 259 px,
+    a black one 2.8 rows over 99 px; no row runs their length, and the bar was a swoosh or nothing. A component whose
+    top and bottom edges are straight and parallel, climbing at most 0.03 rows a px, is searched sheared upright: the
+    bars 258.91 and 99.29 px there (hand profiles 258.9 and 99.33); here 200 px climbing 4 rows, within 0.6 px. A bowed
+    one (its middle 3 px off its ends' line) is not taken by the search by colour, upright or sheared."""
+    bar = find_scale_bar(askew_bar(climb=4.0, length=200, thickness=4))
+    assert bar is not None and "askew" in bar.measured and bar.length_px == pytest.approx(200, abs=0.6)
+    bowed = askew_bar(climb=4.0, length=200, thickness=4, bow=3.0)
+    assert colour_bar(bowed, shortest_bar(bowed.shape)) is None
+    upright = find_scale_bar(askew_bar(climb=0.0, length=200, thickness=4))
+    assert upright.length_px == pytest.approx(200, abs=0.6) and "askew" not in upright.measured
 
 
 def test_a_white_bar_in_a_dark_outline_on_a_light_picture_is_a_bar():
