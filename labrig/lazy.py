@@ -6,7 +6,7 @@ does, so that importing the package, and a command line's ``--help``, loads noth
 
 `moved_module` keeps a module that moved importable by its old name for a deprecation period: the old name is a
 file of one line, whose import warns (a `DeprecationWarning` naming the new module and the release the old name
-goes in) and whose names are the new module's.
+goes in) and whose names are the new module's. `moved_names` does the same for some names of a module that stays.
 
 >>> getattr_, dir_ = exports("json", {"JSONDecoder": "decoder"})   # json.JSONDecoder lives in json.decoder
 >>> getattr_("JSONDecoder").__module__
@@ -22,7 +22,7 @@ import sys
 import warnings
 from collections.abc import Callable, Iterable, Mapping
 
-__all__ = ["exports", "moved_module"]
+__all__ = ["exports", "moved_module", "moved_names"]
 
 
 def exports(package: str, names: Mapping[str, str], modules: Iterable[str] = ()) -> tuple[Callable, Callable]:
@@ -80,3 +80,27 @@ def moved_module(old: str, new: str, since: str, goes_in: str) -> tuple[Callable
         return dir(target)
 
     return __getattr__, __dir__
+
+
+def moved_names(old: str, new: str, names: Iterable[str], since: str, goes_in: str) -> Callable:
+    """The ``__getattr__`` of module ``old``, some of whose ``names`` moved to module ``new``: each, when asked of
+    ``old``, warns with a `DeprecationWarning` that names its new home and the release ``goes_in`` that removes it
+    from ``old``, and is ``new``'s; any other missing name raises AttributeError as usual.
+
+    >>> getattr_ = moved_names("mine", "json.decoder", ["JSONDecoder"], "0.3", "0.4")
+    >>> import warnings
+    >>> with warnings.catch_warnings(record=True) as caught:
+    ...     warnings.simplefilter("always")
+    ...     getattr_("JSONDecoder").__module__, str(caught[0].message)
+    ('json.decoder', 'mine.JSONDecoder is json.decoder.JSONDecoder since 0.3; the old name goes in 0.4')
+    """
+    moved = frozenset(names)
+
+    def __getattr__(name: str):
+        if name in moved:
+            warnings.warn(f"{old}.{name} is {new}.{name} since {since}; the old name goes in {goes_in}",
+                          DeprecationWarning, stacklevel=2)
+            return getattr(importlib.import_module(new), name)
+        raise AttributeError(f"module {old!r} has no attribute {name!r}")
+
+    return __getattr__

@@ -19,11 +19,14 @@ from .bar import ScaleBar
 from .strip_bars import LABEL_INK, LABEL_ROWS, THIN_LINE
 
 #: A line's rows stand out of the rows beside it (SIDE_ROWS of them, 1 px off its rows: its blur) on at least
-#: ALONG_SHARE of its columns; it is sought in windows of the shortest bar's length where SEED_SHARE of the columns
-#: do. On the EMPS development pictures and those in no batch, the faint lines drawn as bars: 0.958-0.967 of their
-#: columns; a film's texture reaches 0.9 over a short bar's length here and there, never 0.95 over a longer one with
-#: the rest of these tests.
-ALONG_SHARE, SEED_SHARE, SIDE_ROWS = 0.95, 0.9, 3
+#: ALONG_SHARE of its columns; it is sought in windows of SEED_WINDOW of the shortest bar's length where SEED_SHARE of
+#: the columns do. On the EMPS development pictures and those in no batch, the faint lines drawn as bars: 0.958-0.967
+#: of their columns; a film's texture reaches 0.9 over a short bar's length here and there, never 0.95 over a longer
+#: one with the rest of these tests. Windows as long as the shortest bar missed lines little longer than it, or broken
+#: by noise near an end (their seeds widened by half a window overshot their ends): five white lines 37.7-117.3 px
+#: long on EMPS pictures in no batch, found in windows of half its length (0.4 found the same and took a piece of
+#: film on two pictures; 0.6 missed one and took a piece of film on one).
+ALONG_SHARE, SEED_SHARE, SIDE_ROWS, SEED_WINDOW = 0.95, 0.9, 3, 0.5
 #: Its median contrast is at least NOISE_RATIO times the spread (SD) of the quieter of the bands beside it
 #: (NEAR_ROWS rows each; the label's ink left out): those faint lines 3.0-10.5 times. A band that varies by less than
 #: MIN_TEXTURE of the picture's range is a flat ground, a strip's or a box's: its lines are `thin_bar`'s.
@@ -63,7 +66,7 @@ def stand_out(image: np.ndarray, window: int) -> list[tuple[np.ndarray, np.ndarr
 
     def one(thickness: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         light, dark = np.zeros(image.shape, dtype=bool), np.zeros(image.shape, dtype=bool)
-        runs = np.zeros((2 * h * (w // max(1, window) + 2), 4), dtype=np.int64)
+        runs = np.empty((2 * h * (w // max(1, window) + 2), 4), dtype=np.int64)  # the first n are written
         n = _stand_out(total, thickness, SIDE_ROWS, int(window), SEED_SHARE, ALONG_SHARE, light, dark, runs)
         return light, dark, runs[:n]
 
@@ -121,7 +124,7 @@ def faint_line(image: np.ndarray, shortest: float) -> ScaleBar | None:
     h, w = image.shape
     low, high = float(image.min()), float(image.max())
     span = high - low
-    window = int(shortest)
+    window = int(SEED_WINDOW * shortest)
     if not span > 0 or window < 2 or h < 2 * (SIDE_ROWS + 1) + THIN_LINE or w <= window:
         return None
     ink = (image <= low + EXTREME * span) | (image >= high - EXTREME * span)

@@ -18,6 +18,7 @@ from matplotlib.figure import Figure
 from matplotlib.patches import Circle, Rectangle
 
 from labrig.figures import save_figure
+from labrig.lazy import moved_names
 
 from ..render import add_key, nice_length, robust_size_range, size_colours
 from .film import film_state
@@ -158,13 +159,5 @@ def overlay_figure(film: MeasuredFilm, refused: list[str] | None = None):
     return fig
 
 
-def __getattr__(name: str):
-    """``save_side_by_side`` and ``side_by_side_figure`` are `qdots.inference.plots`'s since 0.3 (here until 0.4)."""
-    if name in ("save_side_by_side", "side_by_side_figure"):
-        import importlib
-        import warnings
-
-        warnings.warn(f"qdots.micrograph.overlay.{name} is qdots.inference.plots.{name} since 0.3; the old name goes "
-                      "in 0.4", DeprecationWarning, stacklevel=2)
-        return getattr(importlib.import_module("qdots.inference.plots"), name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+#: ``save_side_by_side`` and ``side_by_side_figure`` are `qdots.inference.plots`'s since 0.3 (here until 0.4).
+__getattr__ = moved_names(__name__, "qdots.inference.plots", ("save_side_by_side", "side_by_side_figure"), "0.3", "0.4")

@@ -80,11 +80,14 @@ def band_ruler(image: np.ndarray, span: float, shortest: float) -> ScaleBar | No
     """The longest ruler of ticks on a band of rows ``image`` of a picture whose range is ``span``, at least
     ``shortest`` px from its first tick to its last, or None: at least `MIN_TICKS` marks (`tick_marks`) on the same
     rows, evenly spaced (`tick_chains`) with at most `MAX_HIDDEN` missing, `TICK_APART` of their width apart or more,
-    on a flat ground between them
-    (varying by at most `LINE_GROUND` of the range). A Hitachi data strip draws its scale so: 11 ticks, the label
-    giving the length from the first to the last. Its length is the distance between the first and the last tick's
-    middles. A ruler that goes on past its ends (`ruler_goes_on`) is not taken: a piece of it would give a wrong
-    scale."""
+    on a flat ground between them (varying by at most `LINE_GROUND` of the range, each tick's blurred sides as wide
+    as it and the place of a tick not seen left out), out of which they stand by `LINE_CONTRAST` of the range (the
+    holes of a word's "0"s do not: what lies between them is as deep), and they end: the rows just past their tops
+    and bottoms are nearer the ground than the ticks (the light gaps between a cluster's particles in a row go on
+    between its rows). A Hitachi data strip draws its scale so: 11
+    ticks, the label giving the length from the first to the last. Its length is the distance between the first and
+    the last tick's middles. A ruler that goes on past its ends (`ruler_goes_on`) is not taken: a piece of it would
+    give a wrong scale."""
     best = None
     for dark in (True, False):
         signed = -image if dark else image  # the ticks stand up out of their ground
@@ -103,11 +106,23 @@ def band_ruler(image: np.ndarray, span: float, shortest: float) -> ScaleBar | No
             if ruler_goes_on(narrow[top:bottom], [t[0] for t in chain]):
                 continue  # a ruler whose ticks go on is taken whole or not at all
             between = np.ones(last[4] - first[3], dtype=bool)
-            for tick in chain:
-                between[max(0, tick[3] - 1 - first[3]):tick[4] + 1 - first[3]] = False
+            step = chain[1][0] - first[0]
+            for tick, after in zip(chain, chain[1:] + [last]):  # each tick and its blurred sides as wide as it, and
+                reach = tick[4] - tick[3] + 1  # where one is hidden (under a particle, or not seen), as much
+                for k in range(max(1, round((after[0] - tick[0]) / step))):
+                    x0, x1 = tick[3] + round(k * step), tick[4] + round(k * step)
+                    between[max(0, x0 - reach - first[3]):max(0, x1 + reach - first[3])] = False
             ground = signed[(top + bottom) // 2, first[3]:last[4]][between]
             if ground.size == 0 or float(ground.std()) > LINE_GROUND * span:
-                continue
+                continue  # no flat ground between them
+            level = float(np.median(ground))
+            peak = float(np.median([signed[tick[1]:tick[2], tick[3]:tick[4]].max() for tick in chain]))
+            if peak - level < LINE_CONTRAST * span:
+                continue  # marks as deep as what lies between them: the holes of a word's letters, not ticks
+            ends = [float(signed[row, tick[3]:tick[4]].mean()) for tick in chain for row in (tick[1] - 2, tick[2] + 1)
+                    if 0 <= row < signed.shape[0]]
+            if ends and float(np.median(ends)) >= 0.5 * (level + peak):
+                continue  # marks that go on up or down: the gaps between a cluster's particles, not ticks
             if best is None or last[0] - first[0] > best.length_px:
                 best = ScaleBar(last[0] - first[0], (first[3], top, last[4], bottom), dark, ruled=True,
                                 at_edge=first[3] == 0 or last[4] == image.shape[1],
@@ -133,8 +148,9 @@ def tick_marks(narrow: np.ndarray, contrast: float) -> list[tuple[float, int, in
 
 
 def tick_chains(ticks: list[tuple[float, int, int, int, int]]) -> list[list[tuple[float, int, int, int, int]]]:
-    """``ticks`` (`tick_marks`) in chains of ticks on the same rows (tops and bottoms within 1 px of the first's),
-    evenly spaced: each gap within `TICK_EVEN` of the first gap, or of a whole number of it up to 1 + `MAX_HIDDEN`
+    """``ticks`` (`tick_marks`) in chains of ticks on the same rows (their tops or their bottoms within 1 px of the
+    first's: a Hitachi SU strip draws its first, middle and last ticks taller, on the others' baseline), evenly
+    spaced: each gap within `TICK_EVEN` of the first gap, or of a whole number of it up to 1 + `MAX_HIDDEN`
     where ticks are hidden (under a particle, where the ruler is drawn over the film). Every tick is in one chain; a
     chain starts at the first tick not yet in one, so that no ruler is taken from one of its own ticks on."""
     chains, taken = [], set()
@@ -144,7 +160,7 @@ def tick_chains(ticks: list[tuple[float, int, int, int, int]]) -> list[list[tupl
         chain = [i]
         for j in range(i + 1, len(ticks)):
             tick, previous = ticks[j], ticks[chain[-1]]
-            if abs(tick[1] - first[1]) > 1 or abs(tick[2] - first[2]) > 1:
+            if abs(tick[1] - first[1]) > 1 and abs(tick[2] - first[2]) > 1:
                 continue  # on other rows: letters of its label, or another ruler
             if len(chain) > 1:
                 step = ticks[chain[1]][0] - first[0]
