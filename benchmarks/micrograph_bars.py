@@ -30,8 +30,8 @@ from .real_data import fetch_one
 from .report import Headline, Note, Table, cli_with_options
 
 MEASURED_CODE = ("qdots/micrograph/annotations.py", "qdots/micrograph/bar.py", "qdots/micrograph/scale.py",
-                 "qdots/micrograph/colour_bars.py", "qdots/micrograph/strip_bars.py", "qdots/micrograph/film_lines.py",
-                 "qdots/micrograph/read.py")
+                 "qdots/micrograph/colour_bars.py", "qdots/micrograph/bar_profile.py", "qdots/micrograph/strip_bars.py",
+                 "qdots/micrograph/film_lines.py", "qdots/micrograph/read.py")
 MANIFEST = Path(__file__).with_name("micrograph_bars.toml")
 #: A bar found is the drawn one when the middle of its box lies within the drawn bar's box grown by SLACK px, and it is
 #: at least COVER of the drawn bar's width (not a piece of it).

@@ -82,25 +82,26 @@ def moved_module(old: str, new: str, since: str, goes_in: str) -> tuple[Callable
     return __getattr__, __dir__
 
 
-def moved_names(old: str, new: str, names: Iterable[str], since: str, goes_in: str) -> Callable:
-    """The ``__getattr__`` of module ``old``, some of whose ``names`` moved to module ``new``: each, when asked of
-    ``old``, warns with a `DeprecationWarning` that names its new home and the release ``goes_in`` that removes it
-    from ``old``, and is ``new``'s; any other missing name raises AttributeError as usual.
+def moved_names(old: str, homes: Mapping[str, str], since: str, goes_in: str) -> Callable:
+    """The ``__getattr__`` of module ``old``, some of whose names moved: ``homes`` maps each to the module that now
+    holds it. Each, when asked of ``old``, warns with a `DeprecationWarning` that names its new home and the release
+    ``goes_in`` that removes it from ``old``, and is its new home's; any other missing name raises AttributeError as
+    usual.
 
-    >>> getattr_ = moved_names("mine", "json.decoder", ["JSONDecoder"], "0.3", "0.4")
+    >>> getattr_ = moved_names("mine", {"JSONDecoder": "json.decoder"}, "0.3", "0.4")
     >>> import warnings
     >>> with warnings.catch_warnings(record=True) as caught:
     ...     warnings.simplefilter("always")
     ...     getattr_("JSONDecoder").__module__, str(caught[0].message)
     ('json.decoder', 'mine.JSONDecoder is json.decoder.JSONDecoder since 0.3; the old name goes in 0.4')
     """
-    moved = frozenset(names)
+    homes = dict(homes)
 
     def __getattr__(name: str):
-        if name in moved:
-            warnings.warn(f"{old}.{name} is {new}.{name} since {since}; the old name goes in {goes_in}",
+        if name in homes:
+            warnings.warn(f"{old}.{name} is {homes[name]}.{name} since {since}; the old name goes in {goes_in}",
                           DeprecationWarning, stacklevel=2)
-            return getattr(importlib.import_module(new), name)
+            return getattr(importlib.import_module(homes[name]), name)
         raise AttributeError(f"module {old!r} has no attribute {name!r}")
 
     return __getattr__

@@ -241,12 +241,14 @@ def test_measuring_pictures_needs_neither_the_simulator_nor_the_inference():
 
 
 def test_the_search_by_colours_names_are_colour_bars_and_their_old_names_say_so():
+    import qdots.micrograph.bar_profile as bar_profile
     import qdots.micrograph.colour_bars as colour_bars
     import qdots.micrograph.scale as scale
 
-    for name in ("half_contrast_length", "closed_lines", "BAR_SURROUNDINGS"):
-        with pytest.warns(DeprecationWarning, match=rf"scale.{name} is qdots.micrograph.colour_bars.{name} .* 0\.4"):
-            assert getattr(scale, name) is getattr(colour_bars, name)
+    for home, name in ((bar_profile, "half_contrast_length"), (colour_bars, "closed_lines"),
+                       (bar_profile, "BAR_SURROUNDINGS"), (colour_bars, "tilted_bar")):
+        with pytest.warns(DeprecationWarning, match=rf"scale.{name} is {home.__name__}.{name} .* 0\.4"):
+            assert getattr(scale, name) is getattr(home, name)
     assert scale.colour_bar is colour_bars.colour_bar  # what the scale's search calls is imported, not moved away
     with pytest.raises(AttributeError, match="no attribute 'nothing'"):
         scale.nothing  # noqa: B018

@@ -33,7 +33,7 @@ class ScaleBar:
         it (the tail of a "µ") as well; None: ``box``.
     measured : str
         How its length was measured: between its ends' half-contrast points
-        (`qdots.micrograph.colour_bars.half_contrast_length`), between the middles of its end marks
+        (`qdots.micrograph.bar_profile.half_contrast_length`), between the middles of its end marks
         (`qdots.micrograph.strip_bars.band_bar`), or from its first tick to its last
         (`qdots.micrograph.strip_bars.band_ruler`).
     """

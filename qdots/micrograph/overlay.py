@@ -160,4 +160,5 @@ def overlay_figure(film: MeasuredFilm, refused: list[str] | None = None):
 
 
 #: ``save_side_by_side`` and ``side_by_side_figure`` are `qdots.inference.plots`'s since 0.3 (here until 0.4).
-__getattr__ = moved_names(__name__, "qdots.inference.plots", ("save_side_by_side", "side_by_side_figure"), "0.3", "0.4")
+__getattr__ = moved_names(__name__, dict.fromkeys(("save_side_by_side", "side_by_side_figure"), "qdots.inference.plots"),
+                          "0.3", "0.4")

@@ -67,10 +67,10 @@ def find_scale_bar(image: np.ndarray) -> ScaleBar | None:
     down than across is not one (on the development halves of the real micrographs and of EMPS, 88 pictures, every
     drawn bar is horizontal, and the three upright "bars" taken before were a panel label's "1" and two dark gaps
     between touching particles). Its length is measured at half contrast
-    (`qdots.micrograph.colour_bars.half_contrast_length`), and is at least `shortest_bar`. Dots are never that flat in
-    colour, nor that long; a bar stands out of what surrounds it (`qdots.micrograph.colour_bars.bar_contrast`; or of
+    (`qdots.micrograph.bar_profile.half_contrast_length`), and is at least `shortest_bar`. Dots are never that flat in
+    colour, nor that long; a bar stands out of what surrounds it (`qdots.micrograph.bar_profile.bar_contrast`; or of
     its outline, where it is drawn in one), where noise pixels joined into a bar do not, and out of the rows on both
-    of its sides (`qdots.micrograph.colour_bars.stands_out_both_sides`), where the darkest fringe along a dark
+    of its sides (`qdots.micrograph.bar_profile.stands_out_both_sides`), where the darkest fringe along a dark
     particle's edge does not. The thin bars and the rulers of ticks of instruments' data strips, and grey lines under
     their labels, are found by `qdots.micrograph.strip_bars.thin_bar`; the longer of the two searches' bars is taken,
     but a bar both find (`same_bar`) is measured as its colour shows it. Where neither finds one, a bar drawn in a
@@ -113,10 +113,13 @@ def scale_from_bar(bar: ScaleBar | None, length: str) -> float:
     return check_nm_per_px(nm / bar.length_px, "scale from the scale bar")
 
 
-#: The search by colour's functions and constants are `qdots.micrograph.colour_bars`'s since 0.3 (here until 0.4).
-__getattr__ = moved_names(__name__, "qdots.micrograph.colour_bars", (
-    "EDGE_ROW", "BAR_GAP", "MIN_HOLE", "SKEW_MIDDLE", "SKEW_STRAIGHT", "SKEW_PARALLEL", "MAX_SKEW", "BAR_SURROUNDINGS",
-    "OFF_SPINE", "TAPER", "MIN_CONTRAST", "MIN_SHARE", "OUTLINE", "SIDE_SHARE", "GLYPH_SIDE", "GLYPH_AWAY", "SOLID",
-    "tilted_bar", "spine", "bar_candidate", "solid_rectangle", "bar_rows", "spine_rows", "longest_run",
-    "closed_lines", "bar_contrast", "stands_out_both_sides", "surroundings", "half_contrast_length"), "0.3", "0.4")
-
+#: The search by colour's functions and constants are `qdots.micrograph.colour_bars`'s since 0.3, and how a bar stands
+#: out and where its ends are `qdots.micrograph.bar_profile`'s (here until 0.4).
+__getattr__ = moved_names(__name__, {
+    **dict.fromkeys(("EDGE_ROW", "BAR_GAP", "MIN_HOLE", "SKEW_MIDDLE", "SKEW_STRAIGHT", "SKEW_PARALLEL", "MAX_SKEW",
+                     "OFF_SPINE", "TAPER", "GLYPH_SIDE", "GLYPH_AWAY", "SOLID", "tilted_bar", "spine", "bar_candidate",
+                     "solid_rectangle", "bar_rows", "spine_rows", "longest_run", "closed_lines"),
+                    "qdots.micrograph.colour_bars"),
+    **dict.fromkeys(("BAR_SURROUNDINGS", "MIN_CONTRAST", "MIN_SHARE", "OUTLINE", "SIDE_SHARE", "bar_contrast",
+                     "stands_out_both_sides", "surroundings", "half_contrast_length"), "qdots.micrograph.bar_profile"),
+}, "0.3", "0.4")
