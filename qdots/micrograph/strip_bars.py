@@ -17,7 +17,8 @@ from .bar import MIN_BAR, ScaleBar
 #: A thin bar (`thin_bar`: an instrument's data strip draws its bar as a line a few px thick with a mark at each end,
 #: grey after JPEG, not the picture's darkest or lightest) is a line at most THIN_LINE px thick that stands out of the
 #: pixels above and below it by LINE_CONTRAST of the image's range (a black top-hat over LINE_REACH rows), lies on a
-#: flat ground (the rows beside it vary by at most LINE_GROUND of the range: a strip or a label's ground, not a film),
+#: flat ground (each row beside it varies along it by at most LINE_GROUND of the range: a strip or a label's ground,
+#: not a film; rows of other levels, a table's border 5 px under an FEI strip's bar, are a strip's too),
 #: and ends at each end in a mark (cap or tick) crossing it: at least END_MARK px above it and as many below (within
 #: MARK_ROWS rows of it; its label's letters lie further), within END_REACH px of its end, that stand MARK_SHARE of
 #: the line's own contrast out of its ground (a label box drawn as an outline has lines whose ends turn one way only).
@@ -358,12 +359,13 @@ def ruler_goes_on(narrow: np.ndarray, middles: list[float]) -> bool:
 def flat_ground(signed: np.ndarray, span: float, top: int, bottom: int, start: int, stop: int) -> float | None:
     """The level of the ground a thin line lies on (rows ``top`` to ``bottom``, exclusive, columns ``start`` to
     ``stop``, on ``signed``): the median of the rows just above and below its middle half, 1 px off it (its blur), or
-    None where they vary by more than `LINE_GROUND` of the image's range ``span`` (a film, not a strip or a label's
-    ground)."""
+    None where one of those rows varies along the line by more than `LINE_GROUND` of the image's range ``span`` (a
+    film, not a strip or a label's ground; a table's border among those rows is flat along them)."""
     middle = slice(start + (stop - start) // 4, stop - (stop - start) // 4)
     above = signed[max(0, top - LINE_REACH // 2 - 2):max(0, top - 1), middle]
     below = signed[bottom + 1:bottom + LINE_REACH // 2 + 2, middle]
-    if above.size == 0 or below.size == 0 or max(float(above.std()), float(below.std())) > LINE_GROUND * span:
+    if above.size == 0 or below.size == 0 or max(float(above.std(axis=1).max()), float(below.std(axis=1).max())) > \
+            LINE_GROUND * span:
         return None
     return float(np.median(np.concatenate([above.ravel(), below.ravel()])))
 
