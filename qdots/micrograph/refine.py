@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from labrig.compiled import jit
-from labrig.threads import available_threads, by_chunks, run_in_threads
+from labrig.threads import available_threads, by_chunks, row_ranges, run_in_threads
 
 from .profiles import BIN, FIT_STEP, blur_row, fit_dot, polish_dot, profile_table, row_value
 
@@ -42,14 +42,6 @@ PINNED, WALKS = 0.015, 8
 #: A dot's profile reaches REACH times its radius (or the typical one, if larger) plus REACH_PAD px.
 REACH, REACH_PAD = 1.4, 4.0
 
-@jit
-def paint_dot(model, x, y, r, c, table, blur, sign):
-    """Add ``sign * C F(|p - (x, y)| / r)`` (the blurred profile of `profile_table`) to ``model``, out to 2 r."""
-    if r > 0.0 and c != 0.0:
-        curve = np.empty(table.shape[1])
-        blur_row(table, blur / r, curve)
-        add_disc(model, x, y, r, sign * c, curve)
-
 
 @jit(inline=True)
 def disc_columns(x, dy, reach, w):
@@ -62,12 +54,13 @@ def disc_columns(x, dy, reach, w):
 
 
 @jit
-def add_disc(model, x, y, r, c, curve):
+def add_disc(model, x, y, r, c, curve, top=0, bottom=-1):
     """Add ``c`` times the profile ``curve`` (a `qdots.micrograph.profiles.blur_row`) at radius ``r`` around (x, y) to
-    ``model``, out to twice the radius, row by row over the columns that distance reaches."""
+    ``model``, out to twice the radius, row by row over the columns that distance reaches; only rows ``top`` to
+    ``bottom`` - 1 (default: all)."""
     h, w = model.shape
     reach = 2.0 * r
-    for line in range(max(0, int(y - reach)), min(h, int(y + reach) + 2)):
+    for line in range(max(top, int(y - reach)), min(h if bottom < 0 else bottom, int(y + reach) + 2)):
         dy = line + 0.5 - y
         start, stop = disc_columns(x, dy, reach, w)
         for col in range(start, stop):
@@ -78,10 +71,16 @@ def add_disc(model, x, y, r, c, curve):
 
 
 @jit
-def paint_model(model, centres, radii, contrast, table, blurs):
-    """Add every dot's `paint_dot` to ``model`` (``blurs[k]`` the blur at dot k, px)."""
+def paint_model(model, centres, radii, contrast, table, blurs, top, bottom):
+    """Add every dot's ``C F(|p - (x, y)| / r)`` (the blurred profile of `profile_table`, out to 2 r) to rows ``top``
+    to ``bottom`` - 1 of ``model``, dot after dot (``blurs[k]`` the blur at dot k, px)."""
+    curve = np.empty(table.shape[1])
     for k in range(len(radii)):
-        paint_dot(model, centres[k, 0], centres[k, 1], radii[k], contrast[k], table, blurs[k], 1.0)
+        r = radii[k]
+        y = centres[k, 1]
+        if r > 0.0 and contrast[k] != 0.0 and int(y - 2.0 * r) < bottom and int(y + 2.0 * r) + 2 > top:
+            blur_row(table, blurs[k] / r, curve)
+            add_disc(model, centres[k, 0], y, r, contrast[k], curve, top, bottom)
 
 
 @jit
@@ -229,11 +228,16 @@ def per_dot(value, n: int) -> np.ndarray:
     return np.array(np.broadcast_to(np.asarray(value, dtype=float), (n,)))
 
 
-def model_image(shape, centres, radii, contrast, table, blur) -> np.ndarray:
-    """The darkening of every dot (`paint_model`) as an image of ``shape``; ``blur`` one width or one per dot."""
+def model_image(shape, centres, radii, contrast, table, blur, threads: int | None = None) -> np.ndarray:
+    """The darkening of every dot (`paint_model`) as an image of ``shape``; ``blur`` one width or one per dot. Bands of
+    rows are painted side by side in ``threads`` threads (default `labrig.threads.available_threads`), each dot by each
+    band it reaches: every pixel adds its dots in the same order, so the image is the same to the bit whatever their
+    number."""
     model = np.zeros(shape)
-    paint_model(model, np.ascontiguousarray(centres, dtype=float), np.nan_to_num(np.asarray(radii, float)),
-                np.asarray(contrast, float), table, per_dot(blur, len(radii)))
+    args = (np.ascontiguousarray(centres, dtype=float), np.nan_to_num(np.asarray(radii, float)),
+            np.asarray(contrast, float), table, per_dot(blur, len(radii)))
+    run_in_threads(lambda rows: paint_model(model, *args, *rows),
+                   row_ranges(shape[0], available_threads() if threads is None else threads, least=64))
     return model
 
 
@@ -353,7 +357,7 @@ def refine_dots(image, centres, radii, contrast, typical: float, shape: float, b
     background = base.copy()
     residual = np.full(n, np.inf)
     blurs = per_dot(blur, n)
-    model = model_image(image.shape, centres, radius, contrast, table, blurs) if model is None else model
+    model = model_image(image.shape, centres, radius, contrast, table, blurs, threads) if model is None else model
     active = np.ones(n, dtype=bool) if active is None else np.asarray(active, dtype=bool)
     for k in range(passes):
         first = wide and k == 0
@@ -367,17 +371,41 @@ def refine_dots(image, centres, radii, contrast, typical: float, shape: float, b
     return Refined(centres, radius, background, contrast, residual, profiles, model, reach)
 
 
-def rolled(image: np.ndarray, shift: tuple[int, int]) -> np.ndarray:
-    """``np.roll(image, shift, axis=(0, 1))`` in one copy (numpy's rolls axis by axis, a copy each), ``shift`` each
-    within the image's side."""
-    dy, dx = shift[0] % image.shape[0], shift[1] % image.shape[1]
-    out = np.empty_like(image)
-    rows = ((slice(dy, None), slice(None, image.shape[0] - dy)), (slice(None, dy), slice(image.shape[0] - dy, None)))
-    cols = ((slice(dx, None), slice(None, image.shape[1] - dx)), (slice(None, dx), slice(image.shape[1] - dx, None)))
-    for to_rows, from_rows in rows:
-        for to_cols, from_cols in cols:
-            out[to_rows, to_cols] = image[from_rows, from_cols]
+def second_image(image, level_map, model, shift: tuple[int, int], threads: int | None = None) -> np.ndarray:
+    """`repeat_errors`'s second image of the film: ``clean = level_map - model`` plus the residual ``image - clean``
+    rolled by ``shift`` px (rows, columns) as `numpy.roll` rolls, NaN taken as 0 (`numpy.nan_to_num`), NaN wherever
+    ``image`` is; in one pass over the pixels (`second_image_rows`), bands of rows side by side in ``threads`` threads
+    (default `labrig.threads.available_threads`)."""
+    image, level_map, model = (np.ascontiguousarray(a, dtype=float) for a in (image, level_map, model))
+    h, w = image.shape
+    out = np.empty((h, w))
+    run_in_threads(lambda rows: second_image_rows(image, level_map, model, shift[0] % h, shift[1] % w, out, *rows),
+                   row_ranges(h, available_threads() if threads is None else threads, least=64))
     return out
+
+
+@jit
+def second_image_rows(image, level_map, model, dy, dx, out, top, bottom):
+    """Rows ``top`` to ``bottom`` - 1 of `second_image` into ``out``: ``clean = level_map - model``
+    plus the residual ``image - clean`` rolled by (``dy``, ``dx``) px as `numpy.roll` rolls (NaN taken as 0 and
+    infinities as the largest finite values, as `numpy.nan_to_num` does), NaN wherever ``image`` is."""
+    h, w = image.shape
+    largest = np.finfo(np.float64).max
+    for i in range(top, bottom):
+        si = (i - dy) % h
+        for j in range(w):
+            if image[i, j] != image[i, j]:
+                out[i, j] = np.nan
+                continue
+            sj = (j - dx) % w
+            rest = image[si, sj] - (level_map[si, sj] - model[si, sj])
+            if rest != rest:
+                rest = 0.0
+            elif rest > largest:
+                rest = largest
+            elif rest < -largest:
+                rest = -largest
+            out[i, j] = (level_map[i, j] - model[i, j]) + rest
 
 
 def repeat_errors(image, centres, refined: Refined, typical: float, shape: float, blur, level, level_map,
@@ -388,9 +416,7 @@ def repeat_errors(image, centres, refined: Refined, typical: float, shape: float
     measurements with independent errors of deviation ``e`` differ by ``sqrt(2) e``: the error of each dot is
     its difference over ``sqrt(2)``, whose root mean square over the dots is ``e``. Up to `REPEAT_DOTS` dots,
     evenly chosen, are measured again (the others' errors are NaN): the error is a statistic of the film."""
-    clean = level_map - refined.model
-    again = clean + np.nan_to_num(rolled(image - clean, shift))
-    again[np.isnan(image)] = np.nan
+    again = second_image(image, level_map, refined.model, shift)
     n = len(refined.radius)
     active = np.zeros(n, dtype=bool)
     active[::max(1, math.ceil(n / REPEAT_DOTS))] = True

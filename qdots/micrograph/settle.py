@@ -17,6 +17,7 @@ from typing import cast
 
 import numpy as np
 
+from labrig.compiled import jit
 from labrig.threads import run_tasks
 
 from .choices import PROFILES
@@ -231,10 +232,29 @@ def smooth_level(centres, background, shape) -> tuple[np.ndarray, np.ndarray]:
         level = float(np.median(background[ok])) if ok.any() else 1.0
         return np.full(len(centres), level), np.full(shape, level)
     coef = np.linalg.lstsq(surface_terms(centres[ok, 0], centres[ok, 1], shape), background[ok], rcond=None)[0]
-    u = ((np.arange(shape[1]) + 0.5) / shape[1] - 0.5)[None, :]  # the surface over every pixel, by broadcasting
-    v = ((np.arange(shape[0]) + 0.5) / shape[0] - 0.5)[:, None]
-    full = coef[0] + coef[1] * u + coef[2] * v + coef[3] * u * u + coef[4] * v * v + coef[5] * u * v
+    full = np.empty(shape)
+    quadratic_map(coef, (np.arange(shape[1]) + 0.5) / shape[1] - 0.5, (np.arange(shape[0]) + 0.5) / shape[0] - 0.5,
+                  full)
     return surface_terms(centres[:, 0], centres[:, 1], shape) @ coef, full
+
+
+@jit
+def quadratic_map(coef, u, v, out):
+    """The quadratic surface of `surface_terms` with coefficients ``coef`` at every pixel (row ``i`` at ``v[i]``,
+    column ``j`` at ``u[j]``), into ``out``: in one pass, the terms summed in their order."""
+    for i in range(v.shape[0]):
+        for j in range(u.shape[0]):
+            out[i, j] = (coef[0] + coef[1] * u[j] + coef[2] * v[i] + coef[3] * u[j] * u[j] + coef[4] * v[i] * v[i]
+                         + coef[5] * u[j] * v[i])
+
+
+@jit
+def plane_times(plane, u, v, field, out):
+    """``(plane[0] + plane[1] u + plane[2] v)`` times ``field`` at every pixel (row ``i`` at ``v[i]``, column ``j``
+    at ``u[j]``), into ``out``, in one pass."""
+    for i in range(v.shape[0]):
+        for j in range(u.shape[0]):
+            out[i, j] = (plane[0] + plane[1] * u[j] + plane[2] * v[i]) * field[i, j]
 
 
 def quadratic_minimum(points: np.ndarray, values: np.ndarray, low, high) -> tuple[np.ndarray, float]:
@@ -359,8 +379,9 @@ def settle_tiles(image, centres, radii, contrast, field, field_map, typical: flo
         return np.column_stack([np.ones(np.size(x)), np.ravel(x) / w, np.ravel(y) / h]) @ planes
 
     at_dots = lay(centres[:, 0], centres[:, 1])
-    k_map = (planes[0, 1] + planes[1, 1] * ((np.arange(w) + 0.5) / w)[None, :]
-             + planes[2, 1] * ((np.arange(h) + 0.5) / h)[:, None])
+    level_map = np.empty((h, w))
+    plane_times(np.ascontiguousarray(planes[:, 1]), (np.arange(w) + 0.5) / w, (np.arange(h) + 0.5) / h,
+                np.asarray(field_map, dtype=float), level_map)
     blurs = np.clip(at_dots[:, 0], *BLURS)
-    return blurs, at_dots[:, 1] * field, k_map * field_map
+    return blurs, at_dots[:, 1] * field, level_map
 

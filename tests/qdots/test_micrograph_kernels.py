@@ -8,7 +8,7 @@ import pytest
 from scipy import ndimage
 
 from qdots.micrograph.profiles import BIN, profile_table, radial_profiles
-from qdots.micrograph.refine import centre_shift, dot_profiles, model_image, refine_dots, rolled
+from qdots.micrograph.refine import centre_shift, dot_profiles, model_image, refine_dots, second_image
 from qdots.micrograph.segment import label_boxes, label_moments, region_properties, sequential_labels
 
 
@@ -124,11 +124,27 @@ def test_each_dots_profile_is_the_image_plus_its_neighbours_model_in_radial_bins
         np.testing.assert_allclose(rhos[k], np.bincount(b, rho[take], n_bins), rtol=0, atol=1e-9)
 
 
-@pytest.mark.parametrize("shape", [(7, 5), (1, 4), (64, 64)])
+@pytest.mark.parametrize("shape", [(7, 5), (1, 4), (64, 64), (300, 41)])
 @pytest.mark.parametrize("shift", [(0, 0), (1, 2), (-2, 5), (37, 61), (7, -11)])
-def test_rolled_equals_numpys_roll(shape, shift):
-    image = np.random.default_rng(1).random(shape)
-    np.testing.assert_array_equal(rolled(image, shift), np.roll(image, shift, axis=(0, 1)))
+def test_the_second_image_is_the_clean_film_plus_its_residual_rolled(shape, shift):
+    rng = np.random.default_rng(1)
+    image, level_map, model = rng.random(shape), 1.0 + rng.random(shape), 0.3 * rng.random(shape)
+    image[rng.random(shape) < 0.1] = np.nan
+    image.flat[::13] = np.inf
+    clean = level_map - model
+    expected = clean + np.nan_to_num(np.roll(image - clean, shift, axis=(0, 1)))
+    expected[np.isnan(image)] = np.nan
+    for threads in (1, 2, 3):  # the same to the bit, in bands of rows or whole
+        np.testing.assert_array_equal(second_image(image, level_map, model, shift, threads), expected)
+
+
+def test_the_dots_model_is_the_same_to_the_bit_painted_in_bands_of_rows():
+    centres, radii, contrast, blurs = dots(n=400, seed=6, side=300)
+    whole = model_image((300, 300), centres, radii, contrast, profile_table(0.5), blurs, threads=1)
+    assert whole.any()
+    for threads in (2, 3, 5):
+        np.testing.assert_array_equal(model_image((300, 300), centres, radii, contrast, profile_table(0.5), blurs,
+                                                  threads=threads), whole)
 
 
 def test_a_centres_shift_is_the_balance_of_its_darkness_within_nine_tenths_of_its_radius():
