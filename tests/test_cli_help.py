@@ -218,3 +218,19 @@ def test_qdots_demo_sigma_is_the_deposition_s_declaration(capsys, tmp_path, monk
     assert f"argument --sigma: must be {sigma.bounds()}, got 1.0" in one_line_error(capsys)
     assert main(["demo", "--help"]) == 0
     assert " ".join(sigma.comment().split()) in " ".join(capsys.readouterr().out.split())
+
+
+def test_measure_says_when_it_looks_at_the_other_polarity(capsys, tmp_path, monkeypatch):
+    import labrig.progress
+    import qdots.micrograph.measure
+
+    disc_film_png(tmp_path / "film.png", n=40, size=160)
+    monkeypatch.setattr(labrig.progress, "QUIET", 0.0)
+    # every detection refused: the other polarity and every retry run, each saying so
+    monkeypatch.setattr(qdots.micrograph.measure, "film_verdict", lambda detection, *rest: (["refused here"], []))
+    assert main(["measure", str(tmp_path / "film.png"), "--nm-per-px", "1", "--no-lqe", "--out",
+                 str(tmp_path / "out")]) == 2
+    said = capsys.readouterr().err.splitlines()
+    other = [i for i, line in enumerate(said) if "objects (the dark ones are not a film of round particles)" in line]
+    assert other and said[other[0]].startswith("qdots measure: the light objects")
+    assert any("smoothing by" in line for line in said[other[0]:])

@@ -23,6 +23,7 @@ OUTLINE = 2
 #: EMPS development half, a dark particle's edge fringe taken for a bar, 0.29 on the particle's side.
 SIDE_SHARE = 0.5
 
+
 def bar_contrast(image: np.ndarray, box: tuple[int, int, int, int],
                  colour: np.ndarray) -> tuple[float, float, float]:
     """How far a bar in ``box`` (x0, y0, x1, y1) stands out of its surroundings, the pixel noise there, and how far it

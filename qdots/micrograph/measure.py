@@ -206,6 +206,8 @@ def measure_image(path: str | os.PathLike, *, nm_per_px=None, scale_bar: str | N
         step("measuring the film")
         refusals, doubts = film_verdict(detection) if detection.n_dots else (["no dots found"], [])
         if refusals and polarity == "auto":  # the other phase may be the film: dark particles joined by necks, light gaps
+            step(f"the {'light' if detection.dark else 'dark'} objects (the {'dark' if detection.dark else 'light'} "
+                 "ones are not a film of round particles)")
             other = detect_dots(image.pixels, polarity="light" if detection.dark else "dark", profile=profile,
                                 ignore=found.ignore, window=found.window)
             refused_too = bool(other.n_dots) and bool(film_verdict(other)[0])
