@@ -25,6 +25,7 @@ BENCHMARKS = [
     "micrograph_emps",
     "micrograph_bars",
     "micrograph_twins",
+    "micrograph_jitter",
     "qdots_identifiability",
     "qdots_infer",
     "qdots_infer_limits",
