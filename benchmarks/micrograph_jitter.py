@@ -14,7 +14,6 @@ Run: ``python -m benchmarks.micrograph_jitter [--half dev|test|all] [--only ID .
 
 from __future__ import annotations
 
-import argparse
 import math
 import tempfile
 import time
@@ -22,8 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .real_data import cache_folder, entries
-from .report import Headline, Note, Table, cli_with_options
+from .real_data import cache_folder, entries, halves_main
+from .report import Headline, Note, Table
 
 MEASURED_CODE = ("qdots/micrograph", "qdots/analysis")
 #: The factors the pixels are multiplied by.
@@ -137,16 +136,12 @@ def results(halves: tuple[str, ...], only: list[str] | None = None, most: int | 
 
 
 def run(quick: bool) -> list:
-    """The development half (quick: its first 3 pictures)."""
+    """The development half and the EMPS edge cases (quick: the first 3 pictures, 3 runs each)."""
     return results(("dev",), most=3 if quick else None)
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--half", choices=("dev", "test", "all"), default="dev")
-    parser.add_argument("--only", nargs="*", default=None, metavar="ID")
-    return cli_with_options(parser, lambda args: results(("dev", "test") if args.half == "all" else (args.half,),
-                                                          args.only), argv)
+    return halves_main(results, __doc__.splitlines()[0], argv)
 
 
 if __name__ == "__main__":

@@ -17,13 +17,12 @@ Run: ``python -m benchmarks.micrograph_twins [--half dev|test|all] [--only ID ..
 
 from __future__ import annotations
 
-import argparse
 import math
 
 import numpy as np
 
-from .real_data import CREST_INSIDE, cache_folder, entries, half_depth_widths, reference
-from .report import Note, Table, cli_with_options
+from .real_data import CREST_INSIDE, cache_folder, entries, half_depth_widths, halves_main, reference
+from .report import Note, Table
 
 MEASURED_CODE = ("qdots/micrograph",)
 
@@ -122,11 +121,7 @@ def run(quick: bool) -> list:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--half", choices=("dev", "test", "all"), default="dev")
-    parser.add_argument("--only", nargs="*", default=None, metavar="ID")
-    return cli_with_options(parser, lambda args: results(("dev", "test") if args.half == "all" else (args.half,),
-                                                          args.only), argv)
+    return halves_main(results, __doc__.splitlines()[0], argv)
 
 
 if __name__ == "__main__":

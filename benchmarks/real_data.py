@@ -15,12 +15,14 @@ Fresnel fringe, 5-17 % outside the half-depth edge that line profiles and thresh
 
 from __future__ import annotations
 
+import argparse
 import hashlib
 import io
 import os
 import shutil
 import urllib.request
 import zipfile
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -105,6 +107,19 @@ def fetch(folder: Path | None = None, source: Path | None = None) -> list[tuple[
             except (OSError, ValueError, KeyError, zipfile.BadZipFile) as exc:
                 done.append((name, f"failed: {type(exc).__name__}: {exc}"))
     return done
+
+
+def halves_main(results: Callable[[tuple[str, ...], list[str] | None], list], description: str,
+                argv: list[str] | None = None) -> int:
+    """A real-micrograph benchmark's ``main``: ``--half dev|test|all`` (default dev) and ``--only ID ...``, then
+    ``results(halves, only)`` printed (`benchmarks.report.cli_with_options`)."""
+    from .report import cli_with_options
+
+    parser = argparse.ArgumentParser(description=description)
+    parser.add_argument("--half", choices=("dev", "test", "all"), default="dev")
+    parser.add_argument("--only", nargs="*", default=None, metavar="ID")
+    return cli_with_options(parser, lambda args: results(("dev", "test") if args.half == "all" else (args.half,),
+                                                          args.only), argv)
 
 
 def copy_cache(target: Path) -> None:
