@@ -182,7 +182,8 @@ def film_verdict(detection, max_outline: float = MAX_OUTLINE) -> tuple[list[str]
     if spread > MAX_FILM_SPREAD:
         doubts.append(f"the sizes vary {100 * spread:.0f} % (interquartile range): two populations, or false "
                       "detections? (see the size populations)")
-    repeat = float(np.nanmedian(detection.errors / detection.diameters))
+    relative = detection.errors / detection.diameters
+    repeat = float(np.nanmedian(relative)) if np.isfinite(relative).any() else 0.0  # (none: dots not yet fitted)
     if repeat > MAX_REPEAT_ERROR:
         doubts.append(f"the diameters measure {100 * repeat:.1f} % differently each time (clean films: under "
                       f"{100 * MAX_REPEAT_ERROR:.0f} %): a noisy or textured picture")

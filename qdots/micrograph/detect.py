@@ -124,7 +124,8 @@ SKEW_SIDE = 512
 
 
 def detect_dots(image, polarity: str = "auto", profile: str = "auto", ignore: np.ndarray | None = None,
-                window: tuple[int, int, int, int] | None = None, step=None, smoothing: float | None = None) -> Detection:
+                window: tuple[int, int, int, int] | None = None, step=None, smoothing: float | None = None,
+                screen=None) -> Detection:
     """Every dot of a grey image, with sub-pixel centres and fitted diameters (see the module docstring).
 
     Parameters
@@ -150,6 +151,12 @@ def detect_dots(image, polarity: str = "auto", profile: str = "auto", ignore: np
         Width (px) of the Gaussian the picture is smoothed by before it is thresholded into dot pixels (the fits are
         made on the picture smoothed by 1 px whatever it is). Default: 1 px, or more where the picture's grain or
         texture is finer than its dots (`TEXTURE_GROWTH`).
+    screen : callable, optional
+        Called with the dots as first found (`first_found`: their regions' shapes, the diameters of their lone fits),
+        before the profile is settled; where it returns true, the search stops there and returns them as they are
+        (``profile`` says so): the settling and the fits with the neighbours, most of the time a picture takes, are
+        spared where their first look already decides (a retry of `qdots.micrograph.measure` whose objects are not a
+        film of round particles).
 
     Returns
     -------
@@ -175,10 +182,14 @@ def detect_dots(image, polarity: str = "auto", profile: str = "auto", ignore: np
     if x1 - x0 < 2 or y1 - y0 < 2:
         return _empty((h, w), "no picture left inside the frame or strips", 0)
     inner = (slice(y0, y1), slice(x0, x1))
-    found = _detect(image[inner], polarity, profile, ignore[inner], step or (lambda stage: None), smoothing)
-    centres = found.centres + [x0, y0]
-    cut = found.cut | cut_dots(centres, found.diameters, (x0, y0, x1, y1), ignore)
-    return replace(found, centres=centres, cut=cut, image_shape=(h, w), window=(x0, y0, x1, y1))
+
+    def placed(found: Detection) -> Detection:  # from the picture inside the window to the image
+        centres = found.centres + [x0, y0]
+        cut = found.cut | cut_dots(centres, found.diameters, (x0, y0, x1, y1), ignore)
+        return replace(found, centres=centres, cut=cut, image_shape=(h, w), window=(x0, y0, x1, y1))
+
+    return placed(_detect(image[inner], polarity, profile, ignore[inner], step or (lambda stage: None), smoothing,
+                          None if screen is None else (lambda early: bool(screen(placed(early))))))
 
 
 def cut_dots(centres: np.ndarray, diameters: np.ndarray, window: tuple[int, int, int, int],
@@ -211,7 +222,7 @@ def first_look(unit: np.ndarray, ignore: np.ndarray, smoothing: float):
 
 
 def _detect(image: np.ndarray, polarity: str, profile: str, ignore: np.ndarray, step,
-            smoothing: float | None = None) -> Detection:
+            smoothing: float | None = None, screen=None) -> Detection:
     """`detect_dots` on an image without a frame; ``cut`` marks the dots whose watershed region touches its edge."""
     from skimage.filters import threshold_otsu
 
@@ -308,6 +319,10 @@ def _detect(image: np.ndarray, polarity: str, profile: str, ignore: np.ndarray, 
     ok = np.isfinite(first[0]) & (first[2] > 0)
     sure = ok & ~touches if (ok & ~touches).any() else ok
     typical = float(np.median(first[0][sure])) if sure.any() else radius
+    if screen is not None:
+        early = first_found(centres, first, ok, touches, shapes, dark, how, rejected, image.shape)
+        if screen(early):
+            return early
     step("settling the blur and background")
     shape, blur, level, level_map, how_shape, trimmed = settle_profile(target, centres, first[0], first[2], first[1], typical,
                                                               whole, profile)
@@ -379,6 +394,17 @@ def _detect(image: np.ndarray, polarity: str, profile: str, ignore: np.ndarray, 
         part[good] for part in (centres, fitted, contrast, touches, errors, shapes, widths))
     return Detection(centres, 2.0 * fitted, touches, contrast, dark, how, float(shape), how_shape,
                      float(np.median(blur)), rejected, (h, w), (0, 0, w, h), errors, shapes, widths)
+
+
+def first_found(centres, first, ok, touches, shapes, dark: bool, how: str, rejected: int, shape) -> Detection:
+    """The dots as first found, before the profile is settled: those whose lone fit (``first``: radius, background,
+    contrast, residual, `qdots.micrograph.profiles.fit_profiles`, at a projected sphere blurred by `FIRST_BLUR`)
+    succeeded (``ok``), with those fits' diameters and contrasts, their regions' ``shapes`` and no profile, blur or
+    measurement error (NaN)."""
+    n = int(np.count_nonzero(ok))
+    return Detection(centres[ok], 2.0 * first[0][ok], touches[ok], first[2][ok] / np.maximum(first[1][ok], 1e-12), dark,
+                     how, math.nan, "not fitted: the dots as first found, before the profile was settled", math.nan,
+                     rejected + len(ok) - n, tuple(shape), (0, 0, shape[1], shape[0]), np.full(n, np.nan), shapes[ok])
 
 
 def _empty(shape, how: str, rejected: int) -> Detection:

@@ -990,6 +990,56 @@ def test_rods_are_refused_with_their_shape_what_was_found_is_shown_and_force_mea
     assert "measured with --force" in film.summary["doubts"]
 
 
+def test_a_screen_stops_the_search_at_the_dots_as_first_found_and_in_the_images_coordinates():
+    """`detect_dots`'s ``screen`` sees the dots before the profile is settled, placed in the image (the window's
+    offset added, the dots the window's edge cuts marked); stopped there, they are returned unfitted, saying so; not
+    stopped, the search is the one without a screen, to the last bit."""
+    centres, diameters = sparse_board(300, 240, 16.0, 0.05, coverage=0.2, seed=3)
+    image = render_micrograph(centres, diameters, (240, 300), noise=0.02, seed=3)
+    window = (20, 10, 290, 230)
+    seen = []
+    early = detect_dots(image, polarity="dark", window=window, screen=lambda found: seen.append(found) or True)
+    full = detect_dots(image, polarity="dark", window=window)
+    assert len(seen) == 1 and seen[0] is not None
+    assert "not fitted" in early.profile and math.isnan(early.blur) and np.isnan(early.errors).all()
+    assert early.window == full.window == window
+    # the dots as first found lie where the fitted ones do, whole and cut alike
+    gap = np.hypot(*(early.centres[:, None, :] - full.centres[None, :, :]).T)
+    nearest = gap.argmin(axis=0)
+    assert np.median(gap.min(axis=0)) < 0.5 and np.mean(early.cut == full.cut[nearest]) >= 0.95
+    assert np.median(early.diameters) == pytest.approx(np.median(full.diameters), rel=0.1)
+    kept = detect_dots(image, polarity="dark", window=window, screen=lambda found: False)
+    for name in ("centres", "diameters", "cut", "contrast", "errors", "shapes"):
+        np.testing.assert_array_equal(getattr(kept, name), getattr(full, name))
+    assert (kept.profile, kept.blur) == (full.profile, full.blur)
+
+
+@pytest.mark.slow
+def test_a_retry_whose_dots_as_first_found_are_no_film_is_not_fitted_and_refuses_as_before(tmp_path, monkeypatch):
+    """A picture of rods: every retry (the other phase, two smoothings) is refused on its dots as first found, and
+    only the first detection has its profile settled; the refusal is the one the fitted retries gave."""
+    from qdots.micrograph import detect, measure
+
+    path = tmp_path / "rods.png"
+    rods_picture(path)
+    settled, found = [], detect.settle_profile
+
+    def counted(*args, **options):
+        settled.append(1)
+        return found(*args, **options)
+
+    monkeypatch.setattr(detect, "settle_profile", counted)
+    with pytest.raises(measure.NotAFilm) as screened:
+        measure_image(path, lqe=False)
+    assert len(settled) == 1
+    searched = measure.detect_dots
+    monkeypatch.setattr(measure, "detect_dots", lambda *args, screen=None, **options: searched(*args, **options))
+    with pytest.raises(measure.NotAFilm) as fitted:
+        measure_image(path, lqe=False)
+    assert len(settled) > 2
+    assert screened.value.reasons == fitted.value.reasons and str(screened.value) == str(fitted.value)
+
+
 def test_dots_stacked_on_a_neighbour_are_left_out_of_the_sizes():
     from qdots.micrograph.annotations import Annotations
     from qdots.micrograph.detect import Detection
