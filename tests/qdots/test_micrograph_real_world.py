@@ -1014,6 +1014,26 @@ def test_a_screen_stops_the_search_at_the_dots_as_first_found_and_in_the_images_
     assert (kept.profile, kept.blur) == (full.profile, full.blur)
 
 
+@pytest.mark.parametrize("n_dots, outline, stops", [(6, 0.03, False), (6, 0.3, False), (40, 0.3, True),
+                                                     (40, 0.03, False)])
+def test_a_retry_is_not_stopped_on_its_count_which_the_faint_dots_can_overturn(n_dots, outline, stops):
+    """EMPS 88808139d3 (test half): a smoothed retry showed 6 whole dots as first found and 10 once the faint dots the
+    threshold missed were added, a film; screened on its count, the picture was refused. The screen stops a retry on
+    every other verdict, never on the count."""
+    from qdots.micrograph.admit import film_verdict
+    from qdots.micrograph.detect import Detection
+    from qdots.micrograph.measure import refused
+
+    side = math.ceil(math.sqrt(n_dots))
+    centres = np.array([(30.0 + 40 * (k % side), 30.0 + 40 * (k // side)) for k in range(n_dots)])
+    shapes = np.column_stack([np.full(n_dots, 1.05), np.full(n_dots, outline), np.full(n_dots, 0.2)])
+    found = Detection(centres, np.full(n_dots, 20.0), np.zeros(n_dots, dtype=bool), np.full(n_dots, 0.3), True,
+                      "dark dots (given)", math.nan, "not fitted", math.nan, 0, (400, 400), (0, 0, 400, 400),
+                      np.full(n_dots, np.nan), shapes)
+    assert bool(film_verdict(found)[0]) == (n_dots < 10 or outline > 0.13)
+    assert refused(found) == stops
+
+
 @pytest.mark.slow
 def test_a_retry_whose_dots_as_first_found_are_no_film_is_not_fitted_and_refuses_as_before(tmp_path, monkeypatch):
     """A picture of rods: every retry (the other phase, two smoothings) is refused on its dots as first found, and
