@@ -56,7 +56,7 @@ from .annotations import find_strips
 from .choices import POLARITIES, PROFILES
 from .detection import Detection
 from .discs import discs_cover
-from .missed import missed_dots
+from .missed import missed_dots, most_missed
 from .polarity import blob_skewness, decide_polarity, edge_curvature, middle_window
 from .profiles import (
     BIN,
@@ -152,11 +152,12 @@ def detect_dots(image, polarity: str = "auto", profile: str = "auto", ignore: np
         made on the picture smoothed by 1 px whatever it is). Default: 1 px, or more where the picture's grain or
         texture is finer than its dots (`TEXTURE_GROWTH`).
     screen : callable, optional
-        Called with the dots as first found (`first_found`: their regions' shapes, the diameters of their lone fits),
-        before the profile is settled; where it returns true, the search stops there and returns them as they are
-        (``profile`` says so): the settling and the fits with the neighbours, most of the time a picture takes, are
-        spared where their first look already decides (a retry of `qdots.micrograph.measure` whose objects are not a
-        film of round particles).
+        Called with the dots as first found (`first_found`: their regions' shapes, the diameters of their lone fits)
+        and the most dots the picture's edge does not cut that the search can end with (`most_whole`), before the
+        profile is settled; where it returns true, the search stops there and returns them as they are (``profile``
+        says so): the settling and the fits with the neighbours, most of the time a picture takes, are spared where
+        their first look already decides (a retry of `qdots.micrograph.measure` whose objects are not a film of round
+        particles).
 
     Returns
     -------
@@ -189,7 +190,7 @@ def detect_dots(image, polarity: str = "auto", profile: str = "auto", ignore: np
         return replace(found, centres=centres, cut=cut, image_shape=(h, w), window=(x0, y0, x1, y1))
 
     return placed(_detect(image[inner], polarity, profile, ignore[inner], step or (lambda stage: None), smoothing,
-                          None if screen is None else (lambda early: bool(screen(placed(early))))))
+                          None if screen is None else (lambda early, most: bool(screen(placed(early), most)))))
 
 
 def cut_dots(centres: np.ndarray, diameters: np.ndarray, window: tuple[int, int, int, int],
@@ -321,7 +322,7 @@ def _detect(image: np.ndarray, polarity: str, profile: str, ignore: np.ndarray, 
     typical = float(np.median(first[0][sure])) if sure.any() else radius
     if screen is not None:
         early = first_found(centres, first, ok, touches, shapes, dark, how, rejected, image.shape)
-        if screen(early):
+        if screen(early, most_whole(touches, typical, image.shape)):
             return early
     step("settling the blur and background")
     shape, blur, level, level_map, how_shape, trimmed = settle_profile(target, centres, first[0], first[2], first[1], typical,
@@ -405,6 +406,15 @@ def first_found(centres, first, ok, touches, shapes, dark: bool, how: str, rejec
     return Detection(centres[ok], 2.0 * first[0][ok], touches[ok], first[2][ok] / np.maximum(first[1][ok], 1e-12), dark,
                      how, math.nan, "not fitted: the dots as first found, before the profile was settled", math.nan,
                      rejected + len(ok) - n, tuple(shape), (0, 0, shape[1], shape[0]), np.full(n, np.nan), shapes[ok])
+
+
+def most_whole(touches: np.ndarray, typical: float, shape) -> int:
+    """The most dots the picture's edge does not cut that a search can end with, from the regions found (``touches``:
+    whether each touches the edge of the picture, of ``shape``; ``typical``: their typical radius, px): the fits can
+    leave a dot out, or find that one the edge seemed to cut is whole (a smaller diameter than its lone fit's), but
+    add only the faint dots the threshold missed (`qdots.micrograph.missed.most_missed`), and a region that touches
+    the edge stays cut."""
+    return int(np.count_nonzero(~touches)) + most_missed(len(touches), typical, shape)
 
 
 def _empty(shape, how: str, rejected: int) -> Detection:

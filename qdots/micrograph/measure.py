@@ -238,15 +238,19 @@ def measure_image(path: str | os.PathLike, *, nm_per_px=None, scale_bar: str | N
     return film
 
 
-def refused(detection: Detection, max_outline: float = MAX_OUTLINE) -> bool:
-    """Whether ``detection``, with at least `qdots.micrograph.admit.MIN_FILM_DOTS` whole dots, is not a film of round
-    particles (`qdots.micrograph.admit.film_verdict`): the ``screen`` of the detections whose dots are kept only if they
-    are a film (`qdots.micrograph.detect.detect_dots`), which stops where the dots as first found already are not one.
-    With fewer whole dots it does not stop: the count is the one verdict the search for faint dots (after the
-    settling) can overturn, and does (on the development halves, retries grew from 8 to 10 whole dots, EMPS
-    d04d7ced9f, and from 5 to 10, e1adc2ba25; on the test half a film was lost when the count was screened: EMPS
-    88808139d3, 6 as first found, 10 fitted). Not the first detection either: there the fits change the verdict
-    (EMPS 891f96f60d's outlines wander 18 % as first found and 13 % fitted)."""
+def refused(detection: Detection, most_whole: int, max_outline: float = MAX_OUTLINE) -> bool:
+    """Whether ``detection``, the dots as first found, is not a film of round particles and no fit can make it one: the
+    ``screen`` of the detections whose dots are kept only if they are a film (`qdots.micrograph.detect.detect_dots`),
+    which stops there. Either the search cannot end with `qdots.micrograph.admit.MIN_FILM_DOTS` whole dots
+    (``most_whole``, `qdots.micrograph.detect.most_whole`: a bound, not a guess), or it shows that many and
+    `qdots.micrograph.admit.film_verdict` refuses them. With fewer whole dots, within the bound, it does not stop: the
+    count is the one verdict the search for faint dots (after the settling) can overturn, and does (on the development
+    halves, retries grew from 8 to 10 whole dots, EMPS d04d7ced9f, and from 5 to 10, e1adc2ba25; on the test half a
+    film was lost when the count was screened: EMPS 88808139d3, 6 as first found, 10 fitted). Not the first detection
+    either: there the fits change the verdict (EMPS 891f96f60d's outlines wander 18 % as first found and 13 %
+    fitted)."""
+    if most_whole < MIN_FILM_DOTS:
+        return True
     return int(np.count_nonzero(~detection.cut)) >= MIN_FILM_DOTS and bool(film_verdict(detection, max_outline)[0])
 
 
@@ -272,7 +276,8 @@ def smoothed_retry(pixels: np.ndarray, detection: Detection, refusals: list[str]
                 other: Detection | None = detect_dots(
                     pixels, polarity="dark" if dark else "light", profile=profile, ignore=found.ignore,
                     window=found.window, smoothing=smoothing,
-                    screen=lambda first: refused(as_taken(pixels, first, found.ignore)[1], ROUND_OUTLINE))
+                    screen=lambda first, most: most < MIN_FILM_DOTS or refused(as_taken(pixels, first, found.ignore)[1],
+                                                                              most, ROUND_OUTLINE))
                 if other is not None and other.n_dots:
                     taken, other = as_taken(pixels, other, found.ignore)
                 if other is not None and other.n_dots and not film_verdict(other, ROUND_OUTLINE)[0]:

@@ -45,6 +45,12 @@ ROUND, LARGEST = 0.8, 0.125
 COARSE_RADIUS = 4.0
 
 
+def most_missed(n_dots: int, typical: float, shape) -> int:
+    """The most faint dots `missed_dots` adds to ``n_dots`` dots found of a typical radius ``typical`` px on an image of
+    ``shape``: `MOST` of them and one, or none where dots that big leave no room to search (`LARGEST`)."""
+    return int(MOST * n_dots) + 1 if 0 < typical <= LARGEST * min(shape) else 0
+
+
 def missed_dots(image, refined, level_map, typical: float, shape: float, blur, noise: float,
                 trimmed: bool = False) -> np.ndarray:
     """Centres (x, y), px, of the dark discs the model leaves unexplained (see the module docstring), each fitted
@@ -73,7 +79,8 @@ def missed_dots(image, refined, level_map, typical: float, shape: float, blur, n
         hardly shows.
     """
     ok = np.isfinite(refined.contrast) & (refined.contrast > 0)
-    if not ok.any() or not 0 < typical <= LARGEST * min(image.shape):  # dots that big leave no room to search
+    most = most_missed(len(refined.radius), typical, image.shape)
+    if not ok.any() or not most:
         return np.zeros((0, 2))
     residual = np.nan_to_num(level_map - refined.model - image)
     # searched at half the resolution where dots are large enough (`COARSE_RADIUS`): the smoothed residual varies over
@@ -92,7 +99,7 @@ def missed_dots(image, refined, level_map, typical: float, shape: float, blur, n
     margin = int(math.ceil(typical / k))  # a dot the edge cuts is left to the segmentation
     clear[:margin], clear[-margin:], clear[:, :margin], clear[:, -margin:] = False, False, False, False
     peaks = spaced_maxima(np.where(clear, smooth, -np.inf), max(2, round(1.5 * typical / k)), floor)
-    peaks = peaks[: int(MOST * len(refined.radius)) + 1]
+    peaks = peaks[:most]
     if not len(peaks):
         return np.zeros((0, 2))
     extra = (peaks[:, ::-1] + 0.5) * k

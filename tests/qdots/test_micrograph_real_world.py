@@ -998,9 +998,9 @@ def test_a_screen_stops_the_search_at_the_dots_as_first_found_and_in_the_images_
     image = render_micrograph(centres, diameters, (240, 300), noise=0.02, seed=3)
     window = (20, 10, 290, 230)
     seen = []
-    early = detect_dots(image, polarity="dark", window=window, screen=lambda found: seen.append(found) or True)
+    early = detect_dots(image, polarity="dark", window=window, screen=lambda found, most: seen.append(most) or True)
     full = detect_dots(image, polarity="dark", window=window)
-    assert len(seen) == 1 and seen[0] is not None
+    assert len(seen) == 1 and seen[0] >= np.count_nonzero(~full.cut)
     assert "not fitted" in early.profile and math.isnan(early.blur) and np.isnan(early.errors).all()
     assert early.window == full.window == window
     # the dots as first found lie where the fitted ones do, whole and cut alike
@@ -1008,18 +1008,20 @@ def test_a_screen_stops_the_search_at_the_dots_as_first_found_and_in_the_images_
     nearest = gap.argmin(axis=0)
     assert np.median(gap.min(axis=0)) < 0.5 and np.mean(early.cut == full.cut[nearest]) >= 0.95
     assert np.median(early.diameters) == pytest.approx(np.median(full.diameters), rel=0.1)
-    kept = detect_dots(image, polarity="dark", window=window, screen=lambda found: False)
+    kept = detect_dots(image, polarity="dark", window=window, screen=lambda found, most: False)
     for name in ("centres", "diameters", "cut", "contrast", "errors", "shapes"):
         np.testing.assert_array_equal(getattr(kept, name), getattr(full, name))
     assert (kept.profile, kept.blur) == (full.profile, full.blur)
 
 
-@pytest.mark.parametrize("n_dots, outline, stops", [(6, 0.03, False), (6, 0.3, False), (40, 0.3, True),
-                                                     (40, 0.03, False)])
-def test_a_retry_is_not_stopped_on_its_count_which_the_faint_dots_can_overturn(n_dots, outline, stops):
+@pytest.mark.parametrize("n_dots, outline, most, stops", [(6, 0.03, 10, False), (6, 0.3, 10, False),
+                                                           (40, 0.3, 100, True), (40, 0.03, 100, False),
+                                                           (6, 0.03, 9, True), (6, 0.3, 9, True)])
+def test_a_retry_is_not_stopped_on_its_count_which_the_faint_dots_can_overturn(n_dots, outline, most, stops):
     """EMPS 88808139d3 (test half): a smoothed retry showed 6 whole dots as first found and 10 once the faint dots the
     threshold missed were added, a film; screened on its count, the picture was refused. The screen stops a retry on
-    every other verdict, never on the count."""
+    every other verdict, and on the count only where the search cannot end with 10 whole dots (``most``, the bound
+    `qdots.micrograph.detect.most_whole` gives)."""
     from qdots.micrograph.admit import film_verdict
     from qdots.micrograph.detect import Detection
     from qdots.micrograph.measure import refused
@@ -1031,7 +1033,63 @@ def test_a_retry_is_not_stopped_on_its_count_which_the_faint_dots_can_overturn(n
                       "dark dots (given)", math.nan, "not fitted", math.nan, 0, (400, 400), (0, 0, 400, 400),
                       np.full(n_dots, np.nan), shapes)
     assert bool(film_verdict(found)[0]) == (n_dots < 10 or outline > 0.13)
-    assert refused(found) == stops
+    assert refused(found, most) == stops
+
+
+@pytest.mark.parametrize("kind", ["sparse", "touching", "large"])
+def test_the_most_whole_dots_a_search_can_end_with_is_a_bound(kind):
+    """The screen's ``most`` (`qdots.micrograph.detect.most_whole`) bounds the whole dots the search ends with: on a
+    sparse film, on touching flat discs whose faint dots the threshold misses and the residual's search adds
+    (`qdots.micrograph.missed`), and on a few large discs, too large for that search, where it is under 10."""
+    if kind == "sparse":
+        centres, diameters = sparse_board(300, 240, 16.0, 0.05, coverage=0.2, seed=3)
+        image = render_micrograph(centres, diameters, (240, 300), noise=0.02, seed=3)
+    elif kind == "touching":
+        centres, diameters = superlattice_board(240, 240, 16.5, 0.07, 1.0, seed=1, vacancies=0.0)
+        image = render_micrograph(centres, diameters, (240, 240), profile=0.0, blur=2.0, noise=0.03, illumination=0.2,
+                                  contrast=0.5, seed=1)
+    else:
+        centres = np.array([(70.0, 70.0), (190.0, 80.0), (80.0, 190.0), (200.0, 200.0), (140.0, 135.0)])
+        image = render_micrograph(centres, np.full(5, 70.0), (270, 270), noise=0.02, seed=2)
+    seen, first_whole = [], []
+    found = detect_dots(image, polarity="dark",
+                        screen=lambda first, most: seen.append(most) or first_whole.append(np.sum(~first.cut)) or False)
+    whole = int(np.count_nonzero(~found.cut))
+    assert len(seen) == 1 and whole <= seen[0]
+    if kind == "touching":  # the count rose past the dots as first found (180 -> 187), within the bound (239)
+        assert "faint dots the threshold missed" in found.profile and whole > first_whole[0]
+    if kind == "large":
+        assert seen[0] < 10 and whole == 5
+
+
+def test_a_picture_of_a_few_large_objects_is_refused_without_fitting_its_retries(tmp_path, monkeypatch):
+    """Five large discs: under 10 whole dots, the first detection is refused; no retry (the other phase, two
+    smoothings) can end with 10 whole dots (`qdots.micrograph.detect.most_whole`), so none has its profile settled
+    (the SEM blood cells of the development half: 45 s -> 22 s), and the refusal is the one the fitted retries gave."""
+    from qdots.micrograph import detect, measure
+
+    centres = np.array([(70.0, 70.0), (190.0, 80.0), (80.0, 190.0), (200.0, 200.0), (140.0, 135.0)])
+    image = render_micrograph(centres, np.full(5, 70.0), (270, 270), noise=0.02, seed=2)
+    path = tmp_path / "few.png"
+    Image.fromarray((255 * np.clip(image, 0, 1)).astype(np.uint8)).save(path)
+    settled, found = [], detect.settle_profile
+
+    def counted(*args, **options):
+        settled.append(1)
+        return found(*args, **options)
+
+    monkeypatch.setattr(detect, "settle_profile", counted)
+    with pytest.raises(measure.NotAFilm) as bounded:
+        measure_image(path, lqe=False)
+    assert len(settled) == 1
+    searched = measure.detect_dots
+    monkeypatch.setattr(measure, "detect_dots", lambda *args, screen=None, **options: searched(
+        *args, screen=None if screen is None else (lambda first, most: screen(first, 10**9)), **options))
+    with pytest.raises(measure.NotAFilm) as fitted:
+        measure_image(path, lqe=False)
+    assert len(settled) > 2
+    assert bounded.value.reasons == fitted.value.reasons and str(bounded.value) == str(fitted.value)
+    assert "only 5 round objects" in bounded.value.reasons[0]
 
 
 @pytest.mark.slow
