@@ -1066,40 +1066,25 @@ def test_a_picture_of_a_few_large_objects_is_refused_without_fitting_its_retries
     """Five large discs: under 10 whole dots, the first detection is refused; no retry (the other phase, two
     smoothings) can end with 10 whole dots (`qdots.micrograph.detect.most_whole`), so none has its profile settled
     (the SEM blood cells of the development half: 45 s -> 22 s), and the refusal is the one the fitted retries gave."""
-    from qdots.micrograph import detect, measure
-
     centres = np.array([(70.0, 70.0), (190.0, 80.0), (80.0, 190.0), (200.0, 200.0), (140.0, 135.0)])
     image = render_micrograph(centres, np.full(5, 70.0), (270, 270), noise=0.02, seed=2)
     path = tmp_path / "few.png"
     Image.fromarray((255 * np.clip(image, 0, 1)).astype(np.uint8)).save(path)
-    settled, found = [], detect.settle_profile
 
-    def counted(*args, **options):
-        settled.append(1)
-        return found(*args, **options)
-
-    monkeypatch.setattr(detect, "settle_profile", counted)
-    with pytest.raises(measure.NotAFilm) as bounded:
-        measure_image(path, lqe=False)
-    assert len(settled) == 1
-    searched = measure.detect_dots
-    monkeypatch.setattr(measure, "detect_dots", lambda *args, screen=None, **options: searched(
-        *args, screen=None if screen is None else (lambda first, most: screen(first, 10**9)), **options))
-    with pytest.raises(measure.NotAFilm) as fitted:
-        measure_image(path, lqe=False)
-    assert len(settled) > 2
-    assert bounded.value.reasons == fitted.value.reasons and str(bounded.value) == str(fitted.value)
-    assert "only 5 round objects" in bounded.value.reasons[0]
+    def unbounded(search):
+        return (lambda *args, screen=None, **options: search(
+            *args, screen=None if screen is None else (lambda first, most: screen(first, 10**9)), **options))
+    bounded, settled, fitted, settled_fitted = refusals_screened_and_fitted(path, monkeypatch, unbounded)
+    assert settled == 1 and settled_fitted > 2
+    assert bounded.reasons == fitted.reasons and str(bounded) == str(fitted)
+    assert "only 5 round objects" in bounded.reasons[0]
 
 
-@pytest.mark.slow
-def test_a_retry_whose_dots_as_first_found_are_no_film_is_not_fitted_and_refuses_as_before(tmp_path, monkeypatch):
-    """A picture of rods: every retry (the other phase, two smoothings) is refused on its dots as first found, and
-    only the first detection has its profile settled; the refusal is the one the fitted retries gave."""
+def refusals_screened_and_fitted(path, monkeypatch, unscreened):
+    """`measure_image`'s refusal of the picture at ``path``, as it is and with `detect_dots` wrapped by ``unscreened``
+    (which changes or drops the retries' screens), each with the number of profiles it settled."""
     from qdots.micrograph import detect, measure
 
-    path = tmp_path / "rods.png"
-    rods_picture(path)
     settled, found = [], detect.settle_profile
 
     def counted(*args, **options):
@@ -1109,13 +1094,25 @@ def test_a_retry_whose_dots_as_first_found_are_no_film_is_not_fitted_and_refuses
     monkeypatch.setattr(detect, "settle_profile", counted)
     with pytest.raises(measure.NotAFilm) as screened:
         measure_image(path, lqe=False)
-    assert len(settled) == 1
-    searched = measure.detect_dots
-    monkeypatch.setattr(measure, "detect_dots", lambda *args, screen=None, **options: searched(*args, **options))
+    first = len(settled)
+    monkeypatch.setattr(measure, "detect_dots", unscreened(measure.detect_dots))
     with pytest.raises(measure.NotAFilm) as fitted:
         measure_image(path, lqe=False)
-    assert len(settled) > 2
-    assert screened.value.reasons == fitted.value.reasons and str(screened.value) == str(fitted.value)
+    return screened.value, first, fitted.value, len(settled) - first
+
+
+@pytest.mark.slow
+def test_a_retry_whose_dots_as_first_found_are_no_film_is_not_fitted_and_refuses_as_before(tmp_path, monkeypatch):
+    """A picture of rods: every retry (the other phase, two smoothings) is refused on its dots as first found, and
+    only the first detection has its profile settled; the refusal is the one the fitted retries gave."""
+    path = tmp_path / "rods.png"
+    rods_picture(path)
+
+    def unscreened(search):
+        return (lambda *args, screen=None, **options: search(*args, **options))
+    screened, settled, fitted, settled_fitted = refusals_screened_and_fitted(path, monkeypatch, unscreened)
+    assert settled == 1 and settled_fitted > 1
+    assert screened.reasons == fitted.reasons and str(screened) == str(fitted)
 
 
 def test_dots_stacked_on_a_neighbour_are_left_out_of_the_sizes():
